@@ -1,0 +1,23 @@
+# camtool: `make demo` runs the sample job, `make test` runs the tests.
+# Both set up .venv first; set-up is idempotent (a stamp file records the
+# hash of pyproject.toml, so a second run installs nothing).
+PY      := .venv/bin/python
+STAMP   := .venv/.setup-stamp
+HASH    := $(shell sha256sum pyproject.toml | cut -c1-16)
+
+.PHONY: setup demo test bench clean
+
+setup:
+	@bash scripts/setup.sh
+
+demo: setup
+	$(PY) -m camtool.cli run samples/sphere.toml -o out/sphere
+
+test: setup
+	$(PY) -m pytest
+
+bench: setup
+	@for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+
+clean:
+	rm -rf out .pytest_cache

@@ -1,0 +1,74 @@
+"""camtool's command line: a click group; each command is thin and lives in
+``camtool/commands/``. Errors become one line on stderr and an exit code:
+0 ok, 2 bad input, 3 plan infeasible, 4 stage not available, 1 internal error.
+"""
+from __future__ import annotations
+
+import sys
+import traceback
+
+import click
+
+from . import __version__
+from .errors import CamtoolError
+
+
+class CamtoolGroup(click.Group):
+    """A click group that turns exceptions into one line and an exit code."""
+
+    def invoke(self, ctx):
+        debug = "--debug" in sys.argv[1:]
+        try:
+            return super().invoke(ctx)
+        except CamtoolError as exc:
+            if debug:
+                traceback.print_exc()
+            click.echo(f"camtool: error: {exc}", err=True)
+            ctx.exit(exc.exit_code)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
+        except KeyboardInterrupt:
+            click.echo("camtool: interrupted", err=True)
+            ctx.exit(130)
+        except Exception as exc:  # an internal error: one line, traceback with --debug
+            if debug:
+                traceback.print_exc()
+            first = str(exc).splitlines()[0] if str(exc) else ""
+            click.echo(f"camtool: internal error: {type(exc).__name__}: {first} "
+                       "(rerun with --debug for the traceback, and please report it)", err=True)
+            ctx.exit(1)
+
+
+@click.group(cls=CamtoolGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(__version__, "--version", prog_name="camtool")
+@click.option("--debug", is_flag=True, help="Show the Python traceback of an error.")
+def cli(debug: bool) -> None:
+    """camtool: offline CAM for robot surface work.
+
+    A workpiece (mesh or point cloud) goes in; a fitted surface, an S-shaped
+    raster path, a planned and timed joint trajectory, and controller
+    programs (ABB RAPID, Yaskawa INFORM, CSV) come out.
+
+    Exit codes: 0 ok, 2 bad input, 3 plan cannot be done, 4 stage not
+    available yet, 1 internal error.
+    """
+
+
+def _register() -> None:
+    from .commands import fk, robots, run
+
+    for module in (robots, fk, run):
+        cli.add_command(module.command)
+    # Stage commands added by later stages register here, one line each.
+
+
+_register()
+
+
+def main() -> None:
+    """Console-script entry point."""
+    cli(prog_name="camtool")
+
+
+if __name__ == "__main__":
+    main()

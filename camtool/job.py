@@ -1,0 +1,299 @@
+"""Job files (TOML): schema, defaults and validation with precise messages.
+
+A job has the sections ``workpiece``, ``fit``, ``raster``, ``robot``, ``cell``,
+``tool``, ``planner``, ``timing`` and ``post``. Every key has a default
+(``SCHEMA``); docs/job-file.md is generated from it (``python -m
+camtool.job --markdown``) and a test keeps the two in step.
+
+Errors name the file, the key path, what was expected and what was found::
+
+    job.toml: raster.step_over_mm: expected a number > 0, found -5
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from .errors import BadInput
+
+
+@dataclass(frozen=True)
+class Key:
+    """One job-file key: its kind, default, doc line and optional check."""
+
+    kind: str  # float | int | str | bool | vec3 | floats | strs | table
+    default: Any
+    doc: str
+    choices: tuple = ()
+    check: Callable[[Any], bool] | None = None
+    expect: str = ""  # wording of the check for error messages
+
+
+def _pos(doc, default, unit=""):
+    return Key("float", default, doc, check=lambda x: x > 0, expect=f"a number > 0{unit}")
+
+
+def _nonneg(doc, default):
+    return Key("float", default, doc, check=lambda x: x >= 0, expect="a number >= 0")
+
+
+def _angle89(doc):
+    return Key("float", 0.0, doc, check=lambda x: -89 <= x <= 89, expect="an angle within -89..89 deg")
+
+
+SCHEMA: dict[str, dict[str, Key]] = {
+    "workpiece": {
+        "file": Key("str", "", "Mesh (STL, OBJ, PLY, OFF, GLB) or point cloud (PLY, PCD, XYZ, CSV, TXT); relative to the job file."),
+        "units": Key("str", "mm", "Length unit of the file; everything becomes mm.", choices=("mm", "m", "in")),
+        "sample_points": Key("int", 100000, "Points sampled (area-weighted) from a mesh.", check=lambda x: x >= 100, expect="an integer >= 100"),
+        "normal_neighbours": Key("int", 30, "Neighbours used to estimate point-cloud normals.", check=lambda x: x >= 3, expect="an integer >= 3"),
+    },
+    "fit": {
+        "model": Key("str", "auto", "Surface model; auto takes the one with most inliers (a huge sphere counts as a plane).", choices=("auto", "plane", "sphere")),
+        "threshold_mm": _pos("RANSAC inlier distance.", 0.5, " mm"),
+        "iterations": Key("int", 1000, "RANSAC hypotheses per model.", check=lambda x: x >= 1, expect="an integer >= 1"),
+        "min_inlier_ratio": Key("float", 0.2, "Smallest inlier share a model must reach.", check=lambda x: 0 < x <= 1, expect="a number in (0, 1]"),
+        "seed": Key("int", 0, "Random seed: the same seed gives the same fit."),
+        "boundary_cell_mm": _pos("Cell size of the occupancy image used to find the boundary.", 2.0, " mm"),
+        "close_gaps_mm": _nonneg("Gaps in the material up to this width are closed before contours are taken.", 6.0),
+        "simplify_mm": _nonneg("Boundary polygons are simplified to this tolerance.", 0.5),
+    },
+    "raster": {
+        "step_over_mm": _pos("Distance between rows, measured on the surface (geodesic on a sphere).", 10.0, " mm"),
+        "pitch_mm": _pos("Spacing of points along a row, measured on the surface.", 5.0, " mm"),
+        "angle_deg": Key("float", 0.0, "Row direction in the (u, v) domain, from the u axis."),
+        "lead_mm": _nonneg("Lead-in / lead-out length beyond the boundary at each segment end.", 20.0),
+        "clearance_mm": _nonneg("Lift of lead and transition points along the surface normal.", 0.0),
+        "transition_points": Key("int", 5, "Poses in each self-motion zone between segments.", check=lambda x: x >= 2, expect="an integer >= 2"),
+        "tool_x": Key("str", "fixed", "Tool x axis: a fixed world direction, or the travel direction.", choices=("fixed", "travel")),
+        "tool_x_world": Key("vec3", [0.0, 0.0, 1.0], "World direction the tool x axis follows when tool_x = 'fixed'."),
+        "lead_deg": _angle89("Lead angle: tilt of the tool about its y axis, in the travel direction."),
+        "tilt_deg": _angle89("Side-tilt angle: tilt of the tool about the travel direction."),
+        "free_spin": Key("bool", False, "Rotation about tool z is free (symmetric tools); the planner may use it as redundancy."),
+    },
+    "robot": {
+        "name": Key("str", "seed8", "Built-in robot (seed8, irb2400, irb2400_paper, sia20) or a .toml / .urdf file."),
+        "params": Key("table", {}, "Named lengths of a parametric robot, in mm (seed8: L1, L2, L3, L4)."),
+        "home_deg": Key("floats", [], "Start configuration (deg, mm for prismatic joints); empty = found by the planner."),
+    },
+    "cell": {
+        "base_xyz_mm": Key("vec3", [0.0, 0.0, 0.0], "Robot base position in the world frame."),
+        "base_rpy_deg": Key("vec3", [0.0, 0.0, 0.0], "Robot base orientation (fixed-axis roll, pitch, yaw)."),
+        "workpiece_xyz_mm": Key("vec3", [0.0, 0.0, 0.0], "Workpiece frame position in the world frame."),
+        "workpiece_rpy_deg": Key("vec3", [0.0, 0.0, 0.0], "Workpiece frame orientation (fixed-axis roll, pitch, yaw)."),
+    },
+    "tool": {
+        "name": Key("str", "tool0", "Tool name written to controller programs."),
+        "tcp_xyz_mm": Key("vec3", [0.0, 0.0, 0.0], "Tool centre point in the flange frame."),
+        "tcp_rpy_deg": Key("vec3", [0.0, 0.0, 0.0], "Tool frame orientation in the flange frame."),
+        "mass_kg": _nonneg("Tool mass for controller tool data.", 1.0),
+    },
+    "planner": {
+        "method": Key("str", "seed", "seed = CWLN + gradient projection + reverse planning; general = CWLN alone (the paper's baseline).", choices=("seed", "general")),
+        "damping": _pos("Damping lambda of the least-norm solve (mm).", 1.0),
+        "orientation_weight_mm": _pos("Length that weighs orientation error against position error: 1 rad counts as this many mm.", 200.0),
+        "position_tol_mm": _pos("IK position tolerance.", 1e-4, " mm"),
+        "orientation_tol_deg": _pos("IK orientation tolerance.", 1e-4, " deg"),
+        "max_iterations": Key("int", 100, "IK iterations per point.", check=lambda x: x >= 1, expect="an integer >= 1"),
+        "clamp_buffer_deg": _pos("Width of the buffer inside each revolute limit where the clamping weight falls to 0.", 10.0),
+        "clamp_buffer_mm": _pos("The same buffer for prismatic joints.", 50.0),
+        "jump_threshold_deg": _pos("A revolute joint step above this between adjacent points is a jump.", 50.0),
+        "jump_threshold_mm": _pos("A track step above this between adjacent points is a jump.", 100.0),
+        "reverse_samples": Key("int", 50, "Random IK solutions tried by reverse planning.", check=lambda x: x >= 1, expect="an integer >= 1"),
+        "seed": Key("int", 0, "Random seed for reverse planning and start-configuration search."),
+    },
+    "timing": {
+        "method": Key("str", "quintic", "Interpolation on work zones: quintic polynomials (the paper) or ruckig.", choices=("quintic", "ruckig")),
+        "tcp_speed_mm_s": _pos("TCP speed on work zones.", 100.0, " mm/s"),
+        "check_dt_ms": _pos("Step at which the independent checker resamples the trajectory.", 4.0, " ms"),
+    },
+    "post": {
+        "formats": Key("strs", ["rapid", "inform", "csv"], "Post-processor plugins to run (see `camtool posts`)."),
+        "program_name": Key("str", "CAMTOOL", "Program / job name (sanitised per controller)."),
+        "profiles": Key("table", {}, "Controller profile file per format, e.g. {rapid = 'my_irc5.toml'}; default: the shipped profile for the robot."),
+        "csv_angle_unit": Key("str", "deg", "Angle unit of CSV output.", choices=("deg", "rad")),
+    },
+}
+
+
+class Section(dict):
+    """A job section: a dict whose keys are also attributes."""
+
+    __getattr__ = dict.__getitem__
+
+
+@dataclass(frozen=True)
+class Job:
+    """A validated job: every key present (defaults filled), plus its file."""
+
+    path: Path
+    sections: dict[str, Section]
+
+    def __getattr__(self, name: str) -> Section:
+        try:
+            return self.sections[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    @property
+    def dir(self) -> Path:
+        return self.path.parent
+
+    def resolve(self, file: str) -> Path:
+        """A path from the job file, relative to the job's folder."""
+        p = Path(file)
+        return p if p.is_absolute() else self.dir / p
+
+    def as_dict(self) -> dict:
+        return {name: dict(sec) for name, sec in self.sections.items()}
+
+
+def _describe(value) -> str:
+    return repr(value) if not isinstance(value, dict) else "a table"
+
+
+def _coerce(key: Key, value, where: str):
+    def fail(expect):
+        raise BadInput(f"{where}: expected {expect}, found {_describe(value)}")
+
+    def number(x):
+        return not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x)
+
+    k = key.kind
+    if k == "float":
+        if not number(value):
+            fail(key.expect or "a number")
+        value = float(value)
+    elif k == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            fail(key.expect or "an integer")
+    elif k == "str":
+        if not isinstance(value, str):
+            fail("a string")
+        if key.choices and value not in key.choices:
+            fail("one of " + ", ".join(repr(c) for c in key.choices))
+    elif k == "bool":
+        if not isinstance(value, bool):
+            fail("true or false")
+    elif k == "vec3":
+        if not (isinstance(value, list) and len(value) == 3 and all(number(x) for x in value)):
+            fail("a list of 3 numbers")
+        value = [float(x) for x in value]
+    elif k == "floats":
+        if not (isinstance(value, list) and all(number(x) for x in value)):
+            fail("a list of numbers")
+        value = [float(x) for x in value]
+    elif k == "strs":
+        if not (isinstance(value, list) and all(isinstance(x, str) for x in value)):
+            fail("a list of strings")
+    elif k == "table":
+        if not isinstance(value, dict):
+            fail("a table")
+    if key.check is not None and not key.check(value):
+        fail(key.expect)
+    return value
+
+
+def parse_override(text: str) -> tuple[str, str, Any]:
+    """Parse ``section.key=VALUE`` (VALUE as a TOML value, or a bare string)."""
+    if "=" not in text or "." not in text.split("=", 1)[0]:
+        raise BadInput(f"--set {text!r}: expected SECTION.KEY=VALUE, e.g. raster.step_over_mm=5")
+    path, raw = text.split("=", 1)
+    section, key = path.strip().split(".", 1)
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw  # a bare word such as plane or ruckig
+    return section, key, value
+
+
+def validate(data: dict, source: str, overrides: list[str] = ()) -> dict[str, Section]:
+    """Check a parsed job against SCHEMA, fill defaults, apply ``--set`` overrides."""
+    data = {k: dict(v) if isinstance(v, dict) else v for k, v in data.items()}
+    for text in overrides:
+        section, key, value = parse_override(text)
+        if section not in SCHEMA or key not in SCHEMA[section]:
+            raise BadInput(f"--set {section}.{key}: unknown key (see docs/job-file.md)")
+        data.setdefault(section, {})[key] = value
+    sections = {}
+    for name in data:
+        if name not in SCHEMA:
+            raise BadInput(f"{source}: {name}: unknown section (expected one of {', '.join(SCHEMA)})")
+        if not isinstance(data[name], dict):
+            raise BadInput(f"{source}: {name}: expected a [{name}] table, found {_describe(data[name])}")
+    for name, keys in SCHEMA.items():
+        given = data.get(name, {})
+        for k in given:
+            if k not in keys:
+                raise BadInput(f"{source}: {name}.{k}: unknown key (expected one of {', '.join(keys)})")
+        sec = Section()
+        for k, key in keys.items():
+            value = given.get(k, key.default)
+            sec[k] = _coerce(key, value, f"{source}: {name}.{k}") if k in given else _copy(key.default)
+        sections[name] = sec
+    return sections
+
+
+def _copy(v):
+    return list(v) if isinstance(v, list) else dict(v) if isinstance(v, dict) else v
+
+
+def load_job(path: str | Path, overrides: list[str] = ()) -> Job:
+    """Read and validate a job file; raises BadInput naming the file and key."""
+    p = Path(path)
+    if p.is_dir():
+        raise BadInput(f"{p}: is a directory, expected a job file (.toml)")
+    try:
+        text = p.read_text()
+    except FileNotFoundError:
+        raise BadInput(f"{p}: job file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BadInput(f"{p}: cannot read job file ({exc})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise BadInput(f"{p}: TOML syntax error: {exc}") from None
+    job = Job(p, validate(data, str(p), overrides))
+    _check_cross(job)
+    return job
+
+
+def _check_cross(job: Job) -> None:
+    """Checks that involve more than one key or the file system."""
+    from .robots import BUILTIN_ROBOTS
+
+    name = job.robot.name
+    if name not in BUILTIN_ROBOTS:
+        if not name.lower().endswith((".toml", ".urdf")):
+            raise BadInput(f"{job.path}: robot.name: expected a built-in robot ({', '.join(BUILTIN_ROBOTS)}) "
+                           f"or a .toml/.urdf file, found {name!r}")
+        if not job.resolve(name).is_file():
+            raise BadInput(f"{job.path}: robot.name: robot file {job.resolve(name)} not found")
+    if not job.workpiece.file:
+        raise BadInput(f"{job.path}: workpiece.file: expected the workpiece file name, found nothing")
+
+
+def schema_markdown() -> str:
+    """The job-file reference as Markdown (docs/job-file.md)."""
+    lines = ["# Job-file reference", "",
+             "A job is a TOML file. Every key is optional and has the default shown; relative",
+             "file names are taken from the job file's folder. Generated from `camtool/job.py`",
+             "by `python -m camtool.job --markdown`.", ""]
+    for name, keys in SCHEMA.items():
+        lines += [f"## [{name}]", "", "| key | type | default | meaning |", "|---|---|---|---|"]
+        for k, key in keys.items():
+            extra = f" One of: {', '.join(key.choices)}." if key.choices else ""
+            default = repr(key.default).replace("'", '"')
+            lines.append(f"| `{k}` | {key.kind} | `{default}` | {key.doc}{extra} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    import sys
+
+    if "--markdown" in sys.argv:
+        print(schema_markdown(), end="")

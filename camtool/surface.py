@@ -1,0 +1,220 @@
+"""Fitted surfaces with a 2-D parameter domain (u, v) and a material boundary.
+
+Two kinds:
+- ``PlaneSurface``: u, v are in-plane coordinates in mm along ``u_axis`` and
+  ``v_axis`` from ``origin_mm``; the normal points out of the material, towards
+  the tool side.
+- ``SpherePatch``: u is the azimuth and v the elevation in **radians** in the
+  patch frame ``frame`` (columns e1, e2, e3; e1 is the patch's mean direction
+  from the centre, e3 is "up"):
+  ``p(u, v) = c + R (cos v cos u e1 + cos v sin u e2 + sin v e3)``.
+  The normal is the outward radial direction (worked from outside).
+
+The boundary is a set of polygons in (u, v): one outer contour and any number
+of holes; material is inside the outer polygon and outside every hole.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path as FsPath
+
+import numpy as np
+from matplotlib.path import Path as MplPath
+
+from .errors import BadInput
+
+
+@dataclass(frozen=True)
+class Boundary:
+    """Material region in the (u, v) domain: an outer polygon and holes (K x 2 each)."""
+
+    outer_uv: np.ndarray
+    holes_uv: tuple[np.ndarray, ...] = ()
+
+    def contains(self, uv: np.ndarray) -> np.ndarray:
+        """Boolean mask: which (u, v) rows lie on material (inside outer, outside holes)."""
+        uv = np.atleast_2d(uv)
+        inside = MplPath(self.outer_uv).contains_points(uv)
+        for hole in self.holes_uv:
+            inside &= ~MplPath(hole).contains_points(uv)
+        return inside
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(min_uv, max_uv) of the outer polygon."""
+        return self.outer_uv.min(axis=0), self.outer_uv.max(axis=0)
+
+    def to_dict(self) -> dict:
+        return {
+            "outer_uv": np.round(self.outer_uv, 9).tolist(),
+            "holes_uv": [np.round(h, 9).tolist() for h in self.holes_uv],
+        }
+
+    @staticmethod
+    def from_dict(d: dict) -> "Boundary":
+        outer = np.asarray(d["outer_uv"], dtype=float).reshape(-1, 2)
+        holes = tuple(np.asarray(h, dtype=float).reshape(-1, 2) for h in d.get("holes_uv", []))
+        return Boundary(outer, holes)
+
+
+@dataclass(frozen=True)
+class FitStats:
+    """Quality of a fit: inlier share, residuals (mm) and the number of points used."""
+
+    inlier_ratio: float
+    rms_mm: float
+    max_residual_mm: float
+    n_points: int
+    n_inliers: int
+
+
+@dataclass(frozen=True)
+class PlaneSurface:
+    """A plane n.x = offset_mm with an in-plane (u, v) frame in mm."""
+
+    origin_mm: np.ndarray
+    normal: np.ndarray
+    u_axis: np.ndarray
+    v_axis: np.ndarray
+    boundary: Boundary
+    stats: FitStats | None = None
+    model: str = field(default="plane", init=False)
+    uv_unit: str = field(default="mm", init=False)
+
+    @property
+    def offset_mm(self) -> float:
+        return float(self.normal @ self.origin_mm)
+
+    def point_mm(self, u, v) -> np.ndarray:
+        """Points (..., 3) in mm at parameters u, v (mm)."""
+        u = np.asarray(u, dtype=float)[..., None]
+        v = np.asarray(v, dtype=float)[..., None]
+        return self.origin_mm + u * self.u_axis + v * self.v_axis
+
+    def normal_at(self, u, v) -> np.ndarray:
+        """Outward unit normals (..., 3) at u, v."""
+        shape = np.broadcast(np.asarray(u), np.asarray(v)).shape
+        return np.broadcast_to(self.normal, shape + (3,)).copy()
+
+    def uv_from_points(self, points_mm: np.ndarray) -> np.ndarray:
+        """(N, 2) parameters of points projected onto the plane."""
+        d = np.asarray(points_mm) - self.origin_mm
+        return np.stack([d @ self.u_axis, d @ self.v_axis], axis=-1)
+
+    def metric_scale(self, uv: np.ndarray) -> np.ndarray:
+        """(N, 2) mm per unit of u and of v at uv (1 for a plane)."""
+        return np.ones_like(np.atleast_2d(uv), dtype=float)
+
+    def to_dict(self) -> dict:
+        d = {
+            "model": "plane",
+            "normal": self.normal.tolist(),
+            "offset_mm": self.offset_mm,
+            "origin_mm": self.origin_mm.tolist(),
+            "u_axis": self.u_axis.tolist(),
+            "v_axis": self.v_axis.tolist(),
+            "uv_unit": "mm",
+            "boundary": self.boundary.to_dict(),
+        }
+        return _with_stats(d, self.stats)
+
+
+@dataclass(frozen=True)
+class SpherePatch:
+    """A patch of a sphere, parameterised by azimuth u and elevation v (rad)."""
+
+    center_mm: np.ndarray
+    radius_mm: float
+    frame: np.ndarray  # 3x3, columns e1 (mean direction), e2, e3
+    boundary: Boundary
+    stats: FitStats | None = None
+    model: str = field(default="sphere", init=False)
+    uv_unit: str = field(default="rad", init=False)
+
+    def _direction(self, u, v) -> np.ndarray:
+        u = np.asarray(u, dtype=float)
+        v = np.asarray(v, dtype=float)
+        local = np.stack([np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v) * np.ones_like(u)], axis=-1)
+        return local @ self.frame.T
+
+    def point_mm(self, u, v) -> np.ndarray:
+        """Points (..., 3) in mm at azimuth u and elevation v (rad)."""
+        return self.center_mm + self.radius_mm * self._direction(u, v)
+
+    def normal_at(self, u, v) -> np.ndarray:
+        """Outward unit normals (..., 3) at u, v."""
+        return self._direction(u, v)
+
+    def uv_from_points(self, points_mm: np.ndarray) -> np.ndarray:
+        """(N, 2) azimuth and elevation (rad) of points seen from the centre."""
+        local = (np.asarray(points_mm) - self.center_mm) @ self.frame
+        r = np.linalg.norm(local, axis=-1)
+        u = np.arctan2(local[..., 1], local[..., 0])
+        v = np.arcsin(np.clip(local[..., 2] / np.maximum(r, 1e-12), -1, 1))
+        return np.stack([u, v], axis=-1)
+
+    def metric_scale(self, uv: np.ndarray) -> np.ndarray:
+        """(N, 2) mm per rad of u (R cos v) and of v (R) at uv."""
+        uv = np.atleast_2d(uv)
+        return np.stack([self.radius_mm * np.cos(uv[:, 1]), np.full(len(uv), self.radius_mm)], axis=-1)
+
+    def to_dict(self) -> dict:
+        d = {
+            "model": "sphere",
+            "center_mm": self.center_mm.tolist(),
+            "radius_mm": float(self.radius_mm),
+            "frame": self.frame.tolist(),
+            "uv_unit": "rad",
+            "boundary": self.boundary.to_dict(),
+        }
+        return _with_stats(d, self.stats)
+
+
+Surface = PlaneSurface | SpherePatch
+
+
+def _with_stats(d: dict, stats: FitStats | None) -> dict:
+    if stats is not None:
+        d.update(
+            inlier_ratio=stats.inlier_ratio,
+            rms_mm=stats.rms_mm,
+            max_residual_mm=stats.max_residual_mm,
+            n_points=stats.n_points,
+            n_inliers=stats.n_inliers,
+        )
+    return d
+
+
+def surface_from_dict(d: dict) -> Surface:
+    """Rebuild a surface from ``to_dict`` output."""
+    stats = None
+    if "inlier_ratio" in d:
+        stats = FitStats(d["inlier_ratio"], d["rms_mm"], d["max_residual_mm"], d["n_points"], d["n_inliers"])
+    boundary = Boundary.from_dict(d["boundary"])
+    if d["model"] == "plane":
+        return PlaneSurface(
+            np.asarray(d["origin_mm"], float), np.asarray(d["normal"], float),
+            np.asarray(d["u_axis"], float), np.asarray(d["v_axis"], float), boundary, stats,
+        )
+    if d["model"] == "sphere":
+        return SpherePatch(
+            np.asarray(d["center_mm"], float), float(d["radius_mm"]),
+            np.asarray(d["frame"], float), boundary, stats,
+        )
+    raise BadInput(f"surface model {d['model']!r} is not 'plane' or 'sphere'")
+
+
+def save_surface(surface: Surface, path: str | FsPath) -> None:
+    """Write a surface as JSON."""
+    FsPath(path).write_text(json.dumps(surface.to_dict(), indent=1) + "\n")
+
+
+def load_surface(path: str | FsPath) -> Surface:
+    """Read a surface saved by ``save_surface``."""
+    p = FsPath(path)
+    try:
+        return surface_from_dict(json.loads(p.read_text()))
+    except FileNotFoundError:
+        raise BadInput(f"{p}: surface file not found") from None
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise BadInput(f"{p}: not a camtool surface file ({exc})") from None

@@ -1,0 +1,40 @@
+"""Rigid transforms: 4x4 homogeneous matrices in mm, quaternions as (w, x, y, z).
+
+Conventions, written down once:
+- A pose ``T`` is a 4x4 matrix mapping child-frame coordinates to the parent
+  frame; translations are in mm.
+- Quaternions are scalar-first (w, x, y, z) everywhere camtool shows them.
+- ``rpy_deg`` is roll, pitch, yaw about fixed x, y, z axes (extrinsic XYZ), in
+  degrees, as in URDF.
+"""
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+def matrix_from_xyz_rpy(xyz_mm, rpy_deg) -> np.ndarray:
+    """4x4 pose from a translation in mm and fixed-axis roll/pitch/yaw in degrees."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("xyz", rpy_deg, degrees=True).as_matrix()
+    T[:3, 3] = xyz_mm
+    return T
+
+
+def quaternion_wxyz_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a 3x3 rotation, with w >= 0."""
+    x, y, z, w = Rotation.from_matrix(R[:3, :3]).as_quat()
+    q = np.array([w, x, y, z])
+    return -q if q[0] < 0 else q
+
+
+def invert(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid 4x4 transform."""
+    Ti = np.eye(4)
+    Ti[:3, :3] = T[:3, :3].T
+    Ti[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return Ti
+
+
+def rotation_angle_rad(Ra: np.ndarray, Rb: np.ndarray) -> float:
+    """Angle in rad of the rotation taking Ra to Rb (0..pi)."""
+    c = (np.trace(Ra[:3, :3].T @ Rb[:3, :3]) - 1.0) / 2.0
+    return float(np.arccos(np.clip(c, -1.0, 1.0)))
