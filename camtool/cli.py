@@ -27,6 +27,8 @@ class CamtoolGroup(click.Group):
             ctx.exit(exc.exit_code)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
+        except BrokenPipeError:
+            raise
         except KeyboardInterrupt:
             click.echo("camtool: interrupted", err=True)
             ctx.exit(130)
@@ -67,7 +69,13 @@ _register()
 
 def main() -> None:
     """Console-script entry point."""
-    cli(prog_name="camtool")
+    try:
+        cli(prog_name="camtool")
+    except BrokenPipeError:  # e.g. `camtool robots | head`: not an error
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        sys.exit(0)
 
 
 if __name__ == "__main__":

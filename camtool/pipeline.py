@@ -51,11 +51,39 @@ class RunResult:
     files: list[Path] = field(default_factory=list)
 
 
-def run_job(job: Job, outdir: Path) -> RunResult:
-    """Run every stage of ``job``; programs and the report go into ``outdir``."""
+def workpiece_for_job(job: Job, done: list[str] | None = None):
+    """Load the job's workpiece and place it in the world frame (cell.workpiece_*)."""
+    from .transforms import matrix_from_xyz_rpy
+
+    wp = stage_function("workpiece", done or [])(
+        job.resolve(job.workpiece.file), units=job.workpiece.units,
+        sample_points=job.workpiece.sample_points,
+        normal_neighbours=job.workpiece.normal_neighbours, seed=job.fit.seed)
+    return wp.transformed(matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg))
+
+
+def surface_for_job(job: Job, workpiece, done: list[str] | None = None):
+    """Fit the job's surface (world frame) to a placed workpiece."""
+    return stage_function("fit", done or ["workpiece"])(workpiece, **job.fit)
+
+
+def path_for_job(job: Job, surface, done: list[str] | None = None):
+    """Raster the job's surface into a tool Path (world frame)."""
+    return stage_function("raster", done or ["workpiece", "fit"])(surface, **job.raster)
+
+
+def robot_for_job(job: Job):
+    """The job's robot with its base placement and tool."""
     from .robots import get_robot
     from .transforms import matrix_from_xyz_rpy
 
+    return get_robot(job.robot.name, job.robot.params, job.dir).with_placement(
+        matrix_from_xyz_rpy(job.cell.base_xyz_mm, job.cell.base_rpy_deg),
+        matrix_from_xyz_rpy(job.tool.tcp_xyz_mm, job.tool.tcp_rpy_deg))
+
+
+def run_job(job: Job, outdir: Path) -> RunResult:
+    """Run every stage of ``job``; programs and the report go into ``outdir``."""
     r = RunResult()
 
     def done(name, value):
@@ -63,19 +91,10 @@ def run_job(job: Job, outdir: Path) -> RunResult:
         r.stages.append(name)
         return value
 
-    cell = job.cell
-    load = stage_function("workpiece", r.stages)
-    wp = load(job.resolve(job.workpiece.file), units=job.workpiece.units,
-              sample_points=job.workpiece.sample_points,
-              normal_neighbours=job.workpiece.normal_neighbours, seed=job.fit.seed)
-    wp = done("workpiece", wp.transformed(matrix_from_xyz_rpy(cell.workpiece_xyz_mm, cell.workpiece_rpy_deg)))
-
-    surface = done("fit", stage_function("fit", r.stages)(wp, **job.fit))
-    path = done("raster", stage_function("raster", r.stages)(surface, **job.raster))
-
-    robot = get_robot(job.robot.name, job.robot.params, job.dir).with_placement(
-        matrix_from_xyz_rpy(cell.base_xyz_mm, cell.base_rpy_deg),
-        matrix_from_xyz_rpy(job.tool.tcp_xyz_mm, job.tool.tcp_rpy_deg))
+    wp = done("workpiece", workpiece_for_job(job, r.stages))
+    surface = done("fit", surface_for_job(job, wp, r.stages))
+    path = done("raster", path_for_job(job, surface, r.stages))
+    robot = robot_for_job(job)
     plan = stage_function("plan", r.stages)
     joint_path = done("plan", plan(path, robot, home_deg=job.robot.home_deg, **job.planner))
     time = stage_function("time", r.stages)

@@ -36,5 +36,7 @@ def invert(T: np.ndarray) -> np.ndarray:
 
 def rotation_angle_rad(Ra: np.ndarray, Rb: np.ndarray) -> float:
     """Angle in rad of the rotation taking Ra to Rb (0..pi)."""
-    c = (np.trace(Ra[:3, :3].T @ Rb[:3, :3]) - 1.0) / 2.0
-    return float(np.arccos(np.clip(c, -1.0, 1.0)))
+    R = Ra[:3, :3].T @ Rb[:3, :3]
+    s = 0.5 * np.linalg.norm([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    c = (np.trace(R) - 1.0) / 2.0
+    return float(np.arctan2(s, c))  # accurate near 0, unlike arccos

@@ -8,6 +8,7 @@ says otherwise.
 """
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from xml.sax.saxutils import escape
 
@@ -58,7 +59,9 @@ def robot_from_urdf(path: Path, flange_link: str | None = None) -> Robot:
 
 def _origin(T_mm: np.ndarray) -> str:
     xyz = T_mm[:3, 3] * MM_TO_M
-    rpy = Rotation.from_matrix(T_mm[:3, :3]).as_euler("xyz")
+    with warnings.catch_warnings():  # gimbal lock still gives a valid rpy
+        warnings.simplefilter("ignore")
+        rpy = Rotation.from_matrix(T_mm[:3, :3]).as_euler("xyz")
     return (f'<origin xyz="{xyz[0]:.12g} {xyz[1]:.12g} {xyz[2]:.12g}" '
             f'rpy="{rpy[0]:.15g} {rpy[1]:.15g} {rpy[2]:.15g}"/>')
 

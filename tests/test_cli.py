@@ -1,0 +1,55 @@
+"""CLI basics: version, robots, fk, error mapping and the stage-unavailable rule."""
+import json
+
+import numpy as np
+import pytest
+
+from camtool import pipeline
+from camtool.errors import StageUnavailable
+
+from conftest import run_camtool
+
+
+def test_version(cli):
+    r = cli("--version")
+    assert r.exit_code == 0 and "camtool" in r.output
+
+
+def test_fk_seed8_home_json(cli):
+    r = cli("fk", "seed8", *[0] * 8, "--json")
+    assert r.exit_code == 0
+    d = json.loads(r.output)
+    assert np.allclose(d["position_mm"], [0, 0, 1448])
+    assert np.allclose(d["quaternion_wxyz"], [1, 0, 0, 0])
+
+
+def test_fk_degrees(cli):
+    r = cli("fk", "sia20", 90, 0, 0, 0, 0, 0, 0, "--deg", "--json")
+    assert np.allclose(json.loads(r.output)["position_mm"], [0, 0, 1291])
+
+
+def test_fk_negative_values_and_wrong_count(cli):
+    assert cli("fk", "irb2400", "-0.5", 0, 0, 0, 0, 0).exit_code == 0
+    r = cli("fk", "irb2400", 0, 0)
+    assert r.exit_code == 2 and "has 6 joints" in r.output
+
+
+def test_robots_json_lists_four_with_limits(cli):
+    r = cli("robots", "--json")
+    robots = {d["name"]: d for d in json.loads(r.output)}
+    assert set(robots) == {"seed8", "irb2400", "irb2400_paper", "sia20"}
+    seed8 = robots["seed8"]
+    assert seed8["dof"] == 8 and seed8["joints"][0]["type"] == "prismatic"
+    assert seed8["joints"][0]["lower"] == -1000 and seed8["joints"][1]["upper"] == pytest.approx(170)
+    assert robots["irb2400"]["joints"][1]["lower"] == pytest.approx(-100)
+
+
+def test_unknown_robot_one_line_exit_2():
+    r = run_camtool("fk", "ur5", 0)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "unknown robot" in r.stderr
+
+
+def test_missing_stage_raises_unavailable(monkeypatch):
+    monkeypatch.setattr(pipeline, "STAGES", pipeline.STAGES + (("teleport", "camtool.no_such_stage", "go"),))
+    with pytest.raises(StageUnavailable, match="stage 'teleport' is not available.*after 'plan'"):
+        pipeline.stage_function("teleport", ["fit", "plan"])
