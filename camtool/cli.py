@@ -57,11 +57,10 @@ def cli(debug: bool) -> None:
 
 
 def _register() -> None:
-    from .commands import fk, robots, run
+    from .commands import check, fit, fk, posts, raster, robots, run
 
-    for module in (robots, fk, run):
+    for module in (robots, fk, fit, raster, run, posts, check):
         cli.add_command(module.command)
-    # Stage commands added by later stages register here, one line each.
 
 
 _register()

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from .errors import StageUnavailable
+from .errors import PlanInfeasible, StageUnavailable
 from .job import Job
 
 STAGES = (
@@ -82,23 +82,85 @@ def robot_for_job(job: Job):
         matrix_from_xyz_rpy(job.tool.tcp_xyz_mm, job.tool.tcp_rpy_deg))
 
 
-def run_job(job: Job, outdir: Path) -> RunResult:
-    """Run every stage of ``job``; programs and the report go into ``outdir``."""
+def plan_and_time(job: Job, path, robot, method: str | None = None):
+    """Plan and time ``path`` with the job's planner (or another ``method``)."""
+    planner = dict(job.planner)
+    if method:
+        planner["method"] = method
+    joint_path = stage_function("plan", ["raster"])(path, robot, home_deg=job.robot.home_deg, **planner)
+    trajectory = stage_function("time", ["plan"])(joint_path, path, robot, **job.timing)
+    return joint_path, trajectory
+
+
+def _report_unreachable(exc: PlanInfeasible, path, robot, job: Job, outdir: Path) -> None:
+    """Write report.json and a PNG map of unreachable poses for an infeasible plan."""
+    from .report import plot_unreachable, write_json_atomic
+
+    unreachable = exc.report.get("unreachable", [])
+    report = {"robot": robot.name, "method": job.planner.method, "status": "infeasible",
+              "reason": str(exc), "points_total": len(path), "unreachable_count": len(unreachable),
+              "unreachable": unreachable}
+    if unreachable:
+        report["unreachable_map"] = str(plot_unreachable(path, unreachable, outdir / "plots" / "unreachable.png"))
+    write_json_atomic(report, outdir / "report.json")
+
+
+def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | None = None) -> RunResult:
+    """Run every stage of ``job``; programs, report.json, points.csv and plots go into ``outdir``.
+
+    No program is written unless planning, timing, the independent trajectory
+    check and every program check succeed.
+    """
+    from .report import plan_metrics, plot_joints, write_json_atomic, write_points_csv
+    from .timing import check_trajectory, timing_report
+
+    outdir = Path(outdir)
     r = RunResult()
+    tick = on_stage or (lambda name: None)
 
     def done(name, value):
         r.outputs[name] = value
         r.stages.append(name)
+        tick(name)
         return value
 
     wp = done("workpiece", workpiece_for_job(job, r.stages))
     surface = done("fit", surface_for_job(job, wp, r.stages))
     path = done("raster", path_for_job(job, surface, r.stages))
     robot = robot_for_job(job)
-    plan = stage_function("plan", r.stages)
-    joint_path = done("plan", plan(path, robot, home_deg=job.robot.home_deg, **job.planner))
-    time = stage_function("time", r.stages)
-    trajectory = done("time", time(joint_path, path, robot, **job.timing))
-    post = stage_function("post", r.stages)
-    r.files = done("post", post(trajectory, robot, job, Path(outdir)))
+    try:
+        joint_path, trajectory = plan_and_time(job, path, robot)
+    except PlanInfeasible as exc:
+        _report_unreachable(exc, path, robot, job, outdir)
+        raise
+    done("plan", joint_path)
+    done("time", trajectory)
+    findings = check_trajectory(trajectory, robot, job.timing.check_dt_ms / 1000.0)
+    if findings:
+        raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
+    r.files = list(done("post", stage_function("post", r.stages)(trajectory, robot, job, outdir)))
+
+    report = plan_metrics(path, joint_path, robot, job.planner.method,
+                          job.planner.jump_threshold_deg, job.planner.jump_threshold_mm)
+    report.update(timing_report(trajectory, robot, job.timing.check_dt_ms / 1000.0))
+    report["limits_ok"] = True  # the independent check above passed
+    report["status"] = "ok"
+    trajectories = {job.planner.method: trajectory}
+    if compare:
+        other = "general" if job.planner.method == "seed" else "seed"
+        try:
+            jp2, tr2 = plan_and_time(job, path, robot, other)
+            trajectories[other] = tr2
+            report["compare"] = {**plan_metrics(path, jp2, robot, other, job.planner.jump_threshold_deg,
+                                                job.planner.jump_threshold_mm),
+                                 **timing_report(tr2, robot, job.timing.check_dt_ms / 1000.0)}
+        except PlanInfeasible as exc:
+            report["compare"] = {"method": other, "status": "infeasible", "reason": str(exc)}
+    plots = plot_joints(trajectories, robot, outdir / "plots")
+    write_points_csv(path, joint_path, robot, outdir / "points.csv")
+    report["programs"] = [str(f) for f in r.files]
+    report["plots"] = [str(f) for f in plots]
+    write_json_atomic(report, outdir / "report.json")
+    r.outputs["report"] = report
+    r.files += [outdir / "report.json", outdir / "points.csv", *plots]
     return r

@@ -28,6 +28,7 @@ class JointPath:
     retract: np.ndarray           # (N,) bool: pose belongs to a retract-reorient-return move
     singular: np.ndarray          # (N,) bool: fallback singular point
     reached: np.ndarray           # (N,) bool: IK converged within tolerance
+    events: dict = field(default_factory=dict)  # planner events: reverse plans, retracts, ...
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,75 @@
+"""``camtool fit``: load a workpiece and fit a plane or sphere patch with its boundary."""
+from pathlib import Path
+
+import click
+import numpy as np
+
+from ..console import echo_json
+from ..fit import fit_surface
+from ..surface import PlaneSurface, save_surface
+from ..workpiece import load_workpiece
+
+
+def surface_summary(surface) -> dict:
+    """The JSON summary of a fitted surface (parameters, statistics, boundary)."""
+    d = {"model": surface.model}
+    if isinstance(surface, PlaneSurface):
+        d.update(normal=surface.normal, offset_mm=surface.offset_mm)
+    else:
+        d.update(center_mm=surface.center_mm, radius_mm=float(surface.radius_mm))
+    s = surface.stats
+    d.update(inlier_ratio=s.inlier_ratio, rms_mm=s.rms_mm, max_residual_mm=s.max_residual_mm,
+             n_points=s.n_points, n_inliers=s.n_inliers)
+    d["boundary"] = {"uv_unit": surface.uv_unit, **surface.boundary.to_dict()}
+    return d
+
+
+@click.command("fit")
+@click.argument("input_file", metavar="INPUT", type=click.Path(path_type=Path))
+@click.option("--model", type=click.Choice(["auto", "plane", "sphere"]), default="auto", show_default=True,
+              help="Surface model; auto takes the one with most inliers (a plane when a plane explains the data).")
+@click.option("--threshold", "threshold_mm", type=click.FloatRange(min=0, min_open=True), default=0.5,
+              show_default=True, help="RANSAC inlier distance in mm.")
+@click.option("--units", type=click.Choice(["mm", "m", "in"]), default="mm", show_default=True,
+              help="Length unit of INPUT; everything becomes mm.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Random seed (same seed, same fit).")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON for scripts.")
+@click.option("--save", type=click.Path(path_type=Path), default=None,
+              help="Write the surface as JSON (camtool surface file).")
+def command(input_file: Path, model: str, threshold_mm: float, units: str, seed: int, as_json: bool,
+            save: Path | None) -> None:
+    """Fit a plane or sphere patch to INPUT (mesh or point cloud) in its own frame.
+
+    Meshes: STL, OBJ, PLY, OFF, GLB (STEP with camtool[step]). Point clouds:
+    PLY without faces, PCD, XYZ, CSV, TXT. Prints the parameters in mm, the
+    inlier ratio, RMS and largest residual of the inliers, and the boundary.
+    """
+    wp = load_workpiece(input_file, units=units, seed=seed)
+    for w in wp.warnings:
+        click.echo(f"camtool: warning: {w}", err=True)
+    surface = fit_surface(wp, model=model, threshold_mm=threshold_mm, seed=seed)
+    if save is not None:
+        save_surface(surface, save)
+    if as_json:
+        echo_json(surface_summary(surface))
+        return
+    s, b = surface.stats, surface.boundary
+    rows = [("model", surface.model)]
+    if isinstance(surface, PlaneSurface):
+        n = surface.normal
+        rows += [("normal", f"{n[0]:.6f} {n[1]:.6f} {n[2]:.6f}"), ("offset_mm", f"{surface.offset_mm:.4f}")]
+    else:
+        c = surface.center_mm
+        rows += [("center_mm", f"{c[0]:.4f} {c[1]:.4f} {c[2]:.4f}"), ("radius_mm", f"{surface.radius_mm:.4f}")]
+    lo, hi = b.bounds()
+    unit = surface.uv_unit
+    if unit == "rad":
+        lo, hi, unit = np.degrees(lo), np.degrees(hi), "deg"
+    rows += [("inliers", f"{s.n_inliers} of {s.n_points} ({100 * s.inlier_ratio:.1f} %)"),
+             ("rms_mm", f"{s.rms_mm:.4f}"), ("max_residual_mm", f"{s.max_residual_mm:.4f}"),
+             ("boundary", f"{len(b.outer_uv)} vertices, {len(b.holes_uv)} holes, "
+                          f"u {lo[0]:.2f}..{hi[0]:.2f} v {lo[1]:.2f}..{hi[1]:.2f} {unit}")]
+    for key, value in rows:
+        click.echo(f"{key:<16} {value}")
+    if save is not None:
+        click.echo(f"{'saved':<16} {save}")

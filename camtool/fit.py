@@ -1,0 +1,284 @@
+"""RANSAC plane and sphere fitting, least-squares refinement, model choice and boundary.
+
+The RANSAC is written here in vectorised numpy rather than taken from a
+library: open3d's ``segment_plane`` has no sphere model and its result depends
+on thread scheduling (not seeded-deterministic), and pyransac3d scores one
+hypothesis at a time on every point (slow, see benchmarks/fit_speed.py). Here
+all minimal-sample hypotheses are built at once, scored in batches on a random
+subsample, the best few are rescored (MSAC cost) on all points, and the winner
+is refined by least squares on its inliers:
+
+- plane: total least squares (SVD of the centred inliers);
+- sphere: Gauss-Newton on the geometric residual |p - c| - R.
+
+Every random draw comes from ``numpy.random.default_rng([seed, model])``:
+the same seed gives the same surface, and ``auto`` fits each model exactly as
+an explicit ``plane`` or ``sphere`` would.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .boundary import boundary_from_uv
+from .errors import BadInput
+from .surface import FitStats, PlaneSurface, SpherePatch
+
+MIN_POINTS = {"plane": 3, "sphere": 4}
+SUBSAMPLE = 4000          # points used to score every hypothesis
+TOP_K = 8                 # hypotheses rescored on all points
+BATCH = 256               # hypotheses scored per numpy batch
+LARGE_SPHERE_FACTOR = 10.0  # a sphere wider than this many cloud extents is a plane
+PLANE_MARGIN = 0.02       # plane wins if its inliers are within 2 % of the sphere's
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """A refined model in world mm: params (plane: n, d; sphere: c, R) and inlier mask."""
+
+    model: str
+    params: tuple
+    inliers: np.ndarray
+    residuals_mm: np.ndarray  # absolute residual of every point
+
+    @property
+    def n_inliers(self) -> int:
+        return int(self.inliers.sum())
+
+
+def _plane_hypotheses(P: np.ndarray, idx: np.ndarray):
+    a, b, c = P[idx[:, 0]], P[idx[:, 1]], P[idx[:, 2]]
+    n = np.cross(b - a, c - a)
+    norm = np.linalg.norm(n, axis=1)
+    scale = np.linalg.norm(b - a, axis=1) * np.linalg.norm(c - a, axis=1)
+    ok = norm > 1e-6 * np.maximum(scale, 1e-300)
+    n = n[ok] / norm[ok, None]
+    return n, np.einsum("ij,ij->i", n, a[ok])
+
+
+def _plane_residuals(P: np.ndarray, n: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(len(P), H) absolute distances to H planes."""
+    return np.abs(P @ n.T - d)
+
+
+def _sphere_hypotheses(P: np.ndarray, idx: np.ndarray, max_radius: float):
+    """Spheres through 4 points: 2 (p_i - p_0) . c' = |p_i - p_0|^2, batched 3x3 solves."""
+    p0 = P[idx[:, 0]]
+    A = P[idx[:, 1:]] - p0[:, None, :]
+    b = 0.5 * np.einsum("hij,hij->hi", A, A)
+    det = np.linalg.det(A)
+    scale = np.prod(np.linalg.norm(A, axis=2), axis=1)
+    ok = np.abs(det) > 1e-6 * np.maximum(scale, 1e-300)
+    A[~ok] = np.eye(3)
+    cprime = np.linalg.solve(A, b[..., None])[..., 0]
+    r = np.linalg.norm(cprime, axis=1)
+    ok &= np.isfinite(r) & (r < max_radius)
+    return cprime[ok] + p0[ok], r[ok]
+
+
+def _sphere_residuals(P: np.ndarray, P2: np.ndarray, c: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(len(P), H) absolute distances to H spheres; P2 = |P|^2 (rows)."""
+    d2 = P2[:, None] - 2.0 * (P @ c.T) + np.einsum("ij,ij->i", c, c)
+    return np.abs(np.sqrt(np.maximum(d2, 0.0)) - r)
+
+
+def _ransac(P: np.ndarray, model: str, iterations: int, thr: float, rng: np.random.Generator,
+            extent: float):
+    """Best hypothesis (params) by subsample inlier count, then full-data MSAC cost."""
+    n_pts = len(P)
+    idx = rng.integers(0, n_pts, size=(iterations, MIN_POINTS[model]))
+    sub = P[rng.choice(n_pts, SUBSAMPLE, replace=False)] if n_pts > SUBSAMPLE else P
+    if model == "plane":
+        hyp = _plane_hypotheses(P, idx)
+        resid = lambda Q, s, e: _plane_residuals(Q, hyp[0][s:e], hyp[1][s:e])  # noqa: E731
+    else:
+        hyp = _sphere_hypotheses(P, idx, 1e3 * extent)
+        sub2, all2 = np.einsum("ij,ij->i", sub, sub), np.einsum("ij,ij->i", P, P)
+        resid = lambda Q, s, e: _sphere_residuals(  # noqa: E731
+            Q, sub2 if Q is sub else all2, hyp[0][s:e], hyp[1][s:e])
+    n_hyp = len(hyp[0])
+    if n_hyp == 0:
+        return None
+    counts = np.concatenate([(resid(sub, s, min(s + BATCH, n_hyp)) < thr).sum(axis=0)
+                             for s in range(0, n_hyp, BATCH)])
+    top = np.argsort(-counts, kind="stable")[:TOP_K]
+    cost = [float((np.minimum(resid(P, i, i + 1)[:, 0], thr) ** 2).sum()) for i in top]
+    best = int(top[int(np.argmin(cost))])
+    return tuple(h[best] for h in hyp)
+
+
+def _refine_plane(P, n, d, thr, rounds=3):
+    for _ in range(rounds):
+        inl = np.abs(P @ n - d) < thr
+        if inl.sum() < 3:
+            break
+        Q = P[inl]
+        mean = Q.mean(axis=0)
+        D = Q - mean
+        _, vecs = np.linalg.eigh(D.T @ D)  # 3x3 scatter: smallest eigenvector is the normal
+        n_new = vecs[:, 0] if vecs[:, 0] @ n >= 0 else -vecs[:, 0]
+        n, d = n_new, float(n_new @ mean)
+    return n, d
+
+
+def _refine_sphere(P, c, r, thr, rounds=3, steps=6):
+    for _ in range(rounds):
+        inl = np.abs(np.linalg.norm(P - c, axis=1) - r) < thr
+        if inl.sum() < 4:
+            break
+        Q = P[inl]
+        for _ in range(steps):  # Gauss-Newton on f_i = |q_i - c| - r
+            diff = Q - c
+            dist = np.linalg.norm(diff, axis=1)
+            J = np.hstack([-diff / dist[:, None], -np.ones((len(Q), 1))])
+            f = dist - r
+            # lstsq on the 4x4 normal equations: a huge sphere (flat data) is near singular
+            step = np.linalg.lstsq(J.T @ J, -J.T @ f, rcond=None)[0]
+            c, r = c + step[:3], r + step[3]
+            if not np.isfinite(r) or np.abs(step).max() < 1e-9:
+                break
+        if not np.isfinite(r):
+            break
+    return c, float(r)
+
+
+def fit_model(points_mm: np.ndarray, model: str, threshold_mm: float = 0.5, iterations: int = 1000,
+              seed: int = 0, source: str = "points") -> ModelFit | None:
+    """RANSAC + least-squares fit of one model ('plane' or 'sphere') to points (mm).
+
+    Returns None when the data cannot hold the model (degenerate samples only).
+    """
+    P_world = np.asarray(points_mm, dtype=float)
+    centroid = P_world.mean(axis=0)
+    P = P_world - centroid  # centred: keeps |p|^2 expansions well conditioned
+    extent = float(np.linalg.norm(P.max(axis=0) - P.min(axis=0)))
+    rng = np.random.default_rng([seed, 0 if model == "plane" else 1])
+    best = _ransac(P, model, iterations, threshold_mm, rng, extent)
+    if best is None:
+        return None
+    if model == "plane":
+        n, d = _refine_plane(P, best[0], float(best[1]), threshold_mm)
+        res = np.abs(P @ n - d)
+        params = (n, d + float(n @ centroid))
+    else:
+        c, r = _refine_sphere(P, best[0], float(best[1]), threshold_mm)
+        if not (np.isfinite(r) and np.isfinite(c).all()):
+            return None
+        res = np.abs(np.linalg.norm(P - c, axis=1) - r)
+        params = (c + centroid, r)
+    return ModelFit(model, params, res < threshold_mm, res)
+
+
+def _shape_check(P: np.ndarray, model: str, source: str) -> bool:
+    """Raise on too few / coincident / collinear points; False when too flat for a sphere."""
+    need = MIN_POINTS["plane" if model == "auto" else model]
+    if len(P) < need:
+        raise BadInput(f"{source}: {len(P)} points, but a {'plane' if model == 'auto' else model} "
+                       f"needs at least {need}; give a denser scan or mesh")
+    D = P - P.mean(axis=0)
+    s = np.sqrt(np.maximum(np.linalg.eigvalsh(D.T @ D)[::-1], 0.0))  # singular values
+    if s[0] == 0:
+        raise BadInput(f"{source}: all points coincide; the file holds no surface")
+    if s[1] < 1e-6 * s[0]:
+        raise BadInput(f"{source}: the points lie on a line, so no plane or sphere is defined; "
+                       "check the scan or mesh")
+    return s[2] >= 1e-6 * s[0] and len(P) >= MIN_POINTS["sphere"]
+
+
+def _choose(plane: ModelFit | None, sphere: ModelFit | None, extent: float) -> ModelFit:
+    """Most inliers wins, but a plane wins whenever it explains the data about as well."""
+    if sphere is None:
+        return plane
+    if plane is None:
+        return sphere
+    if sphere.params[1] > LARGE_SPHERE_FACTOR * extent:
+        return plane
+    if plane.n_inliers >= (1.0 - PLANE_MARGIN) * sphere.n_inliers:
+        return plane
+    return sphere
+
+
+def fit_surface(workpiece, model: str = "auto", threshold_mm: float = 0.5, iterations: int = 1000,
+                min_inlier_ratio: float = 0.2, seed: int = 0, boundary_cell_mm: float = 2.0,
+                close_gaps_mm: float = 6.0, simplify_mm: float = 0.5) -> PlaneSurface | SpherePatch:
+    """Fit a plane or sphere patch (world mm) to a Workpiece, with its (u, v) boundary.
+
+    ``model`` is 'plane', 'sphere' or 'auto'. Raises BadInput when the points
+    are degenerate or no model reaches ``min_inlier_ratio``.
+    """
+    if model not in ("auto", "plane", "sphere"):
+        raise BadInput(f"fit.model: expected 'auto', 'plane' or 'sphere', found {model!r}")
+    P = np.asarray(workpiece.points_mm, dtype=float)
+    source = getattr(workpiece, "source", "") or "workpiece"
+    sphere_ok = _shape_check(P, model, source)
+    if model == "sphere" and not sphere_ok:
+        raise BadInput(f"{source}: the points lie in a plane (or are too few), so no sphere is defined; "
+                       "use fit.model = \"plane\"")
+    extent = float(np.linalg.norm(P.max(axis=0) - P.min(axis=0)))
+    kw = dict(threshold_mm=threshold_mm, iterations=iterations, seed=seed, source=source)
+    plane = fit_model(P, "plane", **kw) if model in ("auto", "plane") else None
+    sphere = fit_model(P, "sphere", **kw) if model in ("auto", "sphere") and sphere_ok else None
+    fit = _choose(plane, sphere, extent)
+    if fit is None:
+        raise BadInput(f"{source}: every RANSAC sample was degenerate; check the points")
+    ratio = fit.n_inliers / len(P)
+    if ratio < min_inlier_ratio:
+        tried = " or ".join(m.model for m in (plane, sphere) if m is not None)
+        raise BadInput(f"{source}: no {tried} reaches fit.min_inlier_ratio = {min_inlier_ratio:g} "
+                       f"(best: {fit.model} with {ratio:.3f} at threshold_mm = {threshold_mm:g}); "
+                       "check the units, raise fit.threshold_mm or crop the scan")
+    inl = fit.inliers
+    res = fit.residuals_mm[inl]
+    stats = FitStats(float(ratio), float(np.sqrt(np.mean(res ** 2))), float(res.max()), int(len(P)),
+                     int(inl.sum()))
+    bkw = dict(cell_mm=boundary_cell_mm, close_gaps_mm=close_gaps_mm, simplify_mm=simplify_mm,
+               source=source)
+    normals = np.asarray(workpiece.normals, dtype=float)[inl]
+    if fit.model == "plane":
+        return _plane_surface(P[inl], normals, *fit.params, stats, bkw)
+    return _sphere_patch(P[inl], *fit.params, stats, bkw)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def _plane_surface(Q, normals, n, d, stats, bkw) -> PlaneSurface:
+    """Plane with its normal towards the workpiece normals (tool side); v = world up if it can."""
+    s = float(np.sum(normals @ n))
+    if s < 0 or (s == 0 and n[np.argmax(np.abs(n))] < 0):
+        n, d = -n, -d
+    z, x = np.array([0.0, 0, 1]), np.array([1.0, 0, 0])
+    zp = z - (z @ n) * n
+    if np.linalg.norm(zp) > 0.1:  # tilted plane (a wall): v is up, rows are horizontal
+        v_axis = _unit(zp)
+        u_axis = np.cross(v_axis, n)
+    else:  # (nearly) horizontal plane: u follows world x (or y)
+        xp = x - (x @ n) * n
+        u_axis = _unit(xp if np.linalg.norm(xp) > 0.1 else np.array([0.0, 1, 0]) - n[1] * n)
+        v_axis = np.cross(n, u_axis)
+    mean = Q.mean(axis=0)
+    origin = mean - (mean @ n - d) * n
+    uv = np.stack([(Q - origin) @ u_axis, (Q - origin) @ v_axis], axis=-1)
+    boundary = boundary_from_uv(uv, None, **bkw)
+    return PlaneSurface(origin, n, u_axis, v_axis, boundary, stats)
+
+
+def _sphere_patch(Q, c, r, stats, bkw) -> SpherePatch:
+    """Sphere patch (worked from outside) with e3 = world up when the patch keeps clear of the poles."""
+    dirs = (Q - c) / np.linalg.norm(Q - c, axis=1)[:, None]
+    m = dirs.mean(axis=0)
+    m = _unit(m) if np.linalg.norm(m) > 1e-9 else np.array([1.0, 0, 0])
+    z, x = np.array([0.0, 0, 1]), np.array([1.0, 0, 0])
+    mh = m - (m @ z) * z
+    if np.linalg.norm(mh) > 0.1 and np.abs(dirs[:, 2]).max() <= np.sin(np.radians(80)):
+        e1, e3 = _unit(mh), z  # v is the world elevation: rows of constant v are horizontal
+    else:
+        e1 = m
+        e3 = z - (z @ e1) * e1
+        e3 = _unit(e3 if np.linalg.norm(e3) > 0.1 else x - (x @ e1) * e1)
+    frame = np.column_stack([e1, np.cross(e3, e1), e3])
+    patch = SpherePatch(c, r, frame, None, stats)  # boundary filled below
+    boundary = boundary_from_uv(patch.uv_from_points(Q), r, **bkw)
+    return SpherePatch(c, r, frame, boundary, stats)

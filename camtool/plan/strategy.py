@@ -1,0 +1,369 @@
+"""The planning strategy of the main seed (Sun et al. 2023, section 3.2) and its
+baseline.
+
+``method="seed"`` (default), step for step:
+
+1. The path is split into *runs* (lead-in, work and lead-out poses of one
+   segment: the tool is on the surface) and *connectors* (approach,
+   self-motion and depart zones between runs).
+2. Each run is solved pose by pose with CWLN, warm-started from the previous
+   pose.
+3. A joint step above the jump threshold (50 deg; the track has its own mm
+   threshold) is a singularity: gradient-projection self-motion first moves
+   the new solution towards the previous one without moving the tool.
+4. If the jump is still there, reverse planning draws ``reverse_samples``
+   random IK solutions of the failing pose (seeded RNG), plans backwards to
+   the run's first pose with steps 2-3, and splices in the first that makes it
+   without a jump. The jump then falls into the connector before the run,
+   where the arm reconfigures off the surface.
+5. If all fail, the pose is marked singular, the self-motion solution closest
+   to the previous pose is kept, and a retract-reorient-return move is
+   inserted: the track moves away, the revolute joints move, the track comes
+   back (robots without a track lift the tool along its axis instead).
+
+``method="general"`` is CWLN alone, as the paper's baseline: jumps stay where
+they occur.
+
+Connector poses are solved after the runs on both sides are fixed, with
+null-space motion pulling each towards the blend of the two runs' end
+configurations, so the reconfiguration is spread over the zone.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import BadInput, PlanInfeasible
+from ..robots.model import Robot
+from ..toolpath import ZONE_CODE, ZONES, Path
+from ..trajectory import JointPath
+from .cwln import CwlnSolver, IkResult, IkSettings
+from .kernel import DhKernel
+
+RUN_ZONES = (ZONE_CODE["work"], ZONE_CODE["lead_in"], ZONE_CODE["lead_out"])
+RESTARTS_WHEN_LOST = 20
+
+
+@dataclass(frozen=True)
+class StrategySettings:
+    method: str = "seed"
+    jump_threshold_rad: float = np.radians(50.0)
+    jump_threshold_mm: float = 100.0
+    reverse_samples: int = 50
+    seed: int = 0
+    retract_mm: float = 200.0
+
+
+def split_runs(path: Path) -> list[tuple[int, int]]:
+    """Inclusive (first, last) index spans of runs: same segment, run zones only."""
+    in_run = np.isin(path.zone, RUN_ZONES)
+    runs, start = [], None
+    for k in range(len(path)):
+        if in_run[k] and start is None:
+            start = k
+        elif start is not None and (not in_run[k] or path.segment[k] != path.segment[start]):
+            runs.append((start, k - 1))
+            start = k if in_run[k] else None
+    if start is not None:
+        runs.append((start, len(path) - 1))
+    return runs
+
+
+class Planner:
+    """Plans one Path for one robot; holds the per-pose arrays while it works."""
+
+    def __init__(self, path: Path, robot: Robot, ik: IkSettings, st: StrategySettings, q_home=None):
+        self.path, self.robot, self.st = path, robot, st
+        self.solver = CwlnSolver(robot, ik, free_spin=path.free_spin)
+        thr = np.where(robot.prismatic, st.jump_threshold_mm, st.jump_threshold_rad)
+        self.kernel = DhKernel.build(robot, ik, path.free_spin, thr)
+        base_inv = np.linalg.inv(robot.base_T_mm)
+        self.targets = np.einsum("ij,njk->nik", base_inv, path.poses_mm)
+        n, dof = len(path), robot.dof
+        self.q = np.zeros((n, dof))
+        self.pos_err = np.full(n, np.inf)
+        self.ori_err = np.full(n, np.inf)
+        self.reached = np.zeros(n, bool)
+        self.reverse = np.zeros(n, bool)
+        self.singular = np.zeros(n, bool)
+        self.rng = np.random.default_rng(st.seed)
+        self.thr = np.where(robot.prismatic, st.jump_threshold_mm, st.jump_threshold_rad)
+        self.q_home = q_home
+        self.events = {"reverse_plans": [], "retracts": [], "gradient_projections": 0,
+                       "start_configuration": None}
+
+    # -- helpers ---------------------------------------------------------
+    def is_jump(self, qa, qb) -> bool:
+        return bool(np.any(np.abs(qb - qa) > self.thr))
+
+    def keep(self, k, res):
+        self.q[k] = res.q
+        self.pos_err[k] = res.position_error_mm
+        self.ori_err[k] = res.orientation_error_rad
+        self.reached[k] = res.converged
+
+    def ik(self, k, q0, max_iterations=None) -> IkResult:
+        """CWLN for pose k from q0: the compiled kernel when the robot has one."""
+        if self.kernel is None:
+            return self.ik(k, q0, max_iterations)
+        return IkResult(*self.kernel.solve(self.targets[k], q0, max_iterations))
+
+    def gp(self, k, q, q_ref, iterations=200) -> IkResult:
+        """Gradient-projection self-motion at pose k from q towards q_ref (kernel when available)."""
+        if self.kernel is None:
+            return self.solver.self_motion(self.targets[k], q, q_ref, iterations)
+        return IkResult(*self.kernel.self_motion(self.targets[k], q, q_ref, iterations))
+
+    def random_q(self) -> np.ndarray:
+        lo, hi = self.solver.lo + self.solver.buffer, self.solver.hi - self.solver.buffer
+        return lo + (hi - lo) * self.rng.random(self.robot.dof)
+
+    def step(self, k, q_prev):
+        """Steps 2-3 for pose k from q_prev: CWLN, then GP if it jumps. None if not reached."""
+        res = self.ik(k, q_prev)
+        if not res.converged:
+            return None
+        if self.st.method == "seed" and self.is_jump(q_prev, res.q):
+            gp = self.gp(k, res.q, q_prev)
+            self.events["gradient_projections"] += 1
+            if gp.converged and np.max(np.abs(gp.q - q_prev) / self.thr) < np.max(np.abs(res.q - q_prev) / self.thr):
+                return gp
+        return res
+
+    def find_any(self, k, tries):
+        """Random-start IK for pose k: the first converged solution, or None."""
+        for _ in range(tries):
+            res = self.ik(k, self.random_q(), max_iterations=200)
+            if res.converged:
+                return res
+        return None
+
+    # -- start ----------------------------------------------------------------
+    def start_configuration(self, k) -> np.ndarray:
+        """A start for pose k: the job's home, else the random IK solution with most limit margin."""
+        if self.q_home is not None:
+            res = self.ik(k, self.q_home, max_iterations=300)
+            if res.converged:
+                self.events["start_configuration"] = "home"
+                return res.q
+        best, best_margin = None, -np.inf
+        span = self.solver.hi - self.solver.lo
+        mid = self.solver.lo + 0.5 * span
+        for _ in range(max(self.st.reverse_samples, 20)):
+            # starts near mid-range give natural postures; keep the one with most limit margin
+            q0 = np.clip(mid + 0.15 * span * self.rng.standard_normal(self.robot.dof), self.solver.lo, self.solver.hi)
+            res = self.ik(k, q0, max_iterations=200)
+            if res.converged:
+                margin = np.min(np.minimum(res.q - self.solver.lo, self.solver.hi - res.q) / span)
+                if margin > best_margin:
+                    best, best_margin = res.q, margin
+        self.events["start_configuration"] = "searched"
+        return best if best is not None else self.solver.lo + 0.5 * span
+
+    # -- runs --------------------------------------------------------------
+    def plan_run(self, a, b, q_in):
+        """Forward over run poses a..b (inclusive) from q_in."""
+        res = self.ik(a, q_in, max_iterations=300)
+        if self.st.method == "seed" and res.converged and self.is_jump(q_in, res.q):
+            gp = self.gp(a, res.q, q_in)
+            res = gp if gp.converged else res
+        if not res.converged:
+            res = self.find_any(a, RESTARTS_WHEN_LOST) or res
+        self.keep(a, res)
+        k = a + 1
+        while k <= b:
+            q_prev = self.q[k - 1]
+            if self.kernel is not None and self.reached[k - 1]:
+                # fast path: compiled CWLN until the first pose that jumps or fails
+                stop, qs, pe, oe = self.kernel.run(self.targets[k:b + 1], q_prev)
+                for m in range(stop):
+                    self.keep(k + m, IkResult(qs[m], pe[m], oe[m], True, 0))
+                k += stop
+                if k > b:
+                    break
+                q_prev = self.q[k - 1]
+            self.handle(k, a, q_prev)
+            k += 1
+
+    def handle(self, k, a, q_prev):
+        """Pose k from q_prev with the full strategy: steps 2-5, or unreachable."""
+        res = self.step(k, q_prev)
+        if res is None:
+            tries = RESTARTS_WHEN_LOST if self.reached[k - 1] else 0
+            res = self.find_any(k, tries)
+            if res is None:  # unreachable: keep going from the last configuration
+                self.keep(k, self.ik(k, q_prev))
+                return
+        if self.is_jump(q_prev, res.q) and self.st.method == "seed" and self.reached[k - 1]:
+            if not self.reverse_plan(k, a):
+                self.fallback(k, q_prev, res)
+            return
+        self.keep(k, res)
+
+    def reverse_plan(self, k, a) -> bool:
+        """Step 4: random IK solutions of pose k, planned backwards to a; splice the first that works."""
+        for attempt in range(self.st.reverse_samples):
+            res = self.ik(k, self.random_q(), max_iterations=200)
+            if not res.converged:
+                continue
+            chain = [res]
+            ok = True
+            for m in range(k - 1, a - 1, -1):
+                r = self.step(m, chain[-1].q)
+                if r is None or self.is_jump(chain[-1].q, r.q):
+                    ok = False
+                    break
+                chain.append(r)
+            if ok:
+                for m, r in zip(range(k, a - 1, -1), chain):
+                    self.keep(m, r)
+                    self.reverse[m] = True
+                self.events["reverse_plans"].append({"index": int(k), "segment": int(self.path.segment[k]),
+                                                     "point": int(self.path.point[k]), "attempt": attempt + 1})
+                return True
+        return False
+
+    def fallback(self, k, q_prev, res):
+        """Step 5: keep the self-motion solution closest to q_prev; mark k for a retract."""
+        gp = self.gp(k, res.q, q_prev, iterations=400)
+        best = gp if gp.converged and np.linalg.norm(gp.q - q_prev) < np.linalg.norm(res.q - q_prev) else res
+        self.keep(k, best)
+        self.singular[k] = True
+        p = self.path.poses_mm[k][:3, 3]
+        self.events["retracts"].append({"index": int(k), "segment": int(self.path.segment[k]),
+                                        "point": int(self.path.point[k]),
+                                        "xyz_mm": [round(float(x), 3) for x in p]})
+
+    # -- connectors ------------------------------------------------------
+    def plan_connector(self, idx, q_from, q_to):
+        """Connector poses idx (in order) from q_from towards q_to, spreading the change."""
+        prev = q_from
+        m = len(idx)
+        for i, k in enumerate(idx):
+            ref = q_from + (q_to - q_from) * (i + 1) / (m + 1)
+            res = self.ik(k, prev)
+            if not res.converged:
+                res = self.ik(k, ref, max_iterations=300)
+            if not res.converged:
+                res = self.find_any(k, RESTARTS_WHEN_LOST) or res
+            if res.converged:
+                gp = self.gp(k, res.q, ref, iterations=60)
+                res = gp if gp.converged else res
+            self.keep(k, res)
+            prev = res.q
+
+    def plan(self) -> JointPath:
+        runs = split_runs(self.path)
+        if not runs:
+            raise BadInput("the path has no work poses to plan")
+        q_in = self.start_configuration(runs[0][0])
+        for a, b in runs:
+            self.plan_run(a, b, q_in)
+            q_in = self.q[b]
+        # approach: backwards from the first run; depart: forward from the last
+        first, last = runs[0][0], runs[-1][1]
+        self.plan_connector(list(range(first - 1, -1, -1)), self.q[first], self.q[first])
+        self.plan_connector(list(range(last + 1, len(self.path))), self.q[last], self.q[last])
+        for (a0, b0), (a1, b1) in zip(runs[:-1], runs[1:]):
+            self.plan_connector(list(range(b0 + 1, a1)), self.q[b0], self.q[a1])
+        return self.joint_path()
+
+    # -- output -------------------------------------------------------------
+    def retract_poses(self, k) -> list[np.ndarray]:
+        """The retract-reorient-return configurations inserted before pose k."""
+        qa, qb = self.q[k - 1], self.q[k]
+        track = np.flatnonzero(self.robot.prismatic)
+        if len(track):
+            t = track[0]
+            best = None
+            for sign in (1.0, -1.0):
+                off = sign * self.st.retract_mm
+                if not (self.solver.lo[t] <= qa[t] + off <= self.solver.hi[t]
+                        and self.solver.lo[t] <= qb[t] + off <= self.solver.hi[t]):
+                    continue
+                q1 = qa.copy(); q1[t] += off
+                n_out = -self.targets[k - 1][:3, 2]
+                away = (self.solver.tcp_pose(q1)[:3, 3] - self.targets[k - 1][:3, 3]) @ n_out
+                if best is None or away > best[0]:
+                    q2 = qb.copy(); q2[t] += off
+                    best = (away, q1, q2)
+            if best is not None:
+                return [best[1], best[2]]
+        lifted = []
+        for q, T in ((qa, self.targets[k - 1]), (qb, self.targets[k])):
+            L = T.copy()
+            L[:3, 3] -= T[:3, 2] * self.st.retract_mm
+            lifted.append(self.solver.solve(L, q, max_iterations=300).q)
+        return lifted
+
+    def joint_path(self) -> JointPath:
+        rows, rows_idx, rows_retract = [], [], []
+        for k in range(len(self.path)):
+            if self.singular[k] and k > 0:
+                for qr in self.retract_poses(k):
+                    rows.append(qr); rows_idx.append(-1); rows_retract.append(True)
+            rows.append(self.q[k]); rows_idx.append(k); rows_retract.append(False)
+        idx = np.array(rows_idx)
+        q = np.array(rows)
+        src = np.maximum(idx, 0)
+        zone = np.where(idx >= 0, self.path.zone[src], ZONE_CODE["retract"])
+        jump = np.zeros(len(q), bool)
+        jump[1:] = np.any(np.abs(np.diff(q, axis=0)) > self.thr, axis=1)
+
+        def spread(a, fill):
+            out = a[src].copy()
+            out[idx < 0] = fill
+            return out
+
+        return JointPath(
+            q=q, path_index=idx, zone=zone.astype(self.path.zone.dtype),
+            position_error_mm=spread(self.pos_err, 0.0), orientation_error_rad=spread(self.ori_err, 0.0),
+            jump=jump, reverse_planned=spread(self.reverse, False), retract=np.array(rows_retract),
+            singular=spread(self.singular, False), reached=spread(self.reached, True), events=self.events,
+        )
+
+
+def plan_path(path: Path, robot: Robot, home_deg=(), method="seed", damping=1.0,
+              orientation_weight_mm=200.0, position_tol_mm=1e-4, orientation_tol_deg=1e-4,
+              max_iterations=100, clamp_buffer_deg=10.0, clamp_buffer_mm=50.0,
+              jump_threshold_deg=50.0, jump_threshold_mm=100.0, reverse_samples=50, seed=0,
+              retract_mm=200.0, track_scale_mm=500.0, posture_gain=0.001) -> JointPath:
+    """Plan joint values for every pose of ``path`` (keywords = the job's [planner] keys).
+
+    Raises PlanInfeasible (with a report listing them) when poses cannot be reached.
+    """
+    if method not in ("seed", "general"):
+        raise BadInput(f"planner.method: expected 'seed' or 'general', found {method!r}")
+    q_home = None
+    if home_deg:
+        if len(home_deg) != robot.dof:
+            raise BadInput(f"robot.home_deg: {robot.name} needs {robot.dof} values, found {len(home_deg)}")
+        q_home = np.where(robot.prismatic, home_deg, np.radians(home_deg))
+    ik = IkSettings(damping=damping, orientation_weight_mm=orientation_weight_mm,
+                    position_tol_mm=position_tol_mm, orientation_tol_rad=np.radians(orientation_tol_deg),
+                    max_iterations=max_iterations, clamp_buffer_rad=np.radians(clamp_buffer_deg),
+                    clamp_buffer_mm=clamp_buffer_mm, track_scale_mm=track_scale_mm,
+                    posture_gain=posture_gain if method == "seed" else 0.0)
+    st = StrategySettings(method=method, jump_threshold_rad=np.radians(jump_threshold_deg),
+                          jump_threshold_mm=jump_threshold_mm, reverse_samples=reverse_samples,
+                          seed=seed, retract_mm=retract_mm)
+    t0 = time.perf_counter()
+    jp = Planner(path, robot, ik, st, q_home).plan()
+    jp.events["plan_seconds"] = time.perf_counter() - t0
+    missed = np.flatnonzero((jp.path_index >= 0) & ~jp.reached)
+    if len(missed):
+        k = jp.path_index[missed]
+        unreachable = [{"index": int(i), "segment": int(path.segment[i]), "point": int(path.point[i]),
+                        "zone": ZONES[path.zone[i]],
+                        "xyz_mm": [round(float(x), 3) for x in path.poses_mm[i][:3, 3]],
+                        "position_error_mm": round(float(jp.position_error_mm[m]), 3)}
+                       for i, m in zip(k, missed)]
+        first = unreachable[0]
+        raise PlanInfeasible(
+            f"{len(unreachable)} of {len(path)} path poses are out of reach of {robot.name} "
+            f"(first: pose {first['index']}, segment {first['segment']}, point {first['point']}, "
+            f"at {first['xyz_mm']} mm); see report.json",
+            report={"unreachable": unreachable, "joint_path": jp})
+    return jp

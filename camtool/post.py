@@ -1,0 +1,132 @@
+"""The post stage: a timed Trajectory -> checked controller programs on disk.
+
+``write_programs(trajectory, robot, job, outdir)`` runs every format of
+``job.post.formats`` through its plugin (``postprocessors.base``), with the
+controller profile named in ``job.post.profiles`` or the shipped default.
+Programs are written into a temporary folder inside ``outdir``, every file is
+read back and checked (``postprocessors.check``), and only when all pass are
+they moved into place with ``os.replace``. A failed check raises
+PlanInfeasible and leaves no program behind.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .errors import BadInput, PlanInfeasible
+from .profiles import Profile, default_options, default_profile_path, load_profile
+
+log = logging.getLogger("camtool.post")
+MAX_LISTED = 10
+
+
+def profile_for_job(fmt: str, plugin, robot, job) -> Profile:
+    """The profile of one format: the job's post.profiles entry (relative to the job
+    file), else the shipped default; then the job's program name, tool and CSV unit."""
+    given = job.post.profiles.get(fmt)
+    if given is not None:
+        if not isinstance(given, str):
+            raise BadInput(f"{job.path}: post.profiles.{fmt}: expected a profile file name, found {given!r}")
+        profile = load_profile(job.resolve(given), robot.name, fmt, robot)
+    elif default_profile_path(robot.name, fmt) is not None:
+        profile = load_profile(None, robot.name, fmt, robot)
+    elif not getattr(plugin, "requires_profile", True):
+        profile = Profile("<defaults>", fmt, robot.name, options=default_options(fmt))
+    else:
+        raise BadInput(f"post.formats: no {fmt} profile for robot {robot.name!r}: camtool ships none, so write "
+                       f"one (docs/controllers.md) and name it in the job's post.profiles.{fmt}")
+    tool = {}
+    if job.tool.name != "tool0":  # the job's default; the profile names camtool's own tool data
+        tool["name"] = job.tool.name
+    tool.update(tcp_xyz_mm=list(job.tool.tcp_xyz_mm), tcp_rpy_deg=list(job.tool.tcp_rpy_deg),
+                mass_kg=job.tool.mass_kg)
+    changes = {"program_name": job.post.program_name, "tool": tool}
+    if fmt == "csv":
+        changes["options"] = {"angle_unit": job.post.csv_angle_unit}
+    return profile.with_changes(**changes)
+
+
+def check_limits(trajectory, robot) -> None:
+    """PlanInfeasible when any trajectory sample is outside the robot's joint limits."""
+    q = np.asarray(trajectory.q, float)
+    L = robot.limits
+    bad = np.argwhere((q < L.lower - 1e-9) | (q > L.upper + 1e-9))
+    if len(bad):
+        lines = []
+        for k, i in bad[:MAX_LISTED]:
+            v = q[k, i] if robot.prismatic[i] else np.degrees(q[k, i])
+            unit = "mm" if robot.prismatic[i] else "deg"
+            lines.append(f"sample {k} (t = {trajectory.t_s[k]:.3f} s): {robot.joint_names[i]} = {v:.4f} {unit}")
+        more = f"; and {len(bad) - MAX_LISTED} more" if len(bad) > MAX_LISTED else ""
+        raise PlanInfeasible(f"the trajectory leaves the joint limits of {robot.name}, no program written: "
+                             + "; ".join(lines) + more)
+
+
+def _prepare_outdir(outdir: Path) -> None:
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+    except (OSError, FileExistsError) as exc:
+        raise BadInput(f"{outdir}: cannot create the output folder ({exc.strerror or exc})") from None
+    if not outdir.is_dir() or not os.access(outdir, os.W_OK | os.X_OK):
+        raise BadInput(f"{outdir}: the output folder is not writable")
+
+
+def write_programs(trajectory, robot, job, outdir) -> list[Path]:
+    """Write, check and place the programs of every ``job.post.formats`` entry.
+
+    Returns the final paths. Raises BadInput for an unknown format, a bad or
+    missing profile or an output folder that cannot be written, and
+    PlanInfeasible (listing the findings) when the trajectory leaves the joint
+    limits or a written program fails the checker; then nothing is left behind.
+    """
+    from postprocessors.base import get_plugin
+    from postprocessors.check import check_program, format_of
+
+    outdir = Path(outdir)
+    plugins = {fmt: get_plugin(fmt) for fmt in job.post.formats}
+    profiles = {fmt: profile_for_job(fmt, p, robot, job) for fmt, p in plugins.items()}
+    check_limits(trajectory, robot)
+    _prepare_outdir(outdir)
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=".camtool-post-", dir=outdir))
+    except OSError as exc:
+        raise BadInput(f"{outdir}: cannot write into the output folder ({exc.strerror or exc})") from None
+    try:
+        written: list[Path] = []
+        findings: list[str] = []
+        for fmt, plugin in plugins.items():
+            files = [Path(f) for f in plugin.write(trajectory, robot, profiles[fmt], tmp)]
+            for f in files:
+                if f.parent != tmp:
+                    raise BadInput(f"post-processor {fmt!r} wrote {f} outside its output folder")
+                if f in written:
+                    raise BadInput(f"post-processor {fmt!r} wrote {f.name}, which another format also wrote")
+            written += files
+            for f in files:
+                try:
+                    fmt_of = format_of(f)
+                except BadInput:
+                    fmt_of = None
+                if fmt_of == fmt:
+                    findings += [s.replace(str(tmp), str(outdir)) for s in check_program(f, robot, profiles[fmt])]
+                elif hasattr(plugin, "check"):
+                    findings += list(plugin.check(f, robot, profiles[fmt]))
+                else:
+                    log.warning("no checker for %s (post-processor %r); written unchecked", f.name, fmt)
+        if findings:
+            more = f" (and {len(findings) - MAX_LISTED} more)" if len(findings) > MAX_LISTED else ""
+            raise PlanInfeasible(f"{len(findings)} program check finding(s), no program written: "
+                                 + " | ".join(findings[:MAX_LISTED]) + more, {"findings": findings})
+        final = []
+        for f in written:
+            target = outdir / f.name
+            os.replace(f, target)
+            final.append(target)
+        return final
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)

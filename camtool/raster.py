@@ -1,0 +1,500 @@
+"""Raster stage: a Surface becomes a Path of tool poses in S (boustrophedon) order.
+
+Rows are straight lines in a **metric chart** of the (u, v) domain,
+``x = kx * u``, ``y = ky * v`` (mm), rotated by ``angle_deg`` from the u axis.
+``kx``, ``ky`` are the largest mm-per-unit scales (``metric_scale``) over the
+domain: 1 and 1 on a plane; ``R cos v_ref`` and ``R`` on a sphere patch, with
+``v_ref`` the elevation of the patch nearest the equator. Rows are ``step_over_mm``
+apart in this chart, so on a sphere rows of constant elevation (angle 0) are
+exactly ``step_over_mm`` apart along the surface (geodesic), and at any other
+angle the spacing on the surface is never larger than ``step_over_mm``.
+Rows are centred across the domain (each outer edge is at most half a
+step-over from the nearest row).
+
+Each row is cut into runs of material by its exact crossings with the boundary
+polygons (outer contour and holes); ``Boundary.contains`` at the middle of each
+piece decides which pieces are material. Each run is one **segment**; along it,
+points are exactly ``pitch_mm`` apart in arc length on the surface (the arc
+length is integrated with ``metric_scale``) and centred strictly inside the run,
+so each run end is at most about half a pitch from the nearest point and no
+work point sits on a boundary edge.
+
+Around every segment: ``lead_in`` / ``lead_out`` poses continue along the row
+beyond the segment ends by ``lead_mm`` (the lift along the normal ramps from 0
+to ``clearance_mm``); between segments, ``transition_points`` ``self_motion``
+poses (positions interpolated in (u, v) and lifted, orientation by slerp); an
+``approach`` zone before the first pose and a ``depart`` zone after the last one
+back off along the normal by ``max(clearance_mm, APPROACH_MIN_MM)``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+
+from .errors import BadInput
+from .toolpath import ZONE_CODE, ZONES, Path
+
+APPROACH_POINTS = 3  # poses in the approach and in the depart zone
+APPROACH_MIN_MM = 10.0  # smallest back-off of approach / depart along the normal
+COVERAGE_TOL_FRACTION = 0.02  # coverage radius tolerance, as a fraction of the step-over
+MAX_POSES = 5_000_000  # refuse rasters larger than this (memory)
+
+_LEAD_IN, _LEAD_OUT, _WORK = ZONE_CODE["lead_in"], ZONE_CODE["lead_out"], ZONE_CODE["work"]
+_SELF, _APPROACH, _DEPART = ZONE_CODE["self_motion"], ZONE_CODE["approach"], ZONE_CODE["depart"]
+
+
+# ----------------------------------------------------------------------------- chart
+
+
+@dataclass(frozen=True)
+class _Chart:
+    """Metric chart (x, y) = (kx u, ky v) mm, rotated by angle: s along rows, t across."""
+
+    kx: float
+    ky: float
+    angle_rad: float
+
+    def st_from_uv(self, uv: np.ndarray) -> np.ndarray:
+        c, s = math.cos(self.angle_rad), math.sin(self.angle_rad)
+        x, y = uv[..., 0] * self.kx, uv[..., 1] * self.ky
+        return np.stack([x * c + y * s, -x * s + y * c], axis=-1)
+
+    def uv_from_st(self, s_mm, t_mm) -> np.ndarray:
+        c, sn = math.cos(self.angle_rad), math.sin(self.angle_rad)
+        s_mm, t_mm = np.broadcast_arrays(np.asarray(s_mm, float), np.asarray(t_mm, float))
+        x, y = s_mm * c - t_mm * sn, s_mm * sn + t_mm * c
+        return np.stack([x / self.kx, y / self.ky], axis=-1)
+
+    @property
+    def duv_ds(self) -> np.ndarray:
+        """Change of (u, v) per mm of chart s (the row direction)."""
+        return np.array([math.cos(self.angle_rad) / self.kx, math.sin(self.angle_rad) / self.ky])
+
+
+def _domain_grid(boundary, n: int = 33) -> np.ndarray:
+    """(n*n, 2) samples of the boundary's (u, v) bounding box, plus v = 0 when inside."""
+    lo, hi = boundary.bounds()
+    us = np.linspace(lo[0], hi[0], n)
+    vs = np.linspace(lo[1], hi[1], n)
+    if lo[1] < 0 < hi[1]:
+        vs = np.append(vs, 0.0)
+    U, V = np.meshgrid(us, vs)
+    return np.stack([U.ravel(), V.ravel()], axis=-1)
+
+
+def _chart_for(surface, angle_rad: float) -> tuple[_Chart, float]:
+    """The metric chart of the surface and the smallest arc-length rate g along rows."""
+    scale = surface.metric_scale(_domain_grid(surface.boundary))
+    kx, ky = float(scale[:, 0].max()), float(scale[:, 1].max())
+    if not (kx > 0 and ky > 0):
+        raise BadInput("surface: degenerate (u, v) parameterisation (zero metric scale)")
+    g_lo = float(np.minimum(scale[:, 0] / kx, scale[:, 1] / ky).min())
+    return _Chart(kx, ky, angle_rad), max(g_lo, 0.05)
+
+
+# ----------------------------------------------------------------------------- rows and runs
+
+
+def _polygon_edges_st(boundary, chart: _Chart) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end points (E x 2 each, chart s, t) of every boundary edge."""
+    a, b = [], []
+    for poly in (boundary.outer_uv, *boundary.holes_uv):
+        st = chart.st_from_uv(np.asarray(poly, float))
+        a.append(st)
+        b.append(np.roll(st, -1, axis=0))
+    return np.concatenate(a), np.concatenate(b)
+
+
+def _row_offsets(t_lo: float, t_hi: float, step_mm: float) -> np.ndarray:
+    """Row positions t (mm) across the domain, step_mm apart and centred."""
+    width = t_hi - t_lo
+    n = max(1, math.ceil(width / step_mm - 1e-9))
+    return t_lo + (width - (n - 1) * step_mm) / 2 + step_mm * np.arange(n)
+
+
+def _row_runs(boundary, chart: _Chart, rows_t: np.ndarray, e0: np.ndarray, e1: np.ndarray):
+    """Material runs on the rows: (row index, s start, s end), chart mm, sorted by row then s."""
+    t1, t2 = e0[:, 1:2], e1[:, 1:2]
+    crosses = ((t1 <= rows_t) & (rows_t < t2)) | ((t2 <= rows_t) & (rows_t < t1))
+    e, k = np.nonzero(crosses)
+    s = e0[e, 0] + (rows_t[k] - e0[e, 1]) * (e1[e, 0] - e0[e, 0]) / (e1[e, 1] - e0[e, 1])
+    order = np.lexsort((s, k))
+    k, s = k[order], s[order]
+    same = k[1:] == k[:-1]
+    ia, ib, ik = s[:-1][same], s[1:][same], k[:-1][same]
+    keep = ib - ia > 1e-9
+    ia, ib, ik = ia[keep], ib[keep], ik[keep]
+    if len(ia) == 0:
+        return ik, ia, ib
+    mid = chart.uv_from_st((ia + ib) / 2, rows_t[ik])
+    material = boundary.contains(mid)
+    ia, ib, ik = ia[material], ib[material], ik[material]
+    if len(ia) == 0:
+        return ik, ia, ib
+    # merge touching material pieces of one row into one run
+    new = np.ones(len(ia), bool)
+    new[1:] = (ik[1:] != ik[:-1]) | (ia[1:] > ib[:-1] + 1e-9)
+    first = np.flatnonzero(new)
+    last = np.append(first[1:] - 1, len(ia) - 1)
+    return ik[first], ia[first], ib[last]
+
+
+# ----------------------------------------------------------------------------- arc length along rows
+
+
+class _ArcTable:
+    """Cumulative surface arc length (mm) along each used row, on a common s grid."""
+
+    def __init__(self, surface, chart: _Chart, rows_t: np.ndarray, s_lo: float, s_hi: float, h_mm: float):
+        n = int(min(max(math.ceil((s_hi - s_lo) / h_mm), 16), 4096)) + 1
+        self.s = np.linspace(s_lo, s_hi, n)
+        uv = chart.uv_from_st(self.s[None, :], rows_t[:, None])
+        scale = surface.metric_scale(uv.reshape(-1, 2)).reshape(uv.shape)
+        g = np.hypot(scale[..., 0] * chart.duv_ds[0], scale[..., 1] * chart.duv_ds[1])
+        ds = np.diff(self.s)
+        arc = np.zeros_like(g)
+        arc[:, 1:] = np.cumsum(0.5 * (g[:, 1:] + g[:, :-1]) * ds, axis=1)
+        self.arc = arc
+        self.s_span = self.s[-1] - self.s[0] + 1.0
+        self.arc_off = np.concatenate([[0.0], np.cumsum(arc[:, -1] + 1.0)[:-1]])
+        self._s_flat = (self.s[None, :] + self.s_span * np.arange(len(rows_t))[:, None]).ravel()
+        self._arc_flat = (arc + self.arc_off[:, None]).ravel()
+
+    def arc_at(self, row: np.ndarray, s_mm: np.ndarray) -> np.ndarray:
+        """Arc length (mm) from the start of the table at chart position s on each row."""
+        return np.interp(s_mm + self.s_span * row, self._s_flat, self._arc_flat) - self.arc_off[row]
+
+    def s_at(self, row: np.ndarray, arc_mm: np.ndarray) -> np.ndarray:
+        """Chart position s at arc length arc_mm on each row (clamped to the table)."""
+        arc_mm = np.clip(arc_mm, 0.0, self.arc[row, -1])
+        return np.interp(arc_mm + self.arc_off[row], self._arc_flat, self._s_flat) - self.s_span * row
+
+
+# ----------------------------------------------------------------------------- orientation
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, angle_rad: float) -> np.ndarray:
+    """Rodrigues rotation of vectors v (N x 3) about unit axes (N x 3) by one angle."""
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    return v * c + np.cross(axis, v) * s + axis * np.sum(axis * v, axis=-1, keepdims=True) * (1 - c)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+
+
+def _tool_rotations(normal: np.ndarray, travel: np.ndarray, tool_x: str, tool_x_world: np.ndarray,
+                    lead_rad: float, tilt_rad: float) -> np.ndarray:
+    """Tool rotations (N x 3 x 3, columns x, y, z): z = -normal, then lead and tilt.
+
+    ``fixed``: x is ``tool_x_world`` projected onto the tangent plane. If that
+    direction comes within ~5.7 deg of a normal anywhere (projection < 0.1), the
+    world axis (x, y, z, first on ties) most perpendicular to all normals is used
+    instead; a pose where even that vanishes takes the travel direction.
+    ``travel``: x is the travel direction. Lead: right-hand rotation about the
+    side axis ``travel x normal`` (tool z gains +sin(lead) along travel); tilt:
+    right-hand rotation about the travel direction.
+    """
+    z = -normal
+    if tool_x == "travel":
+        x = travel
+    else:
+        w = tool_x_world / np.linalg.norm(tool_x_world)
+        proj = w - np.sum(w * z, axis=-1, keepdims=True) * z
+        norm = np.linalg.norm(proj, axis=-1)
+        if norm.min() < 0.1:
+            worst = np.abs(normal @ np.eye(3)).max(axis=0)
+            w = np.eye(3)[int(np.argmin(worst))]
+            proj = w - np.sum(w * z, axis=-1, keepdims=True) * z
+            norm = np.linalg.norm(proj, axis=-1)
+        x = np.where((norm > 1e-9)[:, None], proj / np.maximum(norm, 1e-300)[:, None], travel)
+    y = np.cross(z, x)
+    R = np.stack([x, y, z], axis=-1)
+    if lead_rad or tilt_rad:
+        side = np.cross(travel, normal)
+        for col in range(3):
+            v = R[:, :, col]
+            if lead_rad:
+                v = _rotate(v, side, lead_rad)
+            if tilt_rad:
+                v = _rotate(v, travel, tilt_rad)
+            R[:, :, col] = v
+    return R
+
+
+# ----------------------------------------------------------------------------- checks
+
+
+def _check_args(surface, step_over_mm, pitch_mm, angle_deg, lead_mm, clearance_mm, transition_points,
+                tool_x, tool_x_world, lead_deg, tilt_deg) -> np.ndarray:
+    def number(name, x):
+        if isinstance(x, bool) or not isinstance(x, (int, float, np.floating, np.integer)) or not math.isfinite(x):
+            raise BadInput(f"raster.{name}: expected a finite number, found {x!r}")
+
+    for name, x in (("step_over_mm", step_over_mm), ("pitch_mm", pitch_mm), ("angle_deg", angle_deg),
+                    ("lead_mm", lead_mm), ("clearance_mm", clearance_mm), ("lead_deg", lead_deg),
+                    ("tilt_deg", tilt_deg)):
+        number(name, x)
+    if step_over_mm <= 0:
+        raise BadInput(f"raster.step_over_mm: expected a number > 0 mm, found {step_over_mm!r}")
+    if pitch_mm <= 0:
+        raise BadInput(f"raster.pitch_mm: expected a number > 0 mm, found {pitch_mm!r}")
+    if lead_mm < 0:
+        raise BadInput(f"raster.lead_mm: expected a number >= 0, found {lead_mm!r}")
+    if clearance_mm < 0:
+        raise BadInput(f"raster.clearance_mm: expected a number >= 0, found {clearance_mm!r}")
+    for name, x in (("lead_deg", lead_deg), ("tilt_deg", tilt_deg)):
+        if not -89 <= x <= 89:
+            raise BadInput(f"raster.{name}: expected an angle within -89..89 deg, found {x!r}")
+    if isinstance(transition_points, bool) or not isinstance(transition_points, (int, np.integer)) \
+            or transition_points < 2:
+        raise BadInput(f"raster.transition_points: expected an integer >= 2, found {transition_points!r}")
+    if tool_x not in ("fixed", "travel"):
+        raise BadInput(f"raster.tool_x: expected one of 'fixed', 'travel', found {tool_x!r}")
+    w = np.asarray(tool_x_world, dtype=float).ravel()
+    if w.shape != (3,) or not np.all(np.isfinite(w)) or np.linalg.norm(w) < 1e-12:
+        raise BadInput(f"raster.tool_x_world: expected a non-zero direction of 3 numbers, found {tool_x_world!r}")
+    outer = np.asarray(surface.boundary.outer_uv, dtype=float)
+    if outer.ndim != 2 or outer.shape[0] < 3 or outer.shape[1] != 2 or not np.all(np.isfinite(outer)):
+        raise BadInput("surface boundary is empty: the outer polygon needs at least 3 (u, v) vertices")
+    x, y = outer[:, 0], outer[:, 1]
+    if abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))) < 1e-12:
+        raise BadInput("surface boundary is empty: the outer polygon encloses no area")
+    return w
+
+
+# ----------------------------------------------------------------------------- entry
+
+
+def raster_path(surface, step_over_mm: float = 10.0, pitch_mm: float = 5.0, angle_deg: float = 0.0,
+                lead_mm: float = 20.0, clearance_mm: float = 0.0, transition_points: int = 5,
+                tool_x: str = "fixed", tool_x_world=(0.0, 0.0, 1.0), lead_deg: float = 0.0,
+                tilt_deg: float = 0.0, free_spin: bool = False) -> Path:
+    """Raster ``surface`` into a Path: boustrophedon rows of work points with zones.
+
+    Lengths in mm (measured on the surface), angles in degrees. Raises
+    ``BadInput`` for bad arguments, an empty boundary or a step-over wider than
+    the patch. Poses are in the surface's (world) frame; tool z = -normal.
+    """
+    w = _check_args(surface, step_over_mm, pitch_mm, angle_deg, lead_mm, clearance_mm, transition_points,
+                    tool_x, tool_x_world, lead_deg, tilt_deg)
+    step, pitch, lead, clear = float(step_over_mm), float(pitch_mm), float(lead_mm), float(clearance_mm)
+    m = int(transition_points)
+    chart, g_lo = _chart_for(surface, math.radians(angle_deg))
+    boundary = surface.boundary
+
+    # rows and runs
+    e0, e1 = _polygon_edges_st(boundary, chart)
+    t_lo, t_hi = float(e0[:, 1].min()), float(e0[:, 1].max())
+    if step > t_hi - t_lo:
+        raise BadInput(f"raster.step_over_mm: {step:g} mm is larger than the patch "
+                       f"({t_hi - t_lo:.1f} mm across the rows)")
+    rows_t = _row_offsets(t_lo, t_hi, step)
+    s_lo, s_hi = float(e0[:, 0].min()), float(e0[:, 0].max())
+    estimate = len(rows_t) * ((s_hi - s_lo) / (g_lo * pitch) + 2 * (lead / pitch + 1) + m)
+    if estimate > MAX_POSES:
+        raise BadInput(f"raster: step_over_mm={step:g} and pitch_mm={pitch:g} would give about "
+                       f"{estimate:.3g} poses (limit {MAX_POSES:.0e}); use a coarser raster")
+    run_row, run_a, run_b = _row_runs(boundary, chart, rows_t, e0, e1)
+    if len(run_row) == 0:
+        raise BadInput("surface boundary is empty: no material inside the boundary polygons")
+
+    # keep only the rows with material; arc-length table with room for the leads
+    used, run_row = np.unique(run_row, return_inverse=True)
+    rows_t = rows_t[used]
+    ext = 1.1 * (lead + 2 * pitch) / g_lo
+    table = _ArcTable(surface, chart, rows_t, s_lo - ext, s_hi + ext, min(pitch, step) / 2)
+
+    # boustrophedon order: row after row, alternating direction
+    sign = np.where(run_row % 2 == 0, 1.0, -1.0)
+    order = np.lexsort((run_a * sign, run_row))
+    run_row, run_a, run_b, sign = run_row[order], run_a[order], run_b[order], sign[order]
+    arc_a = table.arc_at(run_row, run_a)
+    length = table.arc_at(run_row, run_b) - arc_a
+    # points strictly inside the run: end margins between 0.005 and 0.505 pitch
+    n_int = np.maximum(np.ceil(length / pitch - 0.01).astype(np.int64) - 1, 0)
+    count = n_int + 1  # work points per segment, c_i
+    first_arc = arc_a + (length - n_int * pitch) / 2
+
+    # per-segment blocks [lead-in | work | lead-out], built in forward (increasing s) order
+    n_lead = 0 if lead == 0 else max(1, int(round(lead / pitch)))
+    lead_step = lead / n_lead if n_lead else 0.0
+    n_seg = len(count)
+    block = count + 2 * n_lead
+    seg = np.repeat(np.arange(n_seg), block)
+    start = np.concatenate([[0], np.cumsum(block)[:-1]])
+    pos = np.arange(len(seg)) - start[seg]  # position in path order within the block
+    fwd = np.where(sign[seg] > 0, pos, block[seg] - 1 - pos)  # position in forward order
+    c_s = count[seg]
+    last_arc = first_arc + (count - 1) * pitch
+    arc = np.where(fwd < n_lead, first_arc[seg] - (n_lead - fwd) * lead_step,
+                   np.where(fwd < n_lead + c_s, first_arc[seg] + (fwd - n_lead) * pitch,
+                            last_arc[seg] + (fwd - n_lead - c_s + 1) * lead_step))
+    row = run_row[seg]
+    uv = chart.uv_from_st(table.s_at(row, arc), rows_t[row])
+
+    zone = np.where(pos < n_lead, _LEAD_IN, np.where(pos < n_lead + c_s, _WORK, _LEAD_OUT)).astype(np.int32)
+    point = np.where(zone == _WORK, pos - n_lead + 1, 0).astype(np.int32)
+    lift = np.zeros(len(seg))
+    if n_lead:
+        lift = np.where(zone == _LEAD_IN, clear * (n_lead - pos) / n_lead,
+                        np.where(zone == _LEAD_OUT, clear * (pos - n_lead - c_s + 1) / n_lead, 0.0))
+
+    # geometry and orientation of the on-surface samples
+    p = surface.point_mm(uv[:, 0], uv[:, 1])
+    normal = _unit(surface.normal_at(uv[:, 0], uv[:, 1]))
+    eps = 1e-3 * chart.duv_ds  # 1 um along the row: a forward difference is exact to ~1e-6 rad
+    travel = surface.point_mm(uv[:, 0] + eps[0], uv[:, 1] + eps[1]) - p
+    travel = travel - np.sum(travel * normal, axis=1, keepdims=True) * normal
+    travel = _unit(travel) * sign[seg][:, None]
+    R = _tool_rotations(normal, travel, tool_x, w, math.radians(lead_deg), math.radians(tilt_deg))
+    pos_mm = p + lift[:, None] * normal
+
+    # self-motion transitions between consecutive segments
+    a_idx = start[:-1] + block[:-1] - 1
+    b_idx = start[1:]
+    f = np.arange(1, m + 1) / (m + 1)
+    uv_t = uv[a_idx, None, :] + f[None, :, None] * (uv[b_idx] - uv[a_idx])[:, None, :]
+    base = lift[a_idx, None] + f[None, :] * (lift[b_idx] - lift[a_idx])[:, None]
+    lift_t = base + (clear - base) * np.sin(np.pi * f)[None, :]
+    uv_t = uv_t.reshape(-1, 2)
+    n_t = _unit(surface.normal_at(uv_t[:, 0], uv_t[:, 1]))
+    pos_t = surface.point_mm(uv_t[:, 0], uv_t[:, 1]) + lift_t.reshape(-1, 1) * n_t
+    if n_seg > 1:
+        ra, rb = Rotation.from_matrix(R[a_idx]), Rotation.from_matrix(R[b_idx])
+        rel = (ra.inv() * rb).as_rotvec()
+        ra_rep = Rotation.from_matrix(np.repeat(R[a_idx], m, axis=0))
+        R_t = (ra_rep * Rotation.from_rotvec((rel[:, None, :] * f[None, :, None]).reshape(-1, 3))).as_matrix()
+    else:
+        R_t = np.zeros((0, 3, 3))
+
+    # approach and depart: back off along the normal of the first / last pose
+    back = max(clear, APPROACH_MIN_MM)
+    h = back * np.arange(1, APPROACH_POINTS + 1) / APPROACH_POINTS
+    pos_ap = pos_mm[0] + h[::-1, None] * normal[0]
+    pos_dp = pos_mm[-1] + h[:, None] * normal[-1]
+
+    # assemble in path order
+    A = APPROACH_POINTS
+    total = 2 * A + len(seg) + (n_seg - 1) * m
+    poses = np.zeros((total, 4, 4))
+    poses[:, 3, 3] = 1.0
+    segment = np.zeros(total, np.int32)
+    pidx = np.zeros(total, np.int32)
+    zcode = np.zeros(total, np.int32)
+    at = A + np.arange(len(seg)) + seg * m
+    poses[at, :3, :3], poses[at, :3, 3] = R, pos_mm
+    segment[at], pidx[at], zcode[at] = seg, point, zone
+    if n_seg > 1:
+        at_t = (A + start[1:] + np.arange(n_seg - 1) * m)[:, None] + np.arange(m)[None, :]
+        at_t = at_t.ravel()
+        poses[at_t, :3, :3], poses[at_t, :3, 3] = R_t, pos_t
+        segment[at_t] = np.repeat(np.arange(1, n_seg), m)
+        zcode[at_t] = _SELF
+    poses[:A, :3, :3], poses[:A, :3, 3] = R[0], pos_ap
+    zcode[:A] = _APPROACH
+    poses[total - A:, :3, :3], poses[total - A:, :3, 3] = R[-1], pos_dp
+    segment[total - A:] = n_seg - 1
+    zcode[total - A:] = _DEPART
+    return Path(poses, segment, pidx, zcode, bool(free_spin), step, pitch)
+
+
+# ----------------------------------------------------------------------------- coverage and summary
+
+
+def coverage_radius_mm(step_over_mm: float, pitch_mm: float) -> float:
+    """Distance within which a surface point counts as covered by a work point (mm).
+
+    Half the diagonal of one pitch x step-over cell (the farthest any point of a
+    perfect raster is from its nearest work point) plus COVERAGE_TOL_FRACTION of
+    the step-over for sampling and chord-versus-arc effects.
+    """
+    return 0.5 * math.hypot(step_over_mm, pitch_mm) + COVERAGE_TOL_FRACTION * step_over_mm
+
+
+def coverage(surface, path: Path, step_over_mm: float, grid: int = 400) -> float:
+    """Area share (0..1) of the bounded surface within ``coverage_radius_mm`` of a work point.
+
+    The (u, v) bounding box is sampled on a grid of about ``grid`` samples along
+    its longer metric side; samples on material are weighted by their area
+    element, and distances are taken in mm between surface points (cKDTree).
+    """
+    if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or grid < 2:
+        raise BadInput(f"coverage grid: expected an integer >= 2, found {grid!r}")
+    work = path.poses_mm[path.is_work, :3, 3]
+    if len(work) == 0:
+        return 0.0
+    b = surface.boundary
+    lo, hi = b.bounds()
+    scale = surface.metric_scale(_domain_grid(b)).max(axis=0)
+    extent = (hi - lo) * scale
+    n = np.maximum(2, np.ceil(grid * extent / extent.max()).astype(int))
+    # cell centres, so that every sample stands for the same (u, v) area
+    us = lo[0] + (np.arange(n[0]) + 0.5) * (hi[0] - lo[0]) / n[0]
+    vs = lo[1] + (np.arange(n[1]) + 0.5) * (hi[1] - lo[1]) / n[1]
+    U, V = np.meshgrid(us, vs)
+    uv = np.stack([U.ravel(), V.ravel()], axis=-1)
+    uv = uv[b.contains(uv)]
+    if len(uv) == 0:
+        return 0.0
+    weight = np.prod(surface.metric_scale(uv), axis=1)
+    pitch = path.pitch_mm if path.pitch_mm > 0 else step_over_mm
+    dist, _ = cKDTree(work).query(surface.point_mm(uv[:, 0], uv[:, 1]),
+                                  distance_upper_bound=coverage_radius_mm(step_over_mm, pitch) * 1.0001)
+    covered = dist <= coverage_radius_mm(step_over_mm, pitch)
+    return float(weight[covered].sum() / weight.sum())
+
+
+def count_rows(path: Path) -> int:
+    """Rows of a raster path: a new row starts where the travel direction reverses.
+
+    The direction of a segment is taken from its first to its last
+    lead-in/work/lead-out pose; a segment with a single pose and no leads
+    counts as continuing the row.
+    """
+    on = np.isin(path.zone, [_LEAD_IN, _WORK, _LEAD_OUT])
+    seg = path.segment[on]
+    if len(seg) == 0:
+        return 0
+    p = path.poses_mm[on, :3, 3]
+    _, first = np.unique(seg, return_index=True)
+    _, last = np.unique(seg[::-1], return_index=True)
+    last = len(seg) - 1 - last
+    d = p[last] - p[first]
+    # compare the direction at the end of one segment with the start of the next
+    dots = np.sum(d[:-1] * d[1:], axis=1)
+    return int(1 + np.count_nonzero(dots < 0))
+
+
+def raster_summary(path: Path, surface=None, grid: int = 400) -> dict:
+    """Figures of a raster path: rows, segments, work and zone points, length (mm), coverage.
+
+    ``coverage`` (0..1) is computed when ``surface`` is given, else None.
+    """
+    zones = {name: int(np.count_nonzero(path.zone == code)) for code, name in enumerate(ZONES)}
+    work = zones["work"]
+    return {
+        "rows": count_rows(path),
+        "segments": int(len(np.unique(path.segment[path.is_work]))),
+        "work_points": work,
+        "zone_points": int(len(path) - work),
+        "zone_counts": {k: v for k, v in zones.items() if k != "work" and v},
+        "path_length_mm": round(path.length_mm(), 3),
+        "work_length_mm": round(_work_length_mm(path), 3),
+        "step_over_mm": float(path.step_over_mm),
+        "pitch_mm": float(path.pitch_mm),
+        "free_spin": bool(path.free_spin),
+        "coverage": None if surface is None else round(coverage(surface, path, path.step_over_mm, grid), 5),
+    }
+
+
+def _work_length_mm(path: Path) -> float:
+    """Length of the work polylines inside segments (mm)."""
+    w = path.is_work
+    p = path.poses_mm[:, :3, 3]
+    both = w[1:] & w[:-1] & (path.segment[1:] == path.segment[:-1])
+    return float(np.linalg.norm(np.diff(p, axis=0), axis=1)[both].sum())

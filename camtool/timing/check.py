@@ -1,0 +1,127 @@
+"""Independent limit checker: only the Trajectory and the robot's limits are used.
+
+It does not import any of the timing code; it resamples the trajectory with
+``Trajectory.sample`` (the quintic Hermite pieces a controller would run) and
+compares every joint's position, speed, acceleration and jerk to the robot's
+limits. Findings are one line each, in user units (deg or mm, per s^k).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..trajectory import Trajectory
+
+CHUNK_WAYPOINTS = 20000      # resample this many waypoints at a time (bounded memory)
+REL_TOL = 1e-9               # relative slack for round-off
+MAX_LINES_PER_KIND = 20      # findings per joint and quantity before summarising
+
+_KINDS = ("speed", "acceleration", "jerk")
+
+
+def _unit(prismatic: bool, order: int) -> str:
+    base = "mm" if prismatic else "deg"
+    return base + ("", "/s", "/s^2", "/s^3")[order]
+
+
+def _user(x, prismatic: bool):
+    return x if prismatic else np.degrees(x)
+
+
+def _intervals(bad: np.ndarray):
+    """(start, stop) index pairs of runs of True in a 1-D bool array."""
+    if not bad.any():
+        return []
+    d = np.diff(np.concatenate([[0], bad.astype(np.int8), [0]]))
+    return list(zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0]))
+
+
+def _limit_lines(name, prismatic, t, values, limit, kind, order, lower=None):
+    """Finding lines for one joint and one quantity (peak of each violating interval)."""
+    tol = REL_TOL * (1.0 + np.abs(limit))
+    if lower is None:
+        bad = np.abs(values) > limit + tol
+    else:
+        bad = (values < lower - REL_TOL * (1 + abs(lower))) | (values > limit + tol)
+    lines = []
+    spans = _intervals(bad)
+    for a, b in spans[:MAX_LINES_PER_KIND]:
+        seg = values[a:b]
+        if lower is None:
+            k = a + int(np.argmax(np.abs(seg)))
+            what = f"|{kind}| {_user(abs(values[k]), prismatic):.6g} {_unit(prismatic, order)} exceeds the limit " \
+                   f"{_user(limit, prismatic):.6g} {_unit(prismatic, order)}"
+        else:
+            k = a + int(np.argmax(np.maximum(lower - seg, seg - limit)))
+            what = f"position {_user(values[k], prismatic):.6g} {_unit(prismatic, 0)} is outside " \
+                   f"[{_user(lower, prismatic):.6g}, {_user(limit, prismatic):.6g}] {_unit(prismatic, 0)}"
+        lines.append(f"joint {name}: {what} at t = {t[k]:.4f} s")
+    if len(spans) > MAX_LINES_PER_KIND:
+        lines.append(f"joint {name}: {kind} limit also broken in {len(spans) - MAX_LINES_PER_KIND} more intervals")
+    return lines
+
+
+def check_trajectory(trajectory: Trajectory, robot, dt_s: float = 0.004) -> list[str]:
+    """Findings (one line each) where ``trajectory`` breaks the robot's limits; empty if none.
+
+    Resamples at ``dt_s`` and checks position, speed, acceleration and jerk of
+    every joint; also the waypoints themselves, strictly increasing time
+    stamps, finite values and array shapes.
+    """
+    tr = trajectory
+    L = robot.limits
+    dof = robot.dof
+    names = tuple(robot.joint_names)
+    prism = np.asarray(robot.prismatic, bool)
+    m = len(tr.t_s)
+    findings: list[str] = []
+    for label, arr, shape in (("t_s", tr.t_s, (m,)), ("q", tr.q, (m, dof)), ("qd", tr.qd, (m, dof)),
+                              ("qdd", tr.qdd, (m, dof))):
+        arr = np.asarray(arr)
+        if arr.shape != shape:
+            findings.append(f"{label} has shape {arr.shape}, expected {shape}")
+        elif not np.all(np.isfinite(arr)):
+            k = int(np.nonzero(~np.isfinite(arr).reshape(m, -1).all(axis=1))[0][0])
+            findings.append(f"{label} has a non-finite value at waypoint {k}")
+    if findings:
+        return findings
+    if m < 2:
+        return [f"the trajectory has {m} waypoint(s); at least 2 are needed"]
+    steps = np.diff(tr.t_s)
+    if np.any(steps <= 0):
+        k = int(np.nonzero(steps <= 0)[0][0])
+        return [f"time stamps are not strictly increasing at waypoint {k + 1} (t = {tr.t_s[k + 1]:.6f} s "
+                f"after {tr.t_s[k]:.6f} s)"]
+    # the waypoints themselves, then the resampled motion
+    per_joint: dict[tuple[int, str], list] = {}
+
+    def add(j, kind, t, v):
+        per_joint.setdefault((j, kind), []).append((t, v))
+
+    for j in range(dof):
+        add(j, "position", tr.t_s, tr.q[:, j])
+        add(j, "speed", tr.t_s, tr.qd[:, j])
+        add(j, "acceleration", tr.t_s, tr.qdd[:, j])
+    for a in range(0, m - 1, CHUNK_WAYPOINTS):
+        b = min(a + CHUNK_WAYPOINTS, m - 1)
+        part = Trajectory(tr.robot_name, tr.joint_names, tr.prismatic, tr.t_s[a:b + 1], tr.q[a:b + 1],
+                          tr.qd[a:b + 1], tr.qdd[a:b + 1], tr.zone[a:b + 1], tr.path_index[a:b + 1])
+        t, q, qd, qdd, qddd = part.sample(dt_s)
+        for j in range(dof):
+            add(j, "position", t, q[:, j])
+            add(j, "speed", t, qd[:, j])
+            add(j, "acceleration", t, qdd[:, j])
+            add(j, "jerk", t, qddd[:, j])
+    limit_of = {"speed": L.velocity, "acceleration": L.acceleration, "jerk": L.jerk}
+    order_of = {"position": 0, "speed": 1, "acceleration": 2, "jerk": 3}
+    for j in range(dof):
+        for kind in ("position",) + _KINDS:
+            chunks = per_joint[(j, kind)]
+            t = np.concatenate([c[0] for c in chunks])
+            v = np.concatenate([c[1] for c in chunks])
+            o = np.argsort(t, kind="stable")
+            t, v = t[o], v[o]
+            if kind == "position":
+                findings += _limit_lines(names[j], prism[j], t, v, L.upper[j], kind, 0, lower=L.lower[j])
+            else:
+                findings += _limit_lines(names[j], prism[j], t, v, limit_of[kind][j], kind, order_of[kind])
+    return findings

@@ -1,0 +1,175 @@
+"""The post-processor plugin protocol and the entry-point registry.
+
+A post-processor turns a timed ``camtool.trajectory.Trajectory`` into
+controller program files. Plugins are found through the entry-point group
+``camtool.postprocessors`` (``importlib.metadata.entry_points``); the
+built-ins (rapid, inform, csv) register the same way in camtool's
+pyproject.toml. An entry point names a class (instantiated without arguments)
+or an instance. See docs/plugins.md.
+"""
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from camtool.errors import BadInput
+
+GROUP = "camtool.postprocessors"
+log = logging.getLogger("camtool.post")
+
+# Built-in plugins, used only when camtool runs from a source tree that was
+# never pip-installed (then no entry points exist).
+_BUILTIN_FALLBACK = {
+    "rapid": "postprocessors.abb_rapid:RapidPost",
+    "inform": "postprocessors.yaskawa_inform:InformPost",
+    "csv": "postprocessors.csv_joint:CsvPost",
+}
+
+
+@runtime_checkable
+class PostProcessor(Protocol):
+    """What a post-processor plugin provides.
+
+    - ``name``: the format name used in ``post.formats`` (e.g. ``"rapid"``).
+    - ``extension``: main file extension with the dot (e.g. ``".mod"``).
+    - ``options_schema``: option -> (type, default, doc); the options live in
+      the ``[options]`` table of the controller profile.
+    - ``write(trajectory, robot, profile, outdir)`` writes the program files
+      into ``outdir`` and returns their paths, the entry file first.
+    - ``read(path, robot, profile)`` returns ``(durations_s, q)``: the duration
+      of each move (s, NaN where the program gives none) and the joint values
+      (M x dof, rad / mm) of each move's target.
+
+    Optional attributes: ``requires_profile`` (bool, default True: a profile
+    with an axis map is needed), ``check(path, robot, profile) -> list[str]``
+    (findings; the built-ins are checked by ``postprocessors.check``).
+    """
+
+    name: str
+    extension: str
+    options_schema: dict[str, tuple[type, Any, str]]
+
+    def write(self, trajectory, robot, profile, outdir: Path) -> list[Path]: ...
+
+    def read(self, path: Path, robot, profile) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+@dataclass(frozen=True)
+class PluginInfo:
+    """A discovered plugin: its object, the package that provides it, any load error."""
+
+    name: str
+    plugin: Any
+    source: str
+    entry_point: str
+    error: str = ""
+
+
+def _load_entry(name: str, value: str, source: str, load) -> PluginInfo:
+    try:
+        obj = load()
+        plugin = obj() if isinstance(obj, type) else obj
+        missing = [a for a in ("name", "extension", "options_schema", "write") if not hasattr(plugin, a)]
+        if missing:
+            raise TypeError(f"missing {', '.join(missing)}")
+        if plugin.name != name:
+            raise TypeError(f"entry point name {name!r} differs from plugin.name {plugin.name!r}")
+        return PluginInfo(name, plugin, source, value)
+    except Exception as exc:  # a broken third-party plugin must not break camtool
+        return PluginInfo(name, None, source, value, f"{type(exc).__name__}: {exc}")
+
+
+def discover() -> dict[str, PluginInfo]:
+    """All post-processors, by name: entry points of group ``camtool.postprocessors``.
+
+    A plugin that fails to load is listed with its error. When two packages
+    register the same name, the first one found wins and the other is ignored
+    with a log warning.
+    """
+    found: dict[str, PluginInfo] = {}
+    for ep in sorted(entry_points(group=GROUP), key=lambda e: (e.name, e.value)):
+        source = ep.dist.name if getattr(ep, "dist", None) is not None else "?"
+        if ep.name in found:
+            log.warning("post-processor %r from %s ignored: already provided by %s",
+                        ep.name, source, found[ep.name].source)
+            continue
+        found[ep.name] = _load_entry(ep.name, ep.value, source, ep.load)
+    for name, value in _BUILTIN_FALLBACK.items():
+        if name not in found:
+            module, attr = value.split(":")
+
+            def load(module=module, attr=attr):
+                import importlib
+                return getattr(importlib.import_module(module), attr)
+            found[name] = _load_entry(name, value, "camtool (source tree)", load)
+    return dict(sorted(found.items()))
+
+
+def get_plugin(name: str):
+    """The plugin object for a format name; BadInput naming the installed ones."""
+    plugins = discover()
+    info = plugins.get(name)
+    if info is None:
+        raise BadInput(f"post.formats: no post-processor {name!r} is installed "
+                       f"(installed: {', '.join(plugins) or 'none'}; see `camtool posts`)")
+    if info.plugin is None:
+        raise BadInput(f"post.formats: post-processor {name!r} from {info.source} failed to load: {info.error}")
+    return info.plugin
+
+
+def describe_plugins() -> list[dict]:
+    """Name, extension, source package, entry point, options (for ``camtool posts``)."""
+    out = []
+    for info in discover().values():
+        p = info.plugin
+        options = {}
+        if p is not None:
+            for k, (typ, default, doc) in p.options_schema.items():
+                options[k] = {"type": getattr(typ, "__name__", str(typ)), "default": default, "doc": doc}
+        out.append({"name": info.name, "extension": getattr(p, "extension", ""), "source": info.source,
+                    "entry_point": info.entry_point, "options": options,
+                    **({"error": info.error} if info.error else {})})
+    return out
+
+
+# --- helpers shared by the built-in writers -------------------------------------------------
+
+def sanitise_name(raw: str, *, max_len: int, reserved: frozenset[str] = frozenset(),
+                  upper: bool = False, what: str = "name") -> tuple[str, str]:
+    """A controller-safe identifier: letters, digits and ``_``, leading letter, at most
+    ``max_len`` characters, not in ``reserved`` (compared case-insensitively).
+
+    Returns ``(name, note)``; ``note`` is empty when ``raw`` was already valid.
+    """
+    s = raw.upper() if upper else raw
+    s = re.sub(r"[^A-Za-z0-9_]", "_", s.encode("ascii", "replace").decode("ascii"))
+    if not s or not s[0].isalpha():
+        s = ("P" if upper else "p") + s
+    s = s[:max_len]
+    if s.upper() in {r.upper() for r in reserved}:
+        s = (s[:max_len - 2] + "_1")
+    note = "" if s == raw else f"{what} {raw!r} is not valid for the controller; written as {s!r}"
+    if note:
+        log.warning(note)
+    return s, note
+
+
+def joint_values_edge(trajectory_q: np.ndarray, prismatic: np.ndarray) -> np.ndarray:
+    """Joint values in edge units: degrees for revolute joints, mm for prismatic."""
+    return np.where(prismatic[None, :], trajectory_q, np.degrees(trajectory_q))
+
+
+def joint_values_native(edge_q: np.ndarray, prismatic: np.ndarray) -> np.ndarray:
+    """Inverse of ``joint_values_edge``: degrees -> rad for revolute joints, mm unchanged."""
+    return np.where(prismatic[None, :], edge_q, np.radians(edge_q))
+
+
+def chunks(n: int, size: int) -> list[range]:
+    """Split range(n) into consecutive ranges of at most ``size``."""
+    return [range(i, min(i + size, n)) for i in range(0, n, size)] or [range(0)]

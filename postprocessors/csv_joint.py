@@ -1,0 +1,104 @@
+"""CSV post-processor: one row per waypoint, a time column and one column per joint.
+
+Header: ``t_s`` then ``<joint>_<unit>`` with unit ``mm`` for prismatic joints
+and ``deg`` or ``rad`` (option ``angle_unit``) for revolute ones, e.g.
+``t_s,track_mm,j2_deg,...``. Numbers are written with Python's shortest
+round-trip ``repr``, so a reader gets back exactly the floats that were written.
+LF line ends, ASCII.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from camtool.errors import BadInput
+
+from .base import sanitise_name
+
+COLUMN_RE = re.compile(r"^(?P<joint>.+)_(?P<unit>mm|deg|rad)$")
+
+
+def read_table(path: Path) -> tuple[list[str], np.ndarray]:
+    """Header and values (file units) of a camtool CSV; BadInput on a malformed file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="ascii")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BadInput(f"{path}: cannot read as ASCII CSV ({exc})") from None
+    lines = text.splitlines()
+    if not lines:
+        raise BadInput(f"{path}: empty file")
+    header = lines[0].split(",")
+    rows = []
+    for n, line in enumerate(lines[1:], 2):
+        cells = line.split(",")
+        if len(cells) != len(header):
+            raise BadInput(f"{path}:{n}: {len(cells)} values, the header has {len(header)} columns")
+        try:
+            rows.append([float(c) for c in cells])
+        except ValueError:
+            raise BadInput(f"{path}:{n}: values must be numbers") from None
+    return header, np.array(rows, dtype=float).reshape(-1, len(header))
+
+
+def columns_for(robot, angle_unit: str) -> list[str]:
+    """The header for a robot: t_s then <joint>_<unit>."""
+    return ["t_s"] + [f"{n}_{'mm' if p else angle_unit}" for n, p in zip(robot.joint_names, robot.prismatic)]
+
+
+class CsvPost:
+    """CSV writer and reader (see module doc)."""
+
+    name = "csv"
+    extension = ".csv"
+    requires_profile = False
+    options_schema = {
+        "angle_unit": (str, "deg", "Unit of revolute joints: deg or rad (the job's post.csv_angle_unit sets it)."),
+    }
+
+    def validate_profile(self, profile, robot) -> None:
+        """BadInput on an angle unit other than deg or rad."""
+        if profile.options.get("angle_unit", "deg") not in ("deg", "rad"):
+            raise BadInput(f"{profile.source}: options.angle_unit: expected 'deg' or 'rad', "
+                           f"found {profile.options['angle_unit']!r}")
+
+    def write(self, trajectory, robot, profile, outdir: Path) -> list[Path]:
+        """Write ``<NAME>.csv``: t_s and every joint per waypoint."""
+        self.validate_profile(profile, robot)
+        unit = profile.options.get("angle_unit", "deg")
+        name, _ = sanitise_name(profile.program_name, max_len=64, what="CSV file name")
+        q = np.asarray(trajectory.q, float)
+        edge = np.where(robot.prismatic[None, :], q, np.degrees(q) if unit == "deg" else q)
+        lines = [",".join(columns_for(robot, unit))]
+        for t, row in zip(np.asarray(trajectory.t_s, float), edge):
+            lines.append(",".join(repr(float(v)) for v in (t, *row)))
+        path = Path(outdir) / f"{name}.csv"
+        path.write_bytes(("\n".join(lines) + "\n").encode("ascii"))
+        return [path]
+
+    def read(self, path: Path, robot, profile=None) -> tuple[np.ndarray, np.ndarray]:
+        """(durations_s, q): the step before each row (NaN for the first) and joint values in
+        rad / mm; the unit of each column is taken from its header."""
+        t_s, q = self.read_trajectory(path, robot)
+        return np.concatenate([[np.nan], np.diff(t_s)]), q
+
+    def read_trajectory(self, path: Path, robot) -> tuple[np.ndarray, np.ndarray]:
+        """(t_s, q in rad / mm) from a camtool CSV; BadInput when the columns do not fit the robot."""
+        header, data = read_table(path)
+        if not header or header[0] != "t_s":
+            raise BadInput(f"{path}:1: the first column must be t_s, found {header[0] if header else ''!r}")
+        if len(header) != robot.dof + 1:
+            raise BadInput(f"{path}:1: {len(header) - 1} joint columns, robot {robot.name} has {robot.dof}")
+        q = np.empty((len(data), robot.dof))
+        for i, (col, jn, pr) in enumerate(zip(header[1:], robot.joint_names, robot.prismatic)):
+            m = COLUMN_RE.match(col)
+            if not m or m.group("joint") != jn:
+                raise BadInput(f"{path}:1: column {i + 2} is {col!r}, expected {jn}_<unit>")
+            unit = m.group("unit")
+            if (unit == "mm") != bool(pr):
+                raise BadInput(f"{path}:1: column {col!r}: joint {jn} is "
+                               f"{'prismatic (mm)' if pr else 'revolute (deg or rad)'}")
+            q[:, i] = np.radians(data[:, i + 1]) if unit == "deg" else data[:, i + 1]
+        return data[:, 0], q

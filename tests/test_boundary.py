@@ -1,0 +1,70 @@
+"""Boundary extraction: outer polygon and holes that hug the material."""
+import numpy as np
+import pytest
+
+from camtool.boundary import boundary_from_uv
+from camtool.fit import fit_surface
+from camtool.workpiece import load_workpiece
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+
+
+def _plate_uv(n=60_000, seed=0):
+    rng = np.random.default_rng(seed)
+    uv = rng.uniform([-200, -150], [200, 150], (n, 2))
+    in_hole = np.hypot(uv[:, 0] - 60, uv[:, 1] - 30) < 40  # 80 mm round hole
+    return uv[~in_hole]
+
+
+def test_plate_with_round_hole_gives_outer_and_one_hole():
+    b = boundary_from_uv(_plate_uv(), None, cell_mm=2.0, close_gaps_mm=6.0, simplify_mm=0.5)
+    assert len(b.holes_uv) == 1
+    assert not b.contains(np.array([[60.0, 30.0]]))[0]
+    assert b.contains(np.array([[0.0, 0.0], [-150.0, -100.0], [60.0, 80.0]])).all()
+    lo, hi = b.bounds()
+    assert np.allclose(lo, [-200, -150], atol=3.0) and np.allclose(hi, [200, 150], atol=3.0)
+    r = np.hypot(b.holes_uv[0][:, 0] - 60, b.holes_uv[0][:, 1] - 30)
+    assert np.all(np.abs(r - 40) < 3.0)  # hugs the hole edge within about one cell
+    # orientation convention: outer counter-clockwise, hole clockwise
+    def area(p):
+        return 0.5 * np.sum(p[:, 0] * np.roll(p[:, 1], -1) - p[:, 1] * np.roll(p[:, 0], -1))
+    assert area(b.outer_uv) > 0 > area(b.holes_uv[0])
+
+
+def test_small_gaps_are_closed_and_largest_component_kept():
+    uv = _plate_uv()
+    uv = uv[~((uv[:, 0] > -105) & (uv[:, 0] < -95))]  # a 10 mm slot across the plate
+    island = np.random.default_rng(1).uniform([400, 0], [420, 20], (2000, 2))  # a separate chip
+    b = boundary_from_uv(np.vstack([uv, island]), None, cell_mm=2.0, close_gaps_mm=12.0)
+    assert len(b.holes_uv) == 1 and b.bounds()[1][0] < 210  # slot closed, chip left out
+    b_open = boundary_from_uv(uv, None, cell_mm=2.0, close_gaps_mm=0.0)
+    assert b_open.bounds()[0][0] > -100  # without closing the slot splits the plate
+
+
+def test_sample_plate_hole_stl():
+    s = fit_surface(load_workpiece(ROOT / "samples" / "plate_hole.stl"))
+    assert s.model == "plane" and np.allclose(s.normal, [0, 0, 1])
+    assert len(s.boundary.holes_uv) == 1
+    hole_centre_uv = s.uv_from_points(np.array([[60.0, 30.0, 0.0]]))
+    assert not s.boundary.contains(hole_centre_uv)[0]
+    assert s.boundary.contains(s.uv_from_points(np.array([[-150.0, -100.0, 0.0]])))[0]
+
+
+def test_sphere_band_boundary_in_radians():
+    rng = np.random.default_rng(2)
+    uv = np.column_stack([rng.uniform(*np.radians([-40, 40]), 80_000),
+                          np.arcsin(rng.uniform(*np.sin(np.radians([-10, 60])), 80_000))])
+    b = boundary_from_uv(uv, 600.0, cell_mm=2.0)
+    lo, hi = np.degrees(b.bounds())
+    assert np.allclose(lo, [-40, -10], atol=0.6) and np.allclose(hi, [40, 60], atol=0.6)
+    assert b.holes_uv == ()
+    # the edge at u = 40 deg is hugged at every elevation (sinusoidal raster is equal-area)
+    v = np.radians(np.linspace(-5, 55, 13))
+    assert b.contains(np.column_stack([np.full(13, np.radians(39.0)), v])).all()
+    assert not b.contains(np.column_stack([np.full(13, np.radians(41.5)), v])).any()
+
+
+def test_too_few_points():
+    from camtool.errors import BadInput
+    with pytest.raises(BadInput):
+        boundary_from_uv(np.zeros((2, 2)), None)

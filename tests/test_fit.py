@@ -1,0 +1,114 @@
+"""RANSAC fitting: accuracy with noise and outliers, determinism, model choice, errors."""
+import numpy as np
+import pytest
+
+from camtool.errors import BadInput
+from camtool.fit import fit_surface
+from camtool.surface import PlaneSurface, SpherePatch
+from camtool.workpiece import Workpiece
+
+CENTER = np.array([1000.0, 0.0, 100.0])
+
+
+def _with_outliers(pts, normals, rng, ratio=0.3, pad=0.0):
+    n_out = int(round(len(pts) * ratio / (1 - ratio)))
+    lo, hi = pts.min(axis=0) - pad, pts.max(axis=0) + pad
+    out = rng.uniform(lo, hi, (n_out, 3))
+    order = rng.permutation(len(pts) + n_out)
+    return Workpiece(np.vstack([pts, out])[order], np.vstack([normals, np.tile(normals[:1], (n_out, 1))])[order])
+
+
+def sphere_patch_points(n, rng, sigma=0.1, R=600.0):
+    az = rng.uniform(*np.radians([-40, 40]), n)
+    el = np.arcsin(rng.uniform(*np.sin(np.radians([-10, 60])), n))
+    d = np.stack([-np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], 1)
+    return CENTER + d * (R + rng.normal(0, sigma, n))[:, None], d
+
+
+def plane_points(n, rng, normal, offset, sigma=0.1):
+    normal = normal / np.linalg.norm(normal)
+    a = np.cross(normal, [0.3, 0.5, 0.8]); a /= np.linalg.norm(a)
+    b = np.cross(normal, a)
+    uv = rng.uniform(-400, 400, (n, 2))
+    pts = offset * normal + uv[:, :1] * a + uv[:, 1:] * b + rng.normal(0, sigma, (n, 1)) * normal
+    return pts, np.tile(normal, (n, 1))
+
+
+@pytest.fixture(scope="module")
+def sphere_wp():
+    rng = np.random.default_rng(11)
+    pts, d = sphere_patch_points(70_000, rng)
+    return _with_outliers(pts, d, rng)  # 100k points, 30 % outliers in the bounding box
+
+
+@pytest.fixture(scope="module")
+def plane_wp():
+    rng = np.random.default_rng(12)
+    pts, nrm = plane_points(70_000, rng, np.array([0.2, -1.0, 0.3]), -550.0)
+    return _with_outliers(pts, nrm, rng, pad=100.0)  # box padded off the plane: real outliers
+
+
+def test_sphere_accuracy(sphere_wp):
+    s = fit_surface(sphere_wp, model="sphere")
+    assert isinstance(s, SpherePatch)
+    assert abs(s.radius_mm - 600.0) <= 0.05
+    assert np.linalg.norm(s.center_mm - CENTER) <= 0.1
+    assert 0.69 < s.stats.inlier_ratio < 0.72 and s.stats.n_points == 100_000
+    assert 0.08 < s.stats.rms_mm < 0.13 and s.stats.max_residual_mm < 0.5
+    # frame: e3 is world up, e1 the horizontal mean direction (-x): rows stay horizontal
+    assert np.allclose(s.frame[:, 2], [0, 0, 1]) and np.allclose(s.frame[:, 0], [-1, 0, 0], atol=1e-3)
+    lo, hi = np.degrees(s.boundary.bounds())
+    assert np.allclose([lo[0], hi[0]], [-40, 40], atol=0.8) and np.allclose([lo[1], hi[1]], [-10, 60], atol=0.8)
+    assert s.boundary.holes_uv == ()
+
+
+def test_plane_accuracy_and_orientation(plane_wp):
+    true_n = np.array([0.2, -1.0, 0.3]) / np.linalg.norm([0.2, -1.0, 0.3])
+    s = fit_surface(plane_wp, model="plane")
+    assert isinstance(s, PlaneSurface)
+    angle_deg = np.degrees(np.arccos(np.clip(s.normal @ true_n, -1, 1)))
+    assert angle_deg <= 0.01  # also checks the sign: towards the workpiece normals
+    assert abs(s.offset_mm - (-550.0)) <= 0.05
+    assert np.isclose(np.cross(s.u_axis, s.v_axis) @ s.normal, 1.0)
+    assert s.v_axis[2] > 0.9  # tilted plane: v follows world up
+
+
+def test_auto_picks_plane_for_plane_and_sphere_for_sphere(plane_wp, sphere_wp):
+    assert fit_surface(plane_wp).model == "plane"
+    assert fit_surface(sphere_wp).model == "sphere"
+
+
+def test_auto_takes_plane_for_a_flat_cloud_without_outliers():
+    rng = np.random.default_rng(3)
+    pts, nrm = plane_points(5000, rng, np.array([0.0, 0.0, 1.0]), 10.0)
+    s = fit_surface(Workpiece(pts, nrm))
+    assert s.model == "plane" and np.allclose(s.normal, [0, 0, 1], atol=1e-3)
+
+
+def test_same_seed_same_result(sphere_wp):
+    a = fit_surface(sphere_wp, seed=7, iterations=200)
+    b = fit_surface(sphere_wp, seed=7, iterations=200)
+    assert a.radius_mm == b.radius_mm and np.array_equal(a.center_mm, b.center_mm)
+    assert np.array_equal(a.boundary.outer_uv, b.boundary.outer_uv)
+
+
+def test_no_model_reaches_min_inlier_ratio():
+    rng = np.random.default_rng(4)
+    wp = Workpiece(rng.uniform(0, 500, (3000, 3)), np.tile([0, 0, 1.0], (3000, 1)), source="noise.xyz")
+    with pytest.raises(BadInput, match="min_inlier_ratio"):
+        fit_surface(wp)
+
+
+def test_degenerate_inputs():
+    z = np.tile([0, 0, 1.0], (10, 1))
+    with pytest.raises(BadInput, match="needs at least 3"):
+        fit_surface(Workpiece(np.zeros((2, 3)) + [[0, 0, 0], [1, 0, 0]], z[:2], source="two.xyz"))
+    line = np.outer(np.arange(10.0), [1, 2, 3])
+    with pytest.raises(BadInput, match="line"):
+        fit_surface(Workpiece(line, z, source="line.xyz"))
+    rng = np.random.default_rng(0)
+    flat = np.column_stack([rng.uniform(0, 100, (50, 2)), np.zeros(50)])
+    with pytest.raises(BadInput, match="plane"):
+        fit_surface(Workpiece(flat, np.tile([0, 0, 1.0], (50, 1))), model="sphere")
+    with pytest.raises(BadInput, match="fit.model"):
+        fit_surface(Workpiece(flat, np.tile([0, 0, 1.0], (50, 1))), model="cone")

@@ -1,0 +1,123 @@
+"""camtool.post.write_programs: profiles from the job, check before placing, no partial output."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from camtool.errors import BadInput, PlanInfeasible
+from camtool.job import load_job
+from camtool.post import write_programs
+from camtool.robots import get_robot
+from post_fixtures import smooth_trajectory, with_q
+
+
+def _job(tmp_path, robot="seed8", post="", extra=""):
+    f = tmp_path / "job.toml"
+    f.write_text(f'[workpiece]\nfile = "part.stl"\n[robot]\nname = "{robot}"\n{extra}[post]\n{post}')
+    return load_job(f)
+
+
+def test_all_three_formats_are_written_and_checked(tmp_path):
+    r = get_robot("seed8")
+    out = tmp_path / "out"
+    files = write_programs(smooth_trajectory(r, 60), r, _job(tmp_path, post='program_name = "Sphere"\n'), out)
+    assert sorted(f.name for f in files) == ["SPHERE.JBI", "Sphere.csv", "Sphere.mod", "Sphere.pgf"]
+    assert all(f.parent == out and f.is_file() for f in files)
+    assert sorted(p.name for p in out.iterdir()) == sorted(f.name for f in files)  # no temp folder left
+
+
+def test_job_tool_and_csv_unit_reach_the_programs(tmp_path):
+    r = get_robot("irb2400")
+    job = _job(tmp_path, "irb2400", 'formats = ["rapid", "csv"]\ncsv_angle_unit = "rad"\n',
+               '[tool]\nname = "spindle"\ntcp_xyz_mm = [0.0, 0.0, 120.0]\nmass_kg = 2.5\n')
+    files = {f.suffix: f for f in write_programs(smooth_trajectory(r, 20), r, job, tmp_path / "o")}
+    mod = files[".mod"].read_text()
+    assert "PERS tooldata spindle:=[TRUE,[[0.000,0.000,120.000],[1.000000,0.000000,0.000000,0.000000]],[2.500," in mod
+    assert ", spindle \\WObj:=camtool_wobj;" in mod
+    assert files[".csv"].read_text().startswith("t_s,j1_rad,")
+
+
+def test_profile_from_the_job_is_resolved_relative_to_the_job(tmp_path):
+    r = get_robot("irb2400")
+    (tmp_path / "cfg").mkdir()
+    (tmp_path / "cfg" / "irc5.toml").write_text(
+        'format = "rapid"\n[axes]\n' + "".join(f'j{i} = {{ axis = "rax_{i}", sign = -1 }}\n' for i in range(1, 7))
+        + '[options]\nzone = "z10"\n')
+    job = _job(tmp_path, "irb2400", 'formats = ["rapid"]\nprofiles = { rapid = "cfg/irc5.toml" }\n')
+    tr = smooth_trajectory(r, 10)
+    files = write_programs(tr, r, job, tmp_path / "o")
+    text = files[1].read_text()
+    assert ", z10, " in text
+    j1 = float(text.split("MoveAbsJ [[")[1].split(",")[0])
+    assert j1 == pytest.approx(-np.degrees(tr.q[0, 0]), abs=1e-4)
+
+
+def test_trajectory_outside_the_limits_is_refused_and_nothing_written(tmp_path):
+    r = get_robot("irb2400")
+    tr = smooth_trajectory(r, 20)
+    q = tr.q.copy()
+    q[7, 2] = np.radians(70.0)  # j3 upper limit is 65 deg
+    out = tmp_path / "o"
+    with pytest.raises(PlanInfeasible, match=r"sample 7 .*j3 = 70.0000 deg"):
+        write_programs(with_q(tr, q), r, _job(tmp_path, "irb2400", 'formats = ["rapid", "csv"]\n'), out)
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_failed_check_leaves_no_program(tmp_path):
+    r = get_robot("irb2400")
+    tr = smooth_trajectory(r, 20)
+    t = tr.t_s.copy()
+    t[10:] -= 0.5  # the step into sample 10 (0.42 s) now takes a negative time: impossible
+    out = tmp_path / "o"
+    with pytest.raises(PlanInfeasible) as exc:
+        write_programs(with_q(tr, tr.q, t), r, _job(tmp_path, "irb2400", 'formats = ["rapid", "csv"]\n'), out)
+    assert exc.value.exit_code == 3
+    findings = exc.value.report["findings"]
+    assert any("CAMTOOL.csv:12: move duration" in f and "not positive" in f for f in findings)
+    assert any("CAMTOOL.mod:" in f and "above the limit" in f for f in findings)  # \T clamped to 0.1 ms
+    assert "program check finding(s), no program written" in str(exc.value)
+    assert list(out.iterdir()) == []  # no program, no temporary folder
+
+
+def test_output_folder_that_cannot_be_created(tmp_path):
+    r = get_robot("irb2400")
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    with pytest.raises(BadInput, match=r"a_file/sub: cannot create the output folder"):
+        write_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400", 'formats = ["csv"]\n'), blocker / "sub")
+
+
+def test_output_folder_that_is_not_writable(tmp_path):
+    r = get_robot("irb2400")
+    with pytest.raises(BadInput, match=r"/proc"):
+        write_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400", 'formats = ["csv"]\n'), Path("/proc"))
+
+
+def test_missing_default_profile_is_bad_input(tmp_path):
+    r = get_robot("irb2400_paper")
+    with pytest.raises(BadInput, match=r"no inform profile for robot 'irb2400_paper'.*post.profiles.inform"):
+        write_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400_paper", 'formats = ["inform"]\n'),
+                       tmp_path / "o")
+
+
+def test_profile_with_unknown_joint_names_the_file_and_key(tmp_path):
+    r = get_robot("irb2400")
+    (tmp_path / "p.toml").write_text('format = "rapid"\n[axes]\nj1 = { axis = "rax_1" }\nelbow = { axis = "rax_3" }\n')
+    job = _job(tmp_path, "irb2400", 'formats = ["rapid"]\nprofiles = { rapid = "p.toml" }\n')
+    with pytest.raises(BadInput, match=r"p.toml: axes.elbow: robot irb2400 has no joint 'elbow'"):
+        write_programs(smooth_trajectory(r, 5), r, job, tmp_path / "o")
+
+
+def test_unknown_format_is_bad_input(tmp_path):
+    r = get_robot("irb2400")
+    with pytest.raises(BadInput, match="no post-processor 'gcode'"):
+        write_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400", 'formats = ["gcode"]\n'), tmp_path / "o")
+
+
+def test_same_input_gives_identical_files(tmp_path):
+    r = get_robot("seed8")
+    tr = smooth_trajectory(r, 50)
+    job = _job(tmp_path)
+    a = {f.name: f.read_bytes() for f in write_programs(tr, r, job, tmp_path / "a")}
+    b = {f.name: f.read_bytes() for f in write_programs(tr, r, job, tmp_path / "b")}
+    assert a == b and len(a) == 4
