@@ -2,8 +2,6 @@
 # Both set up .venv first; set-up is idempotent (a stamp file records the
 # hash of pyproject.toml, so a second run installs nothing).
 PY      := .venv/bin/python
-STAMP   := .venv/.setup-stamp
-HASH    := $(shell sha256sum pyproject.toml | cut -c1-16)
 
 .PHONY: setup demo test bench clean
 

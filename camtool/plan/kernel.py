@@ -337,3 +337,14 @@ class DhKernel:
                        self.tail, self.lo, self.hi, self.jscale, self.max_step, s.orientation_weight_mm,
                        (1e-3 * s.damping) ** 2, self.free_spin, iterations, alpha)
         return self.solve(target, q)
+
+
+def warm_up() -> None:
+    """Compile (and cache) the kernels on a tiny problem; used by the set-up script."""
+    from ..robots import get_robot
+
+    robot = get_robot("seed8")
+    k = DhKernel(robot, IkSettings(), False, np.full(robot.dof, 1.0))
+    T = robot.fk_tcp(np.full(robot.dof, 0.3))
+    k.run(T[None], np.full(robot.dof, 0.25))
+    k.self_motion(T, np.full(robot.dof, 0.3), np.zeros(robot.dof), iterations=2)
