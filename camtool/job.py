@@ -93,7 +93,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "planner": {
         "method": Key("str", "seed", "seed = CWLN + gradient projection + reverse planning; general = CWLN alone (the paper's baseline).", choices=("seed", "general")),
-        "damping": _pos("Damping lambda of the least-norm solve (mm).", 1.0),
+        "damping": _pos("Damping lambda of the least-norm solve (mm).", 0.1),
         "orientation_weight_mm": _pos("Length that weighs orientation error against position error: 1 rad counts as this many mm.", 200.0),
         "position_tol_mm": _pos("IK position tolerance.", 1e-4, " mm"),
         "orientation_tol_deg": _pos("IK orientation tolerance.", 1e-4, " deg"),

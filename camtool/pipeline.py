@@ -105,6 +105,15 @@ def _report_unreachable(exc: PlanInfeasible, path, robot, job: Job, outdir: Path
     write_json_atomic(report, outdir / "report.json")
 
 
+def _timing_figures(trajectory, robot, job: Job) -> dict:
+    """The timing stage's figures, its method named ``timing_method``."""
+    from .timing import timing_report
+
+    figures = timing_report(trajectory, robot, job.timing.check_dt_ms / 1000.0)
+    figures["timing_method"] = figures.pop("method")
+    return figures
+
+
 def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | None = None) -> RunResult:
     """Run every stage of ``job``; programs, report.json, points.csv and plots go into ``outdir``.
 
@@ -112,7 +121,7 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
     check and every program check succeed.
     """
     from .report import plan_metrics, plot_joints, write_json_atomic, write_points_csv
-    from .timing import check_trajectory, timing_report
+    from .timing import check_trajectory
 
     outdir = Path(outdir)
     r = RunResult()
@@ -142,7 +151,7 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
 
     report = plan_metrics(path, joint_path, robot, job.planner.method,
                           job.planner.jump_threshold_deg, job.planner.jump_threshold_mm)
-    report.update(timing_report(trajectory, robot, job.timing.check_dt_ms / 1000.0))
+    report.update(_timing_figures(trajectory, robot, job))
     report["limits_ok"] = True  # the independent check above passed
     report["status"] = "ok"
     trajectories = {job.planner.method: trajectory}
@@ -153,7 +162,7 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
             trajectories[other] = tr2
             report["compare"] = {**plan_metrics(path, jp2, robot, other, job.planner.jump_threshold_deg,
                                                 job.planner.jump_threshold_mm),
-                                 **timing_report(tr2, robot, job.timing.check_dt_ms / 1000.0)}
+                                 **_timing_figures(tr2, robot, job)}
         except PlanInfeasible as exc:
             report["compare"] = {"method": other, "status": "infeasible", "reason": str(exc)}
     plots = plot_joints(trajectories, robot, outdir / "plots")

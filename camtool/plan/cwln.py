@@ -54,7 +54,7 @@ from ..robots.model import Robot
 class IkSettings:
     """CWLN settings: damping (mm), orientation weight (mm/rad), tolerances, buffers."""
 
-    damping: float = 1.0
+    damping: float = 0.1
     orientation_weight_mm: float = 200.0
     position_tol_mm: float = 1e-4
     orientation_tol_rad: float = np.radians(1e-4)

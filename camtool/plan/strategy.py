@@ -325,7 +325,7 @@ class Planner:
         )
 
 
-def plan_path(path: Path, robot: Robot, home_deg=(), method="seed", damping=1.0,
+def plan_path(path: Path, robot: Robot, home_deg=(), method="seed", damping=0.1,
               orientation_weight_mm=200.0, position_tol_mm=1e-4, orientation_tol_deg=1e-4,
               max_iterations=100, clamp_buffer_deg=10.0, clamp_buffer_mm=50.0,
               jump_threshold_deg=50.0, jump_threshold_mm=100.0, reverse_samples=50, seed=0,

@@ -1,0 +1,99 @@
+"""Up-to-date checks: a hash manifest per job in OUTDIR/<job>/.camtool-cache.json.
+
+A job is up to date when the fingerprint of its inputs (job file bytes,
+workpiece file bytes, robot and controller-profile files it names, the
+``--set`` overrides and the camtool version) equals the one stored after its
+last successful run, and every output file listed there still exists.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+from .. import __version__
+
+MANIFEST = ".camtool-cache.json"
+
+
+def _file_digest(path: Path) -> str:
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+    except OSError:
+        return "missing"
+    return h.hexdigest()
+
+
+def input_files(job) -> dict[str, Path]:
+    """The files a loaded job reads, by role: job, workpiece, robot, profile.<fmt>."""
+    from ..robots import BUILTIN_ROBOTS
+
+    files = {"job": Path(job.path), "workpiece": job.resolve(job.workpiece.file)}
+    if job.robot.name not in BUILTIN_ROBOTS:
+        files["robot"] = job.resolve(job.robot.name)
+    for fmt, name in sorted(job.post.profiles.items()):
+        if isinstance(name, str):
+            files[f"profile.{fmt}"] = job.resolve(name)
+    return files
+
+
+def fingerprint(job, overrides: tuple[str, ...] | list[str]) -> str:
+    """SHA-256 hex digest of everything that decides a job's outputs."""
+    parts = {"camtool": __version__, "overrides": list(overrides),
+             "files": {role: _file_digest(p) for role, p in input_files(job).items()}}
+    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
+
+
+def manifest_path(outdir: Path) -> Path:
+    return Path(outdir) / MANIFEST
+
+
+def read_manifest(outdir: Path) -> dict | None:
+    """The stored manifest of a job folder, or None when absent or unreadable."""
+    try:
+        data = json.loads(manifest_path(outdir).read_text())
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def up_to_date(outdir: Path, fp: str) -> dict | None:
+    """The manifest when the job folder holds a successful run with fingerprint ``fp``
+    whose outputs all still exist; else None."""
+    m = read_manifest(outdir)
+    if not m or m.get("fingerprint") != fp or m.get("status") != "ok":
+        return None
+    files = m.get("files")
+    if not isinstance(files, list) or not files:
+        return None
+    if not all((Path(outdir) / f).is_file() for f in files):
+        return None
+    return m
+
+
+def write_manifest(outdir: Path, data: dict) -> None:
+    """Write the manifest atomically (temporary file + rename)."""
+    outdir = Path(outdir)
+    fd, tmp = tempfile.mkstemp(dir=outdir, prefix=".tmp-", suffix=".json")
+    with os.fdopen(fd, "w") as f:
+        json.dump(data, f, indent=2, sort_keys=True)
+        f.write("\n")
+    os.replace(tmp, manifest_path(outdir))
+
+
+def forget(outdir: Path) -> None:
+    """Before a rerun: drop the manifest and the outputs it lists, so a failed
+    rerun never leaves an old program looking current."""
+    outdir = Path(outdir)
+    m = read_manifest(outdir)
+    manifest_path(outdir).unlink(missing_ok=True)
+    for f in (m or {}).get("files", []) if isinstance((m or {}).get("files"), list) else []:
+        p = (outdir / f).resolve()
+        if p.is_relative_to(outdir.resolve()):
+            p.unlink(missing_ok=True)
+    (outdir / "report.json").unlink(missing_ok=True)

@@ -1,0 +1,284 @@
+"""Two-step MOPSO with potential-field repulsion (Sun et al. 2023, section 2.2,
+on top of Coello, Pulido & Lechuga 2004).
+
+The optimiser is generic: ``evaluate(X)`` takes an (n x d) array of designs
+and returns ``(F, violation)``: objectives (n x m, minimised) and a
+constraint violation per design (0 = valid; for the arm, the number of
+unreachable path points). Invalid designs never enter the Pareto archive;
+they are recorded in the *invalid set* and act as obstacles.
+
+Velocity update (per particle, all in real units, r1, r2 ~ U(0, 1) per
+component)::
+
+    v <- w v + r1 (pbest - x) + r2 (leader - x) + span * repulsion(u)
+
+with ``u = (x - lower) / span`` the position normalised by the *original*
+ranges and ``repulsion`` the gradient of Khatib's potential around every
+invalid design o within ``radius`` of u::
+
+    repulsion(u) = sum_o gain (1/d - 1/radius) / d^2 * (u - o) / d,   d = |u - o|
+
+clipped to ``max_repulsion`` per iteration. A position that leaves the box is
+put on the bound and its velocity component reversed (Coello). Coello's
+mutation then perturbs one variable of a particle with probability
+``pm = (1 - t/T)^(1/mutation_rate)`` within +-pm * range.
+
+Step 1 (explore) runs ``explore_iters`` iterations over the full ranges and
+then narrows them (``narrow_ranges``). Step 2 (optimise) runs
+``optimise_iters`` iterations inside the narrowed ranges: at its first
+iteration the particles outside the box are re-drawn inside it, the others
+move as usual, so every iteration evaluates exactly ``particles`` designs.
+The invalid set of both steps keeps repelling.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .pareto import ParetoArchive, dominates
+
+
+@dataclass(frozen=True)
+class MopsoSettings:
+    """Swarm size, iterations and the constants of the update rules."""
+
+    particles: int = 12
+    explore_iters: int = 3
+    optimise_iters: int = 5
+    inertia: float = 0.4            # Coello's W
+    archive_capacity: int = 50
+    grid_divisions: int = 30
+    mutation_rate: float = 0.5      # Coello's mutation rate
+    repulsion_gain: float = 0.002   # Khatib eta, in normalised units
+    repulsion_radius: float = 0.15  # influence radius, share of each original range
+    max_repulsion: float = 0.25     # per-iteration cap, share of each original range
+    max_speed: float = 0.5          # velocity cap, share of each range
+    narrow_bins: int = 10
+    narrow_invalid_share: float = 0.5
+
+    def __post_init__(self):
+        if self.particles < 2:
+            raise ValueError("particles must be >= 2")
+        if self.explore_iters < 0 or self.optimise_iters < 0:
+            raise ValueError("iterations must be >= 0")
+
+    @property
+    def budget(self) -> int:
+        """Designs evaluated by a full run: the initial swarm plus one swarm per iteration."""
+        return self.particles * (1 + self.explore_iters + self.optimise_iters)
+
+
+@dataclass
+class MopsoResult:
+    """The archive (Pareto set X, front F), every evaluation and the narrowed ranges."""
+
+    front_X: np.ndarray
+    front_F: np.ndarray
+    X: np.ndarray                 # every evaluated design, in order
+    F: np.ndarray
+    violation: np.ndarray
+    step: np.ndarray              # 1 or 2 per evaluation
+    iteration: np.ndarray         # 0 = initial swarm
+    lower: np.ndarray
+    upper: np.ndarray
+    narrowed_lower: np.ndarray
+    narrowed_upper: np.ndarray
+    evaluations: int = 0
+    history: list = field(default_factory=list)
+
+    @property
+    def invalid_X(self) -> np.ndarray:
+        """Distinct invalid designs found (the obstacles)."""
+        bad = self.X[self.violation > 0]
+        return np.unique(bad, axis=0) if len(bad) else bad
+
+
+def repulsion_velocity(u, obstacles, gain: float, radius: float, cap: float) -> np.ndarray:
+    """Khatib repulsion (normalised units) on positions ``u`` (n x d) from ``obstacles`` (k x d).
+
+    Obstacles farther than ``radius`` or at the position itself are ignored;
+    each row's magnitude is clipped to ``cap``.
+    """
+    u = np.atleast_2d(np.asarray(u, float))
+    out = np.zeros_like(u)
+    obstacles = np.asarray(obstacles, float).reshape(-1, u.shape[1])
+    if len(obstacles) == 0:
+        return out
+    diff = u[:, None, :] - obstacles[None, :, :]
+    d = np.linalg.norm(diff, axis=2)
+    near = (d < radius) & (d > 1e-12)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mag = np.where(near, gain * (1.0 / d - 1.0 / radius) / d ** 2, 0.0)
+        unit = np.where(near[..., None], diff / np.where(near, d, 1.0)[..., None], 0.0)
+    out = np.sum(mag[..., None] * unit, axis=1)
+    norm = np.linalg.norm(out, axis=1, keepdims=True)
+    return np.where(norm > cap, out * cap / np.maximum(norm, 1e-300), out)
+
+
+def narrow_ranges(X, valid, lower, upper, keep_X=None, bins: int = 10, invalid_share: float = 0.5):
+    """Narrowed (lower, upper) from step 1's evaluations.
+
+    Per variable, its original range is cut into ``bins`` equal bins; bins are
+    trimmed from each end inwards while at least ``invalid_share`` of the
+    evaluated designs in the bin are invalid (an empty bin stops the
+    trimming). The box is then grown to contain every design of ``keep_X``
+    (the Pareto archive), so no known optimum is cut away. With no valid
+    design at all the ranges stay as they are.
+    """
+    X = np.asarray(X, float)
+    valid = np.asarray(valid, bool)
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    if not valid.any():
+        return lower.copy(), upper.copy()
+    new_lo, new_hi = lower.copy(), upper.copy()
+    edges = [np.linspace(lower[j], upper[j], bins + 1) for j in range(len(lower))]
+    for j, e in enumerate(edges):
+        b = np.clip(np.searchsorted(e, X[:, j], side="right") - 1, 0, bins - 1)
+        total = np.bincount(b, minlength=bins)
+        bad = np.bincount(b, weights=(~valid).astype(float), minlength=bins)
+
+        def trimmed(k):
+            return total[k] > 0 and bad[k] >= invalid_share * total[k]
+
+        first, last = 0, bins - 1
+        while first < last and trimmed(first):
+            first += 1
+        while last > first and trimmed(last):
+            last -= 1
+        new_lo[j], new_hi[j] = e[first], e[last + 1]
+    if keep_X is not None and len(keep_X):
+        keep_X = np.asarray(keep_X, float)
+        new_lo = np.minimum(new_lo, keep_X.min(axis=0))
+        new_hi = np.maximum(new_hi, keep_X.max(axis=0))
+    return new_lo, new_hi
+
+
+def mutation_probability(t: int, total: int, rate: float) -> float:
+    """Coello's mutation probability at iteration t of ``total``: (1 - t/total)^(1/rate)."""
+    if total <= 0:
+        return 0.0
+    return float(max(0.0, 1.0 - t / total) ** (1.0 / rate))
+
+
+def mutate(X, lower, upper, pm: float, rng: np.random.Generator) -> np.ndarray:
+    """Coello's mutation: with probability pm, redraw one variable within +-pm * range."""
+    X = X.copy()
+    if pm <= 0:
+        return X
+    for i in range(len(X)):
+        if rng.random() < pm:
+            j = rng.integers(X.shape[1])
+            dx = pm * (upper[j] - lower[j])
+            lo, hi = max(X[i, j] - dx, lower[j]), min(X[i, j] + dx, upper[j])
+            X[i, j] = lo + (hi - lo) * rng.random()
+    return X
+
+
+def _better(f_new, v_new, f_old, v_old, rng) -> bool:
+    """pbest rule: constraint domination, then Pareto; a tie is a coin toss."""
+    if v_new == 0 and v_old > 0:
+        return True
+    if v_new > 0 and v_old == 0:
+        return False
+    if v_new > 0:  # both invalid: fewer violations wins
+        return v_new < v_old or (v_new == v_old and rng.random() < 0.5)
+    if dominates(f_new, f_old):
+        return True
+    if dominates(f_old, f_new):
+        return False
+    return rng.random() < 0.5
+
+
+def run_mopso(evaluate: Callable, lower, upper, settings: MopsoSettings = MopsoSettings(),
+              rng: np.random.Generator | None = None, resolution=None,
+              on_iteration: Callable | None = None) -> MopsoResult:
+    """Two-step MOPSO over the box [lower, upper] (see module doc).
+
+    ``resolution`` (per variable, optional) rounds every design to that grid
+    before evaluation, so caching works and the archive holds exactly the
+    evaluated designs. ``on_iteration(step, t, n_archive)`` is called after
+    each swarm evaluation.
+    """
+    rng = rng if rng is not None else np.random.default_rng(0)
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    if np.any(upper <= lower):
+        raise ValueError("every range needs lower < upper")
+    d, n, s = len(lower), settings.particles, settings
+    span0 = upper - lower
+    res = None if resolution is None else np.broadcast_to(np.asarray(resolution, float), (d,))
+
+    def snap(X, lo, hi):
+        if res is not None:
+            X = np.round(X / res) * res
+            X = np.where(X < lo, X + res, X)
+            X = np.where(X > hi, X - res, X)
+        return np.clip(X, lo, hi)
+
+    archive = ParetoArchive(s.archive_capacity, s.grid_divisions, rng)
+    log = {"X": [], "F": [], "v": [], "step": [], "it": []}
+    history = []
+
+    def run_eval(X, step, t):
+        F, viol = evaluate(X)
+        F, viol = np.asarray(F, float), np.asarray(viol, float)
+        for k in range(len(X)):
+            log["X"].append(X[k]); log["F"].append(F[k]); log["v"].append(viol[k])
+            log["step"].append(step); log["it"].append(t)
+            if viol[k] == 0:
+                archive.add(X[k], F[k])
+        history.append({"step": step, "iteration": t, "archive": len(archive),
+                        "invalid": int(np.sum(viol > 0))})
+        if on_iteration is not None:
+            on_iteration(step, t, len(archive))
+        return F, viol
+
+    lo, hi = lower.copy(), upper.copy()
+    X = snap(lo + (hi - lo) * rng.random((n, d)), lo, hi)
+    V = np.zeros((n, d))
+    F, viol = run_eval(X, 1, 0)
+    P, PF, Pv = X.copy(), F.copy(), viol.copy()
+    total = s.explore_iters + s.optimise_iters
+    narrowed = (lower.copy(), upper.copy())
+    t_global = 0
+    for step, iters in ((1, s.explore_iters), (2, s.optimise_iters)):
+        if step == 2:
+            all_X, all_v = np.array(log["X"]), np.array(log["v"])
+            narrowed = narrow_ranges(all_X, all_v == 0, lower, upper, archive.X if len(archive) else None,
+                                     s.narrow_bins, s.narrow_invalid_share)
+            lo, hi = narrowed
+        for t in range(1, iters + 1):
+            t_global += 1
+            leaders = np.array([archive.leader() if len(archive) else P[i] for i in range(n)])
+            r1, r2 = rng.random((n, d)), rng.random((n, d))
+            V = s.inertia * V + r1 * (P - X) + r2 * (leaders - X)
+            bad = np.array(log["X"])[np.array(log["v"]) > 0]
+            if len(bad):
+                U = (X - lower) / span0
+                V += span0 * repulsion_velocity(U, (bad - lower) / span0, s.repulsion_gain,
+                                                s.repulsion_radius, s.max_repulsion)
+            vmax = s.max_speed * (hi - lo)
+            V = np.clip(V, -vmax, vmax)
+            Xn = X + V
+            out_lo, out_hi = Xn < lo, Xn > hi
+            Xn = np.where(out_lo, lo, np.where(out_hi, hi, Xn))
+            V = np.where(out_lo | out_hi, -V, V)
+            Xn = mutate(Xn, lo, hi, mutation_probability(t_global - 1, total, s.mutation_rate), rng)
+            outside = np.zeros(n, bool)
+            if step == 2 and t == 1:  # particles left outside the narrowed box are re-drawn inside
+                outside = np.any((X < lo) | (X > hi), axis=1)
+                Xn[outside] = lo + (hi - lo) * rng.random((int(outside.sum()), d))
+                V[outside] = 0.0
+            X = snap(Xn, lo, hi)
+            F, viol = run_eval(X, step, t)
+            for i in range(n):
+                if outside[i] or _better(F[i], viol[i], PF[i], Pv[i], rng):
+                    P[i], PF[i], Pv[i] = X[i], F[i], viol[i]
+    fx, ff = archive.sorted()
+    m = len(log["F"][0]) if log["F"] else 0
+    return MopsoResult(
+        front_X=fx, front_F=ff, X=np.array(log["X"]).reshape(-1, d), F=np.array(log["F"]).reshape(-1, m),
+        violation=np.array(log["v"]), step=np.array(log["step"]), iteration=np.array(log["it"]),
+        lower=lower, upper=upper, narrowed_lower=narrowed[0], narrowed_upper=narrowed[1],
+        evaluations=len(log["F"]), history=history)

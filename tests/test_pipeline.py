@@ -1,0 +1,68 @@
+"""End to end: `camtool run` on the seed job, determinism, checks, and the exit-3 path."""
+import json
+
+import pytest
+
+from conftest import SAMPLES, run_camtool
+
+REPORT_KEYS = {"robot", "method", "points_total", "points_work", "on_surface_jumps", "max_joint_step_work_deg",
+               "max_position_error_mm", "max_orientation_error_deg", "reverse_plans", "retracts",
+               "singular_points", "plan_seconds", "points_per_second", "cycle_time_s",
+               "peak_joint_speed_ratio", "peak_joint_acc_ratio", "limits_ok"}
+
+
+@pytest.fixture(scope="module")
+def sphere_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sphere")
+    r = run_camtool("run", SAMPLES / "sphere.toml", "-o", out, "--json")
+    assert r.returncode == 0, r.stderr
+    return out, json.loads(r.stdout)
+
+
+def test_report(sphere_run):
+    out, report = sphere_run
+    assert REPORT_KEYS <= set(report)
+    saved = json.loads((out / "report.json").read_text())
+    assert saved["robot"] == "seed8" and saved["method"] == "seed" and saved["limits_ok"] is True
+    assert saved["on_surface_jumps"] == 0 and saved["max_joint_step_work_deg"] <= 2.0
+    assert saved["max_position_error_mm"] <= 1e-3 and saved["max_orientation_error_deg"] <= 1e-3
+    assert 0 < saved["peak_joint_speed_ratio"] <= 1.0 and 0 < saved["peak_joint_acc_ratio"] <= 1.0
+    for name in ("joint_angle", "joint_speed", "joint_acceleration"):
+        assert (out / "plots" / f"{name}.png").stat().st_size > 10000
+    lines = (out / "points.csv").read_text().splitlines()
+    assert lines[0].startswith("row,path_index,segment,point,zone") and len(lines) > 10000
+
+
+def test_programs_pass_the_checker(sphere_run):
+    out, _ = sphere_run
+    for program in ("SPHERE.pgf", "SPHERE.JBI", "SPHERE.csv"):
+        r = run_camtool("check", out / program, "--robot", "seed8")
+        assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_same_job_gives_byte_identical_programs(sphere_run, tmp_path):
+    out, _ = sphere_run
+    r = run_camtool("run", SAMPLES / "sphere.toml", "-o", tmp_path)
+    assert r.returncode == 0, r.stderr
+    programs = sorted(p.name for p in out.iterdir() if p.suffix in (".mod", ".pgf", ".JBI", ".csv"))
+    assert len(programs) >= 5
+    for name in programs:
+        assert (out / name).read_bytes() == (tmp_path / name).read_bytes(), name
+
+
+def test_unreachable_job_exits_3_with_report_and_no_program(tmp_path):
+    job = (SAMPLES / "sphere.toml").read_text().replace('file = "sphere_patch.stl"',
+                                                       f'file = "{SAMPLES / "sphere_patch.stl"}"')
+    job = job.replace("workpiece_xyz_mm = [1000.0, 0.0, 100.0]", "workpiece_xyz_mm = [2300.0, 0.0, 100.0]")
+    job = job.replace("step_over_mm = 10.0", "step_over_mm = 60.0").replace("pitch_mm = 5.0", "pitch_mm = 40.0")
+    (tmp_path / "far.toml").write_text(job)
+    out = tmp_path / "out"
+    r = run_camtool("run", tmp_path / "far.toml", "-o", out)
+    assert r.returncode == 3
+    assert len(r.stderr.strip().splitlines()) == 1 and "out of reach" in r.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert report["status"] == "infeasible" and report["unreachable_count"] > 0
+    first = report["unreachable"][0]
+    assert {"index", "segment", "point", "xyz_mm"} <= set(first)
+    assert (out / "plots" / "unreachable.png").exists()
+    assert not [p for p in out.iterdir() if p.suffix in (".mod", ".pgf", ".JBI", ".csv")]

@@ -1,0 +1,124 @@
+"""The seed strategy against the baseline: accuracy and smoothness on the seed sphere
+job, reverse planning and fallback on a path that provokes jumps, unreachable poses."""
+import numpy as np
+import pytest
+
+from camtool.errors import BadInput, PlanInfeasible
+from camtool.job import load_job
+from camtool.pipeline import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
+from camtool.plan import plan_path
+from camtool.plan.strategy import split_runs
+from camtool.report import plan_metrics
+from camtool.robots import get_robot
+from camtool.toolpath import ZONE_CODE
+from camtool.transforms import rotation_angle_rad
+
+from conftest import SAMPLES
+from plan_fixtures import sphere_rows
+
+
+@pytest.fixture(scope="module")
+def sphere_job():
+    job = load_job(SAMPLES / "sphere.toml")
+    path = path_for_job(job, surface_for_job(job, workpiece_for_job(job)))
+    return job, path, robot_for_job(job)
+
+
+@pytest.fixture(scope="module")
+def seed_plan(sphere_job):
+    job, path, robot = sphere_job
+    return plan_path(path, robot, **job.planner)
+
+
+def test_every_work_point_within_1um_and_0001deg(sphere_job, seed_plan):
+    """Accuracy checked by an independent FK of the planned joints, not the planner's own errors."""
+    job, path, robot = sphere_job
+    jp = seed_plan
+    rows = np.flatnonzero((jp.zone == ZONE_CODE["work"]) & (jp.path_index >= 0))
+    assert len(rows) > 9000
+    base_inv = np.linalg.inv(robot.base_T_mm)
+    worst_mm = worst_deg = 0.0
+    for k in rows[::7]:
+        T = robot.fk_tcp(jp.q[k])
+        target = base_inv @ path.poses_mm[jp.path_index[k]]
+        worst_mm = max(worst_mm, np.linalg.norm(T[:3, 3] - target[:3, 3]))
+        worst_deg = max(worst_deg, np.degrees(rotation_angle_rad(T, target)))
+        assert robot.within_limits(jp.q[k])
+    assert worst_mm <= 1e-3 and worst_deg <= 1e-3
+    assert jp.position_error_mm[rows].max() <= 1e-3
+    assert np.degrees(jp.orientation_error_rad[rows].max()) <= 1e-3
+
+
+def test_seed_is_smooth_on_the_surface(sphere_job, seed_plan):
+    job, path, robot = sphere_job
+    m = plan_metrics(path, seed_plan, robot, "seed", 50, 100)
+    assert m["on_surface_jumps"] == 0
+    assert m["max_joint_step_work_deg"] <= 2.0
+    assert m["retracts"] == 0
+
+
+def test_general_baseline_runs_and_is_rougher(sphere_job, seed_plan):
+    job, path, robot = sphere_job
+    general = plan_path(path, robot, **{**job.planner, "method": "general"})
+    mg = plan_metrics(path, general, robot, "general", 50, 100)
+    ms = plan_metrics(path, seed_plan, robot, "seed", 50, 100)
+    assert mg["max_joint_step_work_deg"] > ms["max_joint_step_work_deg"]
+
+
+def test_deterministic(sphere_job, seed_plan):
+    job, path, robot = sphere_job
+    again = plan_path(path, robot, **job.planner)
+    assert np.array_equal(again.q, seed_plan.q)
+
+
+def test_reverse_planning_and_fallback_move_jumps_off_the_surface():
+    """A path that makes plain CWLN jump on the surface (a costly track, no posture term):
+    the general method keeps the jumps; the seed strategy reverse-plans them away."""
+    path = sphere_rows(rows=4)
+    robot = get_robot("seed8")
+    kw = dict(track_scale_mm=1.0, posture_gain=0.0)
+    general = plan_path(path, robot, method="general", **kw)
+    seed = plan_path(path, robot, method="seed", **kw)
+    mg = plan_metrics(path, general, robot, "general", 50, 100)
+    ms = plan_metrics(path, seed, robot, "seed", 50, 100)
+    assert mg["on_surface_jumps"] >= 1
+    assert ms["on_surface_jumps"] == 0
+    assert ms["reverse_plans"] >= 1
+    for ev in seed.events["reverse_plans"]:
+        seg = path.segment[ev["index"]]
+        first = np.flatnonzero((path.segment == seg) & (path.zone == ZONE_CODE["work"]))[0]
+        assert np.all(seed.reverse_planned[np.isin(seed.path_index, np.arange(first, ev["index"] + 1))])
+    # every fallback point is listed and preceded by inserted retract poses that move only the track
+    for ev in seed.events["retracts"]:
+        row = int(np.flatnonzero(seed.path_index == ev["index"])[0])
+        assert seed.retract[row - 2] and seed.retract[row - 1] and seed.singular[row]
+        assert np.allclose(seed.q[row - 2][1:], seed.q[row - 3][1:])  # track away, arm still
+        assert np.allclose(seed.q[row - 1][1:], seed.q[row][1:])      # arm moved, track returns next
+    # the path stays exact at every pose, fallback points included
+    assert seed.position_error_mm[seed.path_index >= 0].max() <= 1e-4
+
+
+def test_unreachable_poses_raise_with_a_list():
+    path = sphere_rows(center=(2400.0, 0.0, 100.0), rows=2, pitch_mm=40.0)
+    with pytest.raises(PlanInfeasible) as info:
+        plan_path(path, get_robot("seed8"), reverse_samples=5)
+    unreachable = info.value.report["unreachable"]
+    assert len(unreachable) > 0
+    assert {"index", "segment", "point", "xyz_mm"} <= set(unreachable[0])
+    assert "out of reach of seed8" in str(info.value)
+
+
+def test_runs_split_at_segments():
+    path = sphere_rows(rows=3)
+    runs = split_runs(path)
+    assert len(runs) == 3
+    for a, b in runs:
+        assert np.all(path.zone[a:b + 1] == ZONE_CODE["work"]) and len(set(path.segment[a:b + 1])) == 1
+
+
+def test_bad_method_and_home():
+    path = sphere_rows(rows=1, pitch_mm=50.0)
+    with pytest.raises(BadInput, match="planner.method"):
+        plan_path(path, get_robot("seed8"), method="magic")
+    with pytest.raises(BadInput, match="home_deg"):
+        plan_path(path, get_robot("seed8"), home_deg=[0, 0])
