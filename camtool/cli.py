@@ -57,9 +57,9 @@ def cli(debug: bool) -> None:
 
 
 def _register() -> None:
-    from .commands import batch, check, fit, fk, posts, raster, robots, run
+    from .commands import batch, check, design, fit, fk, posts, raster, robots, run
 
-    for module in (robots, fk, fit, raster, run, batch, posts, check):
+    for module in (robots, fk, fit, raster, run, batch, design, posts, check):
         cli.add_command(module.command)
 
 

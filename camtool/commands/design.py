@@ -11,6 +11,7 @@ from ..errors import BadInput, PlanInfeasible
 from ..job import load_job
 
 DEFAULT_VARY = ("L1=300:600", "L3=300:500")
+PAPER_CHOICE = {"L1": 480.0, "L3": 418.0}  # Sun et al. 2023, section 2.2
 
 
 def _design_dict(names, x) -> dict:
@@ -114,8 +115,9 @@ def command(job_file: Path, vary: tuple[str, ...], particles: int, iters: int, e
         "checked_full": [{"design": _design_dict(names, x), **_eval_dict(ev)} for x, ev in study.checks],
         "reference": {"design": _design_dict(names, study.reference_X), "coarse": _eval_dict(study.reference_coarse),
                       "full": _eval_dict(study.reference_full)},
-        "evaluations": study.evaluations, "designs_planned": problem.planned, "cache_hits":
-        problem.requested - problem.planned, "planner_runs": problem.planner_runs,
+        "evaluations": study.evaluations, "designs_requested": problem.requested,
+        "designs_planned": problem.planned, "cache_hits": problem.requested - problem.planned,
+        "planner_runs": problem.planner_runs,
         "plan_s": round(problem.plan_s, 3), "wall_s": round(wall_s, 3), "processes": jobs,
     }
     if study.chosen_X is not None:
@@ -164,10 +166,12 @@ def _print_summary(s: dict, names, study) -> None:
     else:
         click.echo("chosen           none: no candidate reached every point of the full raster")
     r = s["reference"]
-    click.echo(f"reference        {_fmt(r['design'])} (the job's arm; seed8 defaults = the paper's L1 = 480, "
-               f"L3 = 418): full raster {_fmt_eval(r['full'])}; coarse {_fmt_eval(r['coarse'])}")
-    click.echo(f"evaluations      {s['evaluations']} requested, {s['designs_planned']} designs planned, "
-               f"{s['cache_hits']} cache hits")
+    paper = s["robot"] == "seed8" and all(r["design"].get(k) == v for k, v in PAPER_CHOICE.items())
+    label = "the job's arm = the paper's choice" if paper else "the job's arm"
+    click.echo(f"reference        {_fmt(r['design'])} ({label}): full raster {_fmt_eval(r['full'])}; "
+               f"coarse {_fmt_eval(r['coarse'])}")
+    click.echo(f"evaluations      {s['evaluations']} by the optimiser; {s['designs_requested']} requested in all, "
+               f"{s['designs_planned']} designs planned, {s['cache_hits']} cache hits")
     click.echo(f"planner runs     {s['planner_runs']} ({s['plan_s']:.1f} s planning) in {s['wall_s']:.1f} s wall, "
                f"{s['processes']} process(es)")
     for f in s["files"]:

@@ -118,36 +118,52 @@ def repulsion_velocity(u, obstacles, gain: float, radius: float, cap: float) -> 
 
 
 def narrow_ranges(X, valid, lower, upper, keep_X=None, bins: int = 10, invalid_share: float = 0.5):
-    """Narrowed (lower, upper) from step 1's evaluations.
+    """Narrowed (lower, upper) from step 1's evaluations, by peeling invalid slabs.
 
-    Per variable, its original range is cut into ``bins`` equal bins; bins are
-    trimmed from each end inwards while at least ``invalid_share`` of the
-    evaluated designs in the bin are invalid (an empty bin stops the
-    trimming). The box is then grown to contain every design of ``keep_X``
-    (the Pareto archive), so no known optimum is cut away. With no valid
-    design at all the ranges stay as they are.
+    Each variable's original range is cut into ``bins`` equal bins; the box
+    starts as the whole range. Repeatedly, among the end bins of the box
+    (lowest and highest bin of every variable, counting only the designs
+    inside the box), the one with the largest share of invalid designs is
+    peeled off, as long as that share is at least ``invalid_share`` (an empty
+    end bin is no evidence and stays; every variable keeps at least one bin).
+    Counting inside the box keeps an invalid region of one variable from
+    masking the other. The box is then grown to contain every design of
+    ``keep_X`` (the Pareto archive), so no known optimum is cut away. With no
+    valid design at all the ranges stay as they are.
     """
-    X = np.asarray(X, float)
+    X = np.asarray(X, float).reshape(-1, len(lower))
     valid = np.asarray(valid, bool)
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     if not valid.any():
         return lower.copy(), upper.copy()
-    new_lo, new_hi = lower.copy(), upper.copy()
-    edges = [np.linspace(lower[j], upper[j], bins + 1) for j in range(len(lower))]
-    for j, e in enumerate(edges):
-        b = np.clip(np.searchsorted(e, X[:, j], side="right") - 1, 0, bins - 1)
-        total = np.bincount(b, minlength=bins)
-        bad = np.bincount(b, weights=(~valid).astype(float), minlength=bins)
-
-        def trimmed(k):
-            return total[k] > 0 and bad[k] >= invalid_share * total[k]
-
-        first, last = 0, bins - 1
-        while first < last and trimmed(first):
-            first += 1
-        while last > first and trimmed(last):
-            last -= 1
-        new_lo[j], new_hi[j] = e[first], e[last + 1]
+    d = len(lower)
+    edges = [np.linspace(lower[j], upper[j], bins + 1) for j in range(d)]
+    b = np.column_stack([np.clip(np.searchsorted(edges[j], X[:, j], side="right") - 1, 0, bins - 1)
+                         for j in range(d)])
+    first, last = np.zeros(d, int), np.full(d, bins - 1)
+    while True:
+        inside = np.all((b >= first) & (b <= last), axis=1)
+        best = None
+        for j in range(d):
+            if first[j] == last[j]:
+                continue
+            for end, k in ((0, first[j]), (1, last[j])):
+                in_bin = inside & (b[:, j] == k)
+                total = int(in_bin.sum())
+                if total == 0:
+                    continue
+                share = float(np.sum(in_bin & ~valid)) / total
+                if share >= invalid_share and (best is None or (share, total) > best[:2]):
+                    best = (share, total, j, end)
+        if best is None:
+            break
+        _, _, j, end = best
+        if end == 0:
+            first[j] += 1
+        else:
+            last[j] -= 1
+    new_lo = np.array([edges[j][first[j]] for j in range(d)])
+    new_hi = np.array([edges[j][last[j] + 1] for j in range(d)])
     if keep_X is not None and len(keep_X):
         keep_X = np.asarray(keep_X, float)
         new_lo = np.minimum(new_lo, keep_X.min(axis=0))

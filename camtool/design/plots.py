@@ -70,7 +70,7 @@ def plot_design_space(study, file: Path) -> Path:
         ax.set_ylabel(ylab)
         title = {1: "step 1: explore (invalid set)", 2: "step 2: optimise in narrowed ranges"}[step]
         ax.set_title(title if study.method == "mopso" else "NSGA-II evaluations")
-        ax.legend(fontsize=7, loc="lower right")
+        ax.legend(fontsize=7, loc="best", framealpha=0.85)
         ax.grid(alpha=0.3)
     fig.tight_layout()
     file = Path(file)

@@ -8,19 +8,20 @@ must meet in the shoulder S, axes 5-7 in the wrist W, joint 4 is the elbow.
 Given a flange pose and an arm angle Theta (rad):
 
 1. ``W = T @ w_flange``; the elbow angle q4 follows from ``|SW|`` alone: two
-   roots, sign gamma2.
+   roots, gamma1 (as in seed 002's eq. 10).
 2. Reference plane: the shoulder solution with q3 = 0 that puts W in place
    (the ``+`` root, so the reference is one well-defined plane).
 3. ``R_3 = Rot(SW, Theta) @ R_3_ref``: the arm plane turned by Theta about
    the S-W line (W does not move).
-4. Shoulder q1..q3 from R_3: two branches, gamma1; wrist q5..q7 from
+4. Shoulder q1..q3 from R_3: two branches, gamma2; wrist q5..q7 from
    ``R_4^T R_7``: two branches, gamma3.
 
 So every (pose, Theta) has 2 x 2 x 2 = 8 solution families (gamma1, gamma2,
 gamma3). Each gamma is the side (+1 / -1) of the middle joint's root from that
-step's singular value: axes aligned for the shoulder and wrist groups, elbow
-straight for joint 4. For the SIA-20 these are the signs of joints 2, 4 and 6,
-as in the paper (tested). A straight elbow (S, E, W in line) leaves Theta undefined and
+step's singular value: elbow straight for joint 4, axes aligned for the
+shoulder and wrist groups. For the SIA-20 (gamma1, gamma2, gamma3) are the
+signs of joints 4, 2 and 6; families are numbered 1-8 in the order of the
+paper's Table 3 (``FAMILIES``). A straight elbow (S, E, W in line) leaves Theta undefined and
 raises PlanInfeasible; so does a pose out of reach.
 """
 from __future__ import annotations
@@ -36,7 +37,7 @@ from .model import Robot
 
 GEOMETRY_TOL_MM = 1e-6
 STRAIGHT_ELBOW_MARGIN = 1e-8  # 1 - |cos| of the elbow sinusoid below this: elbow straight (~1.4e-4 rad)
-FAMILIES = tuple(product((1, -1), repeat=3))  # (gamma1, gamma2, gamma3), 8 families
+FAMILIES = tuple(product((1, -1), repeat=3))  # (gamma1 elbow, gamma2 shoulder, gamma3 wrist), Table 3 order
 
 
 @dataclass(frozen=True)
@@ -44,7 +45,7 @@ class SrsSolution:
     """One arm-angle solution: the 7 arm joints (rad), family, limits flag."""
 
     q: np.ndarray
-    family: tuple[int, int, int]
+    family: tuple[int, int, int]  # (gamma1 elbow, gamma2 shoulder, gamma3 wrist)
     within_limits: bool
 
 
@@ -93,10 +94,10 @@ class SrsIK:
         self.lower, self.upper = L.lower[n_pre:], L.upper[n_pre:]
 
     def elbow(self, d2: float) -> tuple[float, float]:
-        """The two elbow roots (gamma2 = +1, -1) for squared shoulder-wrist distance d2 (mm^2).
+        """The two elbow roots (gamma1 = +1, -1) for squared shoulder-wrist distance d2 (mm^2).
 
         The roots lie either side of the straight-elbow angle ``phi + pi``;
-        gamma2 = +1 is the one above it (``phi - acos``, wrapped).
+        gamma1 = +1 is the one above it (``phi - acos``, wrapped).
         """
         s, w = self.s4, self.w4
         r = sinusoid_roots(s[0] * w[0] + s[1] * w[1], s[1] * w[0] - s[0] * w[1], s[2] * w[2],
@@ -109,35 +110,49 @@ class SrsIK:
                                  "the arm angle is undefined at this pose")
         return r[1], r[0]
 
-    def solve(self, T_flange_mm: np.ndarray, arm_angle_rad: float) -> list[SrsSolution]:
-        """The 8 family solutions (7 arm joints, wrapped to (-pi, pi]) of a flange pose at an arm angle."""
+    def prepare(self, T_flange_mm: np.ndarray) -> dict:
+        """The arm-angle-free part of ``solve`` for one pose (reuse it over many arm angles)."""
         T = np.asarray(T_flange_mm, float)
         P = self.P
         W = T[:3, :3] @ self.w_flange + T[:3, 3]
         d = W - self.S
-        nd = np.linalg.norm(d)
-        u = d / nd
-        R7 = T[:3, :3] @ self.ch.flange[:3, :3].T
-        out = []
-        for g2, q4 in zip((1, -1), self.elbow(nd * nd)):
-            # reference: q3 = 0, W relative to S in link-2 coordinates
+        nd = float(np.linalg.norm(d))
+        ref = {}
+        for g1, q4 in zip((1, -1), self.elbow(nd * nd)):
+            # reference plane q3 = 0: solve R0 Rz(q1) A Rz(q2) w2 = d, w2 = W - S in link-2 coordinates
             w2 = P[2][:3, :3] @ (P[3][:3, :3] @ (rz(q4) @ self.w4) + P[3][:3, 3]) + P[2][:3, 3] - self.s2
-            # solve R0 Rz(q1) A Rz(q2) w2 = d  with A = P[1] rotation (first two steps of spherical_group)
-            ref = _two_axis(self.R0.T @ d, P[1][:3, :3], w2)
-            if ref is None:
+            sol = _two_axis(self.R0.T @ d, P[1][:3, :3], w2)
+            if sol is None:
                 raise PlanInfeasible(f"{self.robot.name}: no reference plane for this pose")
-            q1r, q2r = ref
-            R3ref = self.R0 @ rz(q1r) @ P[1][:3, :3] @ rz(q2r) @ P[2][:3, :3]
-            R3 = rot_axis(u, arm_angle_rad) @ R3ref
-            M = self.R0.T @ R3
-            for q1, q2, q3, g1 in spherical_group(M, P[1][:3, :3], P[2][:3, :3]):
+            R3ref = self.R0 @ rz(sol[0]) @ P[1][:3, :3] @ rz(sol[1]) @ P[2][:3, :3]
+            ref[g1] = (float(q4), R3ref)
+        return {"u": d / nd, "R7": T[:3, :3] @ self.ch.flange[:3, :3].T, "ref": ref}
+
+    def solve_prepared(self, prep: dict, arm_angle_rad: float, families=FAMILIES) -> list[SrsSolution]:
+        """``solve`` from a ``prepare``d pose, for the given families (gamma1, gamma2, gamma3) only."""
+        P = self.P
+        out = []
+        for g1 in (1, -1):                                   # elbow
+            if not any(f[0] == g1 for f in families):
+                continue
+            q4, R3ref = prep["ref"][g1]
+            R3 = rot_axis(prep["u"], arm_angle_rad) @ R3ref
+            for q1, q2, q3, g2 in spherical_group(self.R0.T @ R3, P[1][:3, :3], P[2][:3, :3]):  # shoulder
+                if not any(f[:2] == (g1, g2) for f in families):
+                    continue
                 R4 = R3 @ P[3][:3, :3] @ rz(q4)
-                Mw = (R4 @ P[4][:3, :3]).T @ R7
-                for q5, q6, q7, g3 in spherical_group(Mw, P[5][:3, :3], P[6][:3, :3]):
+                Mw = (R4 @ P[4][:3, :3]).T @ prep["R7"]
+                for q5, q6, q7, g3 in spherical_group(Mw, P[5][:3, :3], P[6][:3, :3]):  # wrist
+                    if (g1, g2, g3) not in families:
+                        continue
                     q = wrap_pi(np.array([q1, q2, q3, q4, q5, q6, q7]))
                     ok = limit_equivalents(q, self.lower, self.upper, np.ones(7, bool)) is not None
                     out.append(SrsSolution(q, (g1, g2, g3), ok))
         return sorted(out, key=lambda s: FAMILIES.index(s.family))
+
+    def solve(self, T_flange_mm: np.ndarray, arm_angle_rad: float) -> list[SrsSolution]:
+        """The 8 family solutions (7 arm joints, wrapped to (-pi, pi]) of a flange pose at an arm angle."""
+        return self.solve_prepared(self.prepare(T_flange_mm), arm_angle_rad)
 
     def full_q(self, q_arm: np.ndarray) -> np.ndarray:
         """Arm joints plus the fixed joints in front: a q for ``robot.fk``."""
