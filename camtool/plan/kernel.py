@@ -196,8 +196,9 @@ def cwln_solve(target, q, dh, modified, tail, lo, hi, buf, jscale, max_step, L, 
 
 
 @nb.njit(cache=True)
-def null_step(q, target, dh, modified, tail, L, free_spin, jscale, lam2, gain, q_ref):
-    """One null-space step of q towards q_ref (gain in 0..1), in the scaled joint metric."""
+def _projected_step(q, target, q_ref, dh, modified, tail, L, free_spin, jscale, lam2, gain, track_task):
+    """Scaled joint step z_task + (I - J+ J) gain (q_ref - q) / s, with J+ = Js^T (Js Js^T + lam2)^-1
+    (Js = J S); z_task = J+ e when ``track_task``, else 0 (pure null-space motion). Returns dq."""
     n = q.shape[0]
     T = np.empty((4, 4)); J = np.empty((6, n)); e = np.empty(6); Jt = np.empty((6, n))
     m, pe, oe = _task(q, target, dh, modified, tail, L, free_spin, T, J, e, Jt)
@@ -211,10 +212,17 @@ def null_step(q, target, dh, modified, tail, L, free_spin, jscale, lam2, gain, q
     z = np.empty(n)
     for i in range(n):
         z[i] = gain * (q_ref[i] - q[i]) / jscale[i]
-    y = np.linalg.solve(A, Js @ z)
-    dz = z - Js.T @ y
-    for i in range(n):
-        q[i] += dz[i] * jscale[i]
+    rhs = -(Js @ z)
+    if track_task:
+        rhs += e[:m]
+    dz = z + Js.T @ np.linalg.solve(A, rhs)
+    return dz * jscale
+
+
+@nb.njit(cache=True)
+def null_step(q, target, dh, modified, tail, L, free_spin, jscale, lam2, gain, q_ref):
+    """One null-space step of q (in place) towards q_ref (gain in 0..1), in the scaled joint metric."""
+    q += _projected_step(q, target, q_ref, dh, modified, tail, L, free_spin, jscale, lam2, gain, False)
 
 
 @nb.njit(cache=True)
@@ -222,28 +230,15 @@ def gp_self_motion(q, target, q_ref, dh, modified, tail, lo, hi, jscale, max_ste
                    iterations, alpha):
     """Gradient projection: dq = J+ e + (I - J+ J) alpha (q_ref - q), in the scaled metric (in place)."""
     n = q.shape[0]
-    T = np.empty((4, 4)); J = np.empty((6, n)); e = np.empty(6); Jt = np.empty((6, n))
     for _ in range(iterations):
-        m, pe, oe = _task(q, target, dh, modified, tail, L, free_spin, T, J, e, Jt)
-        Js = np.empty((m, n))
-        for r in range(m):
-            for i in range(n):
-                Js[r, i] = Jt[r, i] * jscale[i]
-        A = Js @ Js.T
-        for r in range(m):
-            A[r, r] += lam2
-        z = np.empty(n)
-        for i in range(n):
-            z[i] = alpha * (q_ref[i] - q[i]) / jscale[i]
-        y = np.linalg.solve(A, e[:m] - Js @ z)
-        dz = z + Js.T @ y
+        dq = _projected_step(q, target, q_ref, dh, modified, tail, L, free_spin, jscale, lam2, alpha, True)
         big = 0.0
         for i in range(n):
-            big = max(big, abs(dz[i] * jscale[i]) / (0.2 * max_step[i]))
+            big = max(big, abs(dq[i]) / (0.2 * max_step[i]))
         sc = 1.0 / big if big > 1.0 else 1.0
         moved = 0.0
         for i in range(n):
-            qi = min(max(q[i] + dz[i] * jscale[i] * sc, lo[i]), hi[i])
+            qi = min(max(q[i] + dq[i] * sc, lo[i]), hi[i])
             moved = max(moved, abs(qi - q[i]))
             q[i] = qi
         if moved < 1e-7:
