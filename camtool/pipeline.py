@@ -42,6 +42,16 @@ def stage_function(stage: str, done: list[str]) -> Callable:
     raise KeyError(stage)
 
 
+def _optional(module: str):
+    """A stage module if this camtool has it, else None (its stage raises later)."""
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name != module:
+            raise
+        return None
+
+
 @dataclass
 class RunResult:
     """What a run produced: the stages that ran, their outputs, and the files written."""
@@ -133,10 +143,13 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
         tick(name)
         return value
 
+    robot = robot_for_job(job)
+    preflight = getattr(_optional("camtool.post"), "preflight", None)
+    if preflight is not None:
+        preflight(robot, job, outdir)
     wp = done("workpiece", workpiece_for_job(job, r.stages))
     surface = done("fit", surface_for_job(job, wp, r.stages))
     path = done("raster", path_for_job(job, surface, r.stages))
-    robot = robot_for_job(job)
     try:
         joint_path, trajectory = plan_and_time(job, path, robot)
     except PlanInfeasible as exc:

@@ -76,6 +76,16 @@ def _prepare_outdir(outdir: Path) -> None:
         raise BadInput(f"{outdir}: the output folder is not writable")
 
 
+def preflight(robot, job, outdir) -> None:
+    """Check, before any work, that every format's plugin and profile load and the
+    output folder can be written: bad input surfaces in seconds, not after planning."""
+    from postprocessors.base import get_plugin
+
+    for fmt in job.post.formats:
+        profile_for_job(fmt, get_plugin(fmt), robot, job)
+    _prepare_outdir(Path(outdir))
+
+
 def write_programs(trajectory, robot, job, outdir) -> list[Path]:
     """Write, check and place the programs of every ``job.post.formats`` entry.
 

@@ -66,3 +66,14 @@ def test_unreachable_job_exits_3_with_report_and_no_program(tmp_path):
     assert {"index", "segment", "point", "xyz_mm"} <= set(first)
     assert (out / "plots" / "unreachable.png").exists()
     assert not [p for p in out.iterdir() if p.suffix in (".mod", ".pgf", ".JBI", ".csv")]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--set", 'post.formats=["rapid", "foo"]'], "no post-processor 'foo'"),
+    (["--set", "robot.name=irb2400_paper"], "no rapid profile for robot 'irb2400_paper'"),
+    (["-o", "/proc/camtool-out"], "cannot create the output folder"),
+])
+def test_bad_output_settings_fail_before_any_work(args, message):
+    r = run_camtool("run", SAMPLES / "sphere.toml", *args)
+    assert r.returncode == 2
+    assert len(r.stderr.strip().splitlines()) == 1 and message in r.stderr

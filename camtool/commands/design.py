@@ -156,8 +156,8 @@ def _print_summary(s: dict, names, study) -> None:
         click.echo("narrowed mm      " + ", ".join(f"{n} ({a:g}, {b:g})" for n, (a, b) in s["narrowed"].items()))
     click.echo(f"invalid designs  {s['invalid_designs']}")
     click.echo(f"Pareto front     {len(s['front'])} designs (coarse raster)")
-    header = "  " + "  ".join(f"{n:>8}" for n in names) + "  length_mm  singularities"
-    click.echo(header)
+    if s["front"]:
+        click.echo("  " + "  ".join(f"{n:>8}" for n in names) + "  length_mm  singularities")
     for row in s["front"]:
         click.echo("  " + "  ".join(f"{row[n]:8g}" for n in names) + f"  {row['length_mm']:9g}  {row['singularities']:13d}")
     if s["chosen"] is not None:

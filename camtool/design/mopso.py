@@ -294,7 +294,7 @@ def run_mopso(evaluate: Callable, lower, upper, settings: MopsoSettings = MopsoS
     fx, ff = archive.sorted()
     m = len(log["F"][0]) if log["F"] else 0
     return MopsoResult(
-        front_X=fx, front_F=ff, X=np.array(log["X"]).reshape(-1, d), F=np.array(log["F"]).reshape(-1, m),
+        front_X=fx.reshape(-1, d), front_F=ff.reshape(-1, m), X=np.array(log["X"]).reshape(-1, d), F=np.array(log["F"]).reshape(-1, m),
         violation=np.array(log["v"]), step=np.array(log["step"]), iteration=np.array(log["it"]),
         lower=lower, upper=upper, narrowed_lower=narrowed[0], narrowed_upper=narrowed[1],
         evaluations=len(log["F"]), history=history)
