@@ -26,8 +26,8 @@ from .errors import BadInput
 from .surface import FitStats, PlaneSurface, SpherePatch
 
 MIN_POINTS = {"plane": 3, "sphere": 4}
-SUBSAMPLE = 4000          # points used to score every hypothesis
-TOP_K = 8                 # hypotheses rescored on all points
+SUBSAMPLE = 1000          # points used to score every hypothesis (rank only; top K rescored on all)
+TOP_K = 16                # hypotheses rescored on all points
 BATCH = 256               # hypotheses scored per numpy batch
 LARGE_SPHERE_FACTOR = 10.0  # a sphere wider than this many cloud extents is a plane
 PLANE_MARGIN = 0.02       # plane wins if its inliers are within 2 % of the sphere's
