@@ -89,25 +89,24 @@ def check_motion(q: np.ndarray, durations_s: np.ndarray, robot, where: list[str]
     if len(bad) > MAX_PER_KIND:
         out.append(f"{where[0].rsplit(':', 1)[0]}: ... and {len(bad) - MAX_PER_KIND} more values outside the limits")
     n_speed = 0
-    for k in range(1, len(q)):
-        dt = durations_s[k]
-        if np.isnan(dt):
-            continue
-        dq = np.abs(q[k] - q[k - 1])
-        if dt <= 0:
-            if np.all(dq <= tol):  # a move that goes nowhere (e.g. a dwell) takes no time
-                continue
-            out.append(f"{where[k]}: move duration {dt:.4f} s is not positive")
-            continue
-        allowed = L.velocity * (1 + SPEED_REL_TOL) + 2 * tol / dt
-        over = np.flatnonzero(dq / dt > allowed)
-        for i in over:
-            n_speed += 1
-            if n_speed <= MAX_PER_KIND:
-                unit = "mm/s" if robot.prismatic[i] else "deg/s"
-                conv = (lambda x: x) if robot.prismatic[i] else np.degrees
-                out.append(f"{where[k]}: {robot.joint_names[i]} speed {conv(dq[i] / dt):.2f} {unit} above the "
-                           f"limit {conv(L.velocity[i]):.2f} {unit} (step over {dt:.4f} s)")
+    if len(q) > 1:
+        dt = np.asarray(durations_s[1:], float)
+        dq = np.abs(np.diff(q, axis=0))
+        known = ~np.isnan(dt)
+        still = np.all(dq <= tol[None, :], axis=1)  # a move that goes nowhere (a dwell) takes no time
+        for k in np.flatnonzero(known & (dt <= 0) & ~still) + 1:
+            out.append(f"{where[k]}: move duration {durations_s[k]:.4f} s is not positive")
+        timed = known & (dt > 0)
+        safe_dt = np.where(timed, dt, 1.0)[:, None]
+        allowed = L.velocity[None, :] * (1 + SPEED_REL_TOL) + 2 * tol[None, :] / safe_dt
+        over = np.argwhere((dq / safe_dt > allowed) & timed[:, None])
+        n_speed = len(over)
+        for k0, i in over[:MAX_PER_KIND]:
+            k = k0 + 1
+            unit = "mm/s" if robot.prismatic[i] else "deg/s"
+            conv = (lambda x: x) if robot.prismatic[i] else np.degrees
+            out.append(f"{where[k]}: {robot.joint_names[i]} speed {conv(dq[k0, i] / dt[k0]):.2f} {unit} above the "
+                       f"limit {conv(L.velocity[i]):.2f} {unit} (step over {dt[k0]:.4f} s)")
     if n_speed > MAX_PER_KIND:
         out.append(f"{where[0].rsplit(':', 1)[0]}: ... and {n_speed - MAX_PER_KIND} more steps above the speed limits")
     return out
