@@ -49,5 +49,11 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     click.echo(f"accuracy: {report['max_position_error_mm']:.2e} mm, {report['max_orientation_error_deg']:.2e} deg;"
                f" cycle time {report['cycle_time_s']:.1f} s; peak speed {100 * report['peak_joint_speed_ratio']:.0f}%"
                f", acc {100 * report['peak_joint_acc_ratio']:.0f}% of limits")
+    slow = report.get("slowdowns", [])
+    if slow:
+        worst = min(s["speed_ratio"] for s in slow)
+        ends = sum(1 for s in slow if s.get("at_run_end"))
+        click.echo(f"limits slowed the TCP in {len(slow)} stretches ({ends} at run ends), down to "
+                   f"{100 * worst:.0f}% of {report['tcp_speed_mm_s']:.0f} mm/s; see slowdowns in report.json")
     for f in result.files:
         click.echo(f"wrote {f}")
