@@ -1,7 +1,7 @@
 """Job files (TOML): schema, defaults and validation with precise messages.
 
 A job has the sections ``workpiece``, ``fit``, ``raster``, ``robot``, ``cell``,
-``tool``, ``planner``, ``timing`` and ``post``. Every key has a default
+``tool``, ``planner``, ``timing``, ``task`` and ``post``. Every key has a default
 (``SCHEMA``); docs/job-file.md is generated from it (``python -m
 camtool.job --markdown``) and a test keeps the two in step.
 
@@ -92,7 +92,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "mass_kg": _nonneg("Tool mass for controller tool data.", 1.0),
     },
     "planner": {
-        "method": Key("str", "seed", "seed = CWLN + gradient projection + reverse planning; general = CWLN alone (the paper's baseline).", choices=("seed", "general")),
+        "method": Key("str", "seed", "seed = CWLN + gradient projection + reverse planning; general = CWLN alone (the paper's baseline); arm-angle-sqp = seed 002's arm-angle SQP (task.kind = 'sequential_reach', SRS arms).", choices=("seed", "general", "arm-angle-sqp")),
         "damping": _pos("Damping lambda of the least-norm solve (mm).", 0.1),
         "orientation_weight_mm": _pos("Length that weighs orientation error against position error: 1 rad counts as this many mm.", 200.0),
         "position_tol_mm": _pos("IK position tolerance.", 1e-4, " mm"),
@@ -113,10 +113,36 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "tcp_speed_mm_s": _pos("TCP speed on work zones.", 100.0, " mm/s"),
         "check_dt_ms": _pos("Step at which the independent checker resamples the trajectory.", 4.0, " ms"),
     },
+    "task": {
+        "kind": Key("str", "raster", "What the job does: raster = the surface raster of the main seed; sequential_reach = seed 002's reaching task on a plane; cartesian = seed 001's line and arc moves (docs/seed-methods.md).", choices=("raster", "sequential_reach", "cartesian")),
+        "route": Key("str", "horizontal", "sequential_reach: S-shaped sweep along the grid rows (horizontal) or columns (vertical).", choices=("horizontal", "vertical")),
+        "plane": Key("str", "fit", "sequential_reach: the target plane is the RANSAC plane fitted to the workpiece (fit), or plane_point_mm / plane_normal (job); the grid is projected onto it.", choices=("fit", "job")),
+        "plane_point_mm": Key("vec3", [0.0, 600.0, 0.0], "sequential_reach, plane = 'job': a point of the target plane (world frame)."),
+        "plane_normal": Key("vec3", [0.0, 1.0, 0.0], "sequential_reach, plane = 'job': the plane's normal (either sign; the tool z axis points away from the robot base)."),
+        "grid_origin_mm": Key("vec3", [-350.0, 600.0, 250.0], "sequential_reach: first target (m = n = 0), world frame."),
+        "grid_step_mm": _pos("sequential_reach: target spacing in both grid directions.", 100.0, " mm"),
+        "grid_columns": Key("int", 8, "sequential_reach: targets per row (m = 0..columns-1, along the plane's horizontal).", check=lambda x: x >= 1, expect="an integer >= 1"),
+        "grid_rows": Key("int", 8, "sequential_reach: rows (n = 0..rows-1, along tool_y_world).", check=lambda x: x >= 1, expect="an integer >= 1"),
+        "start_mm": Key("vec3", [350.0, 600.0, 950.0], "sequential_reach: start point (world frame), projected onto the plane; the sweep begins at the grid corner nearest to it."),
+        "tool_y_world": Key("vec3", [0.0, 0.0, 1.0], "sequential_reach: world direction the tool y axis follows (projected onto the plane)."),
+        "arm_angle0_deg": Key("float", 45.0, "arm-angle-sqp: the fixed arm angle and the SQP start (seed 002: pi/4)."),
+        "sqp_max_iterations": Key("int", 200, "arm-angle-sqp: SLSQP iteration limit per family.", check=lambda x: x >= 1, expect="an integer >= 1"),
+        "track_mm": Key("float", 0.0, "arm-angle-sqp on seed8: the fixed track position."),
+        "cart_start_mm": Key("vec3", [900.0, -200.0, 1000.0], "cartesian: start TCP position (world frame)."),
+        "cart_start_rpy_deg": Key("vec3", [0.0, 180.0, 0.0], "cartesian: start TCP orientation (fixed-axis roll, pitch, yaw); kept along every move."),
+        "line_down_mm": Key("float", 400.0, "cartesian: first line, this far along the tool z axis."),
+        "line_side_mm": Key("float", 400.0, "cartesian: second line, this far along world +y."),
+        "line_points": Key("int", 300, "cartesian: interpolation points of both lines together (seed 001: 300).", check=lambda x: x >= 4, expect="an integer >= 4"),
+        "arc_radius_mm": _pos("cartesian: radius of the arc after the lines (horizontal, centre on the -x side of its start).", 100.0, " mm"),
+        "arc_angle_deg": Key("float", 360.0, "cartesian: angle the arc turns about world +z.", check=lambda x: x != 0, expect="a non-zero angle"),
+        "arc_points": Key("int", 628, "cartesian: interpolation points of the arc (seed 001: 628).", check=lambda x: x >= 2, expect="an integer >= 2"),
+        "path_tol_mm": _pos("cartesian: largest distance of the timed TCP from its line or arc, checked between points too; moves get more points until it holds.", 0.01, " mm"),
+    },
     "post": {
         "formats": Key("strs", ["rapid", "inform", "csv"], "Post-processor plugins to run (see `camtool posts`)."),
         "program_name": Key("str", "CAMTOOL", "Program / job name (sanitised per controller)."),
         "profiles": Key("table", {}, "Controller profile file per format, e.g. {rapid = 'my_irc5.toml'}; default: the shipped profile for the robot."),
+        "min_move_ms": _nonneg("Shortest program move: inserted samples of free moves closer than this are dropped (path poses are always kept).", 20.0),
         "csv_angle_unit": Key("str", "deg", "Angle unit of CSV output.", choices=("deg", "rad")),
     },
 }

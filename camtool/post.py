@@ -76,6 +76,35 @@ def _prepare_outdir(outdir: Path) -> None:
         raise BadInput(f"{outdir}: the output folder is not writable")
 
 
+def thin_waypoints(trajectory, min_move_s: float):
+    """Drop inserted samples (path_index -1) closer than ``min_move_s`` to the last kept waypoint.
+
+    Controllers execute a program move by move; moves of a few ms (ruckig's
+    switching points in free zones) overload their interpolators. Every path
+    pose is kept, so the tool still meets every surface point; the free moves
+    are straight lines in joint space between poses, so dropping samples on them
+    keeps the joint path and, since an average never exceeds the peak, the
+    joint speeds between the kept points stay within the limits.
+    """
+    import numpy as np
+    from dataclasses import replace
+
+    if min_move_s <= 0 or len(trajectory.t_s) < 3:
+        return trajectory
+    t, pidx = trajectory.t_s, trajectory.path_index
+    keep = pidx >= 0
+    keep[0] = keep[-1] = True
+    anchors = np.flatnonzero(keep)
+    for a, b in zip(anchors[:-1], anchors[1:]):  # samples between two kept path poses
+        last = t[a]
+        for k in range(a + 1, b):
+            if t[k] - last >= min_move_s and t[b] - t[k] >= min_move_s:
+                keep[k] = True
+                last = t[k]
+    fields = {name: getattr(trajectory, name)[keep] for name in ("t_s", "q", "qd", "qdd", "zone", "path_index")}
+    return replace(trajectory, **fields)
+
+
 def preflight(robot, job, outdir) -> None:
     """Check, before any work, that every format's plugin and profile load and the
     output folder can be written: bad input surfaces in seconds, not after planning."""
@@ -98,6 +127,7 @@ def write_programs(trajectory, robot, job, outdir) -> list[Path]:
     from postprocessors.check import check_program, format_of
 
     outdir = Path(outdir)
+    trajectory = thin_waypoints(trajectory, job.post.min_move_ms / 1000.0)
     plugins = {fmt: get_plugin(fmt) for fmt in job.post.formats}
     profiles = {fmt: profile_for_job(fmt, p, robot, job) for fmt, p in plugins.items()}
     check_limits(trajectory, robot)

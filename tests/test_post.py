@@ -121,3 +121,20 @@ def test_same_input_gives_identical_files(tmp_path):
     a = {f.name: f.read_bytes() for f in write_programs(tr, r, job, tmp_path / "a")}
     b = {f.name: f.read_bytes() for f in write_programs(tr, r, job, tmp_path / "b")}
     assert a == b and len(a) == 4
+
+
+def test_thin_waypoints_keeps_path_poses_and_drops_short_inserted_moves():
+    from dataclasses import replace
+
+    from camtool.post import thin_waypoints
+
+    r = get_robot("seed8")
+    tr = smooth_trajectory(r, 200)
+    t = np.cumsum(np.r_[0.0, np.tile([0.05, 0.004, 0.004, 0.004, 0.004], 40)[:199]])
+    pidx = np.where(np.arange(200) % 5 == 0, np.arange(200), -1)
+    tr = replace(tr, t_s=t, path_index=pidx)
+    thin = thin_waypoints(tr, 0.02)
+    assert set(np.flatnonzero(pidx >= 0)) <= set(thin.path_index[thin.path_index >= 0])
+    assert np.all(np.diff(thin.t_s) >= 0.02 - 1e-12)
+    assert thin.t_s[0] == t[0] and thin.t_s[-1] == t[-1]
+    assert thin_waypoints(tr, 0.0) is tr
