@@ -2,7 +2,6 @@
 local pool vs Dask giving byte-identical programs, caching and bad input."""
 import json
 import time
-from pathlib import Path
 
 import pytest
 
