@@ -2,11 +2,12 @@
 
 A job is up to date when the fingerprint of its inputs (job file bytes,
 workpiece file bytes, robot and controller-profile files it names, the
-``--set`` overrides and the camtool version) equals the one stored after its
+``--set`` overrides, the camtool version and a digest of its code) equals the one stored after its
 last successful run, and every output file listed there still exists.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -42,9 +43,25 @@ def input_files(job) -> dict[str, Path]:
     return files
 
 
+@functools.lru_cache(maxsize=1)
+def code_digest() -> str:
+    """Digest of camtool's own code and data (the package, its robots and profiles, and
+    the built-in post-processors): a changed source tree invalidates the cache even
+    when the version number stays the same."""
+    import postprocessors
+
+    h = hashlib.sha256()
+    for root in (Path(__file__).resolve().parents[1], Path(postprocessors.__file__).resolve().parent):
+        for f in sorted(root.rglob("*")):
+            if f.suffix in (".py", ".toml") and "__pycache__" not in f.parts:
+                h.update(str(f.relative_to(root)).encode())
+                h.update(_file_digest(f).encode())
+    return h.hexdigest()
+
+
 def fingerprint(job, overrides: tuple[str, ...] | list[str]) -> str:
     """SHA-256 hex digest of everything that decides a job's outputs."""
-    parts = {"camtool": __version__, "overrides": list(overrides),
+    parts = {"camtool": __version__, "code": code_digest(), "overrides": list(overrides),
              "files": {role: _file_digest(p) for role, p in input_files(job).items()}}
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
