@@ -115,7 +115,7 @@ def _report_unreachable(exc: PlanInfeasible, path, robot, job: Job, outdir: Path
     write_json_atomic(report, outdir / "report.json")
 
 
-def _timing_figures(trajectory, robot, job: Job) -> dict:
+def timing_figures(trajectory, robot, job: Job) -> dict:
     """The timing stage's figures, its method named ``timing_method``."""
     from .timing import timing_report
 
@@ -133,6 +133,20 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
     from .report import plan_metrics, plot_joints, write_json_atomic, write_points_csv
     from .timing import check_trajectory
 
+    robot = robot_for_job(job)
+    preflight = getattr(_optional("camtool.post"), "preflight", None)
+    if preflight is not None:  # plugins, profiles and the output folder, before any work
+        preflight(robot, job, outdir)
+    if job.task.kind == "sequential_reach":  # seed 002's task: camtool/reach.py
+        from .reach import run_reach_job
+        return run_reach_job(job, outdir, on_stage)
+    if job.planner.method == "arm-angle-sqp":
+        from .errors import BadInput
+        raise BadInput(f"{job.path}: planner.method: 'arm-angle-sqp' plans task.kind = 'sequential_reach', "
+                       f"not {job.task.kind!r} jobs")
+    if job.task.kind == "cartesian":  # seed 001's line and arc: camtool/cartesian.py
+        from .cartesian import run_cartesian_job
+        return run_cartesian_job(job, outdir, on_stage)
     outdir = Path(outdir)
     r = RunResult()
     tick = on_stage or (lambda name: None)
@@ -143,10 +157,6 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
         tick(name)
         return value
 
-    robot = robot_for_job(job)
-    preflight = getattr(_optional("camtool.post"), "preflight", None)
-    if preflight is not None:
-        preflight(robot, job, outdir)
     wp = done("workpiece", workpiece_for_job(job, r.stages))
     surface = done("fit", surface_for_job(job, wp, r.stages))
     path = done("raster", path_for_job(job, surface, r.stages))
@@ -164,7 +174,7 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
 
     report = plan_metrics(path, joint_path, robot, job.planner.method,
                           job.planner.jump_threshold_deg, job.planner.jump_threshold_mm)
-    report.update(_timing_figures(trajectory, robot, job))
+    report.update(timing_figures(trajectory, robot, job))
     report["limits_ok"] = True  # the independent check above passed
     report["status"] = "ok"
     trajectories = {job.planner.method: trajectory}
@@ -175,7 +185,7 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
             trajectories[other] = tr2
             report["compare"] = {**plan_metrics(path, jp2, robot, other, job.planner.jump_threshold_deg,
                                                 job.planner.jump_threshold_mm),
-                                 **_timing_figures(tr2, robot, job)}
+                                 **timing_figures(tr2, robot, job)}
         except PlanInfeasible as exc:
             report["compare"] = {"method": other, "status": "infeasible", "reason": str(exc)}
     plots = plot_joints(trajectories, robot, outdir / "plots")

@@ -7,17 +7,20 @@ pose. The planner:
 1. solves every pose at the fixed arm angle Theta0 = pi/4 (the paper's start);
 2. runs scipy's SLSQP over the arm angles from there, minimising
    ``E = sum_k ||theta(k+1) - theta(k)||`` (rad) subject to the joint limits
-   (kept ``margin_rad`` inside). Gradients: each pose's joints depend on its
+   (kept ``margin_rad`` inside, default 0.2 deg, so that the timing stage's
+   sampled moves stay clear of the limits). Gradients: each pose's joints depend on its
    own arm angle only, so dtheta_k/dTheta_k comes from a central difference
    and both E's gradient and the constraint Jacobian follow exactly from it;
 3. reports E and feasibility per family, fixed and optimised, and keeps the
-   feasible result with the least E.
+   feasible result with the least E. Feasible means every joint of every
+   pose lies at least ``margin_rad`` inside its limits.
 
 ``plan_arm_angle_sqp`` wraps this for the pipeline: Path in (world-frame TCP
 poses), JointPath plus the per-family table out.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +34,7 @@ from ..trajectory import JointPath
 from ..transforms import rotation_angle_rad
 
 FD_STEP_RAD = 1e-6
+LIMIT_MARGIN_RAD = float(np.radians(0.2))
 
 
 @dataclass(frozen=True)
@@ -83,16 +87,12 @@ def path_length_rad(q: np.ndarray) -> float:
 class _FamilyProblem:
     """theta(Theta) for one family over K prepared poses, with cached evaluation."""
 
-    def __init__(self, ik: SrsIK, preps: list[dict], family: tuple[int, int, int]):
-        self.ik, self.preps, self.family = ik, preps, family
+    def __init__(self, ik: SrsIK, stacked: dict, family: tuple[int, int, int]):
+        self.ik, self.stacked, self.family = ik, stacked, family
         self._x = None
 
     def q_of(self, x: np.ndarray) -> np.ndarray:
-        q = np.empty((len(x), 7))
-        for k, (prep, psi) in enumerate(zip(self.preps, x)):
-            sols = self.ik.solve_prepared(prep, float(psi), (self.family,))
-            q[k] = sols[0].q if sols else np.nan
-        return q
+        return self.ik.family_q_batch(self.stacked, x, self.family)
 
     def eval(self, x):
         if self._x is None or not np.array_equal(x, self._x):
@@ -102,17 +102,18 @@ class _FamilyProblem:
         return self._q, self._dq
 
 
-def optimise_family(ik: SrsIK, preps: list[dict], family, theta0_rad: float, margin_rad: float,
+def optimise_family(ik: SrsIK, stacked: dict, family, theta0_rad: float, margin_rad: float,
                     max_iterations: int) -> FamilyResult:
     """Fixed-angle and SLSQP-optimised arm angles for one family."""
-    prob = _FamilyProblem(ik, preps, family)
-    K = len(preps)
+    prob = _FamilyProblem(ik, stacked, family)
+    K = len(stacked["u"])
     lo, hi = ik.lower, ik.upper
     x0 = np.full(K, theta0_rad)
     q_fixed = prob.q_of(x0)
 
     def feasible(q):
-        return bool(np.all(np.isfinite(q)) and np.all(q >= lo - 1e-12) and np.all(q <= hi + 1e-12))
+        return bool(np.all(np.isfinite(q)) and np.all(q >= lo + margin_rad - 1e-9)
+                    and np.all(q <= hi - margin_rad + 1e-9))
 
     def fun(x):
         q, _ = prob.eval(x)
@@ -153,7 +154,7 @@ def optimise_family(ik: SrsIK, preps: list[dict], family, theta0_rad: float, mar
 
 
 def optimise_arm_angles(robot: Robot, targets_flange_mm: np.ndarray, fixed=(), theta0_rad: float = np.pi / 4,
-                        margin_rad: float = 1e-6, max_iterations: int = 200) -> ArmAngleResult:
+                        margin_rad: float = LIMIT_MARGIN_RAD, max_iterations: int = 200) -> ArmAngleResult:
     """Run every family on flange poses (base frame, mm); see module doc."""
     targets = np.asarray(targets_flange_mm, float)
     if targets.ndim != 3 or targets.shape[1:] != (4, 4) or len(targets) < 2:
@@ -165,7 +166,8 @@ def optimise_arm_angles(robot: Robot, targets_flange_mm: np.ndarray, fixed=(), t
             preps.append(ik.prepare(T))
         except PlanInfeasible as exc:
             raise PlanInfeasible(f"target {k}: {exc}") from None
-    fams = tuple(optimise_family(ik, preps, f, theta0_rad, margin_rad, max_iterations) for f in FAMILIES)
+    stacked = ik.stack(preps)
+    fams = tuple(optimise_family(ik, stacked, f, theta0_rad, margin_rad, max_iterations) for f in FAMILIES)
     cands = []
     for i, f in enumerate(fams):
         if f.opt_feasible:
@@ -183,6 +185,7 @@ def plan_arm_angle_sqp(path, robot: Robot, theta0_deg: float = 45.0, max_iterati
     ``track_mm`` fixes the joints in front of the 7R arm (seed8's track).
     Raises PlanInfeasible (with the table in ``report``) if no family is feasible.
     """
+    t0 = time.perf_counter()
     n_pre = robot.dof - 7
     fixed = np.full(max(n_pre, 0), float(track_mm))
     base_inv = np.linalg.inv(robot.base_T_mm)
@@ -205,7 +208,8 @@ def plan_arm_angle_sqp(path, robot: Robot, theta0_deg: float = 45.0, max_iterati
                    position_error_mm=pos_err, orientation_error_rad=ori_err, jump=false.copy(),
                    reverse_planned=false.copy(), retract=false.copy(), singular=false.copy(),
                    reached=(pos_err < 1e-6) & (ori_err < 1e-9),
-                   events={"arm_angle_sqp": {"best_family": list(res.families[res.best].family),
+                   events={"plan_seconds": time.perf_counter() - t0,
+                           "arm_angle_sqp": {"best_family": list(res.families[res.best].family),
                                              "best_source": res.best_source,
                                              "families": res.table()}})
     return jp, res

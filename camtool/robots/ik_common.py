@@ -180,3 +180,49 @@ def nearest_equivalent(q: np.ndarray, q_ref: np.ndarray, lower, upper, revolute)
     if eq is None:
         return None
     return np.array([min(vals, key=lambda v: abs(v - r)) for vals, r in zip(eq, q_ref)])
+
+
+def rz_batch(q: np.ndarray) -> np.ndarray:
+    """(K, 3, 3) rotations about z."""
+    c, s = np.cos(q), np.sin(q)
+    R = np.zeros((len(q), 3, 3))
+    R[:, 0, 0] = c
+    R[:, 0, 1] = -s
+    R[:, 1, 0] = s
+    R[:, 1, 1] = c
+    R[:, 2, 2] = 1.0
+    return R
+
+
+def rot_axis_batch(u: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(K, 3, 3) Rodrigues rotations by ``angle[k]`` about unit ``u[k]``."""
+    K = np.zeros((len(u), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -u[:, 2], u[:, 1], -u[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = u[:, 2], -u[:, 1], u[:, 0]
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+
+
+def spherical_group_batch(M: np.ndarray, A: np.ndarray, B: np.ndarray, gamma: int,
+                          singular_tol: float = 1e-9) -> np.ndarray:
+    """``spherical_group`` for a stack of rotations M (K, 3, 3), one branch: (K, 3) angles.
+
+    Rows with no real root are NaN.
+    """
+    u = M[:, :, 2]
+    b = B[:, 2]
+    a = A[2, :]
+    kc, ks, k0 = a[0] * b[0] + a[1] * b[1], a[1] * b[0] - a[0] * b[1], a[2] * b[2]
+    r = np.hypot(kc, ks)
+    c = (u[:, 2] - k0) / r
+    bad = np.abs(c) > 1.0 + 1e-7
+    x2 = np.arctan2(ks, kc) + gamma * np.arccos(np.clip(c, -1.0, 1.0))
+    v = np.einsum("ij,kjl,l->ki", A, rz_batch(x2), b)
+    sing = (np.hypot(v[:, 0], v[:, 1]) < singular_tol) | (np.hypot(u[:, 0], u[:, 1]) < singular_tol)
+    x1 = np.where(sing, 0.0, np.arctan2(u[:, 1], u[:, 0]) - np.arctan2(v[:, 1], v[:, 0]))
+    R = rz_batch(x1) @ A @ rz_batch(x2) @ B
+    R3 = np.transpose(R, (0, 2, 1)) @ M
+    x3 = np.arctan2(R3[:, 1, 0], R3[:, 0, 0])
+    out = wrap_pi(np.column_stack([x1, x2, x3]))
+    out[bad] = np.nan
+    return out

@@ -32,7 +32,8 @@ from itertools import product
 import numpy as np
 
 from ..errors import BadInput, PlanInfeasible
-from .ik_common import Chain, axis_intersection, limit_equivalents, rot_axis, rz, sinusoid_roots, spherical_group, wrap_pi
+from .ik_common import (Chain, axis_intersection, limit_equivalents, rot_axis, rot_axis_batch, rz, rz_batch,
+                        sinusoid_roots, spherical_group, spherical_group_batch, wrap_pi)
 from .model import Robot
 
 GEOMETRY_TOL_MM = 1e-6
@@ -149,6 +150,24 @@ class SrsIK:
                     ok = limit_equivalents(q, self.lower, self.upper, np.ones(7, bool)) is not None
                     out.append(SrsSolution(q, (g1, g2, g3), ok))
         return sorted(out, key=lambda s: FAMILIES.index(s.family))
+
+    def stack(self, preps: list[dict]) -> dict:
+        """Stack ``prepare``d poses for ``family_q_batch``."""
+        return {"u": np.array([p["u"] for p in preps]), "R7": np.array([p["R7"] for p in preps]),
+                "q4": {g: np.array([p["ref"][g][0] for p in preps]) for g in (1, -1)},
+                "R3ref": {g: np.array([p["ref"][g][1] for p in preps]) for g in (1, -1)}}
+
+    def family_q_batch(self, stacked: dict, arm_angles_rad: np.ndarray, family) -> np.ndarray:
+        """(K, 7) arm joints of one family for K stacked poses, one arm angle each (NaN: no root)."""
+        g1, g2, g3 = family
+        P = self.P
+        R3 = rot_axis_batch(stacked["u"], np.asarray(arm_angles_rad, float)) @ stacked["R3ref"][g1]
+        sh = spherical_group_batch(self.R0.T @ R3, P[1][:3, :3], P[2][:3, :3], g2)
+        q4 = stacked["q4"][g1]
+        R4 = R3 @ P[3][:3, :3] @ rz_batch(q4)
+        Mw = np.transpose(R4 @ P[4][:3, :3], (0, 2, 1)) @ stacked["R7"]
+        wr = spherical_group_batch(Mw, P[5][:3, :3], P[6][:3, :3], g3)
+        return np.column_stack([sh, wrap_pi(q4), wr])
 
     def solve(self, T_flange_mm: np.ndarray, arm_angle_rad: float) -> list[SrsSolution]:
         """The 8 family solutions (7 arm joints, wrapped to (-pi, pi]) of a flange pose at an arm angle."""

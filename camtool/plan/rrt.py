@@ -1,0 +1,211 @@
+"""Free joint-space moves by RRT-Connect (seed 001) for approach and depart moves.
+
+- ``CapsuleChecker(robot, mesh)``: the default validity check. A configuration
+  is valid when it is inside the joint limits and every link, modelled as a
+  capsule of ``radius_mm`` round the segment between consecutive joint-frame
+  origins (from FK, plus flange and TCP), keeps ``clearance_mm`` from the
+  workpiece mesh (world frame). Distances come from trimesh's proximity query
+  (signed, so a link inside the part counts too); link points farther from the
+  mesh's bounding box than the capsule radius are not queried.
+- ``rrt_connect(q_start, q_goal, valid, lower, upper, ...)``: bidirectional
+  RRT with a seeded RNG (deterministic), edges checked every ``resolution_rad``.
+- ``shortcut(path, ...)``: random shortcut smoothing (seeded).
+- ``plan_free_move(robot, q_start, q_goal, valid=None, mesh=None, ...)``: all
+  of it, then timed by the common timing stage (rest-to-rest ruckig moves
+  between waypoints); timed samples that break validity get their move split
+  and retimed.
+
+Any callable ``valid(q) -> bool`` can replace the default check.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import BadInput, PlanInfeasible
+from ..robots.ik_common import Chain
+from ..toolpath import ZONE_CODE, Path
+from ..trajectory import JointPath
+
+
+class CapsuleChecker:
+    """Joint limits plus link-capsule clearance from a workpiece mesh (world frame, mm)."""
+
+    def __init__(self, robot, mesh, radius_mm: float = 60.0, clearance_mm: float = 0.0,
+                 skip_links: int = 1, spacing_mm: float | None = None):
+        import trimesh
+
+        if radius_mm <= 0:
+            raise BadInput(f"capsule radius must be > 0 mm, found {radius_mm}")
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            raise BadInput("the collision check needs a triangle mesh of the workpiece")
+        self.robot, self.mesh = robot, mesh
+        self.chain = Chain(robot)
+        self.query = trimesh.proximity.ProximityQuery(mesh)
+        self.radius, self.clearance = float(radius_mm), float(clearance_mm)
+        self.skip = int(skip_links)   # links from the base not checked (the base stands on its own floor)
+        self.spacing = spacing_mm or self.radius / 2.0
+        self.lo, self.hi = mesh.bounds
+        self.calls = 0
+
+    def link_points(self, q) -> np.ndarray:
+        """Points (M, 3) along the link segments, world frame."""
+        F = self.chain.frames(np.asarray(q, float))
+        pts = [np.zeros(3)] + [T[:3, 3] for T in F] + [(F[-1] @ self.robot.tool_T_mm)[:3, 3]]
+        out = []
+        for a, b in list(zip(pts[:-1], pts[1:]))[self.skip:]:
+            n = max(int(np.ceil(np.linalg.norm(b - a) / self.spacing)), 1)
+            out.append(a + np.linspace(0.0, 1.0, n + 1)[:, None] * (b - a))
+        P = np.concatenate(out)
+        return P @ self.robot.base_T_mm[:3, :3].T + self.robot.base_T_mm[:3, 3]
+
+    def clearance_mm(self, q) -> float:
+        """Smallest distance from a link capsule's surface to the mesh (negative: overlap)."""
+        P = self.link_points(q)
+        gap = np.linalg.norm(np.maximum(0.0, np.maximum(self.lo - P, P - self.hi)), axis=1)
+        near = gap < self.radius + self.clearance
+        if not near.any():
+            return float(gap.min() - self.radius)
+        d = -self.query.signed_distance(P[near])  # trimesh: positive inside
+        return float(min(d.min(), gap[~near].min() if (~near).any() else np.inf) - self.radius)
+
+    def __call__(self, q) -> bool:
+        self.calls += 1
+        if not self.robot.within_limits(q):
+            return False
+        return self.clearance_mm(q) >= self.clearance
+
+
+@dataclass
+class _Tree:
+    nodes: list
+    parent: list
+
+    def nearest(self, q, w) -> int:
+        X = np.asarray(self.nodes)
+        return int(np.argmin(np.sum(((X - q) * w) ** 2, axis=1)))
+
+    def path_to_root(self, i) -> list:
+        out = []
+        while i >= 0:
+            out.append(self.nodes[i])
+            i = self.parent[i]
+        return out
+
+
+def edge_valid(qa, qb, valid, resolution_rad: float, w) -> bool:
+    """Every point of the straight joint-space edge, at ``resolution_rad`` steps, is valid."""
+    n = max(int(np.ceil(np.linalg.norm((qb - qa) * w) / resolution_rad)), 1)
+    return all(valid(qa + s * (qb - qa)) for s in np.linspace(0.0, 1.0, n + 1)[1:])
+
+
+def rrt_connect(q_start, q_goal, valid, lower, upper, step_rad: float = 0.3, resolution_rad: float = 0.03,
+                max_iterations: int = 5000, seed: int = 0, weights=None) -> list[np.ndarray]:
+    """Joint waypoints from q_start to q_goal, every edge valid; PlanInfeasible if none is found."""
+    q_start, q_goal = np.asarray(q_start, float), np.asarray(q_goal, float)
+    w = np.ones_like(q_start) if weights is None else np.asarray(weights, float)
+    if not valid(q_start):
+        raise PlanInfeasible("free move: the start configuration is not valid (limits or collision)")
+    if not valid(q_goal):
+        raise PlanInfeasible("free move: the goal configuration is not valid (limits or collision)")
+    if edge_valid(q_start, q_goal, valid, resolution_rad, w):
+        return [q_start, q_goal]
+    rng = np.random.default_rng(seed)
+    ta, tb = _Tree([q_start], [-1]), _Tree([q_goal], [-1])
+    a_is_start = True
+
+    def extend(tree, target):
+        i = tree.nearest(target, w)
+        q = tree.nodes[i]
+        d = (target - q) * w
+        dist = np.linalg.norm(d)
+        reached = dist <= step_rad
+        q_new = target if reached else q + (target - q) * (step_rad / dist)
+        if not edge_valid(q, q_new, valid, resolution_rad, w):
+            return None, False
+        tree.nodes.append(q_new)
+        tree.parent.append(i)
+        return len(tree.nodes) - 1, reached
+
+    for _ in range(max_iterations):
+        q_rand = rng.uniform(lower, upper)
+        i_new, _r = extend(ta, q_rand)
+        if i_new is not None:
+            q_new = ta.nodes[i_new]
+            while True:  # connect: grow the other tree towards q_new until reached or trapped
+                j, reached = extend(tb, q_new)
+                if j is None:
+                    break
+                if reached:
+                    pa, pb = ta.path_to_root(i_new)[::-1], tb.path_to_root(j)
+                    path = pa + pb[1:]
+                    return path if a_is_start else path[::-1]
+        ta, tb = tb, ta
+        a_is_start = not a_is_start
+    raise PlanInfeasible(f"free move: RRT-Connect found no path in {max_iterations} iterations")
+
+
+def shortcut(path: list, valid, resolution_rad: float = 0.03, iterations: int = 100, seed: int = 0,
+             weights=None) -> list[np.ndarray]:
+    """Random shortcut smoothing: join two waypoints directly where the edge is valid."""
+    rng = np.random.default_rng(seed)
+    p = [np.asarray(x, float) for x in path]
+    w = np.ones_like(p[0]) if weights is None else np.asarray(weights, float)
+    for _ in range(iterations):
+        if len(p) <= 2:
+            break
+        i, j = sorted(rng.choice(len(p), 2, replace=False))
+        if j - i < 2:
+            continue
+        if edge_valid(p[i], p[j], valid, resolution_rad, w):
+            p = p[:i + 1] + p[j:]
+    return p
+
+
+def _joint_path(robot, q: np.ndarray) -> tuple[JointPath, Path]:
+    n = len(q)
+    poses = np.array([robot.base_T_mm @ robot.fk_tcp(x) for x in q])
+    zone = np.full(n, ZONE_CODE["approach"])
+    path = Path(poses, np.zeros(n, int), np.zeros(n, int), zone)
+    f = np.zeros(n, bool)
+    return JointPath(q, np.arange(n), zone.copy(), np.zeros(n), np.zeros(n), f, f.copy(), f.copy(), f.copy(),
+                     ~f, {}), path
+
+
+def time_and_verify(robot, waypoints: list, valid, dt_s: float = 0.004, max_splits: int = 6, **timing):
+    """Time waypoints with the timing stage; split moves whose timed samples are invalid. (trajectory, q)."""
+    from ..timing import time_trajectory
+
+    q = np.array(waypoints)
+    for _ in range(max_splits + 1):
+        jp, path = _joint_path(robot, q)
+        tr = time_trajectory(jp, path, robot, **{"method": "ruckig", **timing})
+        t, qs, *_ = tr.sample(dt_s)
+        bad = [k for k, x in enumerate(qs) if not valid(x)]
+        if not bad:
+            return tr, q
+        seg = set(np.clip(np.searchsorted(tr.t_s, t[bad], side="right") - 1, 0, len(tr.t_s) - 2))
+        rows = sorted({int(tr.path_index[k]) for k in seg if tr.path_index[k] >= 0})
+        new = [q[0]]
+        for k in range(1, len(q)):
+            if (k - 1) in rows:
+                new.append(0.5 * (q[k - 1] + q[k]))
+            new.append(q[k])
+        q = np.array(new)
+    raise PlanInfeasible("free move: the timed trajectory keeps breaking the validity check")
+
+
+def plan_free_move(robot, q_start, q_goal, valid=None, mesh=None, radius_mm: float = 60.0,
+                   clearance_mm: float = 0.0, seed: int = 0, step_rad: float = 0.3, resolution_rad: float = 0.03,
+                   max_iterations: int = 5000, shortcut_iterations: int = 100, **timing):
+    """RRT-Connect + shortcut + timing for one free move; returns (trajectory, waypoints, info)."""
+    if valid is None:
+        if mesh is None:
+            raise BadInput("free move: give a workpiece mesh or a validity check")
+        valid = CapsuleChecker(robot, mesh, radius_mm, clearance_mm)
+    lo, hi = robot.limits.lower, robot.limits.upper
+    raw = rrt_connect(q_start, q_goal, valid, lo, hi, step_rad, resolution_rad, max_iterations, seed)
+    smooth = shortcut(raw, valid, resolution_rad, shortcut_iterations, seed)
+    tr, q = time_and_verify(robot, smooth, valid, **timing)
+    return tr, q, {"rrt_waypoints": len(raw), "smoothed_waypoints": len(smooth), "timed_waypoints": len(q)}

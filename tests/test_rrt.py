@@ -1,0 +1,77 @@
+"""RRT-Connect free moves (seed 001): capsule clearance against a workpiece mesh, smoothing, timing."""
+import numpy as np
+import pytest
+import trimesh
+
+from camtool.errors import BadInput, PlanInfeasible
+from camtool.plan.rrt import CapsuleChecker, edge_valid, plan_free_move, rrt_connect, shortcut
+from camtool.robots import get_robot
+
+Q_START = np.radians([-60, 20, 0, 0, 60, 0])
+Q_GOAL = np.radians([60, 20, 0, 0, 60, 0])
+
+
+@pytest.fixture(scope="module")
+def cell():
+    robot = get_robot("irb2400")
+    box = trimesh.creation.box(extents=(400, 500, 1400))
+    box.apply_translation((1000, 0, 700))  # a tall block in front of the robot, between start and goal
+    return robot, box, CapsuleChecker(robot, box, radius_mm=60.0)
+
+
+@pytest.fixture(scope="module")
+def planned(cell):
+    robot, box, chk = cell
+    return plan_free_move(robot, Q_START, Q_GOAL, valid=chk, seed=3)
+
+
+def test_straight_move_collides_but_the_rrt_path_does_not(cell, planned):
+    robot, box, chk = cell
+    assert chk(Q_START) and chk(Q_GOAL)
+    assert not edge_valid(Q_START, Q_GOAL, chk, 0.03, np.ones(6))
+    assert chk.clearance_mm(0.5 * (Q_START + Q_GOAL)) < 0
+    tr, q, info = planned
+    assert np.allclose(q[0], Q_START) and np.allclose(q[-1], Q_GOAL)
+    for a, b in zip(q[:-1], q[1:]):
+        assert edge_valid(a, b, chk, 0.01, np.ones(6))
+    # the timed motion itself (ruckig between the waypoints), sampled every 4 ms
+    _t, qs, *_ = tr.sample(0.004)
+    clear = np.array([chk.clearance_mm(x) for x in qs])
+    assert clear.min() >= 0.0 and all(robot.within_limits(x) for x in qs)
+    assert info["smoothed_waypoints"] <= info["rrt_waypoints"]
+
+
+def test_seeded_and_deterministic(cell, planned):
+    robot, box, chk = cell
+    _tr, q2, _ = plan_free_move(robot, Q_START, Q_GOAL, valid=chk, seed=3)
+    assert np.array_equal(planned[1], q2)
+
+
+def test_capsule_radius_matters(cell):
+    robot, box, _ = cell
+    q = np.radians([0, -30, 0, 0, 30, 0])
+    d0 = CapsuleChecker(robot, box, radius_mm=10.0).clearance_mm(q)
+    d1 = CapsuleChecker(robot, box, radius_mm=110.0).clearance_mm(q)
+    assert d0 - d1 == pytest.approx(100.0)
+
+
+def test_pluggable_validity_and_shortcut():
+    lo, hi = np.full(2, -np.pi), np.full(2, np.pi)
+
+    def valid(q):  # a wall in joint space: x in [-0.2, 0.2] blocked for y < 1.5
+        return not (abs(q[0]) < 0.2 and q[1] < 1.5)
+
+    path = rrt_connect([-1.0, 0.0], [1.0, 0.0], valid, lo, hi, step_rad=0.2, resolution_rad=0.01, seed=1)
+    assert all(edge_valid(a, b, valid, 0.005, np.ones(2)) for a, b in zip(path[:-1], path[1:]))
+    short = shortcut(path, valid, 0.01, 200, seed=1)
+    length = lambda p: sum(np.linalg.norm(b - a) for a, b in zip(p[:-1], p[1:]))  # noqa: E731
+    assert length(short) <= length(path) + 1e-12 and len(short) <= len(path)
+    assert all(edge_valid(a, b, valid, 0.005, np.ones(2)) for a, b in zip(short[:-1], short[1:]))
+
+
+def test_invalid_start_and_missing_mesh(cell):
+    robot, box, chk = cell
+    with pytest.raises(PlanInfeasible, match="start configuration"):
+        rrt_connect(0.5 * (Q_START + Q_GOAL), Q_GOAL, chk, robot.limits.lower, robot.limits.upper)
+    with pytest.raises(BadInput, match="mesh"):
+        plan_free_move(robot, Q_START, Q_GOAL)
