@@ -23,6 +23,10 @@ STAGE_NAMES = {"workpiece": "loaded workpiece", "fit": "fitted surface", "raster
 def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], compare: bool, as_json: bool) -> None:
     """Run JOB end to end: workpiece, fit, raster, plan, time, check, post.
 
+    [task] kind = "raster" (default) rasters the fitted surface; "sequential_reach"
+    plans seed 002's target grid by arm-angle SQP; "cartesian" follows seed
+    001's line and arc.
+
     Writes the controller programs of [post] formats, OUTDIR/report.json,
     OUTDIR/points.csv and OUTDIR/plots/. Programs are written only when every
     stage succeeded, the timed trajectory passed the independent limit check
