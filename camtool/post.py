@@ -115,6 +115,31 @@ def preflight(robot, job, outdir) -> None:
     _prepare_outdir(Path(outdir))
 
 
+PROGRAMS_MANIFEST = ".camtool-programs.json"
+
+
+def _forget_stale_programs(outdir: Path, final: list[Path]) -> None:
+    """Remove programs an earlier run into ``outdir`` wrote and this run did not (e.g. the
+    extra parts of a program that is now split into fewer), then record this run's set.
+
+    Only files listed in camtool's own manifest are ever removed.
+    """
+    import json
+
+    manifest = outdir / PROGRAMS_MANIFEST
+    names = sorted(f.name for f in final)
+    try:
+        before = json.loads(manifest.read_text()).get("programs", [])
+    except (OSError, ValueError, AttributeError):
+        before = []
+    for name in set(before) - set(names):
+        if "/" not in name and name not in ("", ".", ".."):
+            (outdir / name).unlink(missing_ok=True)
+    tmp = outdir / (PROGRAMS_MANIFEST + ".tmp")
+    tmp.write_text(json.dumps({"programs": names}, indent=1) + "\n")
+    os.replace(tmp, manifest)
+
+
 def write_programs(trajectory, robot, job, outdir) -> list[Path]:
     """Write, check and place the programs of every ``job.post.formats`` entry.
 
@@ -167,6 +192,7 @@ def write_programs(trajectory, robot, job, outdir) -> list[Path]:
             target = outdir / f.name
             os.replace(f, target)
             final.append(target)
+        _forget_stale_programs(outdir, final)
         return final
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

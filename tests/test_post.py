@@ -23,7 +23,8 @@ def test_all_three_formats_are_written_and_checked(tmp_path):
     files = write_programs(smooth_trajectory(r, 60), r, _job(tmp_path, post='program_name = "Sphere"\n'), out)
     assert sorted(f.name for f in files) == ["SPHERE.JBI", "Sphere.csv", "Sphere.mod", "Sphere.pgf"]
     assert all(f.parent == out and f.is_file() for f in files)
-    assert sorted(p.name for p in out.iterdir()) == sorted(f.name for f in files)  # no temp folder left
+    left = sorted(p.name for p in out.iterdir() if p.name != ".camtool-programs.json")
+    assert left == sorted(f.name for f in files)  # no temp folder left
 
 
 def test_job_tool_and_csv_unit_reach_the_programs(tmp_path):
@@ -138,3 +139,21 @@ def test_thin_waypoints_keeps_path_poses_and_drops_short_inserted_moves():
     assert np.all(np.diff(thin.t_s) >= 0.02 - 1e-12)
     assert thin.t_s[0] == t[0] and thin.t_s[-1] == t[-1]
     assert thin_waypoints(tr, 0.0) is tr
+
+
+def test_a_rerun_with_fewer_parts_leaves_no_stale_part(tmp_path):
+    r = get_robot("seed8")
+    out = tmp_path / "out"
+    prof = tmp_path / "split.toml"
+    src = Path(__file__).resolve().parents[1] / "camtool" / "profiles" / "seed8_inform.toml"
+    text = src.read_text()
+    assert "lines_per_job" in text
+    import re
+    prof.write_text(re.sub(r"lines_per_job\s*=\s*\d+", "lines_per_job = 40", text))
+    job = _job(tmp_path, post=f'formats = ["inform"]\nprofiles = {{inform = "{prof}"}}\n')
+    many = write_programs(smooth_trajectory(r, 150), r, job, out)
+    assert len(many) > 2
+    (out / "notes.txt").write_text("mine")  # a user's file is never touched
+    few = write_programs(smooth_trajectory(r, 30), r, job, out)
+    left = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    assert left == sorted([f.name for f in few] + ["notes.txt"])
