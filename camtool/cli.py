@@ -57,9 +57,9 @@ def cli(debug: bool) -> None:
 
 
 def _register() -> None:
-    from .commands import batch, check, design, fit, fk, posts, raster, robots, run
+    from .commands import batch, check, design, fit, fk, posts, raster, robots, run, watch
 
-    for module in (robots, fk, fit, raster, run, batch, design, posts, check):
+    for module in (robots, fk, fit, raster, run, batch, watch, design, posts, check):
         cli.add_command(module.command)
 
 
