@@ -1,5 +1,4 @@
 """Job files: defaults, overrides and precise errors for bad input."""
-from pathlib import Path
 
 import pytest
 

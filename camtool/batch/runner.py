@@ -120,29 +120,38 @@ def prepare_batch(paths, outdir, overrides=(), timeout_s=None, force=False):
     outdir = Path(outdir).resolve()
     specs, decided = [], []
     for j in jobs:
-        t0 = time.perf_counter()
-        folder = outdir / names[j]
-        base = dict(job=str(j), name=names[j], outdir=str(folder))
-        try:
-            from ..job import load_job
-
-            loaded = load_job(j, list(overrides))
-            fp = cache.fingerprint(loaded, overrides)
-        except BadInput as exc:
-            decided.append(_decided(base, "bad_input", 2, str(exc), t0, str(exc)))
-            continue
-        except Exception as exc:  # an internal error loading one job never stops the others
-            decided.append(_decided(base, "failed", 1, _one_line(exc), t0, traceback.format_exc()))
-            continue
-        m = None if force else cache.up_to_date(folder, fp)
-        if m is not None:
-            decided.append(JobResult(**base, status="cached", exit_code=0,
-                                     reason="inputs unchanged since the last successful run",
-                                     wall_time_s=round(time.perf_counter() - t0, 4), points=m.get("points"),
-                                     cycle_time_s=m.get("cycle_time_s"), files=list(m["files"])))
-        else:
-            specs.append(JobSpec(**base, overrides=overrides, timeout_s=timeout_s, fingerprint=fp))
+        item = prepare_job(j, outdir / names[j], names[j], overrides, timeout_s, force)
+        (specs if isinstance(item, JobSpec) else decided).append(item)
     return specs, decided
+
+
+def prepare_job(job: Path, folder: Path, name: str, overrides: tuple = (), timeout_s=None, force: bool = False,
+                before_load=None) -> "JobSpec | JobResult":
+    """One job: its JobSpec to run, or its decided result (bad_input, failed, or cached).
+
+    ``before_load`` (optional) runs first inside the same error handling, e.g. to
+    write a derived job file.
+    """
+    from ..job import load_job
+
+    t0 = time.perf_counter()
+    base = dict(job=str(job), name=name, outdir=str(folder))
+    try:
+        if before_load is not None:
+            before_load()
+        loaded = load_job(job, list(overrides))
+        fp = cache.fingerprint(loaded, overrides)
+    except BadInput as exc:
+        return _decided(base, "bad_input", 2, str(exc), t0, str(exc))
+    except Exception as exc:  # an internal error loading one job never stops the others
+        return _decided(base, "failed", 1, _one_line(exc), t0, traceback.format_exc())
+    m = None if force else cache.up_to_date(folder, fp)
+    if m is not None:
+        return JobResult(**base, status="cached", exit_code=0,
+                         reason="inputs unchanged since the last successful run",
+                         wall_time_s=round(time.perf_counter() - t0, 4), points=m.get("points"),
+                         cycle_time_s=m.get("cycle_time_s"), files=list(m["files"]))
+    return JobSpec(**base, overrides=overrides, timeout_s=timeout_s, fingerprint=fp)
 
 
 def _one_line(exc: BaseException) -> str:

@@ -17,14 +17,12 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import __version__
 from ..errors import BadInput
-from . import cache
-from .runner import JobResult, JobSpec, _decided, _one_line, run_batch
+from .runner import JobResult, JobSpec, prepare_job, run_batch
 from .summary import STATUSES, summary_dict, write_summary
 
 Signature = tuple[int, int]  # (size in bytes, mtime in ns)
@@ -180,31 +178,13 @@ class Watcher:
 
     def _prepare(self, src: Path, name: str) -> JobSpec | JobResult:
         """The JobSpec of one file, or its decided result (bad_input, failed or cached)."""
-        from ..job import load_job
-
-        t0 = time.perf_counter()
         kind = kind_of(src)
         folder = self.outdir / name
         job = src if kind == "job" else folder / "job.toml"
         overrides = self.overrides if kind == "job" else ()
-        base = dict(job=str(job), name=name, outdir=str(folder))
         self._sources[name] = {"source": str(src), "kind": kind}
-        try:
-            if kind == "workpiece":
-                write_derived_job(self.template_data, src, job, self.template)
-            loaded = load_job(job, list(overrides))
-            fp = cache.fingerprint(loaded, overrides)
-        except BadInput as exc:
-            return _decided(base, "bad_input", 2, str(exc), t0, str(exc))
-        except Exception as exc:  # one broken file never stops the watcher
-            return _decided(base, "failed", 1, _one_line(exc), t0, traceback.format_exc())
-        m = cache.up_to_date(folder, fp)
-        if m is not None:
-            return JobResult(**base, status="cached", exit_code=0,
-                             reason="inputs unchanged since the last successful run",
-                             wall_time_s=round(time.perf_counter() - t0, 4), points=m.get("points"),
-                             cycle_time_s=m.get("cycle_time_s"), files=list(m["files"]))
-        return JobSpec(**base, overrides=overrides, timeout_s=self.timeout_s, fingerprint=fp)
+        derive = (lambda: write_derived_job(self.template_data, src, job, self.template)) if kind == "workpiece" else None
+        return prepare_job(job, folder, name, overrides, self.timeout_s, before_load=derive)
 
     # -------------------------------------------------------- summary
 

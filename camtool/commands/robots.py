@@ -1,6 +1,5 @@
 """``camtool robots``: the robot library."""
 import click
-import numpy as np
 
 from ..console import echo_json
 from ..robots import BUILTIN_ROBOTS, get_robot
