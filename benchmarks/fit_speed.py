@@ -19,7 +19,6 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from camtool.fit import fit_model, fit_surface  # noqa: E402
-
 from test_fit import CENTER, _with_outliers, plane_points, sphere_patch_points  # noqa: E402
 
 PLANE_N = np.array([0.2, -1.0, 0.3]) / np.linalg.norm([0.2, -1.0, 0.3])
