@@ -36,7 +36,8 @@ def main():
           f"timing+check {wall:.2f} s, waypoints {len(tr.t_s)}, cycle {rep['cycle_time_s']:.1f} s, "
           f"work {rep['work_time_s']:.1f} s, peaks v/a/j {rep['peak_joint_speed_ratio']:.3f}/"
           f"{rep['peak_joint_acc_ratio']:.3f}/{rep['peak_joint_jerk_ratio']:.3f}, "
-          f"slowdowns {len(rep['slowdowns'])}, peak RSS {rss_mb:.0f} MB")
+          f"slowdowns {len(rep['slowdowns'])}, ruckig pieces {100 * rep['ruckig_piece_share']:.1f} % "
+          f"(fallbacks {rep['ruckig_fallbacks']['by_reason']}), peak RSS {rss_mb:.0f} MB")
 
 
 if __name__ == "__main__":

@@ -80,11 +80,12 @@ def thin_waypoints(trajectory, min_move_s: float):
     """Drop inserted samples (path_index -1) closer than ``min_move_s`` to the last kept waypoint.
 
     Controllers execute a program move by move; moves of a few ms (ruckig's
-    switching points in free zones) overload their interpolators. Every path
-    pose is kept, so the tool still meets every surface point; the free moves
-    are straight lines in joint space between poses, so dropping samples on them
-    keeps the joint path and, since an average never exceeds the peak, the
-    joint speeds between the kept points stay within the limits.
+    switching points, in free zones and, with timing.method = "ruckig", on
+    work zones) overload their interpolators. Every path pose is kept at its
+    scheduled time, so the tool still meets every surface point; kept samples
+    lie on the timed motion and, since an average never exceeds the peak, the
+    joint speeds between kept points stay within the limits. The jerk-limited
+    shape between kept points is the Trajectory's, not the program's.
     """
     import numpy as np
     from dataclasses import replace

@@ -12,13 +12,15 @@ the TCP moves at ``tcp_speed_mm_s`` (smooth ramps at both ends) and the joint
 path is interpolated by quintic Hermite pieces with finite-difference
 through-velocities and -accelerations, stretched locally where a limit would
 be broken (``quintic.py``). With ``method="ruckig"`` every such piece is then
-replaced by a jerk-limited ruckig move between the same states. Everything
+replaced by a jerk-limited ruckig state-to-state move between the same states,
+written out exactly (``ruckig_through.py``); a piece ruckig cannot give keeps
+its quintic and is listed as a fallback. Everything
 between runs (self-motion, approach, depart, retract) is timed by rest-to-rest
 ruckig moves (``ruckig_moves.py``). See docs/timing.md.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -27,13 +29,15 @@ from ..toolpath import ZONE_CODE, ZONES
 from ..trajectory import Trajectory
 from .check import check_trajectory
 from .quintic import MARGIN, time_runs
-from .ruckig_moves import RuckigMover, rest_to_rest_chain, through_pieces
+from .ruckig_moves import RuckigMover, rest_to_rest_chain
+from .ruckig_through import on_grid, through_pieces
 
 __all__ = ["TimedTrajectory", "check_trajectory", "time_trajectory", "timing_report", "SURFACE_ZONES"]
 
 SURFACE_ZONES = ("work", "lead_in", "lead_out")
 METHODS = ("quintic", "ruckig")
 SLOWDOWN_REPORT_RATIO = 0.995  # pieces slower than this share of the planned TCP speed are reported
+MAX_LISTED_FALLBACKS = 20      # ruckig fallback pieces listed one by one in the report
 
 
 @dataclass(frozen=True)
@@ -42,12 +46,19 @@ class TimedTrajectory(Trajectory):
 
     ``slowdowns``: one dict per stretch of surface pieces slowed below the set
     TCP speed to respect a limit: JointPath rows, Path indices, time span and
-    the lowest speed ratio (actual / planned).
+    the lowest speed ratio (actual / planned). Per surface piece (waypoint to
+    next waypoint of a run): ``piece_row`` (JointPath row it starts at),
+    ``piece_zone``, ``piece_ruckig`` (True if it is a ruckig move) and
+    ``piece_reason`` ("" or why a ruckig piece kept its quintic).
     """
 
     method: str = ""
     tcp_speed_mm_s: float = 0.0
     slowdowns: tuple = ()
+    piece_row: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    piece_zone: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    piece_ruckig: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    piece_reason: np.ndarray = field(default_factory=lambda: np.zeros(0, str))
 
 
 def _tcp_positions_mm(joint_path, path, robot) -> np.ndarray:
@@ -102,6 +113,14 @@ def _runs(joint_path, path):
     end[:-1] = surface[:-1] & ~same_prev[1:]
     end[-1] = surface[-1]
     return surface, start, end
+
+
+def _inner_zone(z0: np.ndarray, z1: np.ndarray) -> np.ndarray:
+    """Zone of samples inside a piece: its ends' zone, or the non-work one where they differ.
+
+    So a piece counts as work time (both ends work) exactly as it does without samples.
+    """
+    return np.where((z0 == z1) | (z1 == ZONE_CODE["work"]), z0, z1)
 
 
 def _slowdowns(h_plan, h_final, piece_rows, run_of_piece, t_piece_start, joint_path, zone):
@@ -161,11 +180,13 @@ def time_trajectory(joint_path, path, robot, method: str = "quintic", tcp_speed_
     pieces = np.nonzero(~last[:-1])[0] if len(sidx) > 1 else np.zeros(0, int)
     h_final = runs.h_s.copy()
     inner = None
+    piece_ruckig = np.zeros(len(pieces), bool)
+    piece_reason = np.full(len(pieces), "", dtype=object)
     if method == "ruckig" and len(pieces):
-        mover_work = RuckigMover(L, share=min(1.0, MARGIN + 0.01))
-        dur, _used, kk, tt, qq, vv, aa = through_pieces(mover_work, q[sidx], s_qd, s_qdd, runs.h_s, pieces)
-        h_final[pieces] = dur
-        inner = (pieces[kk], tt, qq, vv, aa)
+        through = through_pieces(L, q[sidx], s_qd, s_qdd, runs.h_s, pieces, share=MARGIN)
+        h_final[pieces] = through.duration_s
+        inner = (pieces[through.piece], through.t_s, through.q, through.qd, through.qdd)
+        piece_ruckig, piece_reason = through.used, through.reason
     row_of = {int(r): k for k, r in enumerate(sidx)}  # JointPath row -> surface waypoint
 
     # --- assemble items in JointPath order: runs and the free chains between them
@@ -202,8 +223,19 @@ def time_trajectory(joint_path, path, robot, method: str = "quintic", tcp_speed_
         pp = np.where(pose >= 0, pidx[rows[np.maximum(pose, 0)]], -1)
         emit(t_rel, cq, cv, ca, zz, pp, skip_first=bool(parts_t))
 
+    def snap_to_grid():
+        """Start a ruckig run on the exact time grid: stretch the last free interval by < 1 ns."""
+        nonlocal t_offset
+        g = float(on_grid(t_offset, up=True))
+        if g != t_offset:
+            last = next(p for p in reversed(parts_t) if len(p))
+            last[-1] = g
+            t_offset = g
+
     def emit_run(a, b):
         ka, kb = row_of[a], row_of[b]
+        if inner is not None and parts_t:
+            snap_to_grid()
         h = h_final[ka:kb]
         t_way = np.concatenate([[0.0], np.cumsum(h)])
         piece_t0[ka:kb] = t_offset + t_way[:-1]
@@ -217,7 +249,7 @@ def time_trajectory(joint_path, path, robot, method: str = "quintic", tcp_speed_
                 rq = np.concatenate([rq, inner[2][sel]])
                 rv = np.concatenate([rv, inner[3][sel]])
                 ra = np.concatenate([ra, inner[4][sel]])
-                zz = np.concatenate([zz, zone[sidx[inner[0][sel]]]])
+                zz = np.concatenate([zz, _inner_zone(zone[sidx[inner[0][sel]]], zone[sidx[inner[0][sel] + 1]])])
                 pp = np.concatenate([pp, np.full(int(sel.sum()), -1)])
                 o = np.argsort(t_rel, kind="stable")
                 t_rel, rq, rv, ra, zz, pp = t_rel[o], rq[o], rv[o], ra[o], zz[o], pp[o]
@@ -248,6 +280,8 @@ def time_trajectory(joint_path, path, robot, method: str = "quintic", tcp_speed_
         method=method, tcp_speed_mm_s=float(tcp_speed_mm_s),
         slowdowns=_slowdowns(runs.h_plan_s[pieces], h_final[pieces], sidx[pieces], run_id[pieces],
                              piece_t0[pieces], joint_path, zone) if len(pieces) else (),
+        piece_row=sidx[pieces].astype(int), piece_zone=zone[sidx[pieces]].astype(int),
+        piece_ruckig=np.asarray(piece_ruckig, bool), piece_reason=np.asarray(piece_reason, str),
     )
     findings = check_trajectory(traj, robot, dt_s=check_dt_ms / 1000.0)
     if findings:
@@ -256,8 +290,30 @@ def time_trajectory(joint_path, path, robot, method: str = "quintic", tcp_speed_
     return traj
 
 
+def _piece_figures(tr) -> dict:
+    """Share of surface pieces that are ruckig moves (all, and work only) and the fallbacks."""
+    rk = np.asarray(getattr(tr, "piece_ruckig", np.zeros(0, bool)), bool)
+    zone = np.asarray(getattr(tr, "piece_zone", np.zeros(0, int)))
+    reason = np.asarray(getattr(tr, "piece_reason", np.zeros(0, str)), str)
+    rows = np.asarray(getattr(tr, "piece_row", np.zeros(0, int)))
+    work = zone == ZONE_CODE["work"]
+    is_ruckig = getattr(tr, "method", "") == "ruckig"
+    fall = np.flatnonzero(~rk) if is_ruckig else np.zeros(0, int)
+    by_reason = {str(r): int(c) for r, c in zip(*np.unique(reason[fall], return_counts=True))}
+    return {
+        "surface_pieces": int(len(rk)),
+        "ruckig_piece_share": float(rk.mean()) if len(rk) else 0.0,
+        "ruckig_work_piece_share": float(rk[work].mean()) if work.any() else 0.0,
+        "ruckig_fallbacks": {
+            "count": int(len(fall)), "by_reason": by_reason,
+            "first": [{"row": int(rows[k]), "zone": ZONES[int(zone[k])], "reason": str(reason[k])}
+                      for k in fall[:MAX_LISTED_FALLBACKS]]},
+    }
+
+
 def timing_report(trajectory: Trajectory, robot, dt_s: float = 0.004) -> dict:
-    """Cycle time, peak joint use (|value| / limit, from a ``dt_s`` resampling), work time, slow-downs."""
+    """Cycle time, peak joint use (|value| / limit, from a ``dt_s`` resampling), work time, slow-downs,
+    share of ruckig pieces and ruckig fallbacks."""
     tr = trajectory
     L = robot.limits
     peaks = {"speed": 0.0, "acc": 0.0, "jerk": 0.0}
@@ -286,5 +342,6 @@ def timing_report(trajectory: Trajectory, robot, dt_s: float = 0.004) -> dict:
         "method": getattr(tr, "method", ""),
         "tcp_speed_mm_s": getattr(tr, "tcp_speed_mm_s", 0.0),
         "slowdowns": [dict(s) for s in getattr(tr, "slowdowns", ())],
+        **_piece_figures(tr),
         "waypoints": int(m),
     }

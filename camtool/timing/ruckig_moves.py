@@ -1,4 +1,4 @@
-"""Jerk-limited state-to-state moves with the free ruckig package, sampled into waypoints.
+"""Rest-to-rest ruckig moves for free chains (surface pieces: ``ruckig_through.py``).
 
 A ruckig profile is piecewise cubic in time (constant jerk per phase). Sampled
 at every phase boundary of every joint, each interval between samples is one
@@ -15,7 +15,6 @@ from ruckig import Trajectory as RuckigTrajectory
 from ..errors import CamtoolError
 
 MIN_SAMPLE_GAP_S = 2e-4   # boundaries closer than this are merged: Hermite round-off stays << 1 % of a limit
-WORK_SAMPLE_GAP_S = 1e-4  # work pieces: keep nearly every boundary (a failing piece keeps its quintic)
 FREE_SAMPLE_S = 0.010     # sample step of free moves
 RUCKIG_SHARE = 0.98       # share of each limit given to ruckig
 
@@ -177,56 +176,3 @@ def _chain(mover: RuckigMover, qs: np.ndarray, dt_s: float):
         i = j
     return (np.concatenate(out_t), np.concatenate(out_q), np.concatenate(out_qd),
             np.concatenate(out_qdd), np.concatenate(out_pose))
-
-
-def through_pieces(mover: RuckigMover, q, qd, qdd, h_s, pieces):
-    """Replace quintic pieces by jerk-limited ruckig moves between the same states.
-
-    Piece k goes from (q, qd, qdd)[k] to [k+1] and lasts at least ``h_s[k]``
-    (ruckig's ``minimum_duration``), longer only where ruckig needs it. A piece
-    ruckig cannot time, or whose profile would leave the joint range, keeps
-    its quintic. Returns (duration_s per piece, used_ruckig per piece, and the
-    interior samples as piece index, time from piece start, q, qd, qdd).
-    """
-    dur = np.asarray(h_s, float)[pieces].copy()
-    used = np.zeros(len(pieces), bool)
-    kk, tt, qq, vv, aa = [], [], [], [], []
-    for n, k in enumerate(pieces):
-        traj = mover.move(q[k], q[k + 1], qd[k], qd[k + 1], qdd[k], qdd[k + 1], min_duration_s=float(h_s[k]))
-        if traj is None or not mover.within_position_limits(traj):
-            continue
-        times = sample_times(traj, None, min_gap_s=WORK_SAMPLE_GAP_S)[1:-1]
-        used[n] = True
-        dur[n] = traj.duration
-        if len(times):
-            a, b, c = sample_move(traj, times)
-            kk.append(np.full(len(times), n))
-            tt.append(times)
-            qq.append(a)
-            vv.append(b)
-            aa.append(c)
-    dof = q.shape[1]
-    if kk:  # verify the sampled sub-pieces; a piece that fails keeps its quintic
-        kk_a, tt_a = np.concatenate(kk), np.concatenate(tt)
-        qq_a, vv_a, aa_a = np.concatenate(qq), np.concatenate(vv), np.concatenate(aa)
-        n_all = np.flatnonzero(used)
-        # full sample lists per used piece: start state, interior samples, end state
-        rows_k = np.concatenate([n_all, kk_a, n_all])
-        rows_t = np.concatenate([np.zeros(len(n_all)), tt_a, dur[n_all]])
-        order = np.lexsort((rows_t, rows_k))
-        kq = pieces[n_all]
-        all_q = np.concatenate([q[kq], qq_a, q[kq + 1]])[order]
-        all_v = np.concatenate([qd[kq], vv_a, qd[kq + 1]])[order]
-        all_a = np.concatenate([qdd[kq], aa_a, qdd[kq + 1]])[order]
-        rk, rt = rows_k[order], rows_t[order]
-        bad = mover.breaks_limits(rt, all_q, all_v, all_a)
-        same = rk[:-1] == rk[1:]
-        failed = np.unique(rk[:-1][same & bad])
-        if len(failed):
-            used[failed] = False
-            dur[failed] = np.asarray(h_s, float)[pieces][failed]
-        keep = used[kk_a]
-        kk, tt, qq, vv, aa = [kk_a[keep]], [tt_a[keep]], [qq_a[keep]], [vv_a[keep]], [aa_a[keep]]
-    if not kk or not len(kk[0]):
-        return dur, used, np.zeros(0, int), np.zeros(0), np.zeros((0, dof)), np.zeros((0, dof)), np.zeros((0, dof))
-    return dur, used, np.concatenate(kk), np.concatenate(tt), np.concatenate(qq), np.concatenate(vv), np.concatenate(aa)
