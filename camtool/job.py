@@ -107,6 +107,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "retract_mm": _pos("Track travel (or tool lift on robots without a track) of a retract-reorient-return move.", 200.0),
         "reverse_samples": Key("int", 50, "Random IK solutions tried by reverse planning.", check=lambda x: x >= 1, expect="an integer >= 1"),
         "seed": Key("int", 0, "Random seed for reverse planning and start-configuration search."),
+        "ik_seeds": Key("str", "random", "Where reverse planning, the start-configuration search and lost-pose restarts take their IK candidates: random = CWLN from random starts; analytic = the closed-form families (SRS arm-angle IK at a random arm angle and track value; 6R spherical wrist), each polished by one CWLN solve, then random starts; auto = analytic when the robot has closed-form families, else random (docs/seed-methods.md).", choices=("random", "auto", "analytic")),
     },
     "timing": {
         "method": Key("str", "quintic", "Interpolation on work zones: quintic polynomials (the paper) or ruckig.", choices=("quintic", "ruckig")),

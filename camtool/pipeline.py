@@ -92,12 +92,74 @@ def robot_for_job(job: Job):
         matrix_from_xyz_rpy(job.tool.tcp_xyz_mm, job.tool.tcp_rpy_deg))
 
 
-def plan_and_time(job: Job, path, robot, method: str | None = None):
-    """Plan and time ``path`` with the job's planner (or another ``method``)."""
+FREE_MOVE_RADIUS_MM = 60.0   # link capsule radius of the approach / depart collision check
+CONTACT_ALLOWANCE_MM = 20.0  # the exempt ball round the first / last tool contact: capsule radius + this
+
+
+def free_move_checker(workpiece, robot, contact_xyz_mm):
+    """Validity check of a free move: link capsules against the placed workpiece, the tool contact exempt.
+
+    A mesh gives ``CapsuleChecker`` (signed distance if watertight), a point
+    cloud ``CloudChecker`` (KD-tree distance to the points).
+    """
+    from .plan.rrt import CapsuleChecker, CloudChecker
+
+    exempt = [(contact_xyz_mm, FREE_MOVE_RADIUS_MM + CONTACT_ALLOWANCE_MM)]
+    if workpiece.faces is not None and workpiece.vertices_mm is not None and len(workpiece.faces):
+        import trimesh
+
+        mesh = trimesh.Trimesh(workpiece.vertices_mm, workpiece.faces, process=False)
+        return CapsuleChecker(robot, mesh, FREE_MOVE_RADIUS_MM, exempt=exempt)
+    return CloudChecker(robot, workpiece.points_mm, FREE_MOVE_RADIUS_MM, exempt=exempt)
+
+
+def add_home_moves(job: Job, workpiece, path, robot, joint_path):
+    """With ``robot.home_deg``: RRT-Connect approach (home -> first row) and depart (last row -> home).
+
+    The moves are inserted as 'approach' / 'depart' rows (path_index -1);
+    ``joint_path.events['free_moves']`` gets their figures. Without home_deg
+    the joint path is returned unchanged.
+    """
+    import numpy as np
+
+    from .plan.rrt import free_move, insert_home_moves
+
+    if not job.robot.home_deg:
+        return joint_path
+    q_home = np.where(robot.prismatic, job.robot.home_deg, np.radians(job.robot.home_deg))
+    pidx = joint_path.path_index
+    first, last = path.poses_mm[pidx[pidx >= 0][0]][:3, 3], path.poses_mm[pidx[pidx >= 0][-1]][:3, 3]
+    seed, scale = job.planner.seed, job.planner.track_scale_mm
+    figures = {}
+    moves = {}
+    for name, contact, qa, qb in (("approach", first, q_home, joint_path.q[0]),
+                                  ("depart", last, joint_path.q[-1], q_home)):
+        valid = free_move_checker(workpiece, robot, contact)
+        try:
+            moves[name], info = free_move(robot, qa, qb, valid, seed=seed, track_scale_mm=scale)
+        except PlanInfeasible as exc:
+            raise PlanInfeasible(f"{name} move from/to robot.home_deg: {exc}") from None
+        info["check"] = ("mesh capsules" if hasattr(valid, "mesh") else "point-cloud capsules (KD-tree)")
+        info["capsule_radius_mm"] = FREE_MOVE_RADIUS_MM
+        info["exempt_contact_radius_mm"] = FREE_MOVE_RADIUS_MM + CONTACT_ALLOWANCE_MM
+        figures[name] = info
+    out = insert_home_moves(joint_path, moves["approach"], moves["depart"])
+    out.events["free_moves"] = figures
+    return out
+
+
+def plan_and_time(job: Job, path, robot, method: str | None = None, workpiece=None):
+    """Plan and time ``path`` with the job's planner (or another ``method``).
+
+    Given the placed ``workpiece`` and ``robot.home_deg``, approach and depart
+    moves from and back to home are planned by RRT-Connect (``add_home_moves``).
+    """
     planner = dict(job.planner)
     if method:
         planner["method"] = method
     joint_path = stage_function("plan", ["raster"])(path, robot, home_deg=job.robot.home_deg, **planner)
+    if workpiece is not None:
+        joint_path = add_home_moves(job, workpiece, path, robot, joint_path)
     trajectory = stage_function("time", ["plan"])(joint_path, path, robot, **job.timing)
     return joint_path, trajectory
 
@@ -161,7 +223,7 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
     surface = done("fit", surface_for_job(job, wp, r.stages))
     path = done("raster", path_for_job(job, surface, r.stages))
     try:
-        joint_path, trajectory = plan_and_time(job, path, robot)
+        joint_path, trajectory = plan_and_time(job, path, robot, workpiece=wp)
     except PlanInfeasible as exc:
         _report_unreachable(exc, path, robot, job, outdir)
         raise
@@ -175,13 +237,15 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
     report = plan_metrics(path, joint_path, robot, job.planner.method,
                           job.planner.jump_threshold_deg, job.planner.jump_threshold_mm)
     report.update(timing_figures(trajectory, robot, job))
+    if "free_moves" in joint_path.events:
+        report["free_moves"] = joint_path.events["free_moves"]
     report["limits_ok"] = True  # the independent check above passed
     report["status"] = "ok"
     trajectories = {job.planner.method: trajectory}
     if compare:
         other = "general" if job.planner.method == "seed" else "seed"
         try:
-            jp2, tr2 = plan_and_time(job, path, robot, other)
+            jp2, tr2 = plan_and_time(job, path, robot, other, workpiece=wp)
             trajectories[other] = tr2
             report["compare"] = {**plan_metrics(path, jp2, robot, other, job.planner.jump_threshold_deg,
                                                 job.planner.jump_threshold_mm),

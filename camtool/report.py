@@ -59,6 +59,9 @@ def plan_metrics(path: Path, jp: JointPath, robot, method: str, jump_threshold_d
         "singular_points": ev.get("retracts", []),
         "gradient_projections": int(ev.get("gradient_projections", 0)),
         "start_configuration": ev.get("start_configuration"),
+        "start_margin": None if ev.get("start_margin") is None else round(float(ev["start_margin"]), 4),
+        "ik_seeds": ev.get("ik_seeds"),
+        "reverse_plan_seconds": round(float(ev.get("reverse_plan_seconds", 0.0)), 4),
         "plan_seconds": round(seconds, 4),
         "points_per_second": round(len(path) / seconds, 1) if seconds > 0 else None,
     }

@@ -77,3 +77,67 @@ def test_bad_output_settings_fail_before_any_work(args, message):
     r = run_camtool("run", SAMPLES / "sphere.toml", *args)
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and message in r.stderr
+
+
+HOME = [0.0] * 8  # seed8 upright: the straight joint move to the first pose cuts through the sphere patch
+COARSE = ["raster.step_over_mm=60.0", "raster.pitch_mm=20.0"]
+
+
+@pytest.fixture(scope="module")
+def home_run(tmp_path_factory):
+    from camtool.job import load_job
+    from camtool.pipeline import run_job
+
+    out = tmp_path_factory.mktemp("home")
+    job = load_job(SAMPLES / "sphere.toml", [*COARSE, f"robot.home_deg={HOME}"])
+    return job, out, run_job(job, out)
+
+
+def test_rrt_approach_and_depart_keep_clear_of_the_part(home_run):
+    import numpy as np
+
+    from camtool.pipeline import free_move_checker, robot_for_job
+    from camtool.plan.rrt import edge_valid
+    from camtool.toolpath import ZONE_CODE
+
+    job, out, r = home_run
+    jp, tr, report = r.outputs["plan"], r.outputs["time"], r.outputs["report"]
+    path, wp, robot = r.outputs["raster"], r.outputs["workpiece"], robot_for_job(job)
+    home = np.zeros(8)
+    first, last = np.flatnonzero(jp.path_index >= 0)[[0, -1]]
+    assert np.allclose(jp.q[0], home) and np.allclose(jp.q[-1], home)
+    assert np.all(jp.path_index[:first] == -1) and np.all(jp.zone[:first] == ZONE_CODE["approach"])
+    assert np.all(jp.path_index[last + 1:] == -1) and np.all(jp.zone[last + 1:] == ZONE_CODE["depart"])
+    assert np.allclose(tr.q[0], home) and np.allclose(tr.q[-1], home)
+    for name, contact, rows in (("approach", path.poses_mm[0][:3, 3], slice(0, first + 1)),
+                                ("depart", path.poses_mm[-1][:3, 3], slice(last, len(jp.q)))):
+        chk = free_move_checker(wp, robot, contact)
+        if name == "approach":  # the straight move would cut through the part
+            assert not edge_valid(home, jp.q[first], chk, 0.03, np.where(robot.prismatic, 1 / 500, 1.0))
+        # the timed trajectory between home and the path, resampled at 4 ms
+        a, b = (0, int(np.flatnonzero(tr.path_index == 0)[0])) if name == "approach" else \
+            (int(np.flatnonzero(tr.path_index == len(path) - 1)[-1]), len(tr.t_s) - 1)
+        t, qs, *_ = tr.sample(0.004)
+        sel = (t >= tr.t_s[a]) & (t <= tr.t_s[b])
+        assert sel.sum() > 100
+        clear = min(chk.clearance_mm(q) for q in qs[sel])
+        assert clear >= 0.0, (name, clear)
+        fig = report["free_moves"][name]
+        assert fig["rrt_nodes"] >= 2 and fig["path_length_rad"] > 0 and fig["min_clearance_mm"] >= 0
+    assert report["free_moves"]["approach"]["rrt_nodes"] > 2  # a real search, not the direct edge
+    assert report["limits_ok"] is True
+
+
+def test_home_programs_start_and_end_at_home_and_pass_the_checker(home_run):
+    job, out, r = home_run
+    rows = (out / "SPHERE.csv").read_text().splitlines()
+    for line in (rows[1], rows[-1]):
+        assert [float(x) for x in line.split(",")[1:]] == HOME
+    for program in ("SPHERE.pgf", "SPHERE.JBI", "SPHERE.csv"):
+        c = run_camtool("check", out / program, "--robot", "seed8")
+        assert c.returncode == 0, c.stdout + c.stderr
+
+
+def test_without_home_there_are_no_free_moves(sphere_run):
+    _out, report = sphere_run
+    assert "free_moves" not in report and report["start_configuration"] == "searched"

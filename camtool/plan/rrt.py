@@ -5,11 +5,17 @@
   capsule of ``radius_mm`` round the segment between consecutive joint-frame
   origins (from FK, plus flange and TCP), keeps ``clearance_mm`` from the
   workpiece mesh (world frame). Distances come from trimesh's proximity query
-  (signed, so a link inside the part counts too); link points farther from the
-  mesh's bounding box than the capsule radius are not queried.
+  (signed for watertight meshes, so a link inside the part counts too;
+  unsigned for open surface patches, pre-filtered by a KD-tree of the
+  vertices); link points farther than the capsule radius plus
+  ``EXACT_BAND_MM`` are not queried exactly (their distance is a lower bound).
 - ``rrt_connect(q_start, q_goal, valid, lower, upper, ...)``: bidirectional
   RRT with a seeded RNG (deterministic), edges checked every ``resolution_rad``.
 - ``shortcut(path, ...)``: random shortcut smoothing (seeded).
+- ``CloudChecker(robot, points)``: the same capsules against a point cloud
+  (KD-tree distance; no inside test).
+- ``free_move`` / ``insert_home_moves``: the approach and depart moves of
+  raster jobs with ``robot.home_deg`` (``camtool.pipeline.add_home_moves``).
 - ``plan_free_move(robot, q_start, q_goal, valid=None, mesh=None, ...)``: all
   of it, then timed by the common timing stage (rest-to-rest ruckig moves
   between waypoints); timed samples that break validity get their move split
@@ -29,28 +35,30 @@ from ..toolpath import ZONE_CODE, Path
 from ..trajectory import JointPath
 
 
-class CapsuleChecker:
-    """Joint limits plus link-capsule clearance from a workpiece mesh (world frame, mm)."""
+EXACT_BAND_MM = 50.0  # clearances below this are exact; larger ones may be reported as this lower bound
 
-    def __init__(self, robot, mesh, radius_mm: float = 60.0, clearance_mm: float = 0.0,
-                 skip_links: int = 1, spacing_mm: float | None = None):
-        import trimesh
 
+class _LinkCapsules:
+    """Link capsules of a robot (segments between joint-frame origins, flange and TCP) and their clearance.
+
+    ``exempt``: balls ((x, y, z) mm world, radius mm) whose link points are not
+    checked: the planned tool contact at the end of an approach, where the tool
+    is meant to touch the part.
+    """
+
+    def __init__(self, robot, radius_mm: float, clearance_mm: float, skip_links: int, spacing_mm, exempt):
         if radius_mm <= 0:
             raise BadInput(f"capsule radius must be > 0 mm, found {radius_mm}")
-        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-            raise BadInput("the collision check needs a triangle mesh of the workpiece")
-        self.robot, self.mesh = robot, mesh
+        self.robot = robot
         self.chain = Chain(robot)
-        self.query = trimesh.proximity.ProximityQuery(mesh)
         self.radius, self.clearance = float(radius_mm), float(clearance_mm)
         self.skip = int(skip_links)   # links from the base not checked (the base stands on its own floor)
         self.spacing = spacing_mm or self.radius / 2.0
-        self.lo, self.hi = mesh.bounds
+        self.exempt = [(np.asarray(c, float), float(r)) for c, r in exempt]
         self.calls = 0
 
     def link_points(self, q) -> np.ndarray:
-        """Points (M, 3) along the link segments, world frame."""
+        """Points (M, 3) along the link segments, world frame (exempt balls removed)."""
         F = self.chain.frames(np.asarray(q, float))
         pts = [np.zeros(3)] + [T[:3, 3] for T in F] + [(F[-1] @ self.robot.tool_T_mm)[:3, 3]]
         out = []
@@ -58,23 +66,90 @@ class CapsuleChecker:
             n = max(int(np.ceil(np.linalg.norm(b - a) / self.spacing)), 1)
             out.append(a + np.linspace(0.0, 1.0, n + 1)[:, None] * (b - a))
         P = np.concatenate(out)
-        return P @ self.robot.base_T_mm[:3, :3].T + self.robot.base_T_mm[:3, 3]
+        P = P @ self.robot.base_T_mm[:3, :3].T + self.robot.base_T_mm[:3, 3]
+        for c, r in self.exempt:
+            P = P[np.linalg.norm(P - c, axis=1) > r]
+        return P
+
+    def distances(self, P) -> np.ndarray:
+        raise NotImplementedError
 
     def clearance_mm(self, q) -> float:
-        """Smallest distance from a link capsule's surface to the mesh (negative: overlap)."""
+        """Smallest distance from a link capsule's surface to the part (negative: overlap)."""
         P = self.link_points(q)
-        gap = np.linalg.norm(np.maximum(0.0, np.maximum(self.lo - P, P - self.hi)), axis=1)
-        near = gap < self.radius + self.clearance
-        if not near.any():
-            return float(gap.min() - self.radius)
-        d = -self.query.signed_distance(P[near])  # trimesh: positive inside
-        return float(min(d.min(), gap[~near].min() if (~near).any() else np.inf) - self.radius)
+        if len(P) == 0:
+            return np.inf
+        return float(self.distances(P).min() - self.radius)
 
     def __call__(self, q) -> bool:
         self.calls += 1
         if not self.robot.within_limits(q):
             return False
         return self.clearance_mm(q) >= self.clearance
+
+
+class CapsuleChecker(_LinkCapsules):
+    """Joint limits plus link-capsule clearance from a workpiece mesh (world frame, mm).
+
+    Watertight meshes use trimesh's signed distance (a link inside the part
+    counts as overlap); open meshes (a surface patch) the unsigned distance.
+    """
+
+    def __init__(self, robot, mesh, radius_mm: float = 60.0, clearance_mm: float = 0.0,
+                 skip_links: int = 1, spacing_mm: float | None = None, exempt=()):
+        import trimesh
+
+        super().__init__(robot, radius_mm, clearance_mm, skip_links, spacing_mm, exempt)
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            raise BadInput("the collision check needs a triangle mesh of the workpiece")
+        self.mesh = mesh
+        self.query = trimesh.proximity.ProximityQuery(mesh)
+        self.signed = bool(mesh.is_watertight)
+        self.lo, self.hi = mesh.bounds
+        if not self.signed:
+            from scipy.spatial import cKDTree
+
+            # every surface point lies within the longest edge of a vertex: a cheap lower bound
+            self.vertex_tree = cKDTree(np.asarray(mesh.vertices))
+            self.edge_mm = float(mesh.edges_unique_length.max())
+
+    def distances(self, P) -> np.ndarray:
+        """Distance of each point from the mesh (signed: negative inside), or a lower bound where clear."""
+        gap = np.linalg.norm(np.maximum(0.0, np.maximum(self.lo - P, P - self.hi)), axis=1)
+        reach = self.radius + max(self.clearance, 0.0) + EXACT_BAND_MM
+        near = gap < reach
+        d = gap.copy()
+        if near.any():
+            if self.signed:
+                d[near] = -self.query.signed_distance(P[near])  # trimesh: positive inside
+            else:
+                idx = np.flatnonzero(near)
+                dv = self.vertex_tree.query(P[idx], distance_upper_bound=reach + self.edge_mm)[0]
+                lower = np.minimum(dv, reach + self.edge_mm) - self.edge_mm
+                d[idx] = np.maximum(gap[idx], lower)
+                close = idx[lower < reach]
+                if len(close):
+                    d[close] = self.query.on_surface(P[close])[1]
+        return d
+
+
+class CloudChecker(_LinkCapsules):
+    """Joint limits plus link-capsule clearance from a point cloud (KD-tree; no inside test)."""
+
+    def __init__(self, robot, points_mm, radius_mm: float = 60.0, clearance_mm: float = 0.0,
+                 skip_links: int = 1, spacing_mm: float | None = None, exempt=()):
+        from scipy.spatial import cKDTree
+
+        super().__init__(robot, radius_mm, clearance_mm, skip_links, spacing_mm, exempt)
+        pts = np.asarray(points_mm, float)
+        if pts.ndim != 2 or len(pts) == 0:
+            raise BadInput("the collision check needs the workpiece points")
+        self.tree = cKDTree(pts)
+
+    def distances(self, P) -> np.ndarray:
+        """Distance of each point from the nearest cloud point (capped at radius + clearance + EXACT_BAND_MM)."""
+        cap = self.radius + max(self.clearance, 0.0) + EXACT_BAND_MM
+        return np.minimum(self.tree.query(P, distance_upper_bound=cap)[0], cap)
 
 
 @dataclass
@@ -101,8 +176,13 @@ def edge_valid(qa, qb, valid, resolution_rad: float, w) -> bool:
 
 
 def rrt_connect(q_start, q_goal, valid, lower, upper, step_rad: float = 0.3, resolution_rad: float = 0.03,
-                max_iterations: int = 5000, seed: int = 0, weights=None) -> list[np.ndarray]:
-    """Joint waypoints from q_start to q_goal, every edge valid; PlanInfeasible if none is found."""
+                max_iterations: int = 5000, seed: int = 0, weights=None, stats: dict | None = None) -> list[np.ndarray]:
+    """Joint waypoints from q_start to q_goal, every edge valid; PlanInfeasible if none is found.
+
+    ``stats``, if given, receives ``nodes``: the size of both trees (2 for a direct edge).
+    """
+    stats = {} if stats is None else stats
+    stats["nodes"] = 2
     q_start, q_goal = np.asarray(q_start, float), np.asarray(q_goal, float)
     w = np.ones_like(q_start) if weights is None else np.asarray(weights, float)
     if not valid(q_start):
@@ -138,6 +218,7 @@ def rrt_connect(q_start, q_goal, valid, lower, upper, step_rad: float = 0.3, res
                 if j is None:
                     break
                 if reached:
+                    stats["nodes"] = len(ta.nodes) + len(tb.nodes)
                     pa, pb = ta.path_to_root(i_new)[::-1], tb.path_to_root(j)
                     path = pa + pb[1:]
                     return path if a_is_start else path[::-1]
@@ -209,3 +290,58 @@ def plan_free_move(robot, q_start, q_goal, valid=None, mesh=None, radius_mm: flo
     smooth = shortcut(raw, valid, resolution_rad, shortcut_iterations, seed)
     tr, q = time_and_verify(robot, smooth, valid, **timing)
     return tr, q, {"rrt_waypoints": len(raw), "smoothed_waypoints": len(smooth), "timed_waypoints": len(q)}
+
+
+def path_length(q, weights) -> float:
+    """Length of a joint-space polyline in the weighted metric (rad; the track counts per ``weights``)."""
+    q = np.asarray(q, float)
+    return float(np.linalg.norm(np.diff(q, axis=0) * weights, axis=1).sum()) if len(q) > 1 else 0.0
+
+
+def free_move(robot, q_start, q_goal, valid, seed: int = 0, track_scale_mm: float = 500.0,
+              step_rad: float = 0.3, resolution_rad: float = 0.03, max_iterations: int = 5000,
+              shortcut_iterations: int = 100) -> tuple[np.ndarray, dict]:
+    """Waypoints (K, dof) of one collision-free move and its figures (nodes, length, clearance).
+
+    RRT-Connect, shortcut smoothing, then ``time_and_verify``: the waypoints
+    returned give rest-to-rest ruckig moves whose 4 ms samples are all valid.
+    A track joint counts ``track_scale_mm`` mm per rad in the metric.
+    """
+    w = np.where(robot.prismatic, 1.0 / track_scale_mm, 1.0)
+    calls0 = getattr(valid, "calls", 0)
+    stats = {}
+    raw = rrt_connect(q_start, q_goal, valid, robot.limits.lower, robot.limits.upper, step_rad, resolution_rad,
+                      max_iterations, seed, w, stats)
+    smooth = shortcut(raw, valid, resolution_rad, shortcut_iterations, seed, w)
+    tr, q = time_and_verify(robot, smooth, valid)
+    info = {"rrt_nodes": stats["nodes"], "rrt_waypoints": len(raw), "smoothed_waypoints": len(smooth), "timed_waypoints": len(q),
+            "path_length_rad": round(path_length(q, w), 6), "duration_s": round(float(tr.t_s[-1] - tr.t_s[0]), 4),
+            "validity_checks": getattr(valid, "calls", 0) - calls0}
+    if hasattr(valid, "clearance_mm"):
+        _t, qs, *_ = tr.sample(0.004)
+        info["min_clearance_mm"] = round(min(valid.clearance_mm(x) for x in qs), 3)
+    return q, info
+
+
+def insert_home_moves(joint_path: JointPath, approach: np.ndarray, depart: np.ndarray) -> JointPath:
+    """``joint_path`` with approach rows (home ... , before row 0) and depart rows (after the last row ... home).
+
+    ``approach`` runs from home to the first row's q (that last one is not repeated),
+    ``depart`` from the last row's q (not repeated) to home; inserted rows have
+    path_index -1 and zones 'approach' / 'depart'.
+    """
+    jp = joint_path
+    a, d = np.asarray(approach)[:-1], np.asarray(depart)[1:]
+    na, nd = len(a), len(d)
+
+    def pad(x, fill):
+        x = np.asarray(x)
+        return np.concatenate([np.full(na, fill, x.dtype), x, np.full(nd, fill, x.dtype)])
+
+    zone = np.concatenate([np.full(na, ZONE_CODE["approach"]), jp.zone, np.full(nd, ZONE_CODE["depart"])])
+    return JointPath(
+        q=np.concatenate([a.reshape(na, -1), jp.q, d.reshape(nd, -1)]), path_index=pad(jp.path_index, -1),
+        zone=zone.astype(jp.zone.dtype), position_error_mm=pad(jp.position_error_mm, 0.0),
+        orientation_error_rad=pad(jp.orientation_error_rad, 0.0), jump=pad(jp.jump, False),
+        reverse_planned=pad(jp.reverse_planned, False), retract=pad(jp.retract, False),
+        singular=pad(jp.singular, False), reached=pad(jp.reached, True), events=jp.events)

@@ -12,9 +12,10 @@ baseline.
    threshold) is a singularity: gradient-projection self-motion first moves
    the new solution towards the previous one without moving the tool.
 4. If the jump is still there, reverse planning draws ``reverse_samples``
-   random IK solutions of the failing pose (seeded RNG), plans backwards to
-   the run's first pose with steps 2-3, and splices in the first that makes it
-   without a jump. The jump then falls into the connector before the run,
+   IK solutions of the failing pose (seeded RNG), plans backwards to the run's
+   first pose with steps 2-3, and splices in the first that makes it without a
+   jump. The candidates come from the analytic families (``ik_seeds``, see
+   ``AnalyticSeeds``) when the robot has them, else from random CWLN starts. The jump then falls into the connector before the run,
    where the arm reconfigures off the surface.
 5. If all fail, the pose is marked singular, the self-motion solution closest
    to the previous pose is kept, and a retract-reorient-return move is
@@ -32,10 +33,12 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from itertools import islice, product
 
 import numpy as np
 
 from ..errors import BadInput, PlanInfeasible
+from ..robots.ik_common import limit_equivalents
 from ..robots.model import Robot
 from ..toolpath import ZONE_CODE, ZONES, Path
 from ..trajectory import JointPath
@@ -44,6 +47,7 @@ from .kernel import DhKernel
 
 RUN_ZONES = (ZONE_CODE["work"], ZONE_CODE["lead_in"], ZONE_CODE["lead_out"])
 RESTARTS_WHEN_LOST = 20
+IK_SEEDS = ("auto", "random", "analytic")
 
 
 @dataclass(frozen=True)
@@ -54,6 +58,115 @@ class StrategySettings:
     reverse_samples: int = 50
     seed: int = 0
     retract_mm: float = 200.0
+    ik_seeds: str = "random"
+
+
+class AnalyticSeeds:
+    """Exact IK solutions of a TCP pose from a robot's closed-form families.
+
+    SRS arms (``ik_srs``: sia20, seed8's 7R arm behind its track): each draw
+    takes an arm angle, and a value for every joint in front of the arm (the
+    track, inside ``lo``..``hi``), from the RNG and returns all 8 families
+    inside the limits. 6R spherical-wrist arms (``ik_spherical_wrist``): all
+    branches and their 2*pi-equivalents inside the limits, in one draw. With
+    free tool spin, each draw also turns the target about tool z by a random
+    angle. ``for_robot`` returns None when neither applies.
+    """
+
+    DRAW_TRIES = 8  # (track, arm angle) pairs tried per draw before the pose counts as out of analytic reach
+
+    def __init__(self, robot: Robot, kind: str, ik, lo: np.ndarray, hi: np.ndarray, free_spin: bool):
+        self.robot, self.kind, self.ik, self.free_spin = robot, kind, ik, free_spin
+        self.n_pre = robot.dof - 7 if kind == "srs" else 0
+        self.lo, self.hi = np.asarray(lo, float), np.asarray(hi, float)
+        self.tool_inv = np.linalg.inv(robot.tool_T_mm)
+        self.mid = 0.5 * (robot.limits.lower + robot.limits.upper)
+        self.varies = kind == "srs" or free_spin  # whether a second draw can give new solutions
+        self.shift = self._track_shift() if self.n_pre == 1 and robot.prismatic[0] else None
+
+    def _track_shift(self):
+        """Base-frame translation of the arm per mm of a single track joint (None if not a pure translation).
+
+        Then one ``SrsIK`` (built at the mid track value) serves every track value t:
+        solving T at t is solving T moved by -(t - t_mid) * shift at t_mid.
+        """
+        from ..robots.ik_srs import SrsIK
+
+        t0 = float(self.ik.fixed[0])
+        other = SrsIK(self.robot, [t0 + 100.0])
+        d = (other.pre[:3, 3] - self.ik.pre[:3, 3]) / 100.0
+        if not (np.allclose(other.pre[:3, :3], self.ik.pre[:3, :3], atol=1e-12) and np.allclose(other.S - self.ik.S, 100.0 * d, atol=1e-9)):
+            return None
+        return d
+
+    @staticmethod
+    def for_robot(robot: Robot, lo, hi, free_spin: bool = False) -> "AnalyticSeeds | None":
+        """The analytic families of ``robot`` (SRS or spherical wrist), or None if it has neither."""
+        from ..robots.ik_spherical_wrist import SphericalWristIK
+        from ..robots.ik_srs import SrsIK
+
+        if robot.dof >= 7:
+            n_pre = robot.dof - 7
+            try:
+                return AnalyticSeeds(robot, "srs", SrsIK(robot, 0.5 * (np.asarray(lo) + hi)[:n_pre]), lo, hi,
+                                     free_spin)
+            except BadInput:
+                return None
+        try:
+            return AnalyticSeeds(robot, "spherical_wrist", SphericalWristIK(robot), lo, hi, free_spin)
+        except BadInput:
+            return None
+
+    def _flange(self, T_tcp, rng) -> np.ndarray:
+        T = np.asarray(T_tcp, float)
+        if self.free_spin:
+            a = rng.uniform(-np.pi, np.pi)
+            c, s = np.cos(a), np.sin(a)
+            T = T @ np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+        return T @ self.tool_inv
+
+    def draw(self, T_tcp: np.ndarray, rng: np.random.Generator) -> list[np.ndarray]:
+        """Full-robot q's of one draw (inside the limits); [] if DRAW_TRIES draws give none."""
+        from ..robots.ik_srs import SrsIK
+
+        L = self.robot.limits
+        for _ in range(self.DRAW_TRIES):
+            T = self._flange(T_tcp, rng)
+            out = []
+            if self.kind == "srs":
+                n = self.n_pre
+                fixed = self.lo[:n] + (self.hi[:n] - self.lo[:n]) * rng.random(n)
+                psi = rng.uniform(-np.pi, np.pi)
+                try:
+                    if self.shift is not None:  # the track moves the arm: move the target instead
+                        T = T.copy()
+                        T[:3, 3] -= (fixed[0] - self.ik.fixed[0]) * self.shift
+                        sols = self.ik.solve(T, psi)
+                    else:
+                        sols = (SrsIK(self.robot, fixed) if n else self.ik).solve(T, psi)
+                except PlanInfeasible:
+                    continue
+                for sol in sols:
+                    eq = limit_equivalents(sol.q, L.lower[n:], L.upper[n:], np.ones(7, bool))
+                    if eq is not None:  # the 2*pi-equivalent nearest mid-range
+                        q = [min(v, key=lambda x, m=m: abs(x - m)) for v, m in zip(eq, self.mid[n:])]
+                        out.append(np.concatenate([fixed, q]))
+            else:
+                for sol in self.ik.solve(T):
+                    eq = limit_equivalents(sol.q, L.lower, L.upper, ~self.robot.prismatic)
+                    if eq is not None:
+                        out += [np.array(c) for c in islice(product(*eq), 16)]
+            if out or not self.varies:
+                return out
+        return []
+
+    def stream(self, T_tcp: np.ndarray, rng: np.random.Generator):
+        """Analytic q's of a pose, draw after draw; ends when a draw finds none (or cannot vary)."""
+        while True:
+            qs = self.draw(T_tcp, rng)
+            yield from qs
+            if not qs or not self.varies:
+                return
 
 
 def split_runs(path: Path) -> list[tuple[int, int]]:
@@ -91,8 +204,18 @@ class Planner:
         self.rng = np.random.default_rng(st.seed)
         self.thr = np.where(robot.prismatic, st.jump_threshold_mm, st.jump_threshold_rad)
         self.q_home = q_home
+        if st.ik_seeds not in IK_SEEDS:
+            raise BadInput(f"planner.ik_seeds: expected one of {', '.join(IK_SEEDS)}, found {st.ik_seeds!r}")
+        self.seeds = None
+        if st.ik_seeds != "random":
+            buf = self.solver.buffer
+            self.seeds = AnalyticSeeds.for_robot(robot, self.solver.lo + buf, self.solver.hi - buf, path.free_spin)
+            if self.seeds is None and st.ik_seeds == "analytic":
+                raise BadInput(f"planner.ik_seeds = 'analytic': {robot.name} has no closed-form IK families "
+                               "(SRS arm or 6R spherical wrist); use 'auto' or 'random'")
         self.events = {"reverse_plans": [], "retracts": [], "gradient_projections": 0,
-                       "start_configuration": None}
+                       "start_configuration": None, "ik_seeds": "analytic" if self.seeds else "random",
+                       "start_margin": None, "start_seconds": 0.0, "reverse_plan_seconds": 0.0}
 
     # -- helpers ---------------------------------------------------------
     def is_jump(self, qa, qb) -> bool:
@@ -107,7 +230,7 @@ class Planner:
     def ik(self, k, q0, max_iterations=None) -> IkResult:
         """CWLN for pose k from q0: the compiled kernel when the robot has one."""
         if self.kernel is None:
-            return self.ik(k, q0, max_iterations)
+            return self.solver.solve(self.targets[k], q0, max_iterations)
         return IkResult(*self.kernel.solve(self.targets[k], q0, max_iterations))
 
     def gp(self, k, q, q_ref, iterations=200) -> IkResult:
@@ -132,35 +255,56 @@ class Planner:
                 return gp
         return res
 
+    def candidates(self, k, random_start=None):
+        """IK solutions of pose k to start from, one per try (None: that try did not converge).
+
+        Analytic family solutions first (each polished by one CWLN solve), then
+        CWLN from random starts (``random_start()``, default ``random_q``).
+        """
+        if self.seeds is not None:
+            for q0 in self.seeds.stream(self.targets[k], self.rng):
+                res = self.ik(k, q0, max_iterations=200)
+                yield res if res.converged else None
+        random_start = random_start or self.random_q
+        while True:
+            res = self.ik(k, random_start(), max_iterations=200)
+            yield res if res.converged else None
+
     def find_any(self, k, tries):
-        """Random-start IK for pose k: the first converged solution, or None."""
-        for _ in range(tries):
-            res = self.ik(k, self.random_q(), max_iterations=200)
-            if res.converged:
-                return res
-        return None
+        """IK for pose k from ``tries`` candidates: the first converged solution, or None."""
+        return next((r for r in islice(self.candidates(k), tries) if r is not None), None)
 
     # -- start ----------------------------------------------------------------
-    def start_configuration(self, k) -> np.ndarray:
-        """A start for pose k: the job's home, else the random IK solution with most limit margin."""
-        if self.q_home is not None:
-            res = self.ik(k, self.q_home, max_iterations=300)
-            if res.converged:
-                self.events["start_configuration"] = "home"
-                return res.q
-        best, best_margin = None, -np.inf
+    def margin(self, q) -> float:
+        """Smallest distance of q to a joint limit, as a share of that joint's range."""
         span = self.solver.hi - self.solver.lo
-        mid = self.solver.lo + 0.5 * span
-        for _ in range(max(self.st.reverse_samples, 20)):
-            # starts near mid-range give natural postures; keep the one with most limit margin
-            q0 = np.clip(mid + 0.15 * span * self.rng.standard_normal(self.robot.dof), self.solver.lo, self.solver.hi)
-            res = self.ik(k, q0, max_iterations=200)
-            if res.converged:
-                margin = np.min(np.minimum(res.q - self.solver.lo, self.solver.hi - res.q) / span)
-                if margin > best_margin:
-                    best, best_margin = res.q, margin
-        self.events["start_configuration"] = "searched"
-        return best if best is not None else self.solver.lo + 0.5 * span
+        return float(np.min(np.minimum(q - self.solver.lo, self.solver.hi - q) / span))
+
+    def start_configuration(self, k) -> np.ndarray:
+        """A start for pose k: the job's home, else the candidate IK solution with most limit margin."""
+        t0 = time.perf_counter()
+        try:
+            if self.q_home is not None:
+                res = self.ik(k, self.q_home, max_iterations=300)
+                if res.converged:
+                    self.events["start_configuration"] = "home"
+                    self.events["start_margin"] = self.margin(res.q)
+                    return res.q
+            span = self.solver.hi - self.solver.lo
+            mid = self.solver.lo + 0.5 * span
+
+            def near_mid():  # random starts near mid-range give natural postures
+                return np.clip(mid + 0.15 * span * self.rng.standard_normal(self.robot.dof),
+                               self.solver.lo, self.solver.hi)
+            best, best_margin = None, -np.inf
+            for res in islice(self.candidates(k, near_mid), max(self.st.reverse_samples, 20)):
+                if res is not None and self.margin(res.q) > best_margin:
+                    best, best_margin = res.q, self.margin(res.q)
+            self.events["start_configuration"] = "searched"
+            self.events["start_margin"] = None if best is None else best_margin
+            return best if best is not None else mid
+        finally:
+            self.events["start_seconds"] += time.perf_counter() - t0
 
     # -- runs --------------------------------------------------------------
     def plan_run(self, a, b, q_in):
@@ -203,10 +347,16 @@ class Planner:
         self.keep(k, res)
 
     def reverse_plan(self, k, a) -> bool:
-        """Step 4: random IK solutions of pose k, planned backwards to a; splice the first that works."""
-        for attempt in range(self.st.reverse_samples):
-            res = self.ik(k, self.random_q(), max_iterations=200)
-            if not res.converged:
+        """Step 4 (timed): candidate IK solutions of pose k, planned backwards to a; splice the first that works."""
+        t0 = time.perf_counter()
+        try:
+            return self._reverse_plan(k, a)
+        finally:
+            self.events["reverse_plan_seconds"] += time.perf_counter() - t0
+
+    def _reverse_plan(self, k, a) -> bool:
+        for attempt, res in enumerate(islice(self.candidates(k), self.st.reverse_samples)):
+            if res is None:
                 continue
             chain = [res]
             ok = True
@@ -329,7 +479,7 @@ def plan_path(path: Path, robot: Robot, home_deg=(), method="seed", damping=0.1,
               orientation_weight_mm=200.0, position_tol_mm=1e-4, orientation_tol_deg=1e-4,
               max_iterations=100, clamp_buffer_deg=10.0, clamp_buffer_mm=50.0,
               jump_threshold_deg=50.0, jump_threshold_mm=100.0, reverse_samples=50, seed=0,
-              retract_mm=200.0, track_scale_mm=500.0, posture_gain=0.001) -> JointPath:
+              retract_mm=200.0, track_scale_mm=500.0, posture_gain=0.001, ik_seeds="random") -> JointPath:
     """Plan joint values for every pose of ``path`` (keywords = the job's [planner] keys).
 
     Raises PlanInfeasible (with a report listing them) when poses cannot be reached.
@@ -348,7 +498,7 @@ def plan_path(path: Path, robot: Robot, home_deg=(), method="seed", damping=0.1,
                     posture_gain=posture_gain if method == "seed" else 0.0)
     st = StrategySettings(method=method, jump_threshold_rad=np.radians(jump_threshold_deg),
                           jump_threshold_mm=jump_threshold_mm, reverse_samples=reverse_samples,
-                          seed=seed, retract_mm=retract_mm)
+                          seed=seed, retract_mm=retract_mm, ik_seeds=ik_seeds)
     t0 = time.perf_counter()
     jp = Planner(path, robot, ik, st, q_home).plan()
     jp.events["plan_seconds"] = time.perf_counter() - t0
