@@ -75,3 +75,23 @@ def test_invalid_start_and_missing_mesh(cell):
         rrt_connect(0.5 * (Q_START + Q_GOAL), Q_GOAL, chk, robot.limits.lower, robot.limits.upper)
     with pytest.raises(BadInput, match="mesh"):
         plan_free_move(robot, Q_START, Q_GOAL)
+
+
+@pytest.mark.parametrize("watertight", [True, False])
+def test_open3d_and_trimesh_backends_agree(watertight):
+    robot = get_robot("irb2400")
+    if watertight:
+        mesh = trimesh.creation.box(extents=(400, 500, 1400))
+        mesh.apply_translation((1000, 0, 700))
+    else:
+        mesh = trimesh.load(str(__import__("conftest").SAMPLES / "sphere_patch.stl"))
+        mesh.apply_translation((1000, 0, 100))
+    fast = CapsuleChecker(robot, mesh, radius_mm=60.0)
+    ref = CapsuleChecker(robot, mesh, radius_mm=60.0, backend="trimesh")
+    rng = np.random.default_rng(0)
+    P = rng.uniform(mesh.bounds[0] - 80, mesh.bounds[1] + 80, (400, 3))
+    a, b = fast.distances(P), ref.distances(P)
+    assert np.abs(a - b).max() < 1e-3  # open3d works in float32 on centred coordinates
+    assert (a < 0).any() == watertight  # inside points are negative only for a closed mesh
+    with pytest.raises(BadInput, match="backend"):
+        CapsuleChecker(robot, mesh, backend="fcl")

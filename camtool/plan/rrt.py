@@ -4,7 +4,8 @@
   is valid when it is inside the joint limits and every link, modelled as a
   capsule of ``radius_mm`` round the segment between consecutive joint-frame
   origins (from FK, plus flange and TCP), keeps ``clearance_mm`` from the
-  workpiece mesh (world frame). Distances come from trimesh's proximity query
+  workpiece mesh (world frame). Distances come from open3d's RaycastingScene
+  (or trimesh's proximity query, ``backend="trimesh"``; the same closest-point query)
   (signed for watertight meshes, so a link inside the part counts too;
   unsigned for open surface patches, pre-filtered by a KD-tree of the
   vertices); link points farther than the capsule radius plus
@@ -91,27 +92,54 @@ class _LinkCapsules:
 class CapsuleChecker(_LinkCapsules):
     """Joint limits plus link-capsule clearance from a workpiece mesh (world frame, mm).
 
-    Watertight meshes use trimesh's signed distance (a link inside the part
-    counts as overlap); open meshes (a surface patch) the unsigned distance.
+    Watertight meshes use the signed distance (a link inside the part counts as
+    overlap); open meshes (a surface patch) the unsigned distance. ``backend``:
+    "open3d" (RaycastingScene, default, fast) or "trimesh" (ProximityQuery); a
+    test checks they agree.
     """
 
     def __init__(self, robot, mesh, radius_mm: float = 60.0, clearance_mm: float = 0.0,
-                 skip_links: int = 1, spacing_mm: float | None = None, exempt=()):
+                 skip_links: int = 1, spacing_mm: float | None = None, exempt=(), backend: str = "open3d"):
         import trimesh
 
         super().__init__(robot, radius_mm, clearance_mm, skip_links, spacing_mm, exempt)
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise BadInput("the collision check needs a triangle mesh of the workpiece")
         self.mesh = mesh
-        self.query = trimesh.proximity.ProximityQuery(mesh)
         self.signed = bool(mesh.is_watertight)
         self.lo, self.hi = mesh.bounds
+        self.backend = backend
+        if backend == "open3d":
+            import open3d as o3d
+
+            # open3d's RaycastingScene answers the same closest-point query as trimesh.proximity
+            # from a C++ BVH, ~25x faster here; float32 inside, so coordinates are centred first
+            self.origin = np.asarray(mesh.vertices).mean(axis=0)
+            self.scene = o3d.t.geometry.RaycastingScene()
+            self.scene.add_triangles(o3d.core.Tensor((np.asarray(mesh.vertices) - self.origin).astype(np.float32)),
+                                     o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)))
+        elif backend == "trimesh":
+            self.query = trimesh.proximity.ProximityQuery(mesh)
+        else:
+            raise BadInput(f"collision backend must be 'open3d' or 'trimesh', found {backend!r}")
         if not self.signed:
             from scipy.spatial import cKDTree
 
             # every surface point lies within the longest edge of a vertex: a cheap lower bound
             self.vertex_tree = cKDTree(np.asarray(mesh.vertices))
             self.edge_mm = float(mesh.edges_unique_length.max())
+
+    def _exact(self, P) -> np.ndarray:
+        """Exact distance of points from the mesh: signed (negative inside) for watertight meshes."""
+        if self.backend == "open3d":
+            import open3d as o3d
+
+            X = o3d.core.Tensor((P - self.origin).astype(np.float32))
+            d = self.scene.compute_signed_distance(X) if self.signed else self.scene.compute_distance(X)
+            return d.numpy().astype(float)
+        if self.signed:
+            return -self.query.signed_distance(P)  # trimesh: positive inside
+        return self.query.on_surface(P)[1]
 
     def distances(self, P) -> np.ndarray:
         """Distance of each point from the mesh (signed: negative inside), or a lower bound where clear."""
@@ -121,7 +149,7 @@ class CapsuleChecker(_LinkCapsules):
         d = gap.copy()
         if near.any():
             if self.signed:
-                d[near] = -self.query.signed_distance(P[near])  # trimesh: positive inside
+                d[near] = self._exact(P[near])
             else:
                 idx = np.flatnonzero(near)
                 dv = self.vertex_tree.query(P[idx], distance_upper_bound=reach + self.edge_mm)[0]
@@ -129,7 +157,7 @@ class CapsuleChecker(_LinkCapsules):
                 d[idx] = np.maximum(gap[idx], lower)
                 close = idx[lower < reach]
                 if len(close):
-                    d[close] = self.query.on_surface(P[close])[1]
+                    d[close] = self._exact(P[close])
         return d
 
 
