@@ -228,14 +228,13 @@ def run_cartesian_job(job, outdir, on_stage=None):
     from pathlib import Path as FsPath
 
     from .pipeline import RunResult, robot_for_job, stage_function, timing_figures
-    from .report import plan_metrics, plot_joints, write_json_atomic, write_points_csv
+    from .report import plan_metrics
     from .timing import check_trajectory
     from .transforms import matrix_from_xyz_rpy
     from .trajectory import JointPath
 
     outdir = FsPath(outdir)
-    r = RunResult()
-    tick = on_stage or (lambda name: None)
+    r = RunResult(on_stage=on_stage)
     robot = robot_for_job(job)
     T_start = matrix_from_xyz_rpy(job.task.cart_start_mm, job.task.cart_start_rpy_deg)
     moves = seed001_moves(job)
@@ -266,15 +265,11 @@ def run_cartesian_job(job, outdir, on_stage=None):
         raise PlanInfeasible(f"cartesian moves leave their line/arc by {dev.max():.4g} mm > task.path_tol_mm = "
                              f"{job.task.path_tol_mm:g} even after {MAX_DENSIFY} densifications")
     for name, value in (("raster", path), ("plan", jp), ("time", trajectory)):
-        r.outputs[name] = value
-        r.stages.append(name)
-        tick(name)
+        r.done(name, value)
     findings = check_trajectory(trajectory, robot, job.timing.check_dt_ms / 1000.0)
     if findings:
         raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
-    r.files = list(stage_function("post", r.stages)(trajectory, robot, job, outdir))
-    r.stages.append("post")
-    tick("post")
+    r.files = list(r.done("post", stage_function("post", r.stages)(trajectory, robot, job, outdir)))
     report = plan_metrics(path, jp, robot, "cartesian", job.planner.jump_threshold_deg, job.planner.jump_threshold_mm)
     report.update(timing_figures(trajectory, robot, job))
     report["limits_ok"] = True
@@ -283,11 +278,4 @@ def run_cartesian_job(job, outdir, on_stage=None):
                            "path_tol_mm": job.task.path_tol_mm, "rounds": history,
                            "max_deviation_mm": float(max(history[-1]["max_deviation_mm"])),
                            "ik": ik_method(robot)}
-    plots = plot_joints({"cartesian": trajectory}, robot, outdir / "plots")
-    write_points_csv(path, jp, robot, outdir / "points.csv")
-    report["programs"] = [str(f) for f in r.files]
-    report["plots"] = [str(f) for f in plots]
-    write_json_atomic(report, outdir / "report.json")
-    r.outputs["report"] = report
-    r.files += [outdir / "report.json", outdir / "points.csv", *plots]
-    return r
+    return r.finish(report, path, jp, robot, {"cartesian": trajectory}, outdir)

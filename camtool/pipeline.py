@@ -59,6 +59,30 @@ class RunResult:
     stages: list[str] = field(default_factory=list)
     outputs: dict = field(default_factory=dict)
     files: list[Path] = field(default_factory=list)
+    on_stage: Callable | None = None
+
+    def done(self, name: str, value):
+        """Record a finished stage's output, tell ``on_stage``, and pass the value on."""
+        self.outputs[name] = value
+        self.stages.append(name)
+        if self.on_stage is not None:
+            self.on_stage(name)
+        return value
+
+    def finish(self, report: dict, path, joint_path, robot, trajectories: dict, outdir: Path,
+               extra_files=()) -> "RunResult":
+        """Write the plots, points.csv and report.json of a successful run; list them in ``files``."""
+        from .report import plot_joints, write_json_atomic, write_points_csv
+
+        outdir = Path(outdir)
+        plots = plot_joints(trajectories, robot, outdir / "plots")
+        write_points_csv(path, joint_path, robot, outdir / "points.csv")
+        report["programs"] = [str(f) for f in self.files]
+        report["plots"] = [str(f) for f in plots]
+        write_json_atomic(report, outdir / "report.json")
+        self.outputs["report"] = report
+        self.files += [outdir / "report.json", *extra_files, outdir / "points.csv", *plots]
+        return self
 
 
 def workpiece_for_job(job: Job, done: list[str] | None = None):
@@ -192,7 +216,7 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
     No program is written unless planning, timing, the independent trajectory
     check and every program check succeed.
     """
-    from .report import plan_metrics, plot_joints, write_json_atomic, write_points_csv
+    from .report import plan_metrics
     from .timing import check_trajectory
 
     robot = robot_for_job(job)
@@ -210,14 +234,8 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
         from .cartesian import run_cartesian_job
         return run_cartesian_job(job, outdir, on_stage)
     outdir = Path(outdir)
-    r = RunResult()
-    tick = on_stage or (lambda name: None)
-
-    def done(name, value):
-        r.outputs[name] = value
-        r.stages.append(name)
-        tick(name)
-        return value
+    r = RunResult(on_stage=on_stage)
+    done = r.done
 
     wp = done("workpiece", workpiece_for_job(job, r.stages))
     surface = done("fit", surface_for_job(job, wp, r.stages))
@@ -252,11 +270,4 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
                                  **timing_figures(tr2, robot, job)}
         except PlanInfeasible as exc:
             report["compare"] = {"method": other, "status": "infeasible", "reason": str(exc)}
-    plots = plot_joints(trajectories, robot, outdir / "plots")
-    write_points_csv(path, joint_path, robot, outdir / "points.csv")
-    report["programs"] = [str(f) for f in r.files]
-    report["plots"] = [str(f) for f in plots]
-    write_json_atomic(report, outdir / "report.json")
-    r.outputs["report"] = report
-    r.files += [outdir / "report.json", outdir / "points.csv", *plots]
-    return r
+    return r.finish(report, path, joint_path, robot, trajectories, outdir)

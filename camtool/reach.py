@@ -115,21 +115,15 @@ def run_reach_job(job: Job, outdir, on_stage=None):
     from .pipeline import (RunResult, timing_figures, robot_for_job, stage_function, surface_for_job,
                            workpiece_for_job)
     from .plan.arm_angle_sqp import plan_arm_angle_sqp
-    from .report import plan_metrics, plot_joints, write_json_atomic, write_points_csv
+    from .report import plan_metrics, write_json_atomic
     from .timing import check_trajectory
 
     if job.planner.method != "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: task.kind = 'sequential_reach' is planned by "
                        f"'arm-angle-sqp', found {job.planner.method!r}")
     outdir = FsPath(outdir)
-    r = RunResult()
-    tick = on_stage or (lambda name: None)
-
-    def done(name, value):
-        r.outputs[name] = value
-        r.stages.append(name)
-        tick(name)
-        return value
+    r = RunResult(on_stage=on_stage)
+    done = r.done
 
     surface = None
     if job.task.plane == "fit":
@@ -167,13 +161,6 @@ def run_reach_job(job: Job, outdir, on_stage=None):
         "best_family": list(best.family), "best_family_number": res.best + 1, "best_source": res.best_source,
         "best_E_rad": float(best.opt_E_rad if res.best_source == "optimised" else best.fixed_E_rad),
         "families": res.table()}
-    plots = plot_joints({job.planner.method: trajectory}, robot, outdir / "plots")
-    write_points_csv(path, joint_path, robot, outdir / "points.csv")
     table = outdir / FAMILY_TABLE_FILE
     table.write_text(family_table_text(res))
-    report["programs"] = [str(f) for f in r.files]
-    report["plots"] = [str(f) for f in plots]
-    write_json_atomic(report, outdir / "report.json")
-    r.outputs["report"] = report
-    r.files += [outdir / "report.json", table, outdir / "points.csv", *plots]
-    return r
+    return r.finish(report, path, joint_path, robot, {job.planner.method: trajectory}, outdir, [table])
