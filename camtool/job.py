@@ -326,4 +326,4 @@ if __name__ == "__main__":
     import sys
 
     if "--markdown" in sys.argv:
-        print(schema_markdown(), end="")
+        sys.stdout.write(schema_markdown())

@@ -153,11 +153,11 @@ def cwln_solve(target, q, dh, modified, tail, lo, hi, buf, jscale, max_step, L, 
         q[i] = min(max(q[i], lo[i]), hi[i])
     pe = 0.0; oe = 0.0
     it = 0
+    cm = np.empty(n); wv = np.empty(n); dq = np.empty(n)  # work arrays, reused every iteration
     while True:
         m, pe, oe = _task(q, target, dh, modified, tail, L, free_spin, T, J, e, Jt)
         if (pe <= ptol and oe <= otol) or it >= max_it:
             break
-        cm = np.empty(n); wv = np.empty(n)
         for i in range(n):
             dlo = q[i] - lo[i]; dhi = hi[i] - q[i]
             dd = min(dlo, dhi)
@@ -180,7 +180,6 @@ def cwln_solve(target, q, dh, modified, tail, lo, hi, buf, jscale, max_step, L, 
                 A[r, c] = s2; A[c, r] = s2
             A[r, r] += lam2
         y = np.linalg.solve(A, rhs)
-        dq = np.empty(n)
         big = 0.0
         for i in range(n):
             s = 0.0
