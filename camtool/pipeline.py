@@ -62,11 +62,11 @@ class RunResult:
     on_stage: Callable | None = None
 
     def done(self, name: str, value):
-        """Record a finished stage's output, tell ``on_stage``, and pass the value on."""
+        """Record a finished stage's output, tell ``on_stage(name, value)``, and pass the value on."""
         self.outputs[name] = value
         self.stages.append(name)
         if self.on_stage is not None:
-            self.on_stage(name)
+            self.on_stage(name, value)
         return value
 
     def finish(self, report: dict, path, joint_path, robot, trajectories: dict, outdir: Path,

@@ -141,3 +141,14 @@ def test_home_programs_start_and_end_at_home_and_pass_the_checker(home_run):
 def test_without_home_there_are_no_free_moves(sphere_run):
     _out, report = sphere_run
     assert "free_moves" not in report and report["start_configuration"] == "searched"
+
+
+def test_a_wrong_unit_is_named_before_the_failure_it_causes(tmp_path):
+    job = (SAMPLES / "plate_hole.toml").read_text().replace('units = "mm"', 'units = "m"')
+    job = job.replace('file = "plate_hole.stl"', f'file = "{SAMPLES / "plate_hole.stl"}"')
+    (tmp_path / "plate_m.toml").write_text(job)
+    r = run_camtool("run", tmp_path / "plate_m.toml", "-o", tmp_path / "out")
+    assert r.returncode == 2
+    warning, error = r.stderr.strip().splitlines()
+    assert "warning" in warning and 'units = "mm"' in warning
+    assert error.startswith("camtool: error:")

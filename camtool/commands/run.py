@@ -38,7 +38,9 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     t0 = time.perf_counter()
     live = progress_enabled() and not as_json
 
-    def on_stage(name):
+    def on_stage(name, value):
+        for warning in getattr(value, "warnings", ()) if name == "workpiece" else ():
+            click.echo(f"camtool: warning: {warning}", err=True)
         if live:
             click.echo(f"  {STAGE_NAMES.get(name, name):<18} {time.perf_counter() - t0:6.1f} s", err=True)
 
