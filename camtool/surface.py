@@ -206,7 +206,9 @@ def surface_from_dict(d: dict) -> Surface:
 
 def save_surface(surface: Surface, path: str | FsPath) -> None:
     """Write a surface as JSON."""
-    FsPath(path).write_text(json.dumps(surface.to_dict(), indent=1) + "\n")
+    from .files import output_file
+
+    output_file(path).write_text(json.dumps(surface.to_dict(), indent=1) + "\n")
 
 
 def load_surface(path: str | FsPath) -> Surface:

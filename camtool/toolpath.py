@@ -49,8 +49,10 @@ class Path:
 
 def save_path(path: Path, file: str | FsPath) -> None:
     """Save a Path to ``.npz``."""
+    from .files import output_file
+
     np.savez_compressed(
-        file, poses_mm=path.poses_mm, segment=path.segment, point=path.point, zone=path.zone,
+        output_file(file), poses_mm=path.poses_mm, segment=path.segment, point=path.point, zone=path.zone,
         free_spin=np.array(path.free_spin), step_over_mm=np.array(path.step_over_mm),
         pitch_mm=np.array(path.pitch_mm), zones=np.array(ZONES),
     )

@@ -9,6 +9,7 @@ from ..errors import BadInput
 from ..job import load_job
 from ..pipeline import surface_for_job, workpiece_for_job
 from ..raster import raster_path, raster_summary
+from ..files import output_file
 from ..toolpath import ZONES, save_path
 
 ZONE_COLOURS = {"work": "tab:blue", "self_motion": "tab:orange", "lead_in": "tab:green",
@@ -107,5 +108,5 @@ def plot_raster(surface, path, file: Path, title: str = "") -> None:
     ax2.set_title("(u, v) domain")
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(file, dpi=110)
+    fig.savefig(output_file(file), dpi=110)
     plt.close(fig)
