@@ -204,6 +204,8 @@ def load_workpiece(path: Path, units: str = "mm", sample_points: int = 100000,
     path = Path(path)
     if units not in UNIT_TO_MM:
         raise BadInput(f"{path}: units {units!r} is not one of {', '.join(UNIT_TO_MM)}")
+    if path.is_dir():
+        raise BadInput(f"{path}: is a folder; give a mesh or point-cloud file")
     ext = path.suffix.lower()
     loader = LOADERS.get(ext)
     if loader is None:
@@ -211,8 +213,6 @@ def load_workpiece(path: Path, units: str = "mm", sample_points: int = 100000,
                        f"use one of {' '.join(supported_extensions())}")
     if not path.exists():
         raise BadInput(f"{path}: workpiece file not found; check the name and the folder")
-    if path.is_dir():
-        raise BadInput(f"{path}: is a folder; give a mesh or point-cloud file")
     if path.stat().st_size == 0:
         raise BadInput(f"{path}: the file is empty; export the workpiece again")
     try:
