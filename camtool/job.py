@@ -113,6 +113,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "method": Key("str", "quintic", "Interpolation on work zones: quintic polynomials (the paper) or ruckig.", choices=("quintic", "ruckig")),
         "tcp_speed_mm_s": _pos("TCP speed on work zones.", 100.0, " mm/s"),
         "check_dt_ms": _pos("Step at which the independent checker resamples the trajectory.", 4.0, " ms"),
+        "zones": Key("str", "stop", "Free zones between runs (self-motion, approach, depart): stop = a rest-to-rest move per free pose; flow = one continuous motion through the free poses (through-velocities, ruckig state-to-state moves), rest only at run ends, reconfiguration jumps and retract steps (docs/timing.md).", choices=("stop", "flow")),
     },
     "task": {
         "kind": Key("str", "raster", "What the job does: raster = the surface raster of the main seed; sequential_reach = seed 002's reaching task on a plane; cartesian = seed 001's line and arc moves (docs/seed-methods.md).", choices=("raster", "sequential_reach", "cartesian")),

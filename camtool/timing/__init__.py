@@ -16,7 +16,9 @@ replaced by a jerk-limited ruckig state-to-state move between the same states,
 written out exactly (``ruckig_through.py``); a piece ruckig cannot give keeps
 its quintic and is listed as a fallback. Everything
 between runs (self-motion, approach, depart, retract) is timed by rest-to-rest
-ruckig moves (``ruckig_moves.py``). See docs/timing.md.
+ruckig moves (``ruckig_moves.py``) with ``zones="stop"``; with ``zones="flow"``
+a free chain passes its intermediate poses without stopping (``flow.py``).
+See docs/timing.md.
 """
 from __future__ import annotations
 
@@ -28,6 +30,7 @@ from ..errors import BadInput, CamtoolError, PlanInfeasible
 from ..toolpath import ZONE_CODE, ZONES
 from ..trajectory import Trajectory
 from .check import check_trajectory
+from .flow import flow_chain, hard_steps
 from .quintic import MARGIN, time_runs
 from .ruckig_moves import RuckigMover, rest_to_rest_chain
 from .ruckig_through import on_grid, through_pieces
@@ -36,6 +39,7 @@ __all__ = ["TimedTrajectory", "check_trajectory", "time_trajectory", "timing_rep
 
 SURFACE_ZONES = ("work", "lead_in", "lead_out")
 METHODS = ("quintic", "ruckig")
+ZONE_MODES = ("stop", "flow")
 SLOWDOWN_REPORT_RATIO = 0.995  # pieces slower than this share of the planned TCP speed are reported
 MAX_LISTED_FALLBACKS = 20      # ruckig fallback pieces listed one by one in the report
 
@@ -72,9 +76,11 @@ def _tcp_positions_mm(joint_path, path, robot) -> np.ndarray:
     return pos
 
 
-def _validate(joint_path, path, robot, method, tcp_speed_mm_s, check_dt_ms):
+def _validate(joint_path, path, robot, method, tcp_speed_mm_s, check_dt_ms, zones="stop"):
     if method not in METHODS:
         raise BadInput(f"timing.method: expected one of {', '.join(METHODS)}, found {method!r}")
+    if zones not in ZONE_MODES:
+        raise BadInput(f"timing.zones: expected one of {', '.join(ZONE_MODES)}, found {zones!r}")
     if not tcp_speed_mm_s > 0:
         raise BadInput(f"timing.tcp_speed_mm_s: expected a number > 0, found {tcp_speed_mm_s}")
     if not check_dt_ms > 0:
@@ -153,15 +159,17 @@ def _slowdowns(h_plan, h_final, piece_rows, run_of_piece, t_piece_start, joint_p
 
 
 def time_trajectory(joint_path, path, robot, method: str = "quintic", tcp_speed_mm_s: float = 100.0,
-                    check_dt_ms: float = 4.0) -> TimedTrajectory:
+                    check_dt_ms: float = 4.0, zones: str = "stop") -> TimedTrajectory:
     """Time ``joint_path`` (rad / mm per row) into a TimedTrajectory within every joint limit.
 
     ``path`` gives the TCP positions (mm, world frame) used for the TCP speed on
     surface zones; ``method`` is "quintic" or "ruckig" (work-zone
     interpolation); the result is verified by ``check_trajectory`` at
-    ``check_dt_ms`` and a CamtoolError is raised if it breaks a limit.
+    ``check_dt_ms`` and a CamtoolError is raised if it breaks a limit. ``zones``:
+    "stop" (rest at every free pose) or "flow" (free chains pass their poses
+    without stopping, ``flow.py``).
     """
-    _validate(joint_path, path, robot, method, tcp_speed_mm_s, check_dt_ms)
+    _validate(joint_path, path, robot, method, tcp_speed_mm_s, check_dt_ms, zones)
     L = robot.limits
     q = np.asarray(joint_path.q, float)
     zone = np.asarray(joint_path.zone)
@@ -207,7 +215,13 @@ def time_trajectory(joint_path, path, robot, method: str = "quintic", tcp_speed_
         t_offset += float(t_rel[-1])
 
     def emit_free(chain):
-        t_rel, cq, cv, ca, pose = rest_to_rest_chain(mover, q[chain])
+        if zones == "flow":
+            rows_ = np.asarray(chain)
+            hard = hard_steps(q[rows_], robot.prismatic, np.asarray(joint_path.jump)[rows_],
+                              (zone[rows_] == ZONE_CODE["retract"]) | np.asarray(joint_path.retract)[rows_])
+            t_rel, cq, cv, ca, pose = flow_chain(mover, q[rows_], hard)
+        else:
+            t_rel, cq, cv, ca, pose = rest_to_rest_chain(mover, q[chain])
         rows = np.asarray(chain)
         step_zone = np.empty(len(chain), int)
         for k in range(len(chain)):

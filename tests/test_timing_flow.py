@@ -1,0 +1,78 @@
+"""timing.zones = "flow": free chains pass their intermediate poses without stopping."""
+import numpy as np
+import pytest
+
+from camtool.errors import BadInput
+from camtool.timing import check_trajectory, time_trajectory
+from camtool.toolpath import ZONE_CODE
+from test_timing_fixtures import joint_path_and_path, seed8, two_runs
+
+ROBOT = seed8()
+WORK, SELF = ZONE_CODE["work"], ZONE_CODE["self_motion"]
+
+
+def _transition_path(n=60, k=6):
+    """Two work runs joined by k self-motion poses on a smooth arc (5 deg steps), like a raster U-turn."""
+    jp, _ = two_runs(ROBOT, n=n)
+    qa = jp.q[:n]
+    step = np.zeros(8)
+    step[0], step[1], step[4] = 30.0, np.radians(3), np.radians(4)
+    mid = qa[-1] + np.arange(1, k + 1)[:, None] * step + np.sin(np.linspace(0, np.pi, k))[:, None] * \
+        np.r_[0, 0, np.radians(2), 0, 0, 0, 0, 0]
+    qb = jp.q[n + 2:] - jp.q[n + 2] + qa[-1] + (k + 1) * step
+    q = np.vstack([qa, mid, qb])
+    zone = np.array([WORK] * n + [SELF] * k + [WORK] * len(qb))
+    seg = np.array([0] * (n + k // 2) + [1] * (len(q) - n - k // 2))
+    return joint_path_and_path(ROBOT, q, zone, seg), n, k
+
+
+(JP, PATH), N, K = _transition_path()
+STOP = time_trajectory(JP, PATH, ROBOT, zones="stop")
+FLOW = time_trajectory(JP, PATH, ROBOT, zones="flow")
+
+
+@pytest.mark.parametrize("method", ["quintic", "ruckig"])
+def test_flow_passes_the_checker(method):
+    tr = FLOW if method == "quintic" else time_trajectory(JP, PATH, ROBOT, method=method, zones="flow")
+    assert check_trajectory(tr, ROBOT, dt_s=0.002) == []
+
+
+def test_no_stop_at_intermediate_zone_poses_but_rest_at_run_ends():
+    for row in range(N, N + K):
+        k = np.flatnonzero(FLOW.path_index == JP.path_index[row])
+        assert len(k) == 1 and np.array_equal(FLOW.q[k[0]], JP.q[row])
+        assert np.abs(FLOW.qd[k[0]]).max() > 0
+        s = np.flatnonzero(STOP.path_index == JP.path_index[row])[0]
+        assert np.all(STOP.qd[s] == 0)
+    for row in (0, N - 1, N + K, len(JP.q) - 1):
+        k = np.flatnonzero(FLOW.path_index == JP.path_index[row])[0]
+        assert np.all(FLOW.qd[k] == 0) and np.all(FLOW.qdd[k] == 0)
+
+
+def test_flow_is_faster_than_stop():
+    assert FLOW.duration_s < STOP.duration_s - 0.3
+
+
+def test_flow_keeps_jumps_rest_to_rest():
+    q = JP.q.copy()
+    q[N + 2:, 3] += np.radians(25)  # a reconfiguration jump between self-motion poses 2 and 3
+    from dataclasses import replace
+    tr = time_trajectory(replace(JP, q=q), PATH, ROBOT, zones="flow")
+    assert check_trajectory(tr, ROBOT) == []
+    for row in (N + 1, N + 2):
+        k = np.flatnonzero(tr.path_index == JP.path_index[row])[0]
+        assert np.all(tr.qd[k] == 0)
+
+
+def test_stop_is_the_default_and_bad_value_rejected():
+    d = time_trajectory(JP, PATH, ROBOT)
+    for f in ("t_s", "q", "qd", "qdd", "zone", "path_index"):
+        assert np.array_equal(getattr(d, f), getattr(STOP, f))
+    with pytest.raises(BadInput):
+        time_trajectory(JP, PATH, ROBOT, zones="glide")
+
+
+def test_flow_deterministic():
+    b = time_trajectory(JP, PATH, ROBOT, zones="flow")
+    for f in ("t_s", "q", "qd", "qdd", "zone", "path_index"):
+        assert np.array_equal(getattr(FLOW, f), getattr(b, f))
