@@ -227,9 +227,7 @@ def run_cartesian_job(job, outdir, on_stage=None):
     """Run a ``task.kind = "cartesian"`` job (see module doc); returns a pipeline.RunResult."""
     from pathlib import Path as FsPath
 
-    from .pipeline import RunResult, robot_for_job, stage_function, timing_figures
-    from .report import plan_metrics
-    from .timing import check_trajectory
+    from .pipeline import RunResult, robot_for_job, run_report, stage_function
     from .transforms import matrix_from_xyz_rpy
     from .trajectory import JointPath
 
@@ -266,12 +264,8 @@ def run_cartesian_job(job, outdir, on_stage=None):
                              f"{job.task.path_tol_mm:g} even after {MAX_DENSIFY} densifications")
     for name, value in (("raster", path), ("plan", jp), ("time", trajectory)):
         r.done(name, value)
-    findings = check_trajectory(trajectory, robot, job.timing.check_dt_ms / 1000.0)
-    if findings:
-        raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
-    r.files = list(r.done("post", stage_function("post", r.stages)(trajectory, robot, job, outdir)))
-    report = plan_metrics(path, jp, robot, "cartesian", job.planner.jump_threshold_deg, job.planner.jump_threshold_mm)
-    report.update(timing_figures(trajectory, robot, job))
+    r.post_checked(trajectory, robot, job, outdir)
+    report = run_report(path, jp, trajectory, robot, job, "cartesian")
     report["limits_ok"] = True
     report["status"] = "ok"
     report["cartesian"] = {"moves": [{"kind": p.kind, "length_mm": p.length_mm} for p in prims],

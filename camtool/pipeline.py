@@ -69,6 +69,19 @@ class RunResult:
             self.on_stage(name, value)
         return value
 
+    def post_checked(self, trajectory, robot, job: Job, outdir: Path) -> list[Path]:
+        """The independent 4 ms limit check of the timed trajectory, then the post stage.
+
+        PlanInfeasible on any finding: no program is written from a trajectory that
+        breaks a limit."""
+        from .timing import check_trajectory
+
+        findings = check_trajectory(trajectory, robot, job.timing.check_dt_ms / 1000.0)
+        if findings:
+            raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
+        self.files = list(self.done("post", stage_function("post", self.stages)(trajectory, robot, job, outdir)))
+        return self.files
+
     def finish(self, report: dict, path, joint_path, robot, trajectories: dict, outdir: Path,
                extra_files=()) -> "RunResult":
         """Write the plots, points.csv and report.json of a successful run; list them in ``files``."""
@@ -201,6 +214,16 @@ def _report_unreachable(exc: PlanInfeasible, path, robot, job: Job, outdir: Path
     write_json_atomic(report, outdir / "report.json")
 
 
+def run_report(path, joint_path, trajectory, robot, job: Job, method: str) -> dict:
+    """The planner's and the timing stage's figures of a run, for report.json."""
+    from .report import plan_metrics
+
+    report = plan_metrics(path, joint_path, robot, method, job.planner.jump_threshold_deg,
+                          job.planner.jump_threshold_mm)
+    report.update(timing_figures(trajectory, robot, job))
+    return report
+
+
 def timing_figures(trajectory, robot, job: Job) -> dict:
     """The timing stage's figures, its method named ``timing_method``."""
     from .timing import timing_report
@@ -216,8 +239,6 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
     No program is written unless planning, timing, the independent trajectory
     check and every program check succeed.
     """
-    from .report import plan_metrics
-    from .timing import check_trajectory
 
     robot = robot_for_job(job)
     preflight = getattr(_optional("camtool.post"), "preflight", None)
@@ -247,17 +268,11 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
         raise
     done("plan", joint_path)
     done("time", trajectory)
-    findings = check_trajectory(trajectory, robot, job.timing.check_dt_ms / 1000.0)
-    if findings:
-        raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
-    r.files = list(done("post", stage_function("post", r.stages)(trajectory, robot, job, outdir)))
-
-    report = plan_metrics(path, joint_path, robot, job.planner.method,
-                          job.planner.jump_threshold_deg, job.planner.jump_threshold_mm)
-    report.update(timing_figures(trajectory, robot, job))
+    r.post_checked(trajectory, robot, job, outdir)
+    report = run_report(path, joint_path, trajectory, robot, job, job.planner.method)
     if "free_moves" in joint_path.events:
         report["free_moves"] = joint_path.events["free_moves"]
-    report["limits_ok"] = True  # the independent check above passed
+    report["limits_ok"] = True  # post_checked passed the independent check
     report["status"] = "ok"
     trajectories = {job.planner.method: trajectory}
     if compare:
@@ -265,9 +280,7 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
         try:
             jp2, tr2 = plan_and_time(job, path, robot, other, workpiece=wp)
             trajectories[other] = tr2
-            report["compare"] = {**plan_metrics(path, jp2, robot, other, job.planner.jump_threshold_deg,
-                                                job.planner.jump_threshold_mm),
-                                 **timing_figures(tr2, robot, job)}
+            report["compare"] = run_report(path, jp2, tr2, robot, job, other)
         except PlanInfeasible as exc:
             report["compare"] = {"method": other, "status": "infeasible", "reason": str(exc)}
     return r.finish(report, path, joint_path, robot, trajectories, outdir)

@@ -112,11 +112,10 @@ def run_reach_job(job: Job, outdir, on_stage=None):
     """Run a sequential_reach job (see module doc); returns a pipeline.RunResult."""
     from pathlib import Path as FsPath
 
-    from .pipeline import (RunResult, timing_figures, robot_for_job, stage_function, surface_for_job,
+    from .pipeline import (RunResult, robot_for_job, run_report, stage_function, surface_for_job,
                            workpiece_for_job)
     from .plan.arm_angle_sqp import plan_arm_angle_sqp
-    from .report import plan_metrics, write_json_atomic
-    from .timing import check_trajectory
+    from .report import write_json_atomic
 
     if job.planner.method != "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: task.kind = 'sequential_reach' is planned by "
@@ -141,14 +140,8 @@ def run_reach_job(job: Job, outdir, on_stage=None):
         raise
     done("plan", joint_path)
     trajectory = done("time", stage_function("time", r.stages)(joint_path, path, robot, **job.timing))
-    findings = check_trajectory(trajectory, robot, job.timing.check_dt_ms / 1000.0)
-    if findings:
-        raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
-    r.files = list(done("post", stage_function("post", r.stages)(trajectory, robot, job, outdir)))
-
-    report = plan_metrics(path, joint_path, robot, job.planner.method,
-                          job.planner.jump_threshold_deg, job.planner.jump_threshold_mm)
-    report.update(timing_figures(trajectory, robot, job))
+    r.post_checked(trajectory, robot, job, outdir)
+    report = run_report(path, joint_path, trajectory, robot, job, job.planner.method)
     best = res.families[res.best]
     report["limits_ok"] = True
     report["status"] = "ok"
