@@ -31,10 +31,8 @@ import hashlib
 import json
 import os
 import time
-import tomllib
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -95,15 +93,9 @@ def parse_vary(text: str) -> Variable:
 
 def robot_params(job: Job) -> dict[str, float]:
     """The job robot's named lengths (mm): the robot file's [params] overridden by the job."""
-    from ..robots import BUILTIN_ROBOTS
+    from ..robots.library import robot_toml_data
 
-    name = job.robot.name
-    if name in BUILTIN_ROBOTS:
-        data = tomllib.loads(resources.files("camtool.robots").joinpath("data", f"{name}.toml").read_text())
-    elif name.lower().endswith(".toml"):
-        data = tomllib.loads(job.resolve(name).read_text())
-    else:
-        data = {}
+    data = robot_toml_data(job.robot.name, job.dir) or {}
     params = {k: float(v) for k, v in data.get("params", {}).items()}
     params.update({k: float(v) for k, v in job.robot.params.items()})
     return params

@@ -72,9 +72,15 @@ def plot_design_space(study, file: Path) -> Path:
         ax.set_title(title if study.method == "mopso" else "NSGA-II evaluations")
         ax.legend(fontsize=7, loc="best", framealpha=0.85)
         ax.grid(alpha=0.3)
+    return _save(plt, fig, file)
+
+
+def _save(plt, fig, file) -> Path:
+    """Write a figure as PNG (its folder made) and close it."""
+    from ..files import output_file
+
     fig.tight_layout()
-    file = Path(file)
-    file.parent.mkdir(parents=True, exist_ok=True)
+    file = output_file(file)
     fig.savefig(file, dpi=110)
     plt.close(fig)
     return file
@@ -102,9 +108,4 @@ def plot_front(study, file: Path, others: dict | None = None) -> Path:
     ax.set_title("Pareto front (valid designs only)")
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    file = Path(file)
-    file.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(file, dpi=110)
-    plt.close(fig)
-    return file
+    return _save(plt, fig, file)

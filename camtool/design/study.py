@@ -13,7 +13,6 @@ next-shortest valid designs the swarm met.
 from __future__ import annotations
 
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path as FsPath
 
@@ -134,17 +133,12 @@ def write_chosen_job(problem: DesignProblem, x, file: FsPath) -> FsPath:
 def write_chosen_robot(problem: DesignProblem, x, file: FsPath) -> FsPath | None:
     """The robot's DH TOML with [params] set to the chosen design (None for URDF robots)."""
     import tomli_w
-    from importlib import resources
 
-    from ..robots import BUILTIN_ROBOTS
+    from ..robots.library import robot_toml_data
 
     job = problem.job
-    name = job.robot.name
-    if name in BUILTIN_ROBOTS:
-        data = tomllib.loads(resources.files("camtool.robots").joinpath("data", f"{name}.toml").read_text())
-    elif name.lower().endswith(".toml"):
-        data = tomllib.loads(job.resolve(name).read_text())
-    else:
+    data = robot_toml_data(job.robot.name, job.dir)
+    if data is None:
         return None
     data["params"] = {**problem.params, **{n: round(float(v), 6) for n, v in zip(problem.names, x)}}
     file = FsPath(file)

@@ -46,28 +46,40 @@ def _builtin_text(name: str) -> str:
     return resources.files("camtool.robots").joinpath("data", f"{name}.toml").read_text()
 
 
+def robot_toml_data(spec: str, base_dir: Path | None = None) -> dict | None:
+    """The parsed TOML description of a built-in or .toml robot (None for a URDF)."""
+    if spec in BUILTIN_ROBOTS:
+        return tomllib.loads(_builtin_text(spec))
+    path = Path(spec)
+    if base_dir is not None and not path.is_absolute():
+        path = base_dir / path
+    if path.suffix.lower() != ".toml":
+        return None
+    try:
+        return tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise BadInput(f"{path}: robot file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise BadInput(f"{path}: TOML syntax error: {exc}") from None
+
+
 def get_robot(spec: str, params: dict | None = None, base_dir: Path | None = None) -> Robot:
     """A robot from a built-in name, a ``.toml`` DH file or a ``.urdf`` file.
 
     ``params`` overrides named lengths (mm) of a parametric robot such as
     seed8 (L1..L4). Relative file names are taken from ``base_dir``.
     """
-    if spec in BUILTIN_ROBOTS:
-        return robot_from_toml(tomllib.loads(_builtin_text(spec)), f"builtin:{spec}", params)
     path = Path(spec)
     if base_dir is not None and not path.is_absolute():
         path = base_dir / path
-    if path.suffix.lower() in (".toml", ".urdf"):
+    if spec in BUILTIN_ROBOTS or path.suffix.lower() == ".toml":
+        source = f"builtin:{spec}" if spec in BUILTIN_ROBOTS else str(path)
+        return robot_from_toml(robot_toml_data(spec, base_dir), source, params)
+    if path.suffix.lower() == ".urdf":
         if not path.is_file():
             raise BadInput(f"{path}: robot file not found")
-        if path.suffix.lower() == ".urdf":
-            from .urdf import robot_from_urdf
-            return robot_from_urdf(path)
-        try:
-            data = tomllib.loads(path.read_text())
-        except tomllib.TOMLDecodeError as exc:
-            raise BadInput(f"{path}: TOML syntax error: {exc}") from None
-        return robot_from_toml(data, str(path), params)
+        from .urdf import robot_from_urdf
+        return robot_from_urdf(path)
     raise BadInput(f"unknown robot {spec!r}: use one of {', '.join(BUILTIN_ROBOTS)}, or a .toml/.urdf file")
 
 
