@@ -20,6 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from camtool.fit import fit_model, fit_surface  # noqa: E402
 from test_fit import CENTER, _with_outliers, plane_points, sphere_patch_points  # noqa: E402
+from camtool.settings import FitSettings
 
 PLANE_N = np.array([0.2, -1.0, 0.3]) / np.linalg.norm([0.2, -1.0, 0.3])
 PLANE_D = -550.0
@@ -54,12 +55,12 @@ def plane_err(n, d):
 
 
 def ours_sphere(wp, **kw):
-    s, t = timed(lambda: fit_surface(wp, model="sphere", **kw))
+    s, t = timed(lambda: fit_surface(wp, FitSettings.make(model="sphere", **kw)))
     return sphere_err(s.center_mm, s.radius_mm), t
 
 
 def ours_plane(wp, **kw):
-    s, t = timed(lambda: fit_surface(wp, model="plane", **kw))
+    s, t = timed(lambda: fit_surface(wp, FitSettings.make(model="plane", **kw)))
     return plane_err(s.normal, s.offset_mm), t
 
 
@@ -102,8 +103,8 @@ def main():
     print("accuracy, 100k points (70k on the surface, 30 % outliers), 1000 iterations")
     row("camtool sphere", *ours_sphere(sphere_cloud(100_000, 1)), su)
     row("camtool plane", *ours_plane(plane_cloud(100_000, 2)), pu)
-    fit_surface(sphere_cloud(5000, 9))  # warm-up (imports, caches)
-    _, t = timed(lambda: fit_surface(sphere_cloud(100_000, 1)))
+    fit_surface(sphere_cloud(5000, 9), FitSettings.make())  # warm-up (imports, caches)
+    _, t = timed(lambda: fit_surface(sphere_cloud(100_000, 1), FitSettings.make()))
     print(f"  camtool auto (sphere data)   time {t:.3f} s")
 
     for label, make, ours, theirs, units in (("sphere", sphere_cloud, ours_sphere, pyr_sphere, su),

@@ -33,6 +33,7 @@ from camtool.plan import plan_path  # noqa: E402
 from camtool.plan.cwln import IkSettings  # noqa: E402
 from camtool.plan.kernel import DhKernel, warm_up  # noqa: E402
 from camtool.transforms import rotation_angle_rad  # noqa: E402
+from camtool.settings import PlannerSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -104,7 +105,7 @@ def dense_child():
     job = load_job(ROOT / "samples" / "sphere.toml", ["raster.step_over_mm=2", "raster.pitch_mm=2"])
     path = path_for_job(job, surface_for_job(job, workpiece_for_job(job)))
     t = time.perf_counter()
-    jp = plan_path(path, robot_for_job(job), **job.planner)
+    jp = plan_path(path, robot_for_job(job), PlannerSettings.make(**job.planner))
     dt = time.perf_counter() - t
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"dense variant: {len(path)} poses planned in {dt:.2f} s ({len(path) / dt:,.0f} points/s), "
@@ -122,7 +123,7 @@ def main():
     n = len(path)
     print(f"seed sphere job: {n} poses ({int(path.is_work.sum())} work), robot {robot.name}, one core\n")
 
-    jp, t_seed = timed(lambda: plan_path(path, robot, **job.planner))
+    jp, t_seed = timed(lambda: plan_path(path, robot, PlannerSettings.make(**job.planner)))
     q0 = jp.q[0]
     kernel = DhKernel(robot, IkSettings(), False, np.full(robot.dof, np.inf))
     (stop, q_k, _pe, _oe), t_kernel = timed(kernel.run, targets, q0)

@@ -17,6 +17,7 @@ import numpy as np
 
 from camtool.raster import coverage, raster_path
 from camtool.surface import Boundary, SpherePatch
+from camtool.settings import RasterSettings
 
 
 def seed_patch() -> SpherePatch:
@@ -70,7 +71,7 @@ def main() -> None:
     print(f"{'variant':<18}{'raster_path s':>14}{'work pts':>10}{'poses':>9}{'coverage %':>12}"
           f"{'naive loop s':>14}{'naive pts':>11}{'ratio':>8}")
     for name, step, pitch in (("default 10x5 mm", 10.0, 5.0), ("dense 2x2 mm", 2.0, 2.0)):
-        t, path = best_of(lambda: raster_path(surface, step_over_mm=step, pitch_mm=pitch), args.repeat)
+        t, path = best_of(lambda: raster_path(surface, RasterSettings.make(step_over_mm=step, pitch_mm=pitch)), args.repeat)
         cov = coverage(surface, path, step)
         tn, naive = best_of(lambda: naive_raster(surface, step, pitch), 1)
         print(f"{name:<18}{t:>14.3f}{np.count_nonzero(path.is_work):>10}{len(path):>9}{100 * cov:>12.3f}"

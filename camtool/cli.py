@@ -10,18 +10,20 @@ import traceback
 import click
 
 from . import __version__
+from .commands import batch, check, design, fit, fk, plan, post, posts, raster, robots, run, timing, watch
 from .errors import CamtoolError
+
+DEBUG_KEY = "camtool.debug"  # ctx.meta key set by the group's --debug option
 
 
 class CamtoolGroup(click.Group):
     """A click group that turns exceptions into one line and an exit code."""
 
     def invoke(self, ctx):
-        debug = "--debug" in sys.argv[1:]
         try:
             return super().invoke(ctx)
         except CamtoolError as exc:
-            if debug:
+            if ctx.meta.get(DEBUG_KEY):
                 traceback.print_exc()
             click.echo(f"camtool: error: {exc}", err=True)
             ctx.exit(exc.exit_code)
@@ -33,7 +35,7 @@ class CamtoolGroup(click.Group):
             click.echo("camtool: interrupted", err=True)
             ctx.exit(130)
         except Exception as exc:  # an internal error: one line, traceback with --debug
-            if debug:
+            if ctx.meta.get(DEBUG_KEY):
                 traceback.print_exc()
             first = str(exc).splitlines()[0] if str(exc) else ""
             click.echo(f"camtool: internal error: {type(exc).__name__}: {first} "
@@ -44,22 +46,26 @@ class CamtoolGroup(click.Group):
 @click.group(cls=CamtoolGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, "--version", prog_name="camtool")
 @click.option("--debug", is_flag=True, help="Show the Python traceback of an error.")
-def cli(debug: bool) -> None:
+@click.pass_context
+def cli(ctx: click.Context, debug: bool) -> None:
     """camtool: offline CAM for robot surface work.
 
     A workpiece (mesh or point cloud) goes in; a fitted surface, an S-shaped
     raster path, a planned and timed joint trajectory, and controller
     programs (ABB RAPID, Yaskawa INFORM, CSV) come out.
 
+    Stages one at a time: fit, raster, plan, time and post each run one stage
+    of a JOB and save its result; --from resumes from a saved one. `run` is
+    their composition.
+
     Exit codes: 0 ok, 2 bad input, 3 plan cannot be done, 4 stage not
     available yet, 1 internal error.
     """
+    ctx.meta[DEBUG_KEY] = debug
 
 
 def _register() -> None:
-    from .commands import batch, check, design, fit, fk, posts, raster, robots, run, watch
-
-    for module in (robots, fk, fit, raster, run, batch, watch, design, posts, check):
+    for module in (robots, fk, fit, raster, plan, timing, post, run, batch, watch, design, posts, check):
         cli.add_command(module.command)
 
 

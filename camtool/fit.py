@@ -23,6 +23,7 @@ import numpy as np
 
 from .boundary import boundary_from_uv
 from .errors import BadInput
+from .settings import FitSettings
 from .surface import FitStats, PlaneSurface, SpherePatch
 
 MIN_POINTS = {"plane": 3, "sphere": 4}
@@ -199,16 +200,13 @@ def _choose(plane: ModelFit | None, sphere: ModelFit | None, extent: float) -> M
     return sphere
 
 
-def fit_surface(workpiece, model: str = "auto", threshold_mm: float = 0.5, iterations: int = 1000,
-                min_inlier_ratio: float = 0.2, seed: int = 0, boundary_cell_mm: float = 2.0,
-                close_gaps_mm: float = 6.0, simplify_mm: float = 0.5) -> PlaneSurface | SpherePatch:
+def fit_surface(workpiece, settings: FitSettings) -> PlaneSurface | SpherePatch:
     """Fit a plane or sphere patch (world mm) to a Workpiece, with its (u, v) boundary.
 
-    ``model`` is 'plane', 'sphere' or 'auto'. Raises BadInput when the points
-    are degenerate or no model reaches ``min_inlier_ratio``.
+    ``settings.model`` is 'plane', 'sphere' or 'auto'. Raises BadInput when the
+    points are degenerate or no model reaches ``settings.min_inlier_ratio``.
     """
-    if model not in ("auto", "plane", "sphere"):
-        raise BadInput(f"fit.model: expected 'auto', 'plane' or 'sphere', found {model!r}")
+    model, threshold_mm, min_inlier_ratio = settings.model, settings.threshold_mm, settings.min_inlier_ratio
     P = np.asarray(workpiece.points_mm, dtype=float)
     source = getattr(workpiece, "source", "") or "workpiece"
     sphere_ok = _shape_check(P, model, source)
@@ -216,7 +214,7 @@ def fit_surface(workpiece, model: str = "auto", threshold_mm: float = 0.5, itera
         raise BadInput(f"{source}: the points lie in a plane (or are too few), so no sphere is defined; "
                        "use fit.model = \"plane\"")
     extent = float(np.linalg.norm(P.max(axis=0) - P.min(axis=0)))
-    kw = dict(threshold_mm=threshold_mm, iterations=iterations, seed=seed, source=source)
+    kw = dict(threshold_mm=threshold_mm, iterations=settings.iterations, seed=settings.seed, source=source)
     plane = fit_model(P, "plane", **kw) if model in ("auto", "plane") else None
     sphere = fit_model(P, "sphere", **kw) if model in ("auto", "sphere") and sphere_ok else None
     fit = _choose(plane, sphere, extent)
@@ -232,8 +230,8 @@ def fit_surface(workpiece, model: str = "auto", threshold_mm: float = 0.5, itera
     res = fit.residuals_mm[inl]
     stats = FitStats(float(ratio), float(np.sqrt(np.mean(res ** 2))), float(res.max()), int(len(P)),
                      int(inl.sum()))
-    bkw = dict(cell_mm=boundary_cell_mm, close_gaps_mm=close_gaps_mm, simplify_mm=simplify_mm,
-               source=source)
+    bkw = dict(cell_mm=settings.boundary_cell_mm, close_gaps_mm=settings.close_gaps_mm,
+               simplify_mm=settings.simplify_mm, source=source)
     normals = np.asarray(workpiece.normals, dtype=float)[inl]
     if fit.model == "plane":
         return _plane_surface(P[inl], normals, *fit.params, stats, bkw)

@@ -104,7 +104,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "clamp_buffer_mm": _pos("The same buffer for prismatic joints.", 50.0),
         "jump_threshold_deg": _pos("A revolute joint step above this between adjacent points is a jump.", 50.0),
         "jump_threshold_mm": _pos("A track step above this between adjacent points is a jump.", 100.0),
-        "retract_mm": _pos("Track travel (or tool lift on robots without a track) of a retract-reorient-return move.", 200.0),
+        "retract_mm": _pos("Lift of the tool along the surface normal (a Cartesian move of all joints) in a retract-reorient-return move inside a run.", 200.0),
+        "lift_mm": _pos("Reconfigure off the surface: a connector between runs whose joints change by more than the reconfigure thresholds lifts the tool this far along the surface normal, reconfigures there and comes back down. Default: 100 mm, room for a tool of up to ~60 mm radius plus margin; raise it for bigger tools.", 100.0, " mm"),
+        "lift_steps": Key("int", 5, "Poses of each Cartesian lift and descent.", check=lambda x: 1 <= x <= 100, expect="an integer in 1..100"),
+        "reconfigure_threshold_deg": _pos("A connector whose revolute joints change by more than this is a reconfiguration and is lifted off the surface.", 10.0, " deg"),
+        "reconfigure_threshold_mm": _pos("The same for the track (mm).", 50.0, " mm"),
         "reverse_samples": Key("int", 50, "Random IK solutions tried by reverse planning.", check=lambda x: x >= 1, expect="an integer >= 1"),
         "seed": Key("int", 0, "Random seed for reverse planning and start-configuration search."),
         "ik_seeds": Key("str", "random", "Where reverse planning, the start-configuration search and lost-pose restarts take their IK candidates: random = CWLN from random starts; analytic = the closed-form families (SRS arm-angle IK at a random arm angle and track value; 6R spherical wrist), each polished by one CWLN solve, then random starts; auto = analytic when the robot has closed-form families, else random (docs/seed-methods.md).", choices=("random", "auto", "analytic")),
@@ -210,11 +214,11 @@ def _coerce(key: Key, value, where: str):
         if not isinstance(value, bool):
             fail("true or false")
     elif k == "vec3":
-        if not (isinstance(value, list) and len(value) == 3 and all(number(x) for x in value)):
+        if not (isinstance(value, (list, tuple)) and len(value) == 3 and all(number(x) for x in value)):
             fail("a list of 3 numbers")
         value = [float(x) for x in value]
     elif k == "floats":
-        if not (isinstance(value, list) and all(number(x) for x in value)):
+        if not (isinstance(value, (list, tuple)) and all(number(x) for x in value)):
             fail("a list of numbers")
         value = [float(x) for x in value]
     elif k == "strs":

@@ -4,8 +4,10 @@
 ``job.post.formats`` through its plugin (``postprocessors.base``), with the
 controller profile named in ``job.post.profiles`` or the shipped default.
 Programs are written into a temporary folder inside ``outdir``, every file is
-read back and checked (``postprocessors.check``), and only when all pass are
-they moved into place with ``os.replace``. A failed check raises
+checked by its plugin (``plugin.check``; a plugin without one has its entry
+file read back and checked, ``postprocessors.check.read_back_check``), and
+only when all pass are they moved into place with ``os.replace``. Every plugin,
+built-in or not, goes through the same protocol. A failed check raises
 PlanInfeasible and leaves no program behind.
 """
 from __future__ import annotations
@@ -27,7 +29,9 @@ MAX_LISTED = 10
 
 def profile_for_job(fmt: str, plugin, robot, job) -> Profile:
     """The profile of one format: the job's post.profiles entry (relative to the job
-    file), else the shipped default; then the job's program name, tool and CSV unit."""
+    file), else the shipped default; then the job's program name and tool, and the
+    options the plugin takes from the job (``plugin.job_options(job)``, e.g. the CSV
+    angle unit)."""
     given = job.post.profiles.get(fmt)
     if given is not None:
         if not isinstance(given, str):
@@ -46,8 +50,9 @@ def profile_for_job(fmt: str, plugin, robot, job) -> Profile:
     tool.update(tcp_xyz_mm=list(job.tool.tcp_xyz_mm), tcp_rpy_deg=list(job.tool.tcp_rpy_deg),
                 mass_kg=job.tool.mass_kg)
     changes = {"program_name": job.post.program_name, "tool": tool}
-    if fmt == "csv":
-        changes["options"] = {"angle_unit": job.post.csv_angle_unit}
+    job_options = getattr(plugin, "job_options", None)  # options a plugin takes from job keys
+    if job_options is not None:
+        changes["options"] = dict(job_options(job))
     return profile.with_changes(**changes)
 
 
@@ -150,7 +155,7 @@ def write_programs(trajectory, robot, job, outdir) -> list[Path]:
     limits or a written program fails the checker; then nothing is left behind.
     """
     from postprocessors.base import get_plugin
-    from postprocessors.check import check_program, format_of
+    from postprocessors.check import check_file
 
     outdir = Path(outdir)
     trajectory = thin_waypoints(trajectory, job.post.min_move_ms / 1000.0)
@@ -173,17 +178,9 @@ def write_programs(trajectory, robot, job, outdir) -> list[Path]:
                 if f in written:
                     raise BadInput(f"post-processor {fmt!r} wrote {f.name}, which another format also wrote")
             written += files
-            for f in files:
-                try:
-                    fmt_of = format_of(f)
-                except BadInput:
-                    fmt_of = None
-                if fmt_of == fmt:
-                    findings += [s.replace(str(tmp), str(outdir)) for s in check_program(f, robot, profiles[fmt])]
-                elif hasattr(plugin, "check"):
-                    findings += list(plugin.check(f, robot, profiles[fmt]))
-                else:
-                    log.warning("no checker for %s (post-processor %r); written unchecked", f.name, fmt)
+            # the plugin's own check for every file; without one, the entry file read back
+            for f in (files if hasattr(plugin, "check") else files[:1]):
+                findings += [s.replace(str(tmp), str(outdir)) for s in check_file(plugin, f, robot, profiles[fmt])]
         if findings:
             more = f" (and {len(findings) - MAX_LISTED} more)" if len(findings) > MAX_LISTED else ""
             raise PlanInfeasible(f"{len(findings)} program check finding(s), no program written: "

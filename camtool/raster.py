@@ -36,6 +36,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from .errors import BadInput
+from .settings import RasterSettings
 from .toolpath import ZONE_CODE, ZONES, Path
 
 APPROACH_POINTS = 3  # poses in the approach and in the depart zone
@@ -229,62 +230,38 @@ def _tool_rotations(normal: np.ndarray, travel: np.ndarray, tool_x: str, tool_x_
 # ----------------------------------------------------------------------------- checks
 
 
-def _check_args(surface, step_over_mm, pitch_mm, angle_deg, lead_mm, clearance_mm, transition_points,
-                tool_x, tool_x_world, lead_deg, tilt_deg) -> np.ndarray:
-    def number(name, x):
-        if isinstance(x, bool) or not isinstance(x, (int, float, np.floating, np.integer)) or not math.isfinite(x):
-            raise BadInput(f"raster.{name}: expected a finite number, found {x!r}")
-
-    for name, x in (("step_over_mm", step_over_mm), ("pitch_mm", pitch_mm), ("angle_deg", angle_deg),
-                    ("lead_mm", lead_mm), ("clearance_mm", clearance_mm), ("lead_deg", lead_deg),
-                    ("tilt_deg", tilt_deg)):
-        number(name, x)
-    if step_over_mm <= 0:
-        raise BadInput(f"raster.step_over_mm: expected a number > 0 mm, found {step_over_mm!r}")
-    if pitch_mm <= 0:
-        raise BadInput(f"raster.pitch_mm: expected a number > 0 mm, found {pitch_mm!r}")
-    if lead_mm < 0:
-        raise BadInput(f"raster.lead_mm: expected a number >= 0, found {lead_mm!r}")
-    if clearance_mm < 0:
-        raise BadInput(f"raster.clearance_mm: expected a number >= 0, found {clearance_mm!r}")
-    for name, x in (("lead_deg", lead_deg), ("tilt_deg", tilt_deg)):
-        if not -89 <= x <= 89:
-            raise BadInput(f"raster.{name}: expected an angle within -89..89 deg, found {x!r}")
-    if isinstance(transition_points, bool) or not isinstance(transition_points, (int, np.integer)) \
-            or transition_points < 2:
-        raise BadInput(f"raster.transition_points: expected an integer >= 2, found {transition_points!r}")
-    if tool_x not in ("fixed", "travel"):
-        raise BadInput(f"raster.tool_x: expected one of 'fixed', 'travel', found {tool_x!r}")
-    w = np.asarray(tool_x_world, dtype=float).ravel()
-    if w.shape != (3,) or not np.all(np.isfinite(w)) or np.linalg.norm(w) < 1e-12:
-        raise BadInput(f"raster.tool_x_world: expected a non-zero direction of 3 numbers, found {tool_x_world!r}")
+def _check_boundary(surface) -> None:
+    """BadInput unless the surface boundary encloses some area (job keys are checked by the schema)."""
     outer = np.asarray(surface.boundary.outer_uv, dtype=float)
     if outer.ndim != 2 or outer.shape[0] < 3 or outer.shape[1] != 2 or not np.all(np.isfinite(outer)):
         raise BadInput("surface boundary is empty: the outer polygon needs at least 3 (u, v) vertices")
     x, y = outer[:, 0], outer[:, 1]
     if abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))) < 1e-12:
         raise BadInput("surface boundary is empty: the outer polygon encloses no area")
+
+
+def _direction(v) -> np.ndarray:
+    w = np.asarray(v, dtype=float).ravel()
+    if w.shape != (3,) or not np.all(np.isfinite(w)) or np.linalg.norm(w) < 1e-12:
+        raise BadInput(f"raster.tool_x_world: expected a non-zero direction of 3 numbers, found {list(v)!r}")
     return w
 
 
 # ----------------------------------------------------------------------------- entry
 
 
-def raster_path(surface, step_over_mm: float = 10.0, pitch_mm: float = 5.0, angle_deg: float = 0.0,
-                lead_mm: float = 20.0, clearance_mm: float = 0.0, transition_points: int = 5,
-                tool_x: str = "fixed", tool_x_world=(0.0, 0.0, 1.0), lead_deg: float = 0.0,
-                tilt_deg: float = 0.0, free_spin: bool = False) -> Path:
+def raster_path(surface, settings: RasterSettings) -> Path:
     """Raster ``surface`` into a Path: boustrophedon rows of work points with zones.
 
-    Lengths in mm (measured on the surface), angles in degrees. Raises
-    ``BadInput`` for bad arguments, an empty boundary or a step-over wider than
-    the patch. Poses are in the surface's (world) frame; tool z = -normal.
+    Lengths in mm (measured on the surface), angles in rad (``RasterSettings``).
+    Raises ``BadInput`` for an empty boundary or a step-over wider than the
+    patch. Poses are in the surface's (world) frame; tool z = -normal.
     """
-    w = _check_args(surface, step_over_mm, pitch_mm, angle_deg, lead_mm, clearance_mm, transition_points,
-                    tool_x, tool_x_world, lead_deg, tilt_deg)
-    step, pitch, lead, clear = float(step_over_mm), float(pitch_mm), float(lead_mm), float(clearance_mm)
-    m = int(transition_points)
-    chart, g_lo = _chart_for(surface, math.radians(angle_deg))
+    _check_boundary(surface)
+    w = _direction(settings.tool_x_world)
+    step, pitch, lead, clear = settings.step_over_mm, settings.pitch_mm, settings.lead_mm, settings.clearance_mm
+    m = settings.transition_points
+    chart, g_lo = _chart_for(surface, settings.angle_rad)
     boundary = surface.boundary
 
     # rows and runs
@@ -351,7 +328,7 @@ def raster_path(surface, step_over_mm: float = 10.0, pitch_mm: float = 5.0, angl
     travel = surface.point_mm(uv[:, 0] + eps[0], uv[:, 1] + eps[1]) - p
     travel = travel - np.sum(travel * normal, axis=1, keepdims=True) * normal
     travel = _unit(travel) * sign[seg][:, None]
-    R = _tool_rotations(normal, travel, tool_x, w, math.radians(lead_deg), math.radians(tilt_deg))
+    R = _tool_rotations(normal, travel, settings.tool_x, w, settings.lead_rad, settings.tilt_rad)
     pos_mm = p + lift[:, None] * normal
 
     # self-motion transitions between consecutive segments
@@ -400,7 +377,7 @@ def raster_path(surface, step_over_mm: float = 10.0, pitch_mm: float = 5.0, angl
     poses[total - A:, :3, :3], poses[total - A:, :3, 3] = R[-1], pos_dp
     segment[total - A:] = n_seg - 1
     zcode[total - A:] = _DEPART
-    return Path(poses, segment, pidx, zcode, bool(free_spin), step, pitch)
+    return Path(poses, segment, pidx, zcode, settings.free_spin, step, pitch)
 
 
 # ----------------------------------------------------------------------------- coverage and summary

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import tempfile
 from pathlib import Path as FsPath
@@ -68,22 +69,39 @@ def plan_metrics(path: Path, jp: JointPath, robot, method: str, jump_threshold_d
 
 
 def write_json_atomic(obj: dict, file: FsPath) -> None:
-    """Write JSON through a temporary file and a rename: never half-written."""
+    """Write JSON through a temporary file and a rename: never half-written, no temporary file left.
+
+    NaN and infinite numbers become ``null`` (strict JSON); the file is 0644 like every other output.
+    """
     file = FsPath(file)
     file.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=file.parent, prefix=".tmp-", suffix=".json")
-    with os.fdopen(fd, "w") as f:
-        json.dump(obj, f, indent=2, default=_json_default)
-        f.write("\n")
-    os.replace(tmp, file)
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump(_strict(obj), f, indent=2, allow_nan=False)
+            f.write("\n")
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, file)
+    except BaseException:
+        FsPath(tmp).unlink(missing_ok=True)
+        raise
 
 
-def _json_default(x):
-    if isinstance(x, np.generic):
-        return x.item()
+def _strict(x):
+    """JSON-ready copy: numpy values as Python ones, dict keys as strings, non-finite floats as None."""
+    if isinstance(x, dict):
+        return {str(_strict(k)) if not isinstance(k, str) else k: _strict(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_strict(v) for v in x]
     if isinstance(x, np.ndarray):
-        return x.tolist()
-    raise TypeError(type(x).__name__)
+        return _strict(x.tolist())
+    if isinstance(x, np.generic):
+        return _strict(x.item())
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, FsPath):
+        return str(x)
+    return x
 
 
 def write_points_csv(path: Path, jp: JointPath, robot, file: FsPath) -> None:

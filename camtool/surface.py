@@ -23,6 +23,7 @@ import numpy as np
 from matplotlib.path import Path as MplPath
 
 from .errors import BadInput
+from .files import output_file
 
 
 @dataclass(frozen=True)
@@ -46,8 +47,8 @@ class Boundary:
 
     def to_dict(self) -> dict:
         return {
-            "outer_uv": np.round(self.outer_uv, 9).tolist(),
-            "holes_uv": [np.round(h, 9).tolist() for h in self.holes_uv],
+            "outer_uv": np.asarray(self.outer_uv, float).tolist(),  # exact: a resumed raster must match a run
+            "holes_uv": [np.asarray(h, float).tolist() for h in self.holes_uv],
         }
 
     @staticmethod
@@ -204,19 +205,27 @@ def surface_from_dict(d: dict) -> Surface:
     raise BadInput(f"surface model {d['model']!r} is not 'plane' or 'sphere'")
 
 
-def save_surface(surface: Surface, path: str | FsPath) -> None:
-    """Write a surface as JSON."""
-    from .files import output_file
+SURFACE_FORMAT, SURFACE_VERSION = "camtool-surface", 1
 
-    output_file(path).write_text(json.dumps(surface.to_dict(), indent=1) + "\n")
+
+def save_surface(surface: Surface, path: str | FsPath) -> None:
+    """Write a surface as JSON (``format`` and ``version`` keys, then the surface's fields)."""
+    d = {"format": SURFACE_FORMAT, "version": SURFACE_VERSION, **surface.to_dict()}
+    output_file(path).write_text(json.dumps(d, indent=1) + "\n")
 
 
 def load_surface(path: str | FsPath) -> Surface:
     """Read a surface saved by ``save_surface``."""
     p = FsPath(path)
     try:
-        return surface_from_dict(json.loads(p.read_text()))
+        d = json.loads(p.read_text())
+        if d.get("version", SURFACE_VERSION) != SURFACE_VERSION:
+            raise BadInput(f"{p}: surface file version {d['version']} is not supported "
+                           f"(this camtool reads version {SURFACE_VERSION}); rerun camtool fit")
+        return surface_from_dict(d)
     except FileNotFoundError:
         raise BadInput(f"{p}: surface file not found") from None
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError) as exc:
         raise BadInput(f"{p}: not a camtool surface file ({exc})") from None
+    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as exc:
+        raise BadInput(f"{p}: cannot read the surface file ({type(exc).__name__})") from None

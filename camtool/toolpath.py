@@ -8,11 +8,17 @@ axis points into the surface.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path as FsPath
-
 import numpy as np
 
-from .errors import BadInput
+def freeze_arrays(box) -> None:
+    """Make every numpy array field of a frozen dataclass read-only (a stage box never changes)."""
+    for name, value in vars(box).items():
+        if isinstance(value, np.ndarray) and value.flags.writeable:
+            if value.base is not None:  # a view: freeze a copy, the owner's array stays the owner's
+                value = value.copy()
+                object.__setattr__(box, name, value)
+            value.flags.writeable = False
+
 
 ZONES = ("work", "self_motion", "lead_in", "lead_out", "approach", "depart", "retract")
 ZONE_CODE = {name: code for code, name in enumerate(ZONES)}
@@ -31,6 +37,9 @@ class Path:
     step_over_mm: float = 0.0
     pitch_mm: float = 0.0
 
+    def __post_init__(self):
+        freeze_arrays(self)
+
     def __len__(self) -> int:
         return len(self.poses_mm)
 
@@ -45,30 +54,3 @@ class Path:
         """Length of the TCP polyline through every pose, in mm."""
         p = self.poses_mm[:, :3, 3]
         return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
-
-
-def save_path(path: Path, file: str | FsPath) -> None:
-    """Save a Path to ``.npz``."""
-    from .files import output_file
-
-    np.savez_compressed(
-        output_file(file), poses_mm=path.poses_mm, segment=path.segment, point=path.point, zone=path.zone,
-        free_spin=np.array(path.free_spin), step_over_mm=np.array(path.step_over_mm),
-        pitch_mm=np.array(path.pitch_mm), zones=np.array(ZONES),
-    )
-
-
-def load_path(file: str | FsPath) -> Path:
-    """Load a Path saved by ``save_path``."""
-    try:
-        with np.load(file) as d:
-            if tuple(d["zones"]) != ZONES:
-                raise BadInput(f"{file}: path file uses zone labels {tuple(d['zones'])}, expected {ZONES}")
-            return Path(
-                d["poses_mm"], d["segment"], d["point"], d["zone"], bool(d["free_spin"]),
-                float(d["step_over_mm"]), float(d["pitch_mm"]),
-            )
-    except FileNotFoundError:
-        raise BadInput(f"{file}: path file not found") from None
-    except (KeyError, ValueError, OSError) as exc:
-        raise BadInput(f"{file}: not a camtool path file ({exc})") from None

@@ -1,13 +1,19 @@
-"""``JointPath`` (planned joint values per pose) and ``Trajectory`` (timed).
+"""``JointPath`` (planned joint values per pose), ``Trajectory`` (timed) and its resampling.
 
 Joint vectors ``q`` are in native units: **rad for revolute joints, mm for
 prismatic joints** (the track). Speeds are rad/s or mm/s, and so on.
+
+``sample_trajectory(trajectory, dt_s)`` resamples a Trajectory at a fixed step
+into ``TrajectorySamples``; the independent checker and the timing report both
+use it (it lives here, with the data, so the checker needs no timing code).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .toolpath import freeze_arrays
 
 
 @dataclass(frozen=True)
@@ -30,6 +36,9 @@ class JointPath:
     reached: np.ndarray           # (N,) bool: IK converged within tolerance
     events: dict = field(default_factory=dict)  # planner events: reverse plans, retracts, ...
 
+    def __post_init__(self):
+        freeze_arrays(self)
+
 
 @dataclass(frozen=True)
 class Trajectory:
@@ -37,6 +46,7 @@ class Trajectory:
 
     Between waypoints the motion is the quintic Hermite polynomial fixed by the
     positions, speeds and accelerations at both ends (``sample`` evaluates it).
+    Its arrays (and those in ``limits``) are read-only after construction.
     """
 
     robot_name: str
@@ -50,6 +60,11 @@ class Trajectory:
     path_index: np.ndarray  # (M,) index into the Path, -1 for inserted samples
     limits: dict = field(default_factory=dict)  # name -> (dof,) arrays used for timing
 
+    def __post_init__(self):
+        freeze_arrays(self)
+        if any(isinstance(v, np.ndarray) and v.flags.writeable for v in self.limits.values()):
+            object.__setattr__(self, "limits", {k: _frozen(v) for k, v in self.limits.items()})
+
     @property
     def dof(self) -> int:
         return self.q.shape[1]
@@ -59,25 +74,107 @@ class Trajectory:
         return float(self.t_s[-1] - self.t_s[0])
 
     def sample(self, dt_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Resample at a fixed step: (t, q, qd, qdd, qddd) from the quintic Hermite pieces."""
-        t = np.arange(self.t_s[0], self.t_s[-1], dt_s)
-        t = np.append(t, self.t_s[-1])
-        k = np.clip(np.searchsorted(self.t_s, t, side="right") - 1, 0, len(self.t_s) - 2)
-        h = (self.t_s[k + 1] - self.t_s[k])[:, None]
-        s = ((t - self.t_s[k])[:, None]) / np.where(h > 0, h, 1.0)
-        c = quintic_coefficients(self.q[k], self.qd[k] * h, self.qdd[k] * h**2,
-                                 self.q[k + 1], self.qd[k + 1] * h, self.qdd[k + 1] * h**2)
-        p = np.zeros_like(self.q[k]); v = np.zeros_like(p); a = np.zeros_like(p); j = np.zeros_like(p)
-        for n in range(5, -1, -1):
-            p = p * s + c[n]
-        for n in range(5, 0, -1):
-            v = v * s + n * c[n]
-        for n in range(5, 1, -1):
-            a = a * s + n * (n - 1) * c[n]
-        for n in range(5, 2, -1):
-            j = j * s + n * (n - 1) * (n - 2) * c[n]
-        hs = np.where(h > 0, h, np.inf)
-        return t, p, v / hs, a / hs**2, j / hs**3
+        """Resample at a fixed step: (t, q, qd, qdd, qddd) from the quintic Hermite pieces.
+
+        One grid over the whole trajectory; ``sample_trajectory`` is the chunked
+        resampling the checker and the timing report use.
+        """
+        t = _grid(self.t_s, dt_s)
+        return (t, *_hermite(self.t_s, self.q, self.qd, self.qdd, t))
+
+
+def _frozen(value):
+    """A read-only array with ``value``'s data: the array itself if it owns its data, else a copy."""
+    if not isinstance(value, np.ndarray) or not value.flags.writeable:
+        return value
+    if value.base is not None:
+        value = value.copy()
+    value.flags.writeable = False
+    return value
+
+
+def _grid(t_s: np.ndarray, dt_s: float) -> np.ndarray:
+    """Sample times from t_s[0] every ``dt_s``, plus t_s[-1]."""
+    t = np.arange(t_s[0], t_s[-1], dt_s)
+    return np.append(t, t_s[-1])
+
+
+def _hermite(t_s, q, qd, qdd, t):
+    """(q, qd, qdd, qddd) at times ``t`` of the quintic Hermite pieces through the waypoints."""
+    k = np.clip(np.searchsorted(t_s, t, side="right") - 1, 0, len(t_s) - 2)
+    h = (t_s[k + 1] - t_s[k])[:, None]
+    s = ((t - t_s[k])[:, None]) / np.where(h > 0, h, 1.0)
+    c = quintic_coefficients(q[k], qd[k] * h, qdd[k] * h**2, q[k + 1], qd[k + 1] * h, qdd[k + 1] * h**2)
+    p = np.zeros_like(q[k]); v = np.zeros_like(p); a = np.zeros_like(p); j = np.zeros_like(p)
+    for n in range(5, -1, -1):
+        p = p * s + c[n]
+    for n in range(5, 0, -1):
+        v = v * s + n * c[n]
+    for n in range(5, 1, -1):
+        a = a * s + n * (n - 1) * c[n]
+    for n in range(5, 2, -1):
+        j = j * s + n * (n - 1) * (n - 2) * c[n]
+    hs = np.where(h > 0, h, np.inf)
+    return p, v / hs, a / hs**2, j / hs**3
+
+
+SAMPLE_CHUNK_WAYPOINTS = 20000  # sample_trajectory resamples this many waypoints at a time (bounded memory)
+
+
+@dataclass(frozen=True)
+class TrajectorySamples:
+    """A Trajectory resampled at ``dt_s`` by ``sample_trajectory`` (native units, per s^k); read-only.
+
+    ``t_s`` (K,), ``q``, ``qd``, ``qdd``, ``qddd`` (K, dof). The waypoints are
+    taken in chunks of ``SAMPLE_CHUNK_WAYPOINTS``; each chunk is sampled from its
+    first time stamp every ``dt_s`` plus its last one, so a chunk boundary
+    appears twice (t_s is non-decreasing). ``waypoints``, ``t_first_s`` and
+    ``t_last_s`` identify the trajectory sampled (``matches``).
+    """
+
+    dt_s: float
+    waypoints: int
+    t_first_s: float
+    t_last_s: float
+    t_s: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    qddd: np.ndarray
+
+    def __post_init__(self):
+        freeze_arrays(self)
+
+    def matches(self, trajectory: "Trajectory", dt_s: float | None = None) -> bool:
+        """True if these are samples of ``trajectory`` (same waypoint count and end times) at ``dt_s``."""
+        t = trajectory.t_s
+        return (self.waypoints == len(t) and len(t) > 0 and self.t_first_s == float(t[0])
+                and self.t_last_s == float(t[-1]) and self.q.shape[1:] == np.shape(trajectory.q)[1:]
+                and (dt_s is None or self.dt_s == dt_s))
+
+
+def sample_trajectory(trajectory: Trajectory, dt_s: float) -> TrajectorySamples:
+    """Resample ``trajectory`` every ``dt_s`` (s) in chunks of ``SAMPLE_CHUNK_WAYPOINTS`` waypoints.
+
+    Chunk [a, b] (waypoint indices, b = a + chunk or the last one) is sampled
+    like ``Trajectory.sample`` on that chunk alone; the chunks' samples are
+    written one after another into arrays allocated once.
+    """
+    tr = trajectory
+    t_s, q, qd, qdd = tr.t_s, tr.q, tr.qd, tr.qdd
+    m = len(t_s)
+    dof = np.shape(q)[1]
+    chunks = [(a, min(a + SAMPLE_CHUNK_WAYPOINTS, m - 1)) for a in range(0, max(m - 1, 1), SAMPLE_CHUNK_WAYPOINTS)]
+    grids = [_grid(t_s[a:b + 1], dt_s) for a, b in chunks]
+    total = sum(len(g) for g in grids)
+    out = [np.empty((total, dof)) for _ in range(4)]
+    i = 0
+    for (a, b), t in zip(chunks, grids):
+        values = _hermite(t_s[a:b + 1], q[a:b + 1], qd[a:b + 1], qdd[a:b + 1], t)
+        for dst, src in zip(out, values):
+            dst[i:i + len(t)] = src
+        i += len(t)
+    return TrajectorySamples(float(dt_s), int(m), float(t_s[0]), float(t_s[-1]), np.concatenate(grids), *out)
 
 
 def quintic_coefficients(p0, v0, a0, p1, v1, a1) -> list[np.ndarray]:

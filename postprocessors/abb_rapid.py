@@ -26,6 +26,7 @@ from camtool.profiles import require_full_map
 from camtool.transforms import matrix_from_xyz_rpy, quaternion_wxyz_from_matrix
 
 from .base import chunks, sanitise_name
+from .check import check_motion, resolution_tol
 
 RESERVED = frozenset("""ALIAS AND BACKWARD CASE CONNECT CONST DEFAULT DIV DO ELSE ELSEIF ENDFOR ENDFUNC ENDIF
 ENDMODULE ENDPROC ENDRECORD ENDTEST ENDTRAP ENDWHILE ERROR EXIT FALSE FOR FROM FUNC GOTO IF INOUT LOCAL MOD
@@ -99,6 +100,17 @@ class ModuleText:
     problems: list[str] = field(default_factory=list)
 
 
+def _all_finite(text: str) -> bool:
+    """False when a data value holds nan / inf or a number too large for a float."""
+    for tok in re.split(r"[\s,\[\]]+", text):
+        try:
+            if not math.isfinite(float(tok)):
+                return False
+        except ValueError:  # TRUE, "", a name: not a number
+            pass
+    return True
+
+
 def _floats(text: str) -> list[float]:
     return [float(v) for v in text.split(",")] if text.strip() else []
 
@@ -150,6 +162,8 @@ def parse_module(path: Path) -> ModuleText:
             depth = max(0, depth - 1)
         elif (dm := PERS_RE.match(line)) and not depth:
             m.data[dm.group("name")] = dm.group("type")
+            if not _all_finite(line.split(":=", 1)[1]):
+                m.problems.append(f"{where}: {dm.group('name')} holds a value that is not a finite number")
         elif s.startswith("MoveAbsJ"):
             mv = MOVE_RE.match(line)
             if not mv or not depth:
@@ -160,11 +174,17 @@ def parse_module(path: Path) -> ModuleText:
             except ValueError:
                 m.problems.append(f"{where}: jointtarget values must be numbers")
                 continue
+            if not all(math.isfinite(v) for v in rax + eax):
+                m.problems.append(f"{where}: jointtarget values must be finite numbers")
+                continue
             if len(rax) != 6 or len(eax) != 6:
                 m.problems.append(f"{where}: jointtarget needs 6 robot and 6 external values, found "
                                   f"{len(rax)} and {len(eax)}")
                 continue
             t = mv.group("t")
+            if t and not math.isfinite(float(t)):
+                m.problems.append(f"{where}: \\T must be a finite number of seconds, found {t}")
+                continue
             m.moves.append(Move(n, rax, eax, mv.group("speed"), float(t) if t else None,
                                 mv.group("zone"), mv.group("tool"), mv.group("wobj")))
         elif (lm := LOAD_RE.match(line)) and depth:
@@ -217,6 +237,7 @@ class RapidPost:
 
     name = "rapid"
     extension = ".mod"
+    extensions = (".pgf", ".mod")  # every file type it writes; `camtool check` finds the format by these
     requires_profile = True
     options_schema = {
         "lines_per_module": (int, 5000, "Moves per module; longer programs are split into modules run by a main module."),
@@ -333,3 +354,70 @@ class RapidPost:
         names = RAX + EAX
         values = {a.axis: np.array([(m.rax + m.eax)[names.index(a.axis)] for m in moves]) for a in profile.axes}
         return dur, profile.from_axes(values, robot) if moves else np.zeros((0, robot.dof))
+
+    # --- checking --------------------------------------------------------------------------
+
+    def check(self, path: Path, robot, profile) -> list[str]:
+        """Findings for a program (.pgf) or module (.mod) and the modules it loads: module /
+        proc nesting (a truncated module lacks ENDPROC / ENDMODULE), statements, identifiers,
+        declared tool and work object, 6 + 6 finite jointtarget values, 9E9 exactly on the
+        axes the profile leaves unconnected, zones, speed data, a ``fine`` last move; then
+        every value against the robot's limits and every \\T step against its speed limits
+        (tolerance: the written 1e-4 deg / 1e-3 mm)."""
+        path = Path(path)
+        out: list[str] = []
+        try:
+            modules = program_modules(path)
+        except BadInput as exc:
+            return [str(exc)]
+        if path.suffix.lower() == ".pgf" and not path.read_bytes().endswith(b"\n"):
+            out.append(f"{path}: no newline at end of file")
+        mapped = {a.axis for a in profile.axes}
+        names = RAX + EAX
+        procs = {p for _mp, mt in modules for p in mt.procs}
+        declared = {n: t for _mp, mt in modules for n, t in mt.data.items()}
+        entry = path.suffix.lower() == ".pgf" or "main" in modules[0][1].procs
+        moves, where = [], []
+        for mp, mt in modules:
+            out += mt.problems
+            if mt.name:
+                ident, _ = rapid_identifier(mt.name)
+                if ident != mt.name or len(mt.name) > 32:
+                    out.append(f"{mp}: module name {mt.name!r} is not a valid RAPID identifier")
+                if mt.name != mp.stem:
+                    out.append(f"{mp}: module {mt.name!r} is in a file named {mp.name!r}")
+            for p in mt.procs + list(mt.data):
+                if rapid_identifier(p)[0] != p and p not in BUILTIN_DATA:
+                    out.append(f"{mp}: {p!r} is not a valid RAPID identifier")
+            for n, proc in mt.calls:
+                if proc not in procs:
+                    out.append(f"{mp}:{n}: %\"{proc}\"% calls a routine no loaded module defines")
+            for mv in mt.moves:
+                w = f"{mp}:{mv.line}"
+                vals = dict(zip(names, mv.rax + mv.eax))
+                for ax in names:
+                    if ax in mapped and vals[ax] >= 8.9e9:
+                        out.append(f"{w}: {ax} is connected (profile) but written as 9E9")
+                    elif ax not in mapped and vals[ax] != NOT_CONNECTED:
+                        out.append(f"{w}: {ax} is not connected (profile) and must be 9E9, found {vals[ax]}")
+                if mv.zone not in ZONES:
+                    out.append(f"{w}: unknown zone {mv.zone!r}")
+                if mv.speed not in SPEEDS:
+                    out.append(f"{w}: unknown speed data {mv.speed!r}")
+                for kind, name in (("tooldata", mv.tool), ("wobjdata", mv.wobj)):
+                    # a split module alone relies on the main module's declarations
+                    if entry and name and name not in BUILTIN_DATA and declared.get(name) != kind:
+                        out.append(f"{w}: {kind} {name!r} is not declared in the program")
+                moves.append(mv)
+                where.append(w)
+        if entry and "main" not in modules[0][1].procs:
+            out.append(f"{modules[0][0]}: the main module has no PROC main()")
+        if entry and moves and moves[-1].zone != "fine":
+            out.append(f"{where[-1]}: the last move must be fine, found {moves[-1].zone}")
+        if not moves or out:
+            if not moves and not out:
+                out.append(f"{path}: no MoveAbsJ found")
+            if any("connected" in f for f in out):
+                return out
+        dur, q = self.moves_to_arrays(moves, robot, profile)
+        return out + check_motion(q, dur, robot, where, resolution_tol(robot, 1e-4, 1e-3))

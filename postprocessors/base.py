@@ -6,9 +6,14 @@ controller program files. Plugins are found through the entry-point group
 built-ins (rapid, inform, csv) register the same way in camtool's
 pyproject.toml. An entry point names a class (instantiated without arguments)
 or an instance. See docs/plugins.md.
+
+The built-ins are ordinary plugins: each owns its writer, reader and check.
+The registry is discovered once per process and cached (``discover``);
+``clear_cache()`` forgets it, for tests that install or fake plugins.
 """
 from __future__ import annotations
 
+import functools
 import logging
 import re
 from dataclasses import dataclass
@@ -47,8 +52,14 @@ class PostProcessor(Protocol):
       (M x dof, rad / mm) of each move's target.
 
     Optional attributes: ``requires_profile`` (bool, default True: a profile
-    with an axis map is needed), ``check(path, robot, profile) -> list[str]``
-    (findings; the built-ins are checked by ``postprocessors.check``).
+    with an axis map is needed), ``extensions`` (every file type it writes,
+    default ``(extension,)``; ``camtool check`` finds a file's format by
+    them), ``validate_profile(profile, robot)``, ``job_options(job) -> dict``
+    (options the plugin takes from job keys, such as the CSV angle unit) and
+    ``check(path, robot, profile) -> list[str]`` (findings for one written
+    file, empty when clean).
+    A plugin without ``check`` is checked by reading its entry file back
+    (``postprocessors.check.read_back_check``).
     """
 
     name: str
@@ -90,8 +101,19 @@ def discover() -> dict[str, PluginInfo]:
 
     A plugin that fails to load is listed with its error. When two packages
     register the same name, the first one found wins and the other is ignored
-    with a log warning.
+    with a log warning. The entry points are scanned once per process (the
+    result is cached; ``clear_cache()`` forgets it); each call returns a new dict.
     """
+    return dict(_registry())
+
+
+def clear_cache() -> None:
+    """Forget the discovered plugins: the next ``discover`` scans the entry points again."""
+    _registry.cache_clear()
+
+
+@functools.cache
+def _registry() -> tuple[tuple[str, PluginInfo], ...]:
     found: dict[str, PluginInfo] = {}
     for ep in sorted(entry_points(group=GROUP), key=lambda e: (e.name, e.value)):
         source = ep.dist.name if getattr(ep, "dist", None) is not None else "?"
@@ -108,7 +130,7 @@ def discover() -> dict[str, PluginInfo]:
                 import importlib
                 return getattr(importlib.import_module(module), attr)
             found[name] = _load_entry(name, value, "camtool (source tree)", load)
-    return dict(sorted(found.items()))
+    return tuple(sorted(found.items()))
 
 
 def get_plugin(name: str):
@@ -134,6 +156,7 @@ def describe_plugins() -> list[dict]:
                 options[k] = {"type": getattr(typ, "__name__", str(typ)), "default": default, "doc": doc}
         out.append({"name": info.name, "extension": getattr(p, "extension", ""), "source": info.source,
                     "entry_point": info.entry_point, "options": options,
+                    **({"check": "own" if hasattr(p, "check") else "read-back"} if p is not None else {}),
                     **({"error": info.error} if info.error else {})})
     return out
 
@@ -163,11 +186,6 @@ def sanitise_name(raw: str, *, max_len: int, reserved: frozenset[str] = frozense
 def joint_values_edge(trajectory_q: np.ndarray, prismatic: np.ndarray) -> np.ndarray:
     """Joint values in edge units: degrees for revolute joints, mm for prismatic."""
     return np.where(prismatic[None, :], trajectory_q, np.degrees(trajectory_q))
-
-
-def joint_values_native(edge_q: np.ndarray, prismatic: np.ndarray) -> np.ndarray:
-    """Inverse of ``joint_values_edge``: degrees -> rad for revolute joints, mm unchanged."""
-    return np.where(prismatic[None, :], edge_q, np.radians(edge_q))
 
 
 def chunks(n: int, size: int) -> list[range]:

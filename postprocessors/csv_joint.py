@@ -4,6 +4,9 @@ Header: ``t_s`` then ``<joint>_<unit>`` with unit ``mm`` for prismatic joints
 and ``deg`` or ``rad`` (option ``angle_unit``) for revolute ones, e.g.
 ``t_s,track_mm,j2_deg,...``. Numbers are written with Python's shortest
 round-trip ``repr``, so a reader gets back exactly the floats that were written.
+The last line is the trailer ``# END <rows> rows``: a file cut anywhere, even at
+a row boundary, has no complete trailer or the wrong count, and fails the check.
+(``#`` starts a comment for numpy's ``loadtxt`` and pandas' ``comment="#"``.)
 LF line ends, ASCII.
 """
 from __future__ import annotations
@@ -16,20 +19,39 @@ import numpy as np
 from camtool.errors import BadInput
 
 from .base import sanitise_name
+from .check import MAX_PER_KIND, check_motion
 
 COLUMN_RE = re.compile(r"^(?P<joint>.+)_(?P<unit>mm|deg|rad)$")
+TRAILER_RE = re.compile(r"^# END (?P<rows>[0-9]+) rows$")
+
+
+def trailer(n_rows: int) -> str:
+    """The last line of a camtool CSV: the number of data rows above it."""
+    return f"# END {n_rows} rows"
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text(encoding="ascii")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BadInput(f"{path}: cannot read as ASCII CSV ({exc})") from None
 
 
 def read_table(path: Path) -> tuple[list[str], np.ndarray]:
-    """Header and values (file units) of a camtool CSV; BadInput on a malformed file."""
+    """Header and values (file units) of a camtool CSV; BadInput on a malformed file.
+
+    A last line starting with ``#`` (the trailer) is not data; the check, not the
+    reader, insists on a complete trailer."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="ascii")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise BadInput(f"{path}: cannot read as ASCII CSV ({exc})") from None
+    return _parse(path, _read_text(path))
+
+
+def _parse(path: Path, text: str) -> tuple[list[str], np.ndarray]:
     lines = text.splitlines()
     if not lines:
         raise BadInput(f"{path}: empty file")
+    if len(lines) > 1 and lines[-1].startswith("#"):
+        lines = lines[:-1]
     header = lines[0].split(",")
     rows = []
     for n, line in enumerate(lines[1:], 2):
@@ -53,10 +75,16 @@ class CsvPost:
 
     name = "csv"
     extension = ".csv"
+    extensions = (".csv",)
     requires_profile = False
     options_schema = {
         "angle_unit": (str, "deg", "Unit of revolute joints: deg or rad (the job's post.csv_angle_unit sets it)."),
     }
+
+    @staticmethod
+    def job_options(job) -> dict:
+        """Options set by job keys: ``post.csv_angle_unit`` is the angle unit."""
+        return {"angle_unit": job.post.csv_angle_unit}
 
     def validate_profile(self, profile, robot) -> None:
         """BadInput on an angle unit other than deg or rad."""
@@ -74,6 +102,7 @@ class CsvPost:
         lines = [",".join(columns_for(robot, unit))]
         for t, row in zip(np.asarray(trajectory.t_s, float), edge):
             lines.append(",".join(repr(float(v)) for v in (t, *row)))
+        lines.append(trailer(len(lines) - 1))
         path = Path(outdir) / f"{name}.csv"
         path.write_bytes(("\n".join(lines) + "\n").encode("ascii"))
         return [path]
@@ -86,7 +115,9 @@ class CsvPost:
 
     def read_trajectory(self, path: Path, robot) -> tuple[np.ndarray, np.ndarray]:
         """(t_s, q in rad / mm) from a camtool CSV; BadInput when the columns do not fit the robot."""
-        header, data = read_table(path)
+        return self._columns(path, *read_table(path), robot)
+
+    def _columns(self, path, header, data, robot) -> tuple[np.ndarray, np.ndarray]:
         if not header or header[0] != "t_s":
             raise BadInput(f"{path}:1: the first column must be t_s, found {header[0] if header else ''!r}")
         if len(header) != robot.dof + 1:
@@ -102,3 +133,33 @@ class CsvPost:
                                f"{'prismatic (mm)' if pr else 'revolute (deg or rad)'}")
             q[:, i] = np.radians(data[:, i + 1]) if unit == "deg" else data[:, i + 1]
         return data[:, 0], q
+
+    def check(self, path: Path, robot, profile=None) -> list[str]:
+        """Findings for a CSV: a complete trailer whose row count matches (so a file cut
+        anywhere fails), the header against the robot, one number per column, every value
+        a finite number; then every value against the robot's limits and every step's
+        speed (from ``t_s``) against its speed limits (tolerance 1e-9)."""
+        path = Path(path)
+        try:
+            text = _read_text(path)
+            t_s, q = self._columns(path, *_parse(path, text), robot)
+        except BadInput as exc:
+            return [str(exc)]
+        out = []
+        lines = text.splitlines()
+        m = TRAILER_RE.match(lines[-1])
+        if not text.endswith("\n"):
+            out.append(f"{path}:{len(lines)}: no newline at the end of the file (truncated?)")
+        if m is None:
+            out.append(f"{path}:{len(lines)}: no trailer '{trailer(len(t_s))}': the file is truncated or "
+                       "not a complete camtool CSV")
+        elif int(m.group("rows")) != len(t_s):
+            out.append(f"{path}:{len(lines)}: the trailer says {m.group('rows')} rows, the file has {len(t_s)}")
+        if len(t_s) == 0:
+            return out + [f"{path}: no rows"]
+        where = [f"{path}:{k + 2}" for k in range(len(t_s))]
+        bad_t = np.flatnonzero(~np.isfinite(t_s))
+        out += [f"{where[k]}: t_s is not a finite number" for k in bad_t[:MAX_PER_KIND]]
+        # with a broken time column the speeds are unknown: the finding above fails the check
+        dur = np.full(len(t_s), np.nan) if len(bad_t) else np.concatenate([[np.nan], np.diff(t_s)])
+        return out + check_motion(q, dur, robot, where, np.full(robot.dof, 1e-9))

@@ -33,6 +33,7 @@ from camtool.errors import BadInput
 from camtool.profiles import require_full_map
 
 from .base import chunks, sanitise_name
+from .check import check_motion
 
 GROUPS = {"RB1": "C", "BS1": "BC", "ST1": "EC"}  # axis group -> position line prefix
 AXIS_RE = re.compile(r"^(RB1|BS1|ST1):([1-9][0-9]*)$")
@@ -40,6 +41,8 @@ DATE_RE = re.compile(r"^\d{4}/\d{2}/\d{2} \d{2}:\d{2}$")
 POS_RE = re.compile(r"^(C|BC|EC)(\d{5})=(.*)$")
 MOVE_RE = re.compile(r"^(MOVJ)((?: (?:C|BC|EC)\d{5})+) VJ=(\d+\.\d{2}) PL=(\d+)$")
 CALL_RE = re.compile(r"^CALL JOB:([A-Za-z0-9_]+)$")
+INT_RE = re.compile(r"^-?[0-9]+$")
+INT64 = (-(2 ** 63), 2 ** 63 - 1)
 
 
 def job_name(raw: str, max_len: int = 8) -> tuple[str, str]:
@@ -84,6 +87,7 @@ class JbiText:
     moves: list[JbiMove] = field(default_factory=list)
     calls: list[tuple[int, str]] = field(default_factory=list)
     problems: list[str] = field(default_factory=list)
+    bad_values: list[str] = field(default_factory=list)  # position lines whose pulses cannot be read
 
 
 def parse_jbi(path: Path) -> JbiText:
@@ -139,11 +143,19 @@ def parse_jbi(path: Path) -> JbiText:
         elif line.startswith("'"):
             continue
         elif section == "pos" and (m := POS_RE.match(line)):
-            try:
-                vals = [int(v) for v in m.group(3).split(",")]
-            except ValueError:
-                j.problems.append(f"{where}: pulse values must be integers")
+            cells = m.group(3).split(",")
+            if not all(INT_RE.match(c) for c in cells):
+                j.bad_values.append(f"{where}: pulse values must be integers")
+                j.problems.append(j.bad_values[-1])
                 continue
+            big = next((c for c in cells if len(c.lstrip("-").lstrip("0")) > 19
+                        or not INT64[0] <= int(c) <= INT64[1]), None)
+            if big is not None:
+                shown = big if len(big) <= 30 else big[:27] + "..."
+                j.bad_values.append(f"{where}: pulse value {shown} is beyond the int64 range")
+                j.problems.append(j.bad_values[-1])
+                continue
+            vals = [int(c) for c in cells]
             j.pos[m.group(1)].append((int(m.group(2)), vals, n))
         elif section == "inst" and (m := MOVE_RE.match(line)):
             refs = {}
@@ -213,6 +225,7 @@ class InformPost:
 
     name = "inform"
     extension = ".JBI"
+    extensions = (".JBI",)
     requires_profile = True
     options_schema = {
         "lines_per_job": (int, 2000, "Positions per job; longer programs are split into jobs run by a main job."),
@@ -264,8 +277,8 @@ class InformPost:
         """Joint values (rad / mm) from pulses per group."""
         values = {}
         for g, ax in group_axes(profile).items():
-            for k, a in enumerate(ax):
-                values[a.axis] = (pulses[g][:, k] - a.zero_pulses) / a.pulses
+            for k, a in enumerate(ax):  # in float: no int64 wrap-around for absurd pulse values
+                values[a.axis] = (np.asarray(pulses[g][:, k], float) - float(a.zero_pulses)) / a.pulses
         return profile.from_axes(values, robot)
 
     def write(self, trajectory, robot, profile, outdir: Path) -> list[Path]:
@@ -326,6 +339,8 @@ class InformPost:
         (NaN for the first move) and the target in rad / mm; follows CALL JOB."""
         moves, pulses = [], {g: [] for g in GROUPS}
         for _p, j in job_files(Path(path)):
+            if j.bad_values:
+                raise BadInput(j.bad_values[0])
             for mv in j.moves:
                 moves.append(mv)
                 for g, pre in GROUPS.items():
@@ -338,7 +353,12 @@ class InformPost:
         groups = group_axes(profile)
         arr = {}
         for g, ax in groups.items():
-            a = np.array(pulses.get(g, []), dtype=np.int64).reshape(-1, len(ax)) if pulses.get(g) else None
+            try:
+                a = np.array(pulses.get(g, []), dtype=np.int64).reshape(-1, len(ax)) if pulses.get(g) else None
+            except OverflowError:
+                raise BadInput(f"a {GROUPS[g]} pulse value is beyond the int64 range") from None
+            except ValueError:
+                a = None
             if a is None or len(a) != len(moves) or a.shape[1] != len(ax):
                 raise BadInput(f"job positions do not match the profile's {g} axes "
                                f"({len(ax)} values per {GROUPS[g]} line expected)")
@@ -351,3 +371,59 @@ class InformPost:
         for k in range(1, len(moves)):
             dur[k] = float(np.max(np.abs(values[k] - values[k - 1]) / vmax)) * 100.0 / moves[k].vj
         return dur, q
+
+    # --- checking --------------------------------------------------------------------------
+
+    def check(self, path: Path, robot, profile) -> list[str]:
+        """Findings for a job and the jobs it CALLs: NPOS counts against the positions (a
+        truncated job has fewer, and no END), contiguous indices, integer pulses within
+        int64, values per line, references, END, CRLF, ASCII, group and names; then every
+        value against the robot's limits and every move's speed against the robot's speed
+        limits (tolerance: one pulse). A move's duration is the controller's: the governing
+        axis at VJ % of the profile's ``max_speed`` (docs/controllers.md); the resulting
+        axis speeds must stay within ``robot.limits.velocity``, whatever the profile says."""
+        path = Path(path)
+        out: list[str] = []
+        groups = group_axes(profile)
+        want_group = list(groups)
+        max_len = profile.options.get("job_name_length", 8)
+        moves, pulses, where = [], {g: [] for g in GROUPS}, []
+        consistent = True
+        for jp, j in job_files(path):
+            out += j.problems
+            consistent &= not j.problems
+            if j.name:
+                if job_name(j.name, 32)[0] != j.name or len(j.name) > max_len:
+                    out.append(f"{jp}: job name {j.name!r} is not valid (uppercase, digits, _, leading letter, "
+                               f"<= {max_len} characters)")
+                if j.name != jp.stem:
+                    out.append(f"{jp}: job {j.name!r} is in a file named {jp.name!r}")
+            if j.group and j.group != want_group:
+                out.append(f"{jp}: ///GROUP1 {','.join(j.group)} does not match the profile ({','.join(want_group)})")
+                consistent = False
+            for g, ax in groups.items():
+                pre = GROUPS[g]
+                for _i, vals, ln in j.pos[pre]:
+                    if len(vals) != len(ax):
+                        out.append(f"{jp}:{ln}: {pre} line has {len(vals)} values, group {g} has {len(ax)} axes")
+                        consistent = False
+            for mv in j.moves:
+                moves.append(mv)
+                where.append(f"{jp}:{mv.line}")
+                for g, pre in GROUPS.items():
+                    if g in groups and pre in mv.refs and mv.refs[pre] < len(j.pos[pre]):
+                        pulses[g].append(j.pos[pre][mv.refs[pre]][1])
+        if not consistent or not moves:
+            if not moves and not out:
+                out.append(f"{path}: no MOVJ found")
+            return out
+        try:
+            dur, q = self.moves_to_arrays(moves, pulses, robot, profile)
+        except BadInput as exc:
+            return out + [f"{path}: {exc}"]
+        tol = np.zeros(robot.dof)
+        for a in (a for ax in groups.values() for a in ax):
+            i = robot.joint_names.index(a.joint)
+            step = 1.0 / a.pulses
+            tol[i] = step if robot.prismatic[i] else np.radians(step)
+        return out + check_motion(q, dur, robot, where, tol + 1e-9)

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from camtool.batch import cache, runner
-from camtool.batch.runner import JobSpec, discover_jobs, job_names, prepare_batch, reason_from_log, run_batch
+from camtool.batch.executors import run_batch
+from camtool.batch.runner import JobSpec, discover_jobs, job_names, prepare_batch, reason_from_log
 from camtool.errors import BadInput
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -5,6 +5,7 @@ import pytest
 from camtool.boundary import boundary_from_uv
 from camtool.fit import fit_surface
 from camtool.workpiece import load_workpiece
+from camtool.settings import FitSettings
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
 
@@ -42,7 +43,7 @@ def test_small_gaps_are_closed_and_largest_component_kept():
 
 
 def test_sample_plate_hole_stl():
-    s = fit_surface(load_workpiece(ROOT / "samples" / "plate_hole.stl"))
+    s = fit_surface(load_workpiece(ROOT / "samples" / "plate_hole.stl"), FitSettings.make())
     assert s.model == "plane" and np.allclose(s.normal, [0, 0, 1])
     assert len(s.boundary.holes_uv) == 1
     hole_centre_uv = s.uv_from_points(np.array([[60.0, 30.0, 0.0]]))

@@ -4,7 +4,8 @@ import json
 import numpy as np
 import pytest
 
-from camtool.cartesian import arc_poses, arc_through_points, line_poses, solve_poses
+from camtool.settings import TimingSettings
+from camtool.tasks.cartesian import arc_poses, arc_through_points, line_poses, solve_poses
 from camtool.errors import BadInput
 from camtool.robots import get_robot
 from camtool.transforms import matrix_from_xyz_rpy, rotation_angle_rad
@@ -69,7 +70,7 @@ def test_coarse_points_are_densified_until_within_tolerance(tmp_path):
 
 def test_deviation_measure_is_independent_of_the_solver(tmp_path):
     """Re-measure the sample's timed trajectory against the analytic line / circle here."""
-    from camtool.cartesian import build_moves, path_of_moves, seed001_moves
+    from camtool.tasks.cartesian import build_moves, path_of_moves, seed001_moves
     from camtool.job import load_job
     from camtool.pipeline import robot_for_job
     from camtool.timing import time_trajectory
@@ -84,7 +85,7 @@ def test_deviation_measure_is_independent_of_the_solver(tmp_path):
     n = len(q)
     f = np.zeros(n, bool)
     jp = JointPath(q, np.arange(n), path.zone, np.zeros(n), np.zeros(n), f, f, f, f, ~f)
-    tr = time_trajectory(jp, path, robot, "quintic", 100.0, 4.0)
+    tr = time_trajectory(jp, path, robot, TimingSettings.make(method="quintic", tcp_speed_mm_s=100.0, check_dt_ms=4.0))
     t, qs, *_ = tr.sample(0.004)
     p = np.array([robot.fk(x)[:3, 3] for x in qs])
     # distance to the union of: vertical line x=900,y=-200; line y in [-200,200] at z=600; circle r=100 about (800,200)

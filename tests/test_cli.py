@@ -1,11 +1,8 @@
-"""CLI basics: version, robots, fk, error mapping and the stage-unavailable rule."""
+"""CLI basics: version, robots, fk, and error mapping."""
 import json
 
 import numpy as np
 import pytest
-
-from camtool import pipeline
-from camtool.errors import StageUnavailable
 
 from conftest import run_camtool
 
@@ -49,7 +46,3 @@ def test_unknown_robot_one_line_exit_2():
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "unknown robot" in r.stderr
 
 
-def test_missing_stage_raises_unavailable(monkeypatch):
-    monkeypatch.setattr(pipeline, "STAGES", pipeline.STAGES + (("teleport", "camtool.no_such_stage", "go"),))
-    with pytest.raises(StageUnavailable, match="stage 'teleport' is not available.*after 'plan'"):
-        pipeline.stage_function("teleport", ["fit", "plan"])

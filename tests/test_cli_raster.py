@@ -4,7 +4,8 @@ import json
 import numpy as np
 import pytest
 
-from camtool.toolpath import ZONE_CODE, load_path
+from camtool.stage_files import load_stage as load_path
+from camtool.toolpath import ZONE_CODE
 from camtool.transforms import matrix_from_xyz_rpy
 
 from conftest import SAMPLES, run_camtool

@@ -6,6 +6,7 @@ from camtool.errors import BadInput
 from camtool.fit import fit_surface
 from camtool.surface import PlaneSurface, SpherePatch
 from camtool.workpiece import Workpiece
+from camtool.settings import FitSettings
 
 CENTER = np.array([1000.0, 0.0, 100.0])
 
@@ -49,7 +50,7 @@ def plane_wp():
 
 
 def test_sphere_accuracy(sphere_wp):
-    s = fit_surface(sphere_wp, model="sphere")
+    s = fit_surface(sphere_wp, FitSettings.make(model="sphere"))
     assert isinstance(s, SpherePatch)
     assert abs(s.radius_mm - 600.0) <= 0.05
     assert np.linalg.norm(s.center_mm - CENTER) <= 0.1
@@ -64,7 +65,7 @@ def test_sphere_accuracy(sphere_wp):
 
 def test_plane_accuracy_and_orientation(plane_wp):
     true_n = np.array([0.2, -1.0, 0.3]) / np.linalg.norm([0.2, -1.0, 0.3])
-    s = fit_surface(plane_wp, model="plane")
+    s = fit_surface(plane_wp, FitSettings.make(model="plane"))
     assert isinstance(s, PlaneSurface)
     angle_deg = np.degrees(np.arccos(np.clip(s.normal @ true_n, -1, 1)))
     assert angle_deg <= 0.01  # also checks the sign: towards the workpiece normals
@@ -74,20 +75,20 @@ def test_plane_accuracy_and_orientation(plane_wp):
 
 
 def test_auto_picks_plane_for_plane_and_sphere_for_sphere(plane_wp, sphere_wp):
-    assert fit_surface(plane_wp).model == "plane"
-    assert fit_surface(sphere_wp).model == "sphere"
+    assert fit_surface(plane_wp, FitSettings.make()).model == "plane"
+    assert fit_surface(sphere_wp, FitSettings.make()).model == "sphere"
 
 
 def test_auto_takes_plane_for_a_flat_cloud_without_outliers():
     rng = np.random.default_rng(3)
     pts, nrm = plane_points(5000, rng, np.array([0.0, 0.0, 1.0]), 10.0)
-    s = fit_surface(Workpiece(pts, nrm))
+    s = fit_surface(Workpiece(pts, nrm), FitSettings.make())
     assert s.model == "plane" and np.allclose(s.normal, [0, 0, 1], atol=1e-3)
 
 
 def test_same_seed_same_result(sphere_wp):
-    a = fit_surface(sphere_wp, seed=7, iterations=200)
-    b = fit_surface(sphere_wp, seed=7, iterations=200)
+    a = fit_surface(sphere_wp, FitSettings.make(seed=7, iterations=200))
+    b = fit_surface(sphere_wp, FitSettings.make(seed=7, iterations=200))
     assert a.radius_mm == b.radius_mm and np.array_equal(a.center_mm, b.center_mm)
     assert np.array_equal(a.boundary.outer_uv, b.boundary.outer_uv)
 
@@ -96,19 +97,19 @@ def test_no_model_reaches_min_inlier_ratio():
     rng = np.random.default_rng(4)
     wp = Workpiece(rng.uniform(0, 500, (3000, 3)), np.tile([0, 0, 1.0], (3000, 1)), source="noise.xyz")
     with pytest.raises(BadInput, match="min_inlier_ratio"):
-        fit_surface(wp)
+        fit_surface(wp, FitSettings.make())
 
 
 def test_degenerate_inputs():
     z = np.tile([0, 0, 1.0], (10, 1))
     with pytest.raises(BadInput, match="needs at least 3"):
-        fit_surface(Workpiece(np.zeros((2, 3)) + [[0, 0, 0], [1, 0, 0]], z[:2], source="two.xyz"))
+        fit_surface(Workpiece(np.zeros((2, 3)) + [[0, 0, 0], [1, 0, 0]], z[:2], source="two.xyz"), FitSettings.make())
     line = np.outer(np.arange(10.0), [1, 2, 3])
     with pytest.raises(BadInput, match="line"):
-        fit_surface(Workpiece(line, z, source="line.xyz"))
+        fit_surface(Workpiece(line, z, source="line.xyz"), FitSettings.make())
     rng = np.random.default_rng(0)
     flat = np.column_stack([rng.uniform(0, 100, (50, 2)), np.zeros(50)])
     with pytest.raises(BadInput, match="plane"):
-        fit_surface(Workpiece(flat, np.tile([0, 0, 1.0], (50, 1))), model="sphere")
+        fit_surface(Workpiece(flat, np.tile([0, 0, 1.0], (50, 1))), FitSettings.make(model="sphere"))
     with pytest.raises(BadInput, match="fit.model"):
-        fit_surface(Workpiece(flat, np.tile([0, 0, 1.0], (50, 1))), model="cone")
+        fit_surface(Workpiece(flat, np.tile([0, 0, 1.0], (50, 1))), FitSettings.make(model="cone"))

@@ -11,6 +11,7 @@ from camtool.robots import get_robot
 from camtool.robots.ik_srs import SrsIK
 
 from plan_fixtures import sphere_rows
+from camtool.settings import PlannerSettings
 
 REVERSE_KW = dict(track_scale_mm=1.0, posture_gain=0.0)  # the jump-provoking set-up of test_plan_strategy
 
@@ -63,16 +64,16 @@ def test_robots_without_families_fall_back_or_refuse():
     path = sphere_rows(center=(900.0, 0.0, 600.0), radius=300.0, el_deg=(10, 20), az_deg=(-5, 5), rows=1,
                        pitch_mm=20.0)
     with pytest.raises(BadInput, match="no closed-form IK families"):
-        plan_path(path, robot, ik_seeds="analytic")
+        plan_path(path, robot, PlannerSettings.make(ik_seeds="analytic"))
     with pytest.raises(BadInput, match="planner.ik_seeds"):
-        plan_path(path, get_robot("seed8"), ik_seeds="magic")
+        plan_path(path, get_robot("seed8"), PlannerSettings.make(ik_seeds="magic"))
 
 
 @pytest.fixture(scope="module")
 def reverse_plans():
     path = sphere_rows(rows=4)
     robot = get_robot("seed8")
-    return path, robot, {mode: plan_path(path, robot, ik_seeds=mode, **REVERSE_KW) for mode in ("random", "analytic")}
+    return path, robot, {mode: plan_path(path, robot, PlannerSettings.make(ik_seeds=mode, **REVERSE_KW)) for mode in ("random", "analytic")}
 
 
 def test_analytic_reverse_planning_moves_the_jumps_off_the_surface(reverse_plans):
@@ -90,23 +91,23 @@ def test_analytic_reverse_planning_moves_the_jumps_off_the_surface(reverse_plans
 
 def test_analytic_seeds_are_deterministic(reverse_plans):
     path, robot, plans = reverse_plans
-    again = plan_path(path, robot, ik_seeds="analytic", **REVERSE_KW)
+    again = plan_path(path, robot, PlannerSettings.make(ik_seeds="analytic", **REVERSE_KW))
     assert np.array_equal(again.q, plans["analytic"].q)
     assert again.events["reverse_plans"] == plans["analytic"].events["reverse_plans"]
 
 
 def test_auto_is_analytic_for_srs_and_random_is_the_default(reverse_plans):
     path, robot, plans = reverse_plans
-    auto = plan_path(path, robot, ik_seeds="auto", **REVERSE_KW)
+    auto = plan_path(path, robot, PlannerSettings.make(ik_seeds="auto", **REVERSE_KW))
     assert np.array_equal(auto.q, plans["analytic"].q)
-    default = plan_path(path, robot, **REVERSE_KW)
+    default = plan_path(path, robot, PlannerSettings.make(**REVERSE_KW))
     assert np.array_equal(default.q, plans["random"].q)
 
 
 def test_analytic_start_configuration_has_margin():
     path = sphere_rows(rows=1, pitch_mm=20.0)
     robot = get_robot("seed8")
-    jp = plan_path(path, robot, ik_seeds="analytic")
+    jp = plan_path(path, robot, PlannerSettings.make(ik_seeds="analytic"))
     ev = jp.events
     assert ev["start_configuration"] == "searched" and ev["ik_seeds"] == "analytic"
     span = robot.limits.upper - robot.limits.lower

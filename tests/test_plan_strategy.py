@@ -15,6 +15,7 @@ from camtool.transforms import rotation_angle_rad
 
 from conftest import SAMPLES
 from plan_fixtures import sphere_rows
+from camtool.settings import PlannerSettings
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +28,7 @@ def sphere_job():
 @pytest.fixture(scope="module")
 def seed_plan(sphere_job):
     job, path, robot = sphere_job
-    return plan_path(path, robot, **job.planner)
+    return plan_path(path, robot, PlannerSettings.make(**job.planner))
 
 
 def test_every_work_point_within_1um_and_0001deg(sphere_job, seed_plan):
@@ -59,7 +60,7 @@ def test_seed_is_smooth_on_the_surface(sphere_job, seed_plan):
 
 def test_general_baseline_runs_and_is_rougher(sphere_job, seed_plan):
     job, path, robot = sphere_job
-    general = plan_path(path, robot, **{**job.planner, "method": "general"})
+    general = plan_path(path, robot, PlannerSettings.make(**{**job.planner, "method": "general"}))
     mg = plan_metrics(path, general, robot, "general", 50, 100)
     ms = plan_metrics(path, seed_plan, robot, "seed", 50, 100)
     assert mg["max_joint_step_work_deg"] > ms["max_joint_step_work_deg"]
@@ -67,7 +68,7 @@ def test_general_baseline_runs_and_is_rougher(sphere_job, seed_plan):
 
 def test_deterministic(sphere_job, seed_plan):
     job, path, robot = sphere_job
-    again = plan_path(path, robot, **job.planner)
+    again = plan_path(path, robot, PlannerSettings.make(**job.planner))
     assert np.array_equal(again.q, seed_plan.q)
 
 
@@ -77,8 +78,8 @@ def test_reverse_planning_and_fallback_move_jumps_off_the_surface():
     path = sphere_rows(rows=4)
     robot = get_robot("seed8")
     kw = dict(track_scale_mm=1.0, posture_gain=0.0)
-    general = plan_path(path, robot, method="general", **kw)
-    seed = plan_path(path, robot, method="seed", **kw)
+    general = plan_path(path, robot, PlannerSettings.make(method="general", **kw))
+    seed = plan_path(path, robot, PlannerSettings.make(method="seed", **kw))
     mg = plan_metrics(path, general, robot, "general", 50, 100)
     ms = plan_metrics(path, seed, robot, "seed", 50, 100)
     assert mg["on_surface_jumps"] >= 1
@@ -88,12 +89,16 @@ def test_reverse_planning_and_fallback_move_jumps_off_the_surface():
         seg = path.segment[ev["index"]]
         first = np.flatnonzero((path.segment == seg) & (path.zone == ZONE_CODE["work"]))[0]
         assert np.all(seed.reverse_planned[np.isin(seed.path_index, np.arange(first, ev["index"] + 1))])
-    # every fallback point is listed and preceded by inserted retract poses that move only the track
+    # every fallback point is listed and preceded by inserted retract poses: a straight lift off the
+    # surface along its normal, and a straight descent onto the point
     for ev in seed.events["retracts"]:
         row = int(np.flatnonzero(seed.path_index == ev["index"])[0])
-        assert seed.retract[row - 2] and seed.retract[row - 1] and seed.singular[row]
-        assert np.allclose(seed.q[row - 2][1:], seed.q[row - 3][1:])  # track away, arm still
-        assert np.allclose(seed.q[row - 1][1:], seed.q[row][1:])      # arm moved, track returns next
+        lift = np.flatnonzero(seed.retract[:row])[-10:]
+        assert len(lift) == 10 and seed.singular[row] and lift[-1] == row - 1
+        tcp = np.array([(robot.base_T_mm @ robot.fk_tcp(q))[:3, 3] for q in seed.q[lift]])
+        normal_out = -path.poses_mm[ev["index"]][:3, 2]
+        p0, p1 = path.poses_mm[ev["index"] - 1][:3, 3], path.poses_mm[ev["index"]][:3, 3]
+        assert (tcp[4] - p0) @ normal_out > 199.0 and (tcp[5] - p1) @ normal_out > 199.0
     # the path stays exact at every pose, fallback points included
     assert seed.position_error_mm[seed.path_index >= 0].max() <= 1e-4
 
@@ -101,7 +106,7 @@ def test_reverse_planning_and_fallback_move_jumps_off_the_surface():
 def test_unreachable_poses_raise_with_a_list():
     path = sphere_rows(center=(2400.0, 0.0, 100.0), rows=2, pitch_mm=40.0)
     with pytest.raises(PlanInfeasible) as info:
-        plan_path(path, get_robot("seed8"), reverse_samples=5)
+        plan_path(path, get_robot("seed8"), PlannerSettings.make(reverse_samples=5))
     unreachable = info.value.report["unreachable"]
     assert len(unreachable) > 0
     assert {"index", "segment", "point", "xyz_mm"} <= set(unreachable[0])
@@ -119,6 +124,6 @@ def test_runs_split_at_segments():
 def test_bad_method_and_home():
     path = sphere_rows(rows=1, pitch_mm=50.0)
     with pytest.raises(BadInput, match="planner.method"):
-        plan_path(path, get_robot("seed8"), method="magic")
+        plan_path(path, get_robot("seed8"), PlannerSettings.make(method="magic"))
     with pytest.raises(BadInput, match="home_deg"):
-        plan_path(path, get_robot("seed8"), home_deg=[0, 0])
+        plan_path(path, get_robot("seed8"), PlannerSettings.make(q_home=[0, 0]))

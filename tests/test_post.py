@@ -157,3 +157,27 @@ def test_a_rerun_with_fewer_parts_leaves_no_stale_part(tmp_path):
     few = write_programs(smooth_trajectory(r, 30), r, job, out)
     left = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
     assert left == sorted([f.name for f in few] + ["notes.txt"])
+
+
+def test_post_has_no_format_of_its_own():
+    """Every plugin, built-in or not, goes through the protocol: no format names in camtool.post."""
+    import inspect
+
+    import camtool.post
+
+    src = inspect.getsource(camtool.post)
+    for word in ('"csv"', '"rapid"', '"inform"', "format_of", "check_program"):
+        assert word not in src
+
+
+def test_a_plugin_takes_options_from_the_job(tmp_path, monkeypatch):
+    from camtool.post import profile_for_job
+    from postprocessors.base import get_plugin
+
+    r = get_robot("irb2400")
+    job = _job(tmp_path, "irb2400", 'formats = ["csv"]\ncsv_angle_unit = "rad"\n')
+    assert profile_for_job("csv", get_plugin("csv"), r, job).options["angle_unit"] == "rad"
+    rapid = get_plugin("rapid")
+    assert not hasattr(rapid, "job_options")
+    monkeypatch.setattr(type(rapid), "job_options", lambda self, job: {"zone": "z50"}, raising=False)
+    assert profile_for_job("rapid", rapid, r, job).options["zone"] == "z50"

@@ -105,3 +105,103 @@ print([p.name for p in write_programs(smooth_trajectory(r, 20), r, load_job(job_
     assert out.returncode == 0, out.stderr
     assert "['DEMO.txt']" in out.stdout
     assert len((tmp_path / "out" / "DEMO.txt").read_text().splitlines()) == 20
+
+
+def test_discovery_scans_the_entry_points_once_and_can_be_cleared(monkeypatch, tmp_path):
+    import postprocessors.base as base
+    from camtool.job import load_job
+    from camtool.post import write_programs
+    from camtool.robots import get_robot
+    from post_fixtures import smooth_trajectory
+
+    scans = []
+    real = base.entry_points
+    monkeypatch.setattr(base, "entry_points", lambda **kw: scans.append(kw) or real(**kw))
+    base.clear_cache()
+    try:
+        job_file = tmp_path / "job.toml"
+        job_file.write_text('[workpiece]\nfile = "x.stl"\n[robot]\nname = "seed8"\n[post]\n')
+        r = get_robot("seed8")
+        write_programs(smooth_trajectory(r, 20), r, load_job(job_file), tmp_path / "out")  # 3 formats
+        describe_plugins()
+        get_plugin("csv")
+        assert len(scans) == 1
+        found = discover()
+        found.pop("rapid")  # callers get their own dict: the cache is not changed
+        assert "rapid" in discover()
+        base.clear_cache()
+        discover()
+        assert len(scans) == 2
+    finally:
+        base.clear_cache()
+
+
+def test_describe_says_which_check_a_plugin_has():
+    rows = {r["name"]: r for r in describe_plugins()}
+    assert {rows[n]["check"] for n in ("rapid", "inform", "csv")} == {"own"}
+
+
+def test_dead_helper_is_gone():
+    import postprocessors.base as base
+    assert not hasattr(base, "joint_values_native")
+
+
+class _NoCheckPost:
+    """A plugin without ``check``: one line per waypoint, ``t q1 q2 ...``; ``spoil`` breaks row 3."""
+
+    name = "nocheck"
+    extension = ".txt"
+    requires_profile = False
+    options_schema = {}
+
+    def __init__(self, spoil=None):
+        self.spoil = spoil
+
+    def write(self, trajectory, robot, profile, outdir):
+        rows = [[float(t), *map(float, q)] for t, q in zip(trajectory.t_s, trajectory.q)]
+        if self.spoil is not None:
+            rows[3][1] = self.spoil
+        path = Path(outdir) / "P.txt"
+        path.write_text("\n".join(" ".join(repr(v) for v in row) for row in rows) + "\n")
+        return [path]
+
+    def read(self, path, robot, profile):
+        import numpy as np
+        data = np.loadtxt(path, ndmin=2)
+        return np.concatenate([[np.nan], np.diff(data[:, 0])]), data[:, 1:]
+
+
+@pytest.mark.parametrize("spoil,message", [(None, None), (float("nan"), "move 4: j1: value is not a finite number"),
+                                           (9.0, "move 4: j1 = 515.6620 deg outside the limits")])
+def test_a_plugin_without_check_is_read_back_and_checked(spoil, message, monkeypatch, tmp_path):
+    import postprocessors.base as base
+    from camtool.errors import PlanInfeasible
+    from camtool.job import load_job
+    from camtool.post import write_programs
+    from camtool.robots import get_robot
+    from post_fixtures import smooth_trajectory
+
+    plugin = _NoCheckPost(spoil)
+    real = base.get_plugin
+    monkeypatch.setattr(base, "get_plugin", lambda name: plugin if name == "nocheck" else real(name))
+    job_file = tmp_path / "job.toml"
+    job_file.write_text('[workpiece]\nfile = "x.stl"\n[robot]\nname = "irb2400"\n[post]\nformats = ["nocheck"]\n')
+    r = get_robot("irb2400")
+    out = tmp_path / "out"
+    if message is None:
+        assert [f.name for f in write_programs(smooth_trajectory(r, 20), r, load_job(job_file), out)] == ["P.txt"]
+        return
+    with pytest.raises(PlanInfeasible) as exc:
+        write_programs(smooth_trajectory(r, 20), r, load_job(job_file), out)
+    assert any(message in f and str(out) in f for f in exc.value.report["findings"]), exc.value.report
+    assert not (out / "P.txt").exists()
+
+
+def test_read_back_check_reports_a_reader_that_fails(tmp_path):
+    from camtool.robots import get_robot
+    from postprocessors.check import check_file
+
+    f = tmp_path / "P.txt"
+    f.write_text("not numbers\n")
+    found = check_file(_NoCheckPost(), f, get_robot("irb2400"), None)
+    assert len(found) == 1 and "'nocheck' cannot read it back (ValueError" in found[0]

@@ -69,3 +69,24 @@ def test_same_trajectory_gives_identical_bytes(tmp_path):
     a = POST.write(tr, r, _profile("deg"), tmp_path / "a")[0].read_bytes()
     b = POST.write(tr, r, _profile("deg"), tmp_path / "b")[0].read_bytes()
     assert a == b
+
+
+def test_the_last_line_is_the_row_count_trailer(tmp_path):
+    r = get_robot("irb2400")
+    f = POST.write(smooth_trajectory(r, 7), r, _profile("deg"), tmp_path)[0]
+    lines = f.read_bytes().decode("ascii").split("\n")
+    assert lines[-1] == "" and lines[-2] == "# END 7 rows" and len(lines) == 1 + 7 + 2
+    assert np.loadtxt(f, delimiter=",", skiprows=1).shape == (7, 7)  # '#' is a comment for numpy
+    header, data = read_table(f)  # the reader does not take the trailer for data
+    assert header[0] == "t_s" and data.shape == (7, 7)
+
+
+def test_reader_takes_a_file_without_trailer(tmp_path):
+    """Older camtool CSVs had no trailer: they still read (the check flags them)."""
+    r = get_robot("irb2400")
+    tr = smooth_trajectory(r, 5)
+    f = POST.write(tr, r, _profile("rad"), tmp_path)[0]
+    f.write_text("\n".join(f.read_text().splitlines()[:-1]) + "\n")
+    t_s, q = POST.read_trajectory(f, r)
+    assert np.array_equal(t_s, tr.t_s) and np.array_equal(q, tr.q)
+    assert any("no trailer" in x for x in POST.check(f, r, None))

@@ -8,7 +8,9 @@ from camtool.errors import BadInput
 from camtool.raster import (APPROACH_POINTS, coverage, count_rows, coverage_radius_mm, raster_path,
                             raster_summary)
 from camtool.surface import Boundary, PlaneSurface, SpherePatch
-from camtool.toolpath import ZONE_CODE, Path, load_path, save_path
+from camtool.stage_files import load_stage as load_path, save_stage as save_path
+from camtool.toolpath import ZONE_CODE, Path
+from camtool.settings import RasterSettings
 
 WORK, SELF = ZONE_CODE["work"], ZONE_CODE["self_motion"]
 LEAD_IN, LEAD_OUT = ZONE_CODE["lead_in"], ZONE_CODE["lead_out"]
@@ -35,7 +37,7 @@ def plate():
 
 @pytest.fixture(scope="module")
 def sphere_path(sphere):
-    return raster_path(sphere)
+    return raster_path(sphere, RasterSettings.make())
 
 
 def work_segments(path):
@@ -54,7 +56,7 @@ def spacings(path):
 
 def test_pitch_within_5_percent_on_sphere_and_plane(sphere, plate):
     for surf, kw in ((sphere, {}), (sphere, {"angle_deg": 30}), (plate, {}), (plate, {"pitch_mm": 3.7})):
-        path = raster_path(surf, **kw)
+        path = raster_path(surf, RasterSettings.make(**kw))
         d = spacings(path)
         pitch = kw.get("pitch_mm", 5.0)
         assert np.all(np.abs(d - pitch) <= 0.05 * pitch), (kw, d.min(), d.max())
@@ -75,7 +77,7 @@ def test_sphere_rows_are_constant_elevation_and_geodesic_step(sphere, sphere_pat
 
 
 def test_plane_step_over_at_an_angle(plate):
-    path = raster_path(plate, angle_deg=30)
+    path = raster_path(plate, RasterSettings.make(angle_deg=30))
     across = np.array([-math.sin(math.radians(30)), math.cos(math.radians(30)), 0])
     t = np.unique(np.round(path.poses_mm[path.is_work, :3, 3] @ across, 6))
     assert np.allclose(np.diff(t), 10.0, atol=1e-6)
@@ -99,7 +101,7 @@ def test_boustrophedon_order(sphere, sphere_path):
 
 
 def test_hole_splits_rows_and_has_no_work_points(plate):
-    path = raster_path(plate)
+    path = raster_path(plate, RasterSettings.make())
     w = path.poses_mm[path.is_work, :3, 3]
     uv = plate.uv_from_points(w)
     assert np.all(plate.boundary.contains(uv))
@@ -148,7 +150,7 @@ def test_zone_labels_and_indices(sphere_path):
 
 
 def test_leads_continue_along_the_surface_and_lift(sphere):
-    path = raster_path(sphere, lead_mm=20, clearance_mm=8, transition_points=4)
+    path = raster_path(sphere, RasterSettings.make(lead_mm=20, clearance_mm=8, transition_points=4))
     p = path.poses_mm[:, :3, 3]
     dist = np.linalg.norm(p - sphere.center_mm, axis=1) - sphere.radius_mm  # height over the sphere
     assert np.allclose(dist[path.is_work], 0, atol=1e-6)
@@ -173,7 +175,7 @@ def test_leads_continue_along_the_surface_and_lift(sphere):
 
 
 def test_approach_and_depart_back_off_along_normal(sphere):
-    path = raster_path(sphere, clearance_mm=4)
+    path = raster_path(sphere, RasterSettings.make(clearance_mm=4))
     p = path.poses_mm[:, :3, 3]
     first = APPROACH_POINTS
     n0 = -path.poses_mm[first, :3, 2]
@@ -182,7 +184,7 @@ def test_approach_and_depart_back_off_along_normal(sphere):
 
 
 def test_no_leads_when_lead_is_zero(plate):
-    path = raster_path(plate, lead_mm=0)
+    path = raster_path(plate, RasterSettings.make(lead_mm=0))
     assert not np.isin(path.zone, [LEAD_IN, LEAD_OUT]).any()
     assert np.count_nonzero(path.zone == SELF) == 5 * path.segment.max()
 
@@ -204,7 +206,7 @@ def test_fixed_tool_x_does_not_flip_between_rows(sphere, sphere_path):
     x = sphere_path.poses_mm[sphere_path.is_work, :3, 0]
     assert np.all(x[:, 2] > 0)  # follows world +z projected onto the surface
     assert np.min(np.sum(x[1:] * x[:-1], axis=1)) > 0.9  # no 180 deg spin anywhere
-    travel = raster_path(sphere, tool_x="travel")
+    travel = raster_path(sphere, RasterSettings.make(tool_x="travel"))
     segs = [travel.poses_mm[travel.is_work & (travel.segment == i), :3, 0] for i in (0, 1)]
     assert np.dot(segs[0][-1], segs[1][0]) < -0.9  # travel-following x reverses with the row
     d = np.diff(travel.poses_mm[travel.is_work & (travel.segment == 0), :3, 3], axis=0)
@@ -213,16 +215,16 @@ def test_fixed_tool_x_does_not_flip_between_rows(sphere, sphere_path):
 
 
 def test_fixed_tool_x_parallel_to_normal_falls_back(plate):
-    path = raster_path(plate, tool_x_world=(0, 0, 1))  # the plate normal is +z
+    path = raster_path(plate, RasterSettings.make(tool_x_world=(0, 0, 1)))  # the plate normal is +z
     x = path.poses_mm[:, :3, 0]
     assert np.allclose(x, x[0]) and abs(x[0, 2]) < 1e-12
     assert np.allclose(path.poses_mm[:, :3, 2], [0, 0, -1])
 
 
 def test_lead_and_tilt_angles(plate):
-    base = raster_path(plate, tool_x="travel")
+    base = raster_path(plate, RasterSettings.make(tool_x="travel"))
     for lead, tilt in ((15.0, 0.0), (0.0, -20.0), (10.0, 5.0)):
-        p = raster_path(plate, tool_x="travel", lead_deg=lead, tilt_deg=tilt)
+        p = raster_path(plate, RasterSettings.make(tool_x="travel", lead_deg=lead, tilt_deg=tilt))
         w = p.is_work
         assert np.allclose(p.poses_mm[:, :3, 3], base.poses_mm[:, :3, 3])  # the TCP stays put
         d = base.poses_mm[w, :3, 0]  # travel direction
@@ -234,8 +236,8 @@ def test_lead_and_tilt_angles(plate):
 
 
 def test_free_spin_flag_and_npz_round_trip(sphere, tmp_path):
-    path = raster_path(sphere, step_over_mm=20, free_spin=True, lead_deg=5)
-    assert path.free_spin and not raster_path(sphere, step_over_mm=20).free_spin
+    path = raster_path(sphere, RasterSettings.make(step_over_mm=20, free_spin=True, lead_deg=5))
+    assert path.free_spin and not raster_path(sphere, RasterSettings.make(step_over_mm=20)).free_spin
     f = tmp_path / "p.npz"
     save_path(path, f)
     back = load_path(f)
@@ -246,7 +248,7 @@ def test_free_spin_flag_and_npz_round_trip(sphere, tmp_path):
 
 
 def test_deterministic(sphere):
-    a, b = raster_path(sphere, angle_deg=17), raster_path(sphere, angle_deg=17)
+    a, b = raster_path(sphere, RasterSettings.make(angle_deg=17)), raster_path(sphere, RasterSettings.make(angle_deg=17))
     assert np.array_equal(a.poses_mm, b.poses_mm)
 
 
@@ -255,20 +257,20 @@ def test_deterministic(sphere):
 
 def test_coverage_seed_patch_and_plate(sphere, sphere_path, plate):
     assert coverage(sphere, sphere_path, 10.0) >= 0.995
-    assert coverage(sphere, raster_path(sphere, angle_deg=45), 10.0) >= 0.995
-    assert coverage(plate, raster_path(plate), 10.0) >= 0.995
-    assert coverage(plate, raster_path(plate, angle_deg=30, pitch_mm=4), 10.0) >= 0.995
+    assert coverage(sphere, raster_path(sphere, RasterSettings.make(angle_deg=45)), 10.0) >= 0.995
+    assert coverage(plate, raster_path(plate, RasterSettings.make()), 10.0) >= 0.995
+    assert coverage(plate, raster_path(plate, RasterSettings.make(angle_deg=30, pitch_mm=4)), 10.0) >= 0.995
 
 
 def test_coverage_detects_a_missing_row(plate):
-    path = raster_path(plate, lead_mm=0)
+    path = raster_path(plate, RasterSettings.make(lead_mm=0))
     keep = path.segment != 10  # drop one segment (a whole row below the hole)
     holed = Path(path.poses_mm[keep], path.segment[keep], path.point[keep], path.zone[keep],
                  path.free_spin, path.step_over_mm, path.pitch_mm)
     full, gap = coverage(plate, path, 10.0), coverage(plate, holed, 10.0)
     assert full >= 0.995 and gap < 0.995
     # a too-wide step-over, measured against the nominal one, loses coverage too
-    assert coverage(plate, raster_path(plate, step_over_mm=14), 10.0) < 0.99
+    assert coverage(plate, raster_path(plate, RasterSettings.make(step_over_mm=14)), 10.0) < 0.99
 
 
 def test_coverage_radius():
@@ -284,7 +286,7 @@ def test_summary(sphere, sphere_path):
 
 
 def test_dense_variant_size(sphere):
-    path = raster_path(sphere, step_over_mm=2, pitch_mm=2)
+    path = raster_path(sphere, RasterSettings.make(step_over_mm=2, pitch_mm=2))
     assert 120_000 <= np.count_nonzero(path.is_work) <= 140_000
 
 
@@ -310,7 +312,7 @@ def test_dense_variant_size(sphere):
 ])
 def test_bad_arguments(sphere, kw, words):
     with pytest.raises(BadInput, match=words) as exc:
-        raster_path(sphere, **kw)
+        raster_path(sphere, RasterSettings.make(**kw))
     assert "\n" not in str(exc.value)
 
 
@@ -318,11 +320,11 @@ def test_empty_boundary(sphere):
     for outer in (np.zeros((0, 2)), rect(0, 1, 0, 1)[:2], np.array([[0, 0], [1, 1], [2, 2.0]])):
         surf = SpherePatch(sphere.center_mm, 600.0, sphere.frame, Boundary(outer))
         with pytest.raises(BadInput, match="empty"):
-            raster_path(surf)
+            raster_path(surf, RasterSettings.make())
 
 
 def test_hole_covering_everything_is_empty(plate):
     surf = PlaneSurface(plate.origin_mm, plate.normal, plate.u_axis, plate.v_axis,
                         Boundary(rect(0, 100, 0, 100), (rect(-10, 110, -10, 110),)))
     with pytest.raises(BadInput, match="no material"):
-        raster_path(surf)
+        raster_path(surf, RasterSettings.make())

@@ -3,9 +3,10 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput, PlanInfeasible
+from camtool.settings import TimingSettings
 from camtool.timing import check_trajectory, time_trajectory, timing_report
 from camtool.toolpath import ZONE_CODE
-from test_timing_fixtures import joint_path_and_path, seed8, tcp_speed_mm_s, two_runs
+from test_timing_fixtures import retract_path, seed8, tcp_speed_mm_s, two_runs
 
 ROBOT = seed8()
 JP, PATH = two_runs(ROBOT)
@@ -14,13 +15,14 @@ WORK = ZONE_CODE["work"]
 
 @pytest.fixture(scope="module", params=["quintic", "ruckig"])
 def timed(request):
-    return request.param, time_trajectory(JP, PATH, ROBOT, method=request.param, tcp_speed_mm_s=100.0)
+    return request.param, time_trajectory(JP, PATH, ROBOT, TimingSettings.make(method=request.param,
+                                                                               tcp_speed_mm_s=100.0))
 
 
 def test_within_limits_by_independent_check(timed):
     _, tr = timed
     assert check_trajectory(tr, ROBOT, dt_s=0.004) == []
-    rep = timing_report(tr, ROBOT)
+    rep = timing_report(tr, ROBOT, tr.check_samples)
     for key in ("peak_joint_speed_ratio", "peak_joint_acc_ratio", "peak_joint_jerk_ratio"):
         assert 0 < rep[key] <= 1.0
     assert 0 < rep["work_time_s"] < rep["cycle_time_s"] == pytest.approx(tr.duration_s)
@@ -64,11 +66,11 @@ def test_rest_at_run_boundaries(timed):
 
 
 def test_fast_job_is_slowed_down_and_reported():
-    tr = time_trajectory(JP, PATH, ROBOT, tcp_speed_mm_s=1500.0)
-    assert check_trajectory(tr, ROBOT) == []
+    tr = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(tcp_speed_mm_s=1500.0))
+    assert check_trajectory(tr, ROBOT, 0.004) == []
     mid = [s for s in tr.slowdowns if not s["at_run_end"]] or list(tr.slowdowns)
     assert mid and min(s["speed_ratio"] for s in mid) < 0.7
-    rep = timing_report(tr, ROBOT)
+    rep = timing_report(tr, ROBOT, tr.check_samples)
     assert rep["slowdowns"] == [dict(s) for s in tr.slowdowns]
     peaks = [rep[f"peak_joint_{k}_ratio"] for k in ("speed", "acc", "jerk")]
     assert 0.9 < max(peaks) <= 1.0  # the binding limit is used, not exceeded
@@ -77,13 +79,13 @@ def test_fast_job_is_slowed_down_and_reported():
 
 
 def test_slow_job_needs_no_mid_run_slowdown():
-    tr = time_trajectory(JP, PATH, ROBOT, tcp_speed_mm_s=50.0)
+    tr = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(tcp_speed_mm_s=50.0))
     assert [s for s in tr.slowdowns if not s["at_run_end"]] == []
 
 
 def test_deterministic():
-    a = time_trajectory(JP, PATH, ROBOT, method="quintic")
-    b = time_trajectory(JP, PATH, ROBOT, method="quintic")
+    a = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(method="quintic"))
+    b = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(method="quintic"))
     for f in ("t_s", "q", "qd", "qdd", "zone", "path_index"):
         assert np.array_equal(getattr(a, f), getattr(b, f))
     assert a.slowdowns == b.slowdowns
@@ -91,23 +93,10 @@ def test_deterministic():
 
 def test_inserted_retract_poses():
     n = 60
-    jp, _ = two_runs(ROBOT, n=n)
-    q = jp.q[: 2 * n + 2]
-    qa, qb = q[:n], q[n + 2:]
-    out = qa[-1].copy()
-    out[0] -= 200.0
-    turn = out.copy()
-    turn[4] += 0.8
-    back = qa[-1].copy()
-    back[4] += 0.8
-    qb = qb - qb[0] + back
-    qq = np.vstack([qa, out, turn, qb])
-    zone = np.array([WORK] * n + [ZONE_CODE["retract"]] * 2 + [WORK] * len(qb))
-    seg = np.zeros(len(qq), int)
-    pidx = np.r_[np.arange(n), -1, -1, np.arange(n, n + len(qb))]
-    jp2, path2 = joint_path_and_path(ROBOT, qq, zone, seg, pidx)
-    tr = time_trajectory(jp2, path2, ROBOT)
-    assert check_trajectory(tr, ROBOT) == []
+    jp2, path2, out = retract_path(ROBOT, n)
+    qa = jp2.q[:n]
+    tr = time_trajectory(jp2, path2, ROBOT, TimingSettings.make())
+    assert check_trajectory(tr, ROBOT, 0.004) == []
     ret = tr.zone == ZONE_CODE["retract"]
     assert ret.sum() > 10 and np.all(tr.path_index[ret] == -1)
     # the retract step moves the track only (straight joint-space line, phase-synchronised)
@@ -116,13 +105,22 @@ def test_inserted_retract_poses():
     assert np.allclose(tr.q[k0:k1 + 1, 1:], qa[-1][1:], atol=1e-9)
 
 
-def test_bad_inputs():
-    with pytest.raises(BadInput):
-        time_trajectory(JP, PATH, ROBOT, method="spline")
-    with pytest.raises(BadInput):
-        time_trajectory(JP, PATH, ROBOT, tcp_speed_mm_s=0)
+@pytest.mark.parametrize("keys", [{"method": "spline"}, {"tcp_speed_mm_s": 0}, {"check_dt_ms": 0},
+                                  {"zones": "glide"}])
+def test_bad_settings_are_the_schemas_job(keys):
+    with pytest.raises(BadInput, match="timing"):
+        TimingSettings.make(**keys)
+
+
+def test_bad_joint_path():
     q = JP.q.copy()
     q[5, 3] = np.radians(175)
     from dataclasses import replace
     with pytest.raises(PlanInfeasible, match="j4"):
-        time_trajectory(replace(JP, q=q), PATH, ROBOT)
+        time_trajectory(replace(JP, q=q), PATH, ROBOT, TimingSettings.make())
+    q = JP.q.copy()  # the JointPath made read-only the array it was given
+    q[5, 3] = np.nan
+    with pytest.raises(PlanInfeasible, match="row 5"):
+        time_trajectory(replace(JP, q=q), PATH, ROBOT, TimingSettings.make())
+    with pytest.raises(BadInput, match="shape"):
+        time_trajectory(replace(JP, q=JP.q[:, :7]), PATH, ROBOT, TimingSettings.make())

@@ -30,19 +30,19 @@ def test_trajectory_within_limits_has_no_findings():
     q = d * (10 * s**3 - 15 * s**4 + 6 * s**5)
     qd = d * (30 * s**2 - 60 * s**3 + 30 * s**4) / 2.0
     qdd = d * (60 * s - 180 * s**2 + 120 * s**3) / 4.0
-    assert check_trajectory(make(t, q, qd, qdd), ROBOT) == []
+    assert check_trajectory(make(t, q, qd, qdd), ROBOT, 0.004) == []
 
 
 def test_position_break_is_flagged_in_degrees():
     t = [0.0, 1.0]
-    out = check_trajectory(make(t, [3.1, 3.1], [0, 0], [0, 0], joint=2), ROBOT)
+    out = check_trajectory(make(t, [3.1, 3.1], [0, 0], [0, 0], joint=2), ROBOT, 0.004)
     assert out and all("joint j3" in x and "position" in x and "deg" in x for x in out)
     assert "177.6" in out[0] and "170" in out[0]
 
 
 def test_speed_break_is_flagged():
     t = np.linspace(0, 0.1, 6)
-    out = check_trajectory(make(t, 2.5 * t, np.full(6, 2.5), np.zeros(6)), ROBOT)
+    out = check_trajectory(make(t, 2.5 * t, np.full(6, 2.5), np.zeros(6)), ROBOT, 0.004)
     assert any("joint j2" in x and "speed" in x and "deg/s " in x and "120" in x for x in out)
     assert not any("acceleration" in x or "jerk" in x for x in out)
 
@@ -50,21 +50,21 @@ def test_speed_break_is_flagged():
 def test_acceleration_break_is_flagged():
     t = np.linspace(0, 0.3, 7)
     a = 6.0  # rad/s^2 > 300 deg/s^2, constant: no jerk, speed stays below 2.09 rad/s
-    out = check_trajectory(make(t, 0.5 * a * t**2, a * t, np.full(7, a)), ROBOT)
+    out = check_trajectory(make(t, 0.5 * a * t**2, a * t, np.full(7, a)), ROBOT, 0.004)
     assert any("acceleration" in x and "deg/s^2" in x and "300" in x for x in out)
     assert not any("speed" in x or "jerk" in x for x in out)
 
 
 def test_jerk_break_is_flagged():
     t = [0.0, 0.5]  # one smoothstep piece: jerk 60*0.1/0.125 = 48 rad/s^3 at the ends
-    out = check_trajectory(make(t, [0.0, 0.1], [0, 0], [0, 0]), ROBOT)
+    out = check_trajectory(make(t, [0.0, 0.1], [0, 0], [0, 0]), ROBOT, 0.004)
     assert any("jerk" in x and "deg/s^3" in x and "1500" in x for x in out)
     assert not any("speed" in x or "acceleration" in x for x in out)
 
 
 def test_track_uses_mm():
     t = np.linspace(0, 0.1, 6)
-    out = check_trajectory(make(t, 600 * t, np.full(6, 600.0), np.zeros(6), joint=0), ROBOT)
+    out = check_trajectory(make(t, 600 * t, np.full(6, 600.0), np.zeros(6), joint=0), ROBOT, 0.004)
     assert any("joint track" in x and "mm/s " in x and "500" in x for x in out)
 
 
@@ -72,6 +72,6 @@ def test_track_uses_mm():
 def test_time_stamps_and_finite_values(bad):
     t = np.array([0.0, 1.0, 1.0 if bad == "time" else 2.0])
     q = np.array([0.0, 0.1, 0.2 if bad == "time" else np.nan])
-    out = check_trajectory(make(t, q, np.zeros(3), np.zeros(3)), ROBOT)
+    out = check_trajectory(make(t, q, np.zeros(3), np.zeros(3)), ROBOT, 0.004)
     assert len(out) == 1
     assert ("not strictly increasing" in out[0]) if bad == "time" else ("non-finite" in out[0])

@@ -41,6 +41,44 @@ def two_runs(robot, n=120, pitch_mm=3.0, track_mm=400.0):
     return joint_path_and_path(robot, q, zone, seg)
 
 
+def transition_path(robot, n=60, k=6):
+    """Two work runs joined by k self-motion poses on a smooth arc (5 deg steps), like a raster U-turn."""
+    jp, _ = two_runs(robot, n=n)
+    qa = jp.q[:n]
+    step = np.zeros(8)
+    step[0], step[1], step[4] = 30.0, np.radians(3), np.radians(4)
+    mid = qa[-1] + np.arange(1, k + 1)[:, None] * step + np.sin(np.linspace(0, np.pi, k))[:, None] * \
+        np.r_[0, 0, np.radians(2), 0, 0, 0, 0, 0]
+    qb = jp.q[n + 2:] - jp.q[n + 2] + qa[-1] + (k + 1) * step
+    q = np.vstack([qa, mid, qb])
+    zone = np.array([ZONE_CODE["work"]] * n + [ZONE_CODE["self_motion"]] * k + [ZONE_CODE["work"]] * len(qb))
+    seg = np.array([0] * (n + k // 2) + [1] * (len(q) - n - k // 2))
+    return joint_path_and_path(robot, q, zone, seg)
+
+
+def retract_path(robot, n=60):
+    """A work run, a retract (track -200 mm, then a wrist turn: two inserted poses) and a work run.
+
+    Returns (joint path, path, q of the first retract pose).
+    """
+    jp, _ = two_runs(robot, n=n)
+    q = jp.q[: 2 * n + 2]
+    qa, qb = q[:n], q[n + 2:]
+    out = qa[-1].copy()
+    out[0] -= 200.0
+    turn = out.copy()
+    turn[4] += 0.8
+    back = qa[-1].copy()
+    back[4] += 0.8
+    qb = qb - qb[0] + back
+    qq = np.vstack([qa, out, turn, qb])
+    zone = np.array([ZONE_CODE["work"]] * n + [ZONE_CODE["retract"]] * 2 + [ZONE_CODE["work"]] * len(qb))
+    seg = np.zeros(len(qq), int)
+    pidx = np.r_[np.arange(n), -1, -1, np.arange(n, n + len(qb))]
+    jp2, path2 = joint_path_and_path(robot, qq, zone, seg, pidx)
+    return jp2, path2, out
+
+
 def joint_path_and_path(robot, q, zone, seg, path_index=None):
     """A JointPath for q and a Path whose poses are the TCP poses by FK (world = base frame)."""
     n = len(q)

@@ -3,37 +3,21 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
+from camtool.settings import TimingSettings
 from camtool.timing import check_trajectory, time_trajectory
-from camtool.toolpath import ZONE_CODE
-from test_timing_fixtures import joint_path_and_path, seed8, two_runs
+from test_timing_fixtures import seed8, transition_path
 
 ROBOT = seed8()
-WORK, SELF = ZONE_CODE["work"], ZONE_CODE["self_motion"]
-
-
-def _transition_path(n=60, k=6):
-    """Two work runs joined by k self-motion poses on a smooth arc (5 deg steps), like a raster U-turn."""
-    jp, _ = two_runs(ROBOT, n=n)
-    qa = jp.q[:n]
-    step = np.zeros(8)
-    step[0], step[1], step[4] = 30.0, np.radians(3), np.radians(4)
-    mid = qa[-1] + np.arange(1, k + 1)[:, None] * step + np.sin(np.linspace(0, np.pi, k))[:, None] * \
-        np.r_[0, 0, np.radians(2), 0, 0, 0, 0, 0]
-    qb = jp.q[n + 2:] - jp.q[n + 2] + qa[-1] + (k + 1) * step
-    q = np.vstack([qa, mid, qb])
-    zone = np.array([WORK] * n + [SELF] * k + [WORK] * len(qb))
-    seg = np.array([0] * (n + k // 2) + [1] * (len(q) - n - k // 2))
-    return joint_path_and_path(ROBOT, q, zone, seg), n, k
-
-
-(JP, PATH), N, K = _transition_path()
-STOP = time_trajectory(JP, PATH, ROBOT, zones="stop")
-FLOW = time_trajectory(JP, PATH, ROBOT, zones="flow")
+N, K = 60, 6
+JP, PATH = transition_path(ROBOT, N, K)
+STOP = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(zones="stop"))
+FLOW = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(zones="flow"))
 
 
 @pytest.mark.parametrize("method", ["quintic", "ruckig"])
 def test_flow_passes_the_checker(method):
-    tr = FLOW if method == "quintic" else time_trajectory(JP, PATH, ROBOT, method=method, zones="flow")
+    tr = FLOW if method == "quintic" else time_trajectory(JP, PATH, ROBOT,
+                                                          TimingSettings.make(method=method, zones="flow"))
     assert check_trajectory(tr, ROBOT, dt_s=0.002) == []
 
 
@@ -57,22 +41,22 @@ def test_flow_keeps_jumps_rest_to_rest():
     q = JP.q.copy()
     q[N + 2:, 3] += np.radians(25)  # a reconfiguration jump between self-motion poses 2 and 3
     from dataclasses import replace
-    tr = time_trajectory(replace(JP, q=q), PATH, ROBOT, zones="flow")
-    assert check_trajectory(tr, ROBOT) == []
+    tr = time_trajectory(replace(JP, q=q), PATH, ROBOT, TimingSettings.make(zones="flow"))
+    assert check_trajectory(tr, ROBOT, 0.004) == []
     for row in (N + 1, N + 2):
         k = np.flatnonzero(tr.path_index == JP.path_index[row])[0]
         assert np.all(tr.qd[k] == 0)
 
 
 def test_stop_is_the_default_and_bad_value_rejected():
-    d = time_trajectory(JP, PATH, ROBOT)
+    d = time_trajectory(JP, PATH, ROBOT, TimingSettings.make())
     for f in ("t_s", "q", "qd", "qdd", "zone", "path_index"):
         assert np.array_equal(getattr(d, f), getattr(STOP, f))
     with pytest.raises(BadInput):
-        time_trajectory(JP, PATH, ROBOT, zones="glide")
+        TimingSettings.make(zones="glide")
 
 
 def test_flow_deterministic():
-    b = time_trajectory(JP, PATH, ROBOT, zones="flow")
+    b = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(zones="flow"))
     for f in ("t_s", "q", "qd", "qdd", "zone", "path_index"):
         assert np.array_equal(getattr(FLOW, f), getattr(b, f))

@@ -5,8 +5,10 @@ from ruckig import InputParameter, Ruckig
 from ruckig import Trajectory as RuckigTrajectory
 
 from camtool.post import thin_waypoints
-from camtool.timing import _runs, _tcp_positions_mm, check_trajectory, time_trajectory, timing_report
+from camtool.settings import TimingSettings
+from camtool.timing import check_trajectory, time_trajectory, timing_report
 from camtool.timing import ruckig_through
+from camtool.timing.assemble import run_layout, tcp_positions_mm
 from camtool.timing.quintic import MARGIN, piece_peaks, time_runs
 from camtool.timing.ruckig_through import CHECK_SHARE, JERK_FACTORS, REASONS, TIME_GRID_S, through_pieces
 from camtool.toolpath import ZONE_CODE
@@ -16,8 +18,13 @@ from test_timing_fixtures import seed8, two_runs
 ROBOT = seed8()
 L = ROBOT.limits
 JP, PATH = two_runs(ROBOT)  # 2 x 120 poses, 3 mm pitch: 30 ms pieces at 100 mm/s
-TR = time_trajectory(JP, PATH, ROBOT, method="ruckig", tcp_speed_mm_s=100.0)
-QT = time_trajectory(JP, PATH, ROBOT, method="quintic", tcp_speed_mm_s=100.0)
+RUCKIG = TimingSettings.make(method="ruckig", tcp_speed_mm_s=100.0)
+TR = time_trajectory(JP, PATH, ROBOT, RUCKIG)
+QT = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(method="quintic", tcp_speed_mm_s=100.0))
+
+
+def _report(tr):
+    return timing_report(tr, ROBOT, tr.check_samples)
 
 
 def _row_index(tr, row):
@@ -42,14 +49,14 @@ def _ruckig_1dof(i, x0, x1, duration_s, factor):
 
 
 def test_share_of_ruckig_pieces_and_report():
-    rep = timing_report(TR, ROBOT)
+    rep = _report(TR)
     assert rep["surface_pieces"] == 2 * 119 == len(TR.piece_ruckig)
     assert rep["ruckig_piece_share"] >= 0.95 and rep["ruckig_work_piece_share"] >= 0.95
     fb = rep["ruckig_fallbacks"]
     assert fb["count"] == int((~TR.piece_ruckig).sum()) == sum(fb["by_reason"].values())
     assert set(fb["by_reason"]) <= set(REASONS)
     assert len(fb["first"]) == min(fb["count"], 20)
-    q = timing_report(QT, ROBOT)
+    q = _report(QT)
     assert q["ruckig_piece_share"] == 0.0 and q["ruckig_fallbacks"]["count"] == 0
     assert q["surface_pieces"] == rep["surface_pieces"]
 
@@ -90,7 +97,7 @@ def test_limits_exactly_within_share():
     pk = piece_peaks(TR.q[:-1], TR.q[1:], TR.qd[:-1], TR.qd[1:], TR.qdd[:-1], TR.qdd[1:], h, L.lower, L.upper)
     assert not pk.position_break.any()
     assert (pk.jerk / L.jerk).max() <= CHECK_SHARE and (pk.acc / L.acceleration).max() <= CHECK_SHARE
-    rep = timing_report(TR, ROBOT)
+    rep = _report(TR)
     assert 0.97 < rep["peak_joint_jerk_ratio"] <= CHECK_SHARE  # ruckig runs at its (98 %) jerk limit
 
 
@@ -105,15 +112,14 @@ def test_tcp_schedule_is_kept():
         assert x["speed_ratio"] == pytest.approx(y["speed_ratio"], rel=1e-6)
     surface = np.isin(TR.zone, [ZONE_CODE[z] for z in ("work", "lead_in", "lead_out")])
     assert np.array_equal(np.round(TR.t_s[surface] / TIME_GRID_S) * TIME_GRID_S, TR.t_s[surface])
-    assert timing_report(TR, ROBOT)["work_time_s"] == pytest.approx(timing_report(QT, ROBOT)["work_time_s"],
-                                                                     abs=1e-6)
+    assert _report(TR)["work_time_s"] == pytest.approx(_report(QT)["work_time_s"], abs=1e-6)
 
 
 def test_longer_pieces_where_limits_force_them():
-    surface, start, end = _runs(JP, PATH)
-    sidx = np.flatnonzero(surface)
-    first, last = start[sidx], end[sidx]
-    step = np.linalg.norm(np.diff(_tcp_positions_mm(JP, PATH, ROBOT)[sidx], axis=0), axis=1)
+    layout = run_layout(JP, PATH)
+    sidx = np.flatnonzero(layout.surface)
+    first, last = layout.start[sidx], layout.end[sidx]
+    step = np.linalg.norm(np.diff(tcp_positions_mm(JP, PATH, ROBOT)[sidx], axis=0), axis=1)
     runs = time_runs(JP.q[sidx], step, first, last, np.cumsum(first) - 1, L, 100.0)
     pieces = np.flatnonzero(~last[:-1])[:60]
     h = 0.3 * runs.h_s  # far too short: ruckig must lengthen the pieces
@@ -134,9 +140,9 @@ def test_longer_pieces_where_limits_force_them():
 
 def test_fallbacks_keep_quintic_and_are_reported(monkeypatch):
     monkeypatch.setattr(ruckig_through, "MIN_GAP_S", 0.01)  # switches can never be 10 ms apart
-    tr = time_trajectory(JP, PATH, ROBOT, method="ruckig", tcp_speed_mm_s=100.0)
-    assert check_trajectory(tr, ROBOT) == []
-    rep = timing_report(tr, ROBOT)
+    tr = time_trajectory(JP, PATH, ROBOT, RUCKIG)
+    assert check_trajectory(tr, ROBOT, 0.004) == []
+    rep = _report(tr)
     assert rep["ruckig_piece_share"] < 0.2
     assert rep["ruckig_fallbacks"]["by_reason"].get("switch_times", 0) >= 0.8 * rep["surface_pieces"]
     fall = tr.piece_row[~tr.piece_ruckig]
@@ -145,7 +151,7 @@ def test_fallbacks_keep_quintic_and_are_reported(monkeypatch):
 
 
 def test_deterministic():
-    b = time_trajectory(JP, PATH, ROBOT, method="ruckig", tcp_speed_mm_s=100.0)
+    b = time_trajectory(JP, PATH, ROBOT, RUCKIG)
     for f in ("t_s", "q", "qd", "qdd", "zone", "path_index", "piece_row", "piece_ruckig", "piece_reason"):
         assert np.array_equal(getattr(TR, f), getattr(b, f))
 

@@ -5,6 +5,7 @@ process per job), so the programs are the same whichever executor ran them.
 """
 from __future__ import annotations
 
+import os
 from concurrent.futures import ThreadPoolExecutor, as_completed
 
 from ..errors import BadInput
@@ -108,3 +109,17 @@ class DaskExecutor:
             client.close()
             if cluster is not None:
                 cluster.close()
+
+
+# ---------------------------------------------------------------- the batch
+
+def run_batch(specs, executor: str = "local", workers: int | None = None, scheduler: str | None = None,
+              on_start=None, on_done=None) -> list[JobResult]:
+    """Run ``specs`` on the ``local`` pool or on ``dask``; results sorted by job path.
+
+    ``on_start(spec)`` and ``on_done(result)`` report progress (called from
+    worker threads for the local pool).
+    """
+    workers = workers or os.cpu_count() or 1
+    results = get_executor(executor, workers, scheduler).run(list(specs), on_start, on_done) if specs else []
+    return sorted(results, key=lambda r: r.job)

@@ -302,19 +302,3 @@ def _report_points(folder: Path) -> int | None:
         return json.loads((folder / "report.json").read_text()).get("points_total")
     except (OSError, ValueError, AttributeError):
         return None
-
-
-# ---------------------------------------------------------------- the batch
-
-def run_batch(specs, executor: str = "local", workers: int | None = None, scheduler: str | None = None,
-              on_start=None, on_done=None) -> list[JobResult]:
-    """Run ``specs`` on the ``local`` pool or on ``dask``; results sorted by job path.
-
-    ``on_start(spec)`` and ``on_done(result)`` report progress (called from
-    worker threads for the local pool).
-    """
-    from .executors import get_executor
-
-    workers = workers or os.cpu_count() or 1
-    results = get_executor(executor, workers, scheduler).run(list(specs), on_start, on_done) if specs else []
-    return sorted(results, key=lambda r: r.job)

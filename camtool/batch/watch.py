@@ -22,7 +22,8 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import BadInput
-from .runner import JobResult, JobSpec, prepare_job, run_batch
+from .executors import run_batch
+from .runner import JobResult, JobSpec, prepare_job
 from .summary import STATUSES, summary_dict, write_summary
 
 Signature = tuple[int, int]  # (size in bytes, mtime in ns)

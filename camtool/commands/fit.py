@@ -6,8 +6,13 @@ import numpy as np
 
 from ..console import echo_json
 from ..fit import fit_surface
+from ..job import load_job
+from ..settings import FitSettings
+from ..stages import surface_for_job, workpiece_for_job
 from ..surface import PlaneSurface, save_surface
 from ..workpiece import load_workpiece
+
+SURFACE_FILE = "surface.json"
 
 
 def surface_summary(surface) -> dict:
@@ -25,7 +30,11 @@ def surface_summary(surface) -> dict:
 
 
 @click.command("fit")
-@click.argument("input_file", metavar="INPUT", type=click.Path(path_type=Path))
+@click.argument("input_file", metavar="JOB|INPUT", type=click.Path(path_type=Path))
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+              help="With a JOB: override a job-file key, e.g. --set fit.threshold_mm=1 (repeatable).")
+@click.option("-o", "--outdir", type=click.Path(path_type=Path), default=None,
+              help=f"Save the surface as OUTDIR/{SURFACE_FILE}, for `camtool raster JOB --from`.")
 @click.option("--model", type=click.Choice(["auto", "plane", "sphere"]), default="auto", show_default=True,
               help="Surface model; auto takes the one with most inliers (a plane when a plane explains the data).")
 @click.option("--threshold", "threshold_mm", type=click.FloatRange(min=0, min_open=True), default=0.5,
@@ -36,18 +45,28 @@ def surface_summary(surface) -> dict:
 @click.option("--json", "as_json", is_flag=True, help="Print JSON for scripts.")
 @click.option("--save", type=click.Path(path_type=Path), default=None,
               help="Write the surface as JSON (camtool surface file).")
-def command(input_file: Path, model: str, threshold_mm: float, units: str, seed: int, as_json: bool,
-            save: Path | None) -> None:
-    """Fit a plane or sphere patch to INPUT (mesh or point cloud) in its own frame.
+def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, model: str, threshold_mm: float,
+            units: str, seed: int, as_json: bool, save: Path | None) -> None:
+    """Fit a plane or sphere patch to a JOB's workpiece (placed in the cell, the job's [fit]
+    settings), or to an INPUT mesh or point cloud in its own frame (the options below).
 
     Meshes: STL, OBJ, PLY, OFF, GLB (STEP with camtool[step]). Point clouds:
     PLY without faces, PCD, XYZ, CSV, TXT. Prints the parameters in mm, the
     inlier ratio, RMS and largest residual of the inliers, and the boundary.
     """
-    wp = load_workpiece(input_file, units=units, seed=seed)
-    for w in wp.warnings:
-        click.echo(f"camtool: warning: {w}", err=True)
-    surface = fit_surface(wp, model=model, threshold_mm=threshold_mm, seed=seed)
+    if input_file.suffix.lower() == ".toml":
+        job = load_job(input_file, list(overrides))
+        wp = workpiece_for_job(job)
+        for w in wp.warnings:
+            click.echo(f"camtool: warning: {w}", err=True)
+        surface = surface_for_job(job, wp)
+    else:
+        wp = load_workpiece(input_file, units=units, seed=seed)
+        for w in wp.warnings:
+            click.echo(f"camtool: warning: {w}", err=True)
+        surface = fit_surface(wp, FitSettings.make(model=model, threshold_mm=threshold_mm, seed=seed))
+    if outdir is not None:
+        save = save or outdir / SURFACE_FILE
     if save is not None:
         save_surface(surface, save)
     if as_json:

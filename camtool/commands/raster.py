@@ -6,11 +6,15 @@ import numpy as np
 
 from ..console import echo_json
 from ..errors import BadInput
-from ..job import load_job
-from ..pipeline import surface_for_job, workpiece_for_job
-from ..raster import raster_path, raster_summary
 from ..files import output_file
-from ..toolpath import ZONES, save_path
+from ..job import load_job
+from ..raster import raster_summary
+from ..stage_files import save_stage
+from ..stages import path_for_job, surface_for_job, workpiece_for_job
+from ..surface import load_surface
+from ..toolpath import ZONES
+
+PATH_FILE = "path.npz"
 
 ZONE_COLOURS = {"work": "tab:blue", "self_motion": "tab:orange", "lead_in": "tab:green",
                 "lead_out": "tab:red", "approach": "tab:purple", "depart": "tab:brown", "retract": "black"}
@@ -25,8 +29,13 @@ ZONE_COLOURS = {"work": "tab:blue", "self_motion": "tab:orange", "lead_in": "tab
               help="Write a PNG: the path in 3D on the surface, zones coloured, and the (u, v) map.")
 @click.option("--save", "save_file", type=click.Path(path_type=Path), default=None, metavar="PATH.npz",
               help="Save the Path (.npz) for later stages.")
+@click.option("--from", "from_file", type=click.Path(path_type=Path), default=None, metavar="SURFACE.json",
+              help="Resume from a saved surface (`camtool fit JOB -o DIR` wrote DIR/surface.json) instead of "
+                   "fitting again.")
+@click.option("-o", "--outdir", type=click.Path(path_type=Path), default=None,
+              help=f"Save the Path as OUTDIR/{PATH_FILE}, for `camtool plan JOB --from`.")
 def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file: Path | None,
-            save_file: Path | None) -> None:
+            save_file: Path | None, from_file: Path | None, outdir: Path | None) -> None:
     """Raster the surface of JOB into an S-path with segments and self-motion zones.
 
     Loads and fits the workpiece as the job says, then prints rows, segments,
@@ -38,12 +47,19 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
         if f is not None and f.suffix.lower() != ext:
             raise BadInput(f"{f}: expected a {ext} file name")
     job = load_job(job_file, list(overrides))
-    workpiece = workpiece_for_job(job)
-    surface = surface_for_job(job, workpiece)
-    path = raster_path(surface, **job.raster)
+    if from_file is not None:
+        surface = load_surface(from_file)
+    else:
+        workpiece = workpiece_for_job(job)
+        for w in workpiece.warnings:
+            click.echo(f"camtool: warning: {w}", err=True)
+        surface = surface_for_job(job, workpiece)
+    path = path_for_job(job, surface)
     summary = {"job": str(job_file), "surface": surface.model, **raster_summary(path, surface)}
+    if outdir is not None:
+        save_file = save_file or outdir / PATH_FILE
     if save_file is not None:
-        save_path(path, save_file)
+        save_stage(path, save_file)
         summary["saved"] = str(save_file)
     if plot_file is not None:
         plot_raster(surface, path, plot_file, title=f"{job_file.name}: {summary['work_points']} work points")

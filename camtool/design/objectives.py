@@ -37,8 +37,14 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
+from .. import __version__
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job, Section
+from ..plan import plan_path
+from ..plan.strategy import split_runs
+from ..robots.library import robot_toml_data
+from ..settings import PlannerSettings, home_q
+from ..stages import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
 from ..toolpath import Path
 
 CACHE_VERSION = 1
@@ -93,7 +99,6 @@ def parse_vary(text: str) -> Variable:
 
 def robot_params(job: Job) -> dict[str, float]:
     """The job robot's named lengths (mm): the robot file's [params] overridden by the job."""
-    from ..robots.library import robot_toml_data
 
     data = robot_toml_data(job.robot.name, job.dir) or {}
     params = {k: float(v) for k, v in data.get("params", {}).items()}
@@ -133,7 +138,6 @@ def coarse_job(job: Job, factor: float) -> Job:
 
 def screen_path(path: Path) -> Path:
     """The first and last pose of every run of ``path`` (the reachability screen)."""
-    from ..plan.strategy import split_runs
 
     idx = sorted({k for a, b in split_runs(path) for k in (a, b)})
     return Path(path.poses_mm[idx], path.segment[idx], path.point[idx], path.zone[idx],
@@ -174,26 +178,24 @@ def _job_from(ctx: _Context, params: dict) -> Job:
 
 def evaluate_design(ctx: _Context, values) -> Evaluation:
     """Plan the context's raster with the arm of ``values``: screen first, then the full plan."""
-    from ..pipeline import robot_for_job
-    from ..plan import plan_path
 
     base = {k: float(v) for k, v in ctx.job_data["robot"]["params"].items()}
     params = {**base, **{n: float(v) for n, v in zip(ctx.names, values)}}
     job = _job_from(ctx, params)
     robot = robot_for_job(job)
     length = arm_length_mm(robot)
-    planner = dict(job.planner)
+    planner = PlannerSettings.from_section(job.planner, home_q(job, robot))
     runs, t0 = 0, time.perf_counter()
     if ctx.screen is not None:
         runs += 1
         try:
-            plan_path(ctx.screen, robot, home_deg=job.robot.home_deg, **{**planner, "method": "general"})
+            plan_path(ctx.screen, robot, planner.with_method("general"))
         except PlanInfeasible as exc:
             return Evaluation(length, 0, max(1, len(exc.report.get("unreachable", []))), True, runs,
                               time.perf_counter() - t0)
     runs += 1
     try:
-        jp = plan_path(ctx.path, robot, home_deg=job.robot.home_deg, **planner)
+        jp = plan_path(ctx.path, robot, planner)
     except PlanInfeasible as exc:
         return Evaluation(length, 0, max(1, len(exc.report.get("unreachable", []))), False, runs,
                           time.perf_counter() - t0)
@@ -216,8 +218,6 @@ class DesignProblem:
 
     def __init__(self, job: Job, variables: list[Variable], coarse: float = 4.0, jobs: int = 1,
                  resolution_mm: float = 1.0, screen: bool = True, cache_file: FsPath | None = None):
-        from ..pipeline import path_for_job, surface_for_job, workpiece_for_job
-
         if coarse < 1:
             raise BadInput(f"--coarse: expected a factor >= 1, found {coarse}")
         if jobs < 1:
@@ -251,7 +251,6 @@ class DesignProblem:
 
     def fingerprint(self) -> str:
         """A hash of everything an evaluation depends on (job, raster factor, variables)."""
-        from .. import __version__
 
         blob = json.dumps({"v": CACHE_VERSION, "camtool": __version__, "job": self.job.as_dict(),
                            "params": self.params, "coarse": self.coarse, "names": self.names,
@@ -326,8 +325,6 @@ class DesignProblem:
 
     def evaluate_full(self, x) -> Evaluation:
         """One design on the job's FULL-resolution raster (not cached, counted)."""
-        from ..pipeline import path_for_job
-
         if self.full_path is None:
             self.full_path = path_for_job(self.job, self.surface)
             self._full_ctx = self._context(self.job, self.full_path)

@@ -95,10 +95,6 @@ class ParetoArchive:
             self._drop_one_crowded()
         return bool(np.any(np.all(self.X == x, axis=1)))
 
-    def add_many(self, X, F) -> int:
-        """Offer rows of X, F in order; returns how many joined."""
-        return sum(self.add(x, f) for x, f in zip(X, F))
-
     def _drop_one_crowded(self) -> None:
         cells = grid_cells(self.F, self.divisions)
         uniq, inverse, counts = np.unique(cells, return_inverse=True, return_counts=True)

@@ -99,7 +99,7 @@ def _log3(R, w):
             k = 2
         ax = np.empty(3)
         for r in range(3):
-            ax[r] = 0.5 * (R[r, k] + R[k, r])
+            ax[r] = 0.25 * (R[r, k] + R[k, r])  # (R + I) / 2 = a a^T: off-diagonals are a_r a_k
         ax[k] = 0.5 * (R[k, k] + 1.0)
         nrm = np.sqrt(ax[0] ** 2 + ax[1] ** 2 + ax[2] ** 2)
         for r in range(3):

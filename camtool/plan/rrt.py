@@ -16,7 +16,7 @@
 - ``CloudChecker(robot, points)``: the same capsules against a point cloud
   (KD-tree distance; no inside test).
 - ``free_move`` / ``insert_home_moves``: the approach and depart moves of
-  raster jobs with ``robot.home_deg`` (``camtool.pipeline.add_home_moves``).
+  raster jobs with ``robot.home_deg`` (``camtool.stages.add_home_moves``).
 - ``plan_free_move(robot, q_start, q_goal, valid=None, mesh=None, ...)``: all
   of it, then timed by the common timing stage (rest-to-rest ruckig moves
   between waypoints); timed samples that break validity get their move split
@@ -284,12 +284,13 @@ def _joint_path(robot, q: np.ndarray) -> tuple[JointPath, Path]:
 
 def time_and_verify(robot, waypoints: list, valid, dt_s: float = 0.004, max_splits: int = 6, **timing):
     """Time waypoints with the timing stage; split moves whose timed samples are invalid. (trajectory, q)."""
+    from ..settings import TimingSettings
     from ..timing import time_trajectory
 
     q = np.array(waypoints)
     for _ in range(max_splits + 1):
         jp, path = _joint_path(robot, q)
-        tr = time_trajectory(jp, path, robot, **{"method": "ruckig", **timing})
+        tr = time_trajectory(jp, path, robot, TimingSettings.make(**{"method": "ruckig", **timing}))
         t, qs, *_ = tr.sample(dt_s)
         bad = [k for k, x in enumerate(qs) if not valid(x)]
         if not bad:
@@ -351,12 +352,14 @@ def free_move(robot, q_start, q_goal, valid, seed: int = 0, track_scale_mm: floa
     return q, info
 
 
-def insert_home_moves(joint_path: JointPath, approach: np.ndarray, depart: np.ndarray) -> JointPath:
+def insert_home_moves(joint_path: JointPath, approach: np.ndarray, depart: np.ndarray,
+                      events: dict | None = None) -> JointPath:
     """``joint_path`` with approach rows (home ... , before row 0) and depart rows (after the last row ... home).
 
     ``approach`` runs from home to the first row's q (that last one is not repeated),
     ``depart`` from the last row's q (not repeated) to home; inserted rows have
-    path_index -1 and zones 'approach' / 'depart'.
+    path_index -1 and zones 'approach' / 'depart'. ``events`` are added to the
+    joint path's events (a new dict; the input is not changed).
     """
     jp = joint_path
     a, d = np.asarray(approach)[:-1], np.asarray(depart)[1:]
@@ -372,4 +375,4 @@ def insert_home_moves(joint_path: JointPath, approach: np.ndarray, depart: np.nd
         zone=zone.astype(jp.zone.dtype), position_error_mm=pad(jp.position_error_mm, 0.0),
         orientation_error_rad=pad(jp.orientation_error_rad, 0.0), jump=pad(jp.jump, False),
         reverse_planned=pad(jp.reverse_planned, False), retract=pad(jp.retract, False),
-        singular=pad(jp.singular, False), reached=pad(jp.reached, True), events=jp.events)
+        singular=pad(jp.singular, False), reached=pad(jp.reached, True), events={**jp.events, **(events or {})})

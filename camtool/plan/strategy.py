@@ -19,8 +19,9 @@ baseline.
    where the arm reconfigures off the surface.
 5. If all fail, the pose is marked singular, the self-motion solution closest
    to the previous pose is kept, and a retract-reorient-return move is
-   inserted: the track moves away, the revolute joints move, the track comes
-   back (robots without a track lift the tool along its axis instead).
+   inserted: a Cartesian lift of the tool along the surface normal (all
+   joints), the reconfiguration at that height, and a Cartesian descent
+   (``connectors.py``), for robots with and without a track.
 
 ``method="general"`` is CWLN alone, as the paper's baseline: jumps stay where
 they occur.
@@ -32,7 +33,7 @@ configurations, so the reconfiguration is spread over the zone.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import islice, product
 
 import numpy as np
@@ -40,25 +41,16 @@ import numpy as np
 from ..errors import BadInput, PlanInfeasible
 from ..robots.ik_common import limit_equivalents
 from ..robots.model import Robot
+from ..settings import PlannerSettings
 from ..toolpath import ZONE_CODE, ZONES, Path
 from ..trajectory import JointPath
+from .connectors import cartesian_lift
 from .cwln import CwlnSolver, IkResult, IkSettings
 from .kernel import DhKernel
 
 RUN_ZONES = (ZONE_CODE["work"], ZONE_CODE["lead_in"], ZONE_CODE["lead_out"])
 RESTARTS_WHEN_LOST = 20
-IK_SEEDS = ("auto", "random", "analytic")
-
-
-@dataclass(frozen=True)
-class StrategySettings:
-    method: str = "seed"
-    jump_threshold_rad: float = np.radians(50.0)
-    jump_threshold_mm: float = 100.0
-    reverse_samples: int = 50
-    seed: int = 0
-    retract_mm: float = 200.0
-    ik_seeds: str = "random"
+RETRACT_LIFT_STEPS = 5  # poses of each Cartesian lift / descent of a retract
 
 
 class AnalyticSeeds:
@@ -187,7 +179,9 @@ def split_runs(path: Path) -> list[tuple[int, int]]:
 class Planner:
     """Plans one Path for one robot; holds the per-pose arrays while it works."""
 
-    def __init__(self, path: Path, robot: Robot, ik: IkSettings, st: StrategySettings, q_home=None):
+    def __init__(self, path: Path, robot: Robot, st: PlannerSettings):
+        ik = ik_settings(st)
+        q_home = None if st.q_home is None else np.asarray(st.q_home, float)
         self.path, self.robot, self.st = path, robot, st
         self.solver = CwlnSolver(robot, ik, free_spin=path.free_spin)
         thr = np.where(robot.prismatic, st.jump_threshold_mm, st.jump_threshold_rad)
@@ -204,8 +198,6 @@ class Planner:
         self.rng = np.random.default_rng(st.seed)
         self.thr = np.where(robot.prismatic, st.jump_threshold_mm, st.jump_threshold_rad)
         self.q_home = q_home
-        if st.ik_seeds not in IK_SEEDS:
-            raise BadInput(f"planner.ik_seeds: expected one of {', '.join(IK_SEEDS)}, found {st.ik_seeds!r}")
         self.seeds = None
         if st.ik_seeds != "random":
             buf = self.solver.buffer
@@ -422,31 +414,24 @@ class Planner:
 
     # -- output -------------------------------------------------------------
     def retract_poses(self, k) -> list[np.ndarray]:
-        """The retract-reorient-return configurations inserted before pose k."""
+        """The retract-reorient-return configurations inserted before pose k.
+
+        A Cartesian lift of ``retract_mm`` along the surface normal from pose
+        k-1 (every joint, the track included, by CWLN), then the lifted pose of
+        k reached from above, then a Cartesian descent onto k
+        (``connectors.cartesian_lift``): the reconfiguration happens off the
+        part, for robots with or without a track.
+        """
         qa, qb = self.q[k - 1], self.q[k]
-        track = np.flatnonzero(self.robot.prismatic)
-        if len(track):
-            t = track[0]
-            best = None
-            for sign in (1.0, -1.0):
-                off = sign * self.st.retract_mm
-                if not (self.solver.lo[t] <= qa[t] + off <= self.solver.hi[t]
-                        and self.solver.lo[t] <= qb[t] + off <= self.solver.hi[t]):
-                    continue
-                q1 = qa.copy(); q1[t] += off
-                n_out = -self.targets[k - 1][:3, 2]
-                away = (self.solver.tcp_pose(q1)[:3, 3] - self.targets[k - 1][:3, 3]) @ n_out
-                if best is None or away > best[0]:
-                    q2 = qb.copy(); q2[t] += off
-                    best = (away, q1, q2)
-            if best is not None:
-                return [best[1], best[2]]
-        lifted = []
-        for q, T in ((qa, self.targets[k - 1]), (qb, self.targets[k])):
-            L = T.copy()
-            L[:3, 3] -= T[:3, 2] * self.st.retract_mm
-            lifted.append(self.solver.solve(L, q, max_iterations=300).q)
-        return lifted
+        up = cartesian_lift(self.solver, self.targets[k - 1], qa, self.st.retract_mm, RETRACT_LIFT_STEPS)
+        down = cartesian_lift(self.solver, self.targets[k], qb, self.st.retract_mm, RETRACT_LIFT_STEPS)
+        if up is None or down is None:
+            p = self.path.poses_mm[k][:3, 3]
+            raise PlanInfeasible(f"pose {k} (segment {int(self.path.segment[k])}) needs a reconfiguration, but the "
+                                 f"tool cannot be lifted {self.st.retract_mm:g} mm off the surface there "
+                                 f"(at {[round(float(x), 1) for x in p]} mm); lower planner.retract_mm or move "
+                                 "the part")
+        return list(up) + list(down[::-1])
 
     def joint_path(self) -> JointPath:
         rows, rows_idx, rows_retract = [], [], []
@@ -475,33 +460,27 @@ class Planner:
         )
 
 
-def plan_path(path: Path, robot: Robot, home_deg=(), method="seed", damping=0.1,
-              orientation_weight_mm=200.0, position_tol_mm=1e-4, orientation_tol_deg=1e-4,
-              max_iterations=100, clamp_buffer_deg=10.0, clamp_buffer_mm=50.0,
-              jump_threshold_deg=50.0, jump_threshold_mm=100.0, reverse_samples=50, seed=0,
-              retract_mm=200.0, track_scale_mm=500.0, posture_gain=0.001, ik_seeds="random") -> JointPath:
-    """Plan joint values for every pose of ``path`` (keywords = the job's [planner] keys).
+def ik_settings(settings: PlannerSettings) -> IkSettings:
+    """The CWLN solver's settings from the planner's (posture pull for the seed method only)."""
+    return IkSettings(damping=settings.damping, orientation_weight_mm=settings.orientation_weight_mm,
+                      position_tol_mm=settings.position_tol_mm, orientation_tol_rad=settings.orientation_tol_rad,
+                      max_iterations=settings.max_iterations, clamp_buffer_rad=settings.clamp_buffer_rad,
+                      clamp_buffer_mm=settings.clamp_buffer_mm, track_scale_mm=settings.track_scale_mm,
+                      posture_gain=settings.posture_gain if settings.method == "seed" else 0.0)
+
+
+def plan_path(path: Path, robot: Robot, settings: PlannerSettings) -> JointPath:
+    """Plan joint values (rad / mm) for every pose of ``path``.
 
     Raises PlanInfeasible (with a report listing them) when poses cannot be reached.
     """
-    if method not in ("seed", "general"):
-        raise BadInput(f"planner.method: expected 'seed' or 'general', found {method!r}")
-    q_home = None
-    if home_deg:
-        if len(home_deg) != robot.dof:
-            raise BadInput(f"robot.home_deg: {robot.name} needs {robot.dof} values, found {len(home_deg)}")
-        q_home = np.where(robot.prismatic, home_deg, np.radians(home_deg))
-    ik = IkSettings(damping=damping, orientation_weight_mm=orientation_weight_mm,
-                    position_tol_mm=position_tol_mm, orientation_tol_rad=np.radians(orientation_tol_deg),
-                    max_iterations=max_iterations, clamp_buffer_rad=np.radians(clamp_buffer_deg),
-                    clamp_buffer_mm=clamp_buffer_mm, track_scale_mm=track_scale_mm,
-                    posture_gain=posture_gain if method == "seed" else 0.0)
-    st = StrategySettings(method=method, jump_threshold_rad=np.radians(jump_threshold_deg),
-                          jump_threshold_mm=jump_threshold_mm, reverse_samples=reverse_samples,
-                          seed=seed, retract_mm=retract_mm, ik_seeds=ik_seeds)
+    if settings.method not in ("seed", "general"):
+        raise BadInput(f"planner.method: {settings.method!r} does not plan raster paths; use 'seed' or 'general'")
+    if settings.q_home is not None and len(settings.q_home) != robot.dof:
+        raise BadInput(f"robot.home_deg: {robot.name} needs {robot.dof} values, found {len(settings.q_home)}")
     t0 = time.perf_counter()
-    jp = Planner(path, robot, ik, st, q_home).plan()
-    jp.events["plan_seconds"] = time.perf_counter() - t0
+    jp = Planner(path, robot, settings).plan()
+    jp = replace(jp, events={**jp.events, "plan_seconds": time.perf_counter() - t0})
     missed = np.flatnonzero((jp.path_index >= 0) & ~jp.reached)
     if len(missed):
         k = jp.path_index[missed]

@@ -106,12 +106,6 @@ def default_profile_path(robot_name: str, fmt: str) -> Path | None:
     return Path(str(p)) if p.is_file() else None
 
 
-def shipped_profiles() -> list[Path]:
-    """Every profile shipped with camtool."""
-    return sorted(Path(str(p)) for p in resources.files("camtool.profiles").iterdir()
-                  if str(p).endswith(".toml"))
-
-
 def _num(v) -> bool:
     return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
 

@@ -20,6 +20,9 @@ import numpy as np
 import pinocchio as pin
 
 MM_TO_M = 1e-3
+# Longer than this (mm, 1 km) is not a robot's length but a typo or a unit slip; the
+# loaders (library.py, urdf.py) reject such lengths with BadInput before a model is built.
+MAX_LENGTH_MM = 1e6
 
 
 @dataclass(frozen=True)
@@ -67,6 +70,9 @@ def build_pinocchio_model(rows: list[DHRow], convention: str, flange_T_mm: np.nd
     TransX(a) RotX(alpha) after it. Prismatic rows carry theta as the constant
     rotation and d as the offset of the joint variable.
     """
+    values = np.array([[r.a_mm, r.alpha_rad, r.d_mm, r.theta_rad] for r in rows], dtype=float).reshape(-1, 4)
+    if not (np.isfinite(values).all() and np.isfinite(flange_T_mm).all()):
+        raise ValueError(f"{name}: DH table or flange with NaN or infinite values")  # the loaders check first
     model = pin.Model()
     model.name = name
     parent = 0
@@ -87,10 +93,3 @@ def build_pinocchio_model(rows: list[DHRow], convention: str, flange_T_mm: np.nd
     return model, fid
 
 
-def dh_matrix(row: DHRow, q: float, convention: str) -> np.ndarray:
-    """The 4x4 DH transform (mm) of one row at joint value q (rad or mm)."""
-    theta = row.theta_rad + (0.0 if row.prismatic else q)
-    d = row.d_mm + (q if row.prismatic else 0.0)
-    if convention == "modified":
-        return rot_x(row.alpha_rad) @ trans(x=row.a_mm) @ rot_z(theta) @ trans(z=d)
-    return rot_z(theta) @ trans(z=d) @ trans(x=row.a_mm) @ rot_x(row.alpha_rad)

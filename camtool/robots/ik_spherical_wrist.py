@@ -132,10 +132,6 @@ class SphericalWristIK:
             raise PlanInfeasible(f"{self.robot.name}: pose has no closed-form IK solution inside the joint limits")
         return min(cands, key=lambda q: float(np.sum((q - q_ref) ** 2)))
 
-    def solve_tcp(self, T_tcp_mm: np.ndarray) -> list[IkSolution]:
-        """``solve`` for a TCP pose (the robot's tool is taken off)."""
-        return self.solve(np.asarray(T_tcp_mm, float) @ np.linalg.inv(self.robot.tool_T_mm))
-
 
 def closed_form_ik(robot: Robot, T_flange_mm: np.ndarray) -> list[IkSolution]:
     """All closed-form solutions of a flange pose for a robot of the IRB2400 family."""

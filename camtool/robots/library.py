@@ -21,9 +21,18 @@ Robot TOML format (the built-ins in ``robots/data/`` use it too)::
     [flange]                     # optional constant flange offset after the last joint
     xyz_mm = [0, 0, 0]
     rpy_deg = [0, 0, 0]
+
+Every value is checked before Pinocchio sees it; each problem is one BadInput
+line naming the file and the key: an unknown key (with the closest known key
+suggested), a table where a number belongs, NaN or infinite numbers, duplicate
+joint names, a flange vector without 3 numbers, and lengths beyond
+``MAX_LENGTH_MM`` (1 km: a link, offset, track limit or [params] length that
+long is a typo or a unit slip, never a robot).
 """
 from __future__ import annotations
 
+import difflib
+import math
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -32,7 +41,7 @@ import numpy as np
 
 from ..errors import BadInput
 from ..transforms import matrix_from_xyz_rpy
-from .dh import DHRow, build_pinocchio_model
+from .dh import MAX_LENGTH_MM, DHRow, build_pinocchio_model
 from .model import Limits, Robot
 
 BUILTIN_ROBOTS = ("seed8", "irb2400", "irb2400_paper", "sia20")
@@ -40,6 +49,37 @@ BUILTIN_ROBOTS = ("seed8", "irb2400", "irb2400_paper", "sia20")
 _JOINT_KEYS = {"name", "type", "a_mm", "alpha_deg", "d_mm", "theta_deg", "lower", "upper",
                "velocity", "acceleration", "jerk"}
 _TOP_KEYS = {"name", "convention", "notes", "params", "joint", "flange"}
+_FLANGE_KEYS = {"xyz_mm", "rpy_deg"}
+_LENGTH_KEYS = ("a_mm", "d_mm")
+
+
+def _unknown_key(where: str, key: str, known) -> BadInput:
+    """One line naming an unknown key and the closest known one."""
+    close = difflib.get_close_matches(str(key), sorted(known), n=1)
+    close = close or [k for k in sorted(known) if k.rsplit("_", 1)[0] == key]  # "a" for "a_mm": the unit left out
+    hint = f"did you mean {close[0]}?" if close else f"expected one of {', '.join(sorted(known))}"
+    return BadInput(f"{where}{key}: unknown key; {hint}")
+
+
+def check_length_mm(value: float, where: str) -> float:
+    """``value`` if it is a plausible length in mm (finite, |value| <= MAX_LENGTH_MM), else BadInput."""
+    if not math.isfinite(value) or abs(value) > MAX_LENGTH_MM:
+        raise BadInput(f"{where}: {value:g} mm is not a plausible length (more than {MAX_LENGTH_MM:g} mm = 1 km); "
+                       "check the value and its unit")
+    return value
+
+
+def _check_params(params, source: str) -> dict:
+    """The [params] table: names of finite, plausible lengths (mm)."""
+    if params is None:
+        return {}
+    if not isinstance(params, dict):
+        raise BadInput(f"{source}: params: expected a [params] table of lengths in mm, found {params!r}")
+    for k, v in params.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise BadInput(f"{source}: [params] {k}: expected a length in mm, found {v!r}")
+        check_length_mm(float(v), f"{source}: [params] {k}")
+    return dict(params)
 
 
 def _builtin_text(name: str) -> str:
@@ -56,11 +96,17 @@ def robot_toml_data(spec: str, base_dir: Path | None = None) -> dict | None:
     if path.suffix.lower() != ".toml":
         return None
     try:
-        return tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text())
     except FileNotFoundError:
         raise BadInput(f"{path}: robot file not found") from None
+    except IsADirectoryError:
+        raise BadInput(f"{path}: is a folder; give a robot .toml file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BadInput(f"{path}: cannot read the robot file ({type(exc).__name__}: {exc})") from None
     except tomllib.TOMLDecodeError as exc:
         raise BadInput(f"{path}: TOML syntax error: {exc}") from None
+    _check_params(data.get("params"), str(path))
+    return data
 
 
 def get_robot(spec: str, params: dict | None = None, base_dir: Path | None = None) -> Robot:
@@ -86,32 +132,63 @@ def get_robot(spec: str, params: dict | None = None, base_dir: Path | None = Non
 def _number(value, where: str, params: dict) -> float:
     if isinstance(value, str):
         if value not in params:
-            raise BadInput(f"{where}: expected a number or a [params] name, found {value!r}")
+            close = difflib.get_close_matches(value, sorted(params), n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise BadInput(f"{where}: expected a number or a [params] name, found {value!r}{hint}")
         return float(params[value])
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise BadInput(f"{where}: expected a number, found {value!r}")
+    if not math.isfinite(value):
+        raise BadInput(f"{where}: expected a finite number, found {value!r}")
     return float(value)
+
+
+def _vector3(value, where: str) -> list[float]:
+    if not isinstance(value, list) or len(value) != 3:
+        raise BadInput(f"{where}: expected 3 numbers [x, y, z], found {value!r}")
+    for v in value:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise BadInput(f"{where}: expected 3 finite numbers [x, y, z], found {value!r}")
+    return [float(v) for v in value]
+
+
+def _flange_matrix(flange, source: str) -> np.ndarray:
+    if not isinstance(flange, dict):
+        raise BadInput(f"{source}: flange: expected a [flange] table with xyz_mm and rpy_deg, found {flange!r}")
+    for key in flange:
+        if key not in _FLANGE_KEYS:
+            raise _unknown_key(f"{source}: [flange] ", key, _FLANGE_KEYS)
+    xyz = _vector3(flange.get("xyz_mm", [0, 0, 0]), f"{source}: [flange] xyz_mm")
+    rpy = _vector3(flange.get("rpy_deg", [0, 0, 0]), f"{source}: [flange] rpy_deg")
+    check_length_mm(float(np.linalg.norm(xyz)), f"{source}: [flange] xyz_mm")
+    return matrix_from_xyz_rpy(xyz, rpy)
 
 
 def robot_from_toml(data: dict, source: str, params: dict | None = None) -> Robot:
     """Build a Robot from a parsed robot TOML (see module doc); errors name the key."""
-    unknown = set(data) - _TOP_KEYS
+    if not isinstance(data, dict):
+        raise BadInput(f"{source}: expected a robot description table, found {type(data).__name__}")
+    unknown = sorted(set(data) - _TOP_KEYS)
     if unknown:
-        raise BadInput(f"{source}: unknown key {sorted(unknown)[0]!r} (expected one of {sorted(_TOP_KEYS)})")
+        raise _unknown_key(f"{source}: ", unknown[0], _TOP_KEYS)
     name = data.get("name")
     if not isinstance(name, str) or not name:
         raise BadInput(f"{source}: name: expected a robot name, found {name!r}")
     convention = data.get("convention", "modified")
     if convention not in ("modified", "standard"):
         raise BadInput(f"{source}: convention: expected 'modified' or 'standard', found {convention!r}")
-    all_params = dict(data.get("params", {}))
+    all_params = _check_params(data.get("params"), source)
     for k, v in (params or {}).items():
         if k not in all_params:
+            close = difflib.get_close_matches(str(k), sorted(all_params), n=1)
+            hint = f"; did you mean {close[0]}?" if close else ""
             raise BadInput(f"{source}: robot.params.{k}: {name} has no parameter {k!r} "
-                           f"(it has {', '.join(all_params) or 'none'})")
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or v <= 0:
+                           f"(it has {', '.join(all_params) or 'none'}){hint}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
             raise BadInput(f"{source}: robot.params.{k}: expected a length > 0 mm, found {v!r}")
-        all_params[k] = v
+        all_params[k] = check_length_mm(float(v), f"{source}: robot.params.{k}")
+    if "notes" in data and not isinstance(data["notes"], str):
+        raise BadInput(f"{source}: notes: expected text, found {data['notes']!r}")
     joints = data.get("joint")
     if not isinstance(joints, list) or not joints:
         raise BadInput(f"{source}: joint: expected at least one [[joint]] table")
@@ -119,30 +196,41 @@ def robot_from_toml(data: dict, source: str, params: dict | None = None) -> Robo
     lim = {k: [] for k in ("lower", "upper", "velocity", "acceleration", "jerk")}
     for i, j in enumerate(joints):
         where = f"{source}: joint[{i}]"
-        bad = set(j) - _JOINT_KEYS
-        if bad:
-            raise BadInput(f"{where}: unknown key {sorted(bad)[0]!r}")
+        if not isinstance(j, dict):
+            raise BadInput(f"{where}: expected a [[joint]] table (name, a_mm, ..., jerk), found {j!r}")
+        for key in j:
+            if key not in _JOINT_KEYS:
+                raise _unknown_key(f"{where} ", key, _JOINT_KEYS)
         kind = j.get("type", "revolute")
         if kind not in ("revolute", "prismatic"):
             raise BadInput(f"{where}.type: expected 'revolute' or 'prismatic', found {kind!r}")
         is_p = kind == "prismatic"
         num = {k: _number(j.get(k, 0.0), f"{where}.{k}", all_params)
                for k in ("a_mm", "alpha_deg", "d_mm", "theta_deg")}
+        for k in _LENGTH_KEYS:
+            check_length_mm(num[k], f"{where}.{k}")
         rows.append(DHRow(num["a_mm"], np.radians(num["alpha_deg"]), num["d_mm"], np.radians(num["theta_deg"]), is_p))
-        names.append(str(j.get("name", f"j{i + 1}")))
+        jname = j.get("name", f"j{i + 1}")
+        if not isinstance(jname, str) or not jname:
+            raise BadInput(f"{where}.name: expected a joint name, found {jname!r}")
+        if jname in names:
+            raise BadInput(f"{where}.name: {jname!r} is already the name of joint[{names.index(jname)}]; "
+                           "joint names must be unique")
+        names.append(jname)
         prismatic.append(is_p)
         for k in lim:
             if k not in j:
                 raise BadInput(f"{where}.{k}: missing (every joint needs lower, upper, velocity, acceleration, jerk)")
             v = _number(j[k], f"{where}.{k}", all_params)
+            if is_p and k in ("lower", "upper"):
+                check_length_mm(v, f"{where}.{k}")
             lim[k].append(v if is_p else np.radians(v))
         if lim["lower"][-1] >= lim["upper"][-1]:
             raise BadInput(f"{where}: lower limit must be below upper limit")
         for k in ("velocity", "acceleration", "jerk"):
             if lim[k][-1] <= 0:
                 raise BadInput(f"{where}.{k}: expected a value > 0, found {j[k]!r}")
-    flange = data.get("flange", {})
-    flange_T = matrix_from_xyz_rpy(flange.get("xyz_mm", [0, 0, 0]), flange.get("rpy_deg", [0, 0, 0]))
+    flange_T = _flange_matrix(data.get("flange", {}), source)
     model, fid = build_pinocchio_model(rows, convention, flange_T, names, name)
     return Robot(
         name=name,
@@ -154,5 +242,5 @@ def robot_from_toml(data: dict, source: str, params: dict | None = None) -> Robo
         convention=convention,
         dh=tuple(rows),
         source=source,
-        notes=str(data.get("notes", "")),
+        notes=data.get("notes", ""),
     )

@@ -98,6 +98,16 @@ class Robot:
             J[:3, :] -= np.cross(r, J[3:, :].T).T
         return J
 
+    def q_from_edge(self, values) -> np.ndarray:
+        """Joint values from edge units (deg for revolute joints, mm for prismatic) to native (rad / mm)."""
+        v = np.asarray(values, dtype=float)
+        return np.where(self.prismatic, v, np.radians(v))
+
+    def q_to_edge(self, q) -> np.ndarray:
+        """Joint values from native units (rad / mm) to edge units (deg / mm); rows of q are configurations."""
+        q = np.asarray(q, dtype=float)
+        return np.where(self.prismatic, q, np.degrees(q))
+
     def within_limits(self, q, tol: float = 1e-9) -> bool:
         q = np.asarray(q)
         return bool(np.all(q >= self.limits.lower - tol) and np.all(q <= self.limits.upper + tol))

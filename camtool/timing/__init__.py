@@ -2,9 +2,11 @@
 
 Entry points:
 
-- ``time_trajectory(joint_path, path, robot, method, tcp_speed_mm_s, check_dt_ms)``
-- ``timing_report(trajectory, robot)``
-- ``check_trajectory(trajectory, robot, dt_s)`` (independent checker, ``check.py``)
+- ``time_trajectory(joint_path, path, robot, settings)`` -> ``TimedTrajectory``
+  (``settings``: ``camtool.settings.TimingSettings``)
+- ``timing_report(trajectory, robot, samples)`` (``samples``: ``TrajectorySamples``)
+- ``check_trajectory(trajectory, robot, dt_s=None, samples=None)`` (independent checker, ``check.py``)
+- ``samples_for(trajectory, dt_s)``: the samples a TimedTrajectory was checked with, else a new resampling
 
 Surface zones (work, lead_in, lead_out) are split into *runs*: consecutive
 surface poses of one path segment. Each run starts and ends at rest; inside,
@@ -18,29 +20,27 @@ its quintic and is listed as a fallback. Everything
 between runs (self-motion, approach, depart, retract) is timed by rest-to-rest
 ruckig moves (``ruckig_moves.py``) with ``zones="stop"``; with ``zones="flow"``
 a free chain passes its intermediate poses without stopping (``flow.py``).
-See docs/timing.md.
+``assemble.py`` puts the pieces together. See docs/timing.md.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import BadInput, CamtoolError, PlanInfeasible
 from ..toolpath import ZONE_CODE, ZONES
-from ..trajectory import Trajectory
+from ..trajectory import Trajectory, TrajectorySamples, sample_trajectory
+from .assemble import SURFACE_ZONES, place, run_layout, slowdowns, time_surface, timeline_pieces
 from .check import check_trajectory
-from .flow import flow_chain, hard_steps
-from .quintic import MARGIN, time_runs
-from .ruckig_moves import RuckigMover, rest_to_rest_chain
-from .ruckig_through import on_grid, through_pieces
 
-__all__ = ["TimedTrajectory", "check_trajectory", "time_trajectory", "timing_report", "SURFACE_ZONES"]
+if TYPE_CHECKING:
+    from ..settings import TimingSettings
 
-SURFACE_ZONES = ("work", "lead_in", "lead_out")
-METHODS = ("quintic", "ruckig")
-ZONE_MODES = ("stop", "flow")
-SLOWDOWN_REPORT_RATIO = 0.995  # pieces slower than this share of the planned TCP speed are reported
+__all__ = ["TimedTrajectory", "TrajectorySamples", "check_trajectory", "sample_trajectory", "samples_for",
+           "time_trajectory", "timing_report", "SURFACE_ZONES"]
+
 MAX_LISTED_FALLBACKS = 20      # ruckig fallback pieces listed one by one in the report
 
 
@@ -54,6 +54,11 @@ class TimedTrajectory(Trajectory):
     next waypoint of a run): ``piece_row`` (JointPath row it starts at),
     ``piece_zone``, ``piece_ruckig`` (True if it is a ruckig move) and
     ``piece_reason`` ("" or why a ruckig piece kept its quintic).
+
+    ``check_samples``: the resampling (``TrajectorySamples`` at
+    ``settings.check_dt_s``) that ``time_trajectory`` checked it with, for the
+    caller to reuse (``samples_for``); not an init argument, not compared, not
+    shown, not saved, and not carried over by ``dataclasses.replace`` (None then).
     """
 
     method: str = ""
@@ -63,28 +68,21 @@ class TimedTrajectory(Trajectory):
     piece_zone: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     piece_ruckig: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     piece_reason: np.ndarray = field(default_factory=lambda: np.zeros(0, str))
+    check_samples: TrajectorySamples | None = field(default=None, init=False, repr=False, compare=False,
+                                                    metadata={"transient": True})
 
 
-def _tcp_positions_mm(joint_path, path, robot) -> np.ndarray:
-    """World-frame TCP position per JointPath row: from the Path, or by FK for inserted poses."""
-    pidx = np.asarray(joint_path.path_index)
-    pos = np.empty((len(pidx), 3))
-    on = pidx >= 0
-    pos[on] = np.asarray(path.poses_mm)[pidx[on], :3, 3]
-    for i in np.nonzero(~on)[0]:
-        pos[i] = (robot.base_T_mm @ robot.fk_tcp(joint_path.q[i]))[:3, 3]
-    return pos
+def samples_for(trajectory: Trajectory, dt_s: float) -> TrajectorySamples:
+    """The trajectory's resampling at ``dt_s``: the ``check_samples`` of a TimedTrajectory when they
+    are at ``dt_s``, else ``sample_trajectory(trajectory, dt_s)`` (e.g. a trajectory loaded from a file)."""
+    samples = getattr(trajectory, "check_samples", None)
+    if samples is not None and samples.matches(trajectory, dt_s):
+        return samples
+    return sample_trajectory(trajectory, dt_s)
 
 
-def _validate(joint_path, path, robot, method, tcp_speed_mm_s, check_dt_ms, zones="stop"):
-    if method not in METHODS:
-        raise BadInput(f"timing.method: expected one of {', '.join(METHODS)}, found {method!r}")
-    if zones not in ZONE_MODES:
-        raise BadInput(f"timing.zones: expected one of {', '.join(ZONE_MODES)}, found {zones!r}")
-    if not tcp_speed_mm_s > 0:
-        raise BadInput(f"timing.tcp_speed_mm_s: expected a number > 0, found {tcp_speed_mm_s}")
-    if not check_dt_ms > 0:
-        raise BadInput(f"timing.check_dt_ms: expected a number > 0, found {check_dt_ms}")
+def _validate(joint_path, path, robot) -> None:
+    """The joint path itself: shape, finite values, Path indices, joint limits (the settings are the job schema's)."""
     q = np.asarray(joint_path.q, float)
     if q.ndim != 2 or q.shape[1] != robot.dof or len(q) < 1:
         raise BadInput(f"joint path has shape {q.shape}, expected (N, {robot.dof}) for {robot.name}")
@@ -105,202 +103,46 @@ def _validate(joint_path, path, robot, method, tcp_speed_mm_s, check_dt_ms, zone
                              "its limits; it cannot be timed")
 
 
-def _runs(joint_path, path):
-    """Run-start and run-end flags per JointPath row (surface poses of one segment)."""
-    zone = np.asarray(joint_path.zone)
-    pidx = np.asarray(joint_path.path_index)
-    surface = np.isin(zone, [ZONE_CODE[z] for z in SURFACE_ZONES])
-    seg = np.where(pidx >= 0, np.asarray(path.segment)[np.maximum(pidx, 0)], -1)
-    n = len(zone)
-    same_prev = np.zeros(n, bool)
-    same_prev[1:] = surface[:-1] & surface[1:] & (seg[1:] == seg[:-1])
-    start = surface & ~same_prev
-    end = np.zeros(n, bool)
-    end[:-1] = surface[:-1] & ~same_prev[1:]
-    end[-1] = surface[-1]
-    return surface, start, end
-
-
-def _inner_zone(z0: np.ndarray, z1: np.ndarray) -> np.ndarray:
-    """Zone of samples inside a piece: its ends' zone, or the non-work one where they differ.
-
-    So a piece counts as work time (both ends work) exactly as it does without samples.
-    """
-    return np.where((z0 == z1) | (z1 == ZONE_CODE["work"]), z0, z1)
-
-
-def _slowdowns(h_plan, h_final, piece_rows, run_of_piece, t_piece_start, joint_path, zone):
-    """Group consecutive surface pieces that run below the planned TCP speed."""
-    ratio = h_plan / h_final
-    slow = ratio < SLOWDOWN_REPORT_RATIO
-    out = []
-    k = 0
-    n = len(slow)
-    pidx = np.asarray(joint_path.path_index)
-    while k < n:
-        if not slow[k]:
-            k += 1
-            continue
-        e = k
-        while e + 1 < n and slow[e + 1] and run_of_piece[e + 1] == run_of_piece[k]:
-            e += 1
-        a, b = int(piece_rows[k]), int(piece_rows[e]) + 1
-        out.append({
-            "first_row": a, "last_row": b,
-            "first_path_index": int(pidx[a]), "last_path_index": int(pidx[b]),
-            "t_start_s": float(t_piece_start[k]), "t_end_s": float(t_piece_start[e] + h_final[e]),
-            "speed_ratio": float(ratio[k:e + 1].min()),
-            "zone": ZONES[int(zone[a])],
-            "at_run_end": bool(k == 0 or run_of_piece[k - 1] != run_of_piece[k]
-                               or e == n - 1 or run_of_piece[e + 1] != run_of_piece[e]),
-        })
-        k = e + 1
-    return tuple(out)
-
-
-def time_trajectory(joint_path, path, robot, method: str = "quintic", tcp_speed_mm_s: float = 100.0,
-                    check_dt_ms: float = 4.0, zones: str = "stop") -> TimedTrajectory:
+def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedTrajectory:
     """Time ``joint_path`` (rad / mm per row) into a TimedTrajectory within every joint limit.
 
     ``path`` gives the TCP positions (mm, world frame) used for the TCP speed on
-    surface zones; ``method`` is "quintic" or "ruckig" (work-zone
-    interpolation); the result is verified by ``check_trajectory`` at
-    ``check_dt_ms`` and a CamtoolError is raised if it breaks a limit. ``zones``:
-    "stop" (rest at every free pose) or "flow" (free chains pass their poses
-    without stopping, ``flow.py``).
+    surface zones. ``settings`` (``TimingSettings``, validated by the job
+    schema): ``method`` "quintic" or "ruckig" (surface-piece interpolation),
+    ``tcp_speed_mm_s``, ``zones`` "stop" (rest at every free pose) or "flow"
+    (free chains pass their poses without stopping, ``flow.py``), and
+    ``check_dt_s``: the result is verified by ``check_trajectory`` on a
+    resampling at that step (kept as ``check_samples``), and a CamtoolError is
+    raised if it breaks a limit.
     """
-    _validate(joint_path, path, robot, method, tcp_speed_mm_s, check_dt_ms, zones)
+    _validate(joint_path, path, robot)
     L = robot.limits
-    q = np.asarray(joint_path.q, float)
     zone = np.asarray(joint_path.zone)
-    pidx = np.asarray(joint_path.path_index)
-    n, dof = q.shape
-    surface, start, end = _runs(joint_path, path)
-
-    # --- surface runs: TCP time law, through-derivatives, local slow-down
-    sidx = np.nonzero(surface)[0]
-    pos = _tcp_positions_mm(joint_path, path, robot)
-    first, last = start[sidx], end[sidx]
-    run_id = np.cumsum(first) - 1
-    step_mm = np.linalg.norm(np.diff(pos[sidx], axis=0), axis=1)
-    runs = time_runs(q[sidx], step_mm, first, last, run_id, L, tcp_speed_mm_s)
-    s_qd, s_qdd = runs.qd, runs.qdd
-    pieces = np.nonzero(~last[:-1])[0] if len(sidx) > 1 else np.zeros(0, int)
-    h_final = runs.h_s.copy()
-    inner = None
-    piece_ruckig = np.zeros(len(pieces), bool)
-    piece_reason = np.full(len(pieces), "", dtype=object)
-    if method == "ruckig" and len(pieces):
-        through = through_pieces(L, q[sidx], s_qd, s_qdd, runs.h_s, pieces, share=MARGIN)
-        h_final[pieces] = through.duration_s
-        inner = (pieces[through.piece], through.t_s, through.q, through.qd, through.qdd)
-        piece_ruckig, piece_reason = through.used, through.reason
-    row_of = {int(r): k for k, r in enumerate(sidx)}  # JointPath row -> surface waypoint
-
-    # --- assemble items in JointPath order: runs and the free chains between them
-    mover = RuckigMover(L)
-    parts_t, parts_q, parts_qd, parts_qdd, parts_zone, parts_pidx = [], [], [], [], [], []
-    t_offset = 0.0
-    piece_t0 = np.zeros(max(len(sidx) - 1, 0))
-
-    def emit(t_rel, qq_, vv_, aa_, zz, pp, skip_first):
-        nonlocal t_offset
-        s = 1 if skip_first else 0
-        parts_t.append(t_offset + t_rel[s:])
-        parts_q.append(qq_[s:])
-        parts_qd.append(vv_[s:])
-        parts_qdd.append(aa_[s:])
-        parts_zone.append(np.asarray(zz)[s:])
-        parts_pidx.append(np.asarray(pp)[s:])
-        t_offset += float(t_rel[-1])
-
-    def emit_free(chain):
-        if zones == "flow":
-            rows_ = np.asarray(chain)
-            hard = hard_steps(q[rows_], robot.prismatic, np.asarray(joint_path.jump)[rows_],
-                              (zone[rows_] == ZONE_CODE["retract"]) | np.asarray(joint_path.retract)[rows_])
-            t_rel, cq, cv, ca, pose = flow_chain(mover, q[rows_], hard)
-        else:
-            t_rel, cq, cv, ca, pose = rest_to_rest_chain(mover, q[chain])
-        rows = np.asarray(chain)
-        step_zone = np.empty(len(chain), int)
-        for k in range(len(chain)):
-            nxt = rows[min(k + 1, len(rows) - 1)]
-            if not surface[nxt]:
-                step_zone[k] = zone[nxt]
-            elif not surface[rows[k]]:
-                step_zone[k] = zone[rows[k]]
-            else:
-                step_zone[k] = ZONE_CODE["self_motion"]
-        prev_pose = np.maximum.accumulate(np.where(pose >= 0, pose, 0))
-        zz = np.where(pose >= 0, zone[rows[np.maximum(pose, 0)]], step_zone[prev_pose])
-        pp = np.where(pose >= 0, pidx[rows[np.maximum(pose, 0)]], -1)
-        emit(t_rel, cq, cv, ca, zz, pp, skip_first=bool(parts_t))
-
-    def snap_to_grid():
-        """Start a ruckig run on the exact time grid: stretch the last free interval by < 1 ns."""
-        nonlocal t_offset
-        g = float(on_grid(t_offset, up=True))
-        if g != t_offset:
-            last = next(p for p in reversed(parts_t) if len(p))
-            last[-1] = g
-            t_offset = g
-
-    def emit_run(a, b):
-        ka, kb = row_of[a], row_of[b]
-        if inner is not None and parts_t:
-            snap_to_grid()
-        h = h_final[ka:kb]
-        t_way = np.concatenate([[0.0], np.cumsum(h)])
-        piece_t0[ka:kb] = t_offset + t_way[:-1]
-        t_rel, rq, rv, ra = t_way, q[sidx[ka:kb + 1]], s_qd[ka:kb + 1], s_qdd[ka:kb + 1]
-        zz, pp = zone[sidx[ka:kb + 1]], pidx[sidx[ka:kb + 1]]
-        if inner is not None and kb > ka:
-            sel = (inner[0] >= ka) & (inner[0] < kb)
-            if sel.any():
-                ti = t_way[inner[0][sel] - ka] + inner[1][sel]
-                t_rel = np.concatenate([t_rel, ti])
-                rq = np.concatenate([rq, inner[2][sel]])
-                rv = np.concatenate([rv, inner[3][sel]])
-                ra = np.concatenate([ra, inner[4][sel]])
-                zz = np.concatenate([zz, _inner_zone(zone[sidx[inner[0][sel]]], zone[sidx[inner[0][sel] + 1]])])
-                pp = np.concatenate([pp, np.full(int(sel.sum()), -1)])
-                o = np.argsort(t_rel, kind="stable")
-                t_rel, rq, rv, ra, zz, pp = t_rel[o], rq[o], rv[o], ra[o], zz[o], pp[o]
-        emit(t_rel, rq, rv, ra, zz, pp, skip_first=bool(parts_t))
-
-    run_starts = np.nonzero(start)[0]
-    run_ends = np.nonzero(end)[0]
-    prev_end = None
-    for a, b in zip(run_starts, run_ends):
-        lo = 0 if prev_end is None else prev_end
-        chain = list(range(lo, a + 1))
-        if len(chain) >= 2:
-            emit_free(chain)
-        emit_run(int(a), int(b))
-        prev_end = int(b)
-    tail = list(range(0 if prev_end is None else prev_end, n))
-    if len(tail) >= 2 or not parts_t:
-        emit_free(tail)
-
-    t_s = np.concatenate(parts_t)
+    layout = run_layout(joint_path, path)
+    surface = time_surface(joint_path, path, robot, layout, settings.method, settings.tcp_speed_mm_s)
+    pieces = timeline_pieces(joint_path, robot, layout, surface, settings.zones)
+    placed = place(pieces)
+    s = placed.samples
+    p = surface.pieces
     traj = TimedTrajectory(
-        robot_name=robot.name, joint_names=tuple(robot.joint_names), prismatic=np.asarray(robot.prismatic, bool),
-        t_s=t_s, q=np.concatenate(parts_q), qd=np.concatenate(parts_qd), qdd=np.concatenate(parts_qdd),
-        zone=np.concatenate(parts_zone).astype(zone.dtype if zone.dtype.kind in "iu" else int),
-        path_index=np.concatenate(parts_pidx).astype(int),
+        robot_name=robot.name, joint_names=tuple(robot.joint_names), prismatic=np.array(robot.prismatic, bool),
+        t_s=s.t_s, q=s.q, qd=s.qd, qdd=s.qdd,
+        zone=s.zone.astype(zone.dtype if zone.dtype.kind in "iu" else int),
+        path_index=s.path_index.astype(int),
         limits={"lower": L.lower.copy(), "upper": L.upper.copy(), "velocity": L.velocity.copy(),
                 "acceleration": L.acceleration.copy(), "jerk": L.jerk.copy()},
-        method=method, tcp_speed_mm_s=float(tcp_speed_mm_s),
-        slowdowns=_slowdowns(runs.h_plan_s[pieces], h_final[pieces], sidx[pieces], run_id[pieces],
-                             piece_t0[pieces], joint_path, zone) if len(pieces) else (),
-        piece_row=sidx[pieces].astype(int), piece_zone=zone[sidx[pieces]].astype(int),
-        piece_ruckig=np.asarray(piece_ruckig, bool), piece_reason=np.asarray(piece_reason, str),
+        method=settings.method, tcp_speed_mm_s=float(settings.tcp_speed_mm_s),
+        slowdowns=slowdowns(surface, pieces, placed, joint_path),
+        piece_row=surface.rows[p].astype(int), piece_zone=zone[surface.rows[p]].astype(int),
+        piece_ruckig=np.asarray(surface.interpolation.piece_ruckig, bool),
+        piece_reason=np.asarray(surface.interpolation.piece_reason, str),
     )
-    findings = check_trajectory(traj, robot, dt_s=check_dt_ms / 1000.0)
+    samples = sample_trajectory(traj, settings.check_dt_s) if len(traj.t_s) >= 2 else None
+    findings = check_trajectory(traj, robot, settings.check_dt_s, samples=samples)
     if findings:
         raise CamtoolError(f"timing produced a trajectory that breaks a limit ({len(findings)} findings): "
                            f"{findings[0]}")
+    object.__setattr__(traj, "check_samples", samples)  # derived data, set once before anyone sees traj
     return traj
 
 
@@ -325,22 +167,26 @@ def _piece_figures(tr) -> dict:
     }
 
 
-def timing_report(trajectory: Trajectory, robot, dt_s: float = 0.004) -> dict:
-    """Cycle time, peak joint use (|value| / limit, from a ``dt_s`` resampling), work time, slow-downs,
-    share of ruckig pieces and ruckig fallbacks."""
+REPORT_BLOCK_SAMPLES = 200000  # samples reduced at a time for the peak ratios (bounded temporaries)
+
+
+def timing_report(trajectory: Trajectory, robot, samples: TrajectorySamples) -> dict:
+    """Cycle time, peak joint use (|value| / limit over ``samples``, the trajectory's resampling from
+    ``sample_trajectory`` / ``samples_for``), work time, slow-downs, share of ruckig pieces and ruckig fallbacks."""
     tr = trajectory
+    if not isinstance(samples, TrajectorySamples):
+        raise TypeError("timing_report: samples must be the trajectory's TrajectorySamples "
+                        "(samples_for(trajectory, dt_s) or sample_trajectory(trajectory, dt_s))")
+    if not samples.matches(tr):
+        raise ValueError(f"timing_report: the samples ({samples.waypoints} waypoints) are not those of this "
+                         f"trajectory ({len(tr.t_s)} waypoints)")
     L = robot.limits
-    peaks = {"speed": 0.0, "acc": 0.0, "jerk": 0.0}
     per_joint = np.zeros((3, robot.dof))
-    m = len(tr.t_s)
-    step = 20000
-    for a in range(0, max(m - 1, 1), step):
-        b = min(a + step, m - 1)
-        part = Trajectory(tr.robot_name, tr.joint_names, tr.prismatic, tr.t_s[a:b + 1], tr.q[a:b + 1],
-                          tr.qd[a:b + 1], tr.qdd[a:b + 1], tr.zone[a:b + 1], tr.path_index[a:b + 1])
-        _t, _q, v, acc, j = part.sample(dt_s)
-        for r, (x, lim) in enumerate(((v, L.velocity), (acc, L.acceleration), (j, L.jerk))):
-            np.maximum(per_joint[r], (np.abs(x) / lim).max(axis=0), out=per_joint[r])
+    for a in range(0, len(samples.t_s), REPORT_BLOCK_SAMPLES):
+        blk = slice(a, a + REPORT_BLOCK_SAMPLES)
+        for r, (x, lim) in enumerate(((samples.qd, L.velocity), (samples.qdd, L.acceleration),
+                                      (samples.qddd, L.jerk))):
+            np.maximum(per_joint[r], (np.abs(x[blk]) / lim).max(axis=0), out=per_joint[r])
     peaks = per_joint.max(axis=1)
     work = ZONE_CODE["work"]
     both_work = (tr.zone[:-1] == work) & (tr.zone[1:] == work)
@@ -357,5 +203,5 @@ def timing_report(trajectory: Trajectory, robot, dt_s: float = 0.004) -> dict:
         "tcp_speed_mm_s": getattr(tr, "tcp_speed_mm_s", 0.0),
         "slowdowns": [dict(s) for s in getattr(tr, "slowdowns", ())],
         **_piece_figures(tr),
-        "waypoints": int(m),
+        "waypoints": int(len(tr.t_s)),
     }

@@ -1,17 +1,17 @@
 """Independent limit checker: only the Trajectory and the robot's limits are used.
 
 It does not import any of the timing code; it resamples the trajectory with
-``Trajectory.sample`` (the quintic Hermite pieces a controller would run) and
-compares every joint's position, speed, acceleration and jerk to the robot's
-limits. Findings are one line each, in user units (deg or mm, per s^k).
+``camtool.trajectory.sample_trajectory`` (the quintic Hermite pieces a
+controller would run), or takes such samples ready-made, and compares every
+joint's position, speed, acceleration and jerk to the robot's limits. Findings
+are one line each, in user units (deg or mm, per s^k).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..trajectory import Trajectory
+from ..trajectory import Trajectory, TrajectorySamples, sample_trajectory
 
-CHUNK_WAYPOINTS = 20000      # resample this many waypoints at a time (bounded memory)
 REL_TOL = 1e-9               # relative slack for round-off
 MAX_LINES_PER_KIND = 20      # findings per joint and quantity before summarising
 
@@ -60,13 +60,18 @@ def _limit_lines(name, prismatic, t, values, limit, kind, order, lower=None):
     return lines
 
 
-def check_trajectory(trajectory: Trajectory, robot, dt_s: float = 0.004) -> list[str]:
+def check_trajectory(trajectory: Trajectory, robot, dt_s: float | None = None,
+                     samples: TrajectorySamples | None = None) -> list[str]:
     """Findings (one line each) where ``trajectory`` breaks the robot's limits; empty if none.
 
-    Resamples at ``dt_s`` and checks position, speed, acceleration and jerk of
-    every joint; also the waypoints themselves, strictly increasing time
-    stamps, finite values and array shapes.
+    Checks array shapes, finite values, strictly increasing time stamps, the
+    waypoints themselves, and position, speed, acceleration and jerk of every
+    joint on a resampling: ``samples`` (from ``sample_trajectory(trajectory,
+    dt_s)``) if given, else a new ``sample_trajectory(trajectory, dt_s)``.
+    Give ``dt_s`` or ``samples`` (or both: then they must agree).
     """
+    if dt_s is None and samples is None:
+        raise TypeError("check_trajectory: give dt_s (the resampling step, s) or samples")
     tr = trajectory
     L = robot.limits
     dof = robot.dof
@@ -91,35 +96,26 @@ def check_trajectory(trajectory: Trajectory, robot, dt_s: float = 0.004) -> list
         k = int(np.nonzero(steps <= 0)[0][0])
         return [f"time stamps are not strictly increasing at waypoint {k + 1} (t = {tr.t_s[k + 1]:.6f} s "
                 f"after {tr.t_s[k]:.6f} s)"]
-    # the waypoints themselves, then the resampled motion
-    per_joint: dict[tuple[int, str], list] = {}
-
-    def add(j, kind, t, v):
-        per_joint.setdefault((j, kind), []).append((t, v))
-
-    for j in range(dof):
-        add(j, "position", tr.t_s, tr.q[:, j])
-        add(j, "speed", tr.t_s, tr.qd[:, j])
-        add(j, "acceleration", tr.t_s, tr.qdd[:, j])
-    for a in range(0, m - 1, CHUNK_WAYPOINTS):
-        b = min(a + CHUNK_WAYPOINTS, m - 1)
-        part = Trajectory(tr.robot_name, tr.joint_names, tr.prismatic, tr.t_s[a:b + 1], tr.q[a:b + 1],
-                          tr.qd[a:b + 1], tr.qdd[a:b + 1], tr.zone[a:b + 1], tr.path_index[a:b + 1])
-        t, q, qd, qdd, qddd = part.sample(dt_s)
-        for j in range(dof):
-            add(j, "position", t, q[:, j])
-            add(j, "speed", t, qd[:, j])
-            add(j, "acceleration", t, qdd[:, j])
-            add(j, "jerk", t, qddd[:, j])
+    if samples is None:
+        samples = sample_trajectory(tr, dt_s)
+    elif not samples.matches(tr, dt_s):
+        raise ValueError(f"check_trajectory: the samples (dt {samples.dt_s} s, {samples.waypoints} waypoints) "
+                         f"are not those of this trajectory ({m} waypoints) at dt {dt_s} s")
+    # position, speed and acceleration: the waypoints and the samples, in time order; jerk: the samples
+    t_all = np.concatenate([tr.t_s, samples.t_s])
+    order = np.argsort(t_all, kind="stable")
+    t_all = t_all[order]
+    order_j = np.argsort(samples.t_s, kind="stable")
+    t_j = samples.t_s[order_j]
     limit_of = {"speed": L.velocity, "acceleration": L.acceleration, "jerk": L.jerk}
     order_of = {"position": 0, "speed": 1, "acceleration": 2, "jerk": 3}
     for j in range(dof):
-        for kind in ("position",) + _KINDS:
-            chunks = per_joint[(j, kind)]
-            t = np.concatenate([c[0] for c in chunks])
-            v = np.concatenate([c[1] for c in chunks])
-            o = np.argsort(t, kind="stable")
-            t, v = t[o], v[o]
+        for kind, wp, smp in (("position", tr.q, samples.q), ("speed", tr.qd, samples.qd),
+                              ("acceleration", tr.qdd, samples.qdd), ("jerk", None, samples.qddd)):
+            if wp is None:
+                t, v = t_j, smp[order_j, j]
+            else:
+                t, v = t_all, np.concatenate([wp[:, j], smp[:, j]])[order]
             if kind == "position":
                 findings += _limit_lines(names[j], prism[j], t, v, L.upper[j], kind, 0, lower=L.lower[j])
             else:

@@ -9,7 +9,7 @@
 - ``solve_poses(robot, poses, q_ref)``: joint values per pose, closed-form
   (``ik_spherical_wrist``, least change from the previous pose) when the robot
   is of the IRB2400 family, else CWLN warm-started from the previous pose.
-- ``run_cartesian_job``: ``task.kind = "cartesian"`` in the pipeline: seed
+- ``run``: ``task.kind = "cartesian"`` in the pipeline: seed
   001's test moves (a line 0.4 m down the tool z axis, then 0.4 m along +y,
   then a circle), each move a work run of its own; the timed trajectory is
   sampled every ``timing.check_dt_ms`` and the TCP's distance from the line or
@@ -26,8 +26,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from .errors import BadInput, PlanInfeasible
-from .toolpath import ZONE_CODE, Path
+from pathlib import Path as FsPath
+
+from ..errors import BadInput, PlanInfeasible
+from ..job import Job
+from ..plan.cwln import CwlnSolver, IkSettings
+from ..robots.ik_spherical_wrist import SphericalWristIK
+from ..settings import JobSettings
+from ..stages import RunResult, StageLog, finish_run, post_checked, run_report, time_for_job
+from ..toolpath import ZONE_CODE, Path
+from ..trajectory import JointPath
+from ..transforms import matrix_from_xyz_rpy
 
 MAX_DENSIFY = 8
 
@@ -128,8 +137,6 @@ def arc_through_points(T0: np.ndarray, p_mid, p_end, n: int) -> tuple[np.ndarray
 
 def solve_poses(robot, poses_tcp_base: np.ndarray, q_ref: np.ndarray) -> np.ndarray:
     """Joint values per TCP pose (base frame): closed-form where the robot allows, else CWLN."""
-    from .robots.ik_spherical_wrist import SphericalWristIK
-
     tool_inv = np.linalg.inv(robot.tool_T_mm)
     q = np.empty((len(poses_tcp_base), robot.dof))
     prev = np.asarray(q_ref, float)
@@ -144,8 +151,6 @@ def solve_poses(robot, poses_tcp_base: np.ndarray, q_ref: np.ndarray) -> np.ndar
             except PlanInfeasible as exc:
                 raise PlanInfeasible(f"cartesian pose {k}: {exc}") from None
         return q
-    from .plan.cwln import CwlnSolver, IkSettings
-
     solver = CwlnSolver(robot, IkSettings(max_iterations=300))
     for k, T in enumerate(poses_tcp_base):
         res = solver.solve(T, prev)
@@ -158,8 +163,6 @@ def solve_poses(robot, poses_tcp_base: np.ndarray, q_ref: np.ndarray) -> np.ndar
 
 def ik_method(robot) -> str:
     """'closed-form' if ``solve_poses`` uses the closed-form IK for this robot, else 'cwln'."""
-    from .robots.ik_spherical_wrist import SphericalWristIK
-
     try:
         SphericalWristIK(robot)
         return "closed-form"
@@ -223,24 +226,14 @@ def trajectory_deviation_mm(trajectory, robot, path: Path, prims: list[Primitive
     return worst
 
 
-def run_cartesian_job(job, outdir, on_stage=None):
-    """Run a ``task.kind = "cartesian"`` job (see module doc); returns a pipeline.RunResult."""
-    from pathlib import Path as FsPath
-
-    from .pipeline import RunResult, robot_for_job, run_report, stage_function
-    from .transforms import matrix_from_xyz_rpy
-    from .trajectory import JointPath
-
+def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: bool = False) -> RunResult:
+    """Run a ``task.kind = "cartesian"`` job (see module doc). ``compare`` does not apply and is ignored."""
     outdir = FsPath(outdir)
-    r = RunResult(on_stage=on_stage)
-    robot = robot_for_job(job)
     T_start = matrix_from_xyz_rpy(job.task.cart_start_mm, job.task.cart_start_rpy_deg)
     moves = seed001_moves(job)
     scale = [1] * len(moves)
     base_inv = np.linalg.inv(robot.base_T_mm)
-    q_home = np.radians(job.robot.home_deg) if job.robot.home_deg else np.zeros(robot.dof)
-    if len(q_home) != robot.dof:
-        raise BadInput(f"{job.path}: robot.home_deg: expected {robot.dof} values, found {len(q_home)}")
+    q_home = np.zeros(robot.dof) if settings.planner.q_home is None else np.asarray(settings.planner.q_home)
     history = []
     for _round in range(MAX_DENSIFY + 1):
         poses, prims = build_moves(T_start, moves, scale)
@@ -252,8 +245,8 @@ def run_cartesian_job(job, outdir, on_stage=None):
         f = np.zeros(n, bool)
         jp = JointPath(q, np.arange(n), path.zone.copy(), err, np.zeros(n), f, f.copy(), f.copy(), f.copy(),
                        err < 1e-6, {"cartesian": {}})
-        trajectory = stage_function("time", ["plan"])(jp, path, robot, **job.timing)
-        dev = trajectory_deviation_mm(trajectory, robot, path, prims, job.timing.check_dt_ms / 1000.0)
+        trajectory = time_for_job(settings, jp, path, robot)
+        dev = trajectory_deviation_mm(trajectory, robot, path, prims, settings.timing.check_dt_s)
         history.append({"points": [len(p) for p in poses], "max_deviation_mm": dev.tolist()})
         bad = dev > job.task.path_tol_mm
         if not bad.any():
@@ -263,8 +256,8 @@ def run_cartesian_job(job, outdir, on_stage=None):
         raise PlanInfeasible(f"cartesian moves leave their line/arc by {dev.max():.4g} mm > task.path_tol_mm = "
                              f"{job.task.path_tol_mm:g} even after {MAX_DENSIFY} densifications")
     for name, value in (("raster", path), ("plan", jp), ("time", trajectory)):
-        r.done(name, value)
-    r.post_checked(trajectory, robot, job, outdir)
+        log.done(name, value)
+    programs = log.done("post", post_checked(trajectory, robot, job, outdir))
     report = run_report(path, jp, trajectory, robot, job, "cartesian")
     report["limits_ok"] = True
     report["status"] = "ok"
@@ -272,4 +265,4 @@ def run_cartesian_job(job, outdir, on_stage=None):
                            "path_tol_mm": job.task.path_tol_mm, "rounds": history,
                            "max_deviation_mm": float(max(history[-1]["max_deviation_mm"])),
                            "ik": ik_method(robot)}
-    return r.finish(report, path, jp, robot, {"cartesian": trajectory}, outdir)
+    return finish_run(log, programs, report, path, jp, robot, {"cartesian": trajectory}, outdir)

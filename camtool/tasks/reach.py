@@ -20,9 +20,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import BadInput, PlanInfeasible
-from .job import Job
-from .toolpath import ZONE_CODE, Path
+from pathlib import Path as FsPath
+
+from ..errors import BadInput, PlanInfeasible
+from ..job import Job
+from ..plan.arm_angle_sqp import plan_arm_angle_sqp
+from ..report import write_json_atomic
+from ..settings import JobSettings
+from ..stages import (RunResult, StageLog, finish_run, post_checked, run_report, surface_for_job, time_for_job,
+                      workpiece_for_job)
+from ..toolpath import ZONE_CODE, Path
 
 FAMILY_TABLE_FILE = "arm_angle_families.txt"
 START_MERGE_MM = 1e-3  # a start point this close to the first target is that target
@@ -108,29 +115,20 @@ def family_table_text(res) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_reach_job(job: Job, outdir, on_stage=None):
-    """Run a sequential_reach job (see module doc); returns a pipeline.RunResult."""
-    from pathlib import Path as FsPath
-
-    from .pipeline import (RunResult, robot_for_job, run_report, stage_function, surface_for_job,
-                           workpiece_for_job)
-    from .plan.arm_angle_sqp import plan_arm_angle_sqp
-    from .report import write_json_atomic
-
-    if job.planner.method != "arm-angle-sqp":
+def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: bool = False) -> RunResult:
+    """Run a sequential_reach job (see module doc). ``compare`` does not apply and is ignored."""
+    if settings.planner.method != "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: task.kind = 'sequential_reach' is planned by "
                        f"'arm-angle-sqp', found {job.planner.method!r}")
     outdir = FsPath(outdir)
-    r = RunResult(on_stage=on_stage)
-    done = r.done
+    done = log.done
 
     surface = None
     if job.task.plane == "fit":
-        wp = done("workpiece", workpiece_for_job(job, r.stages))
-        surface = done("fit", surface_for_job(job, wp, r.stages))
+        wp = done("workpiece", workpiece_for_job(job))
+        surface = done("fit", surface_for_job(job, wp))
     point, normal = target_plane(job, surface)
     path = done("raster", reach_path(job, point, normal, job.cell.base_xyz_mm))
-    robot = robot_for_job(job)
     try:
         joint_path, res = plan_arm_angle_sqp(path, robot, job.task.arm_angle0_deg, job.task.sqp_max_iterations,
                                              job.task.track_mm)
@@ -139,8 +137,8 @@ def run_reach_job(job: Job, outdir, on_stage=None):
                            "reason": str(exc), **exc.report}, outdir / "report.json")
         raise
     done("plan", joint_path)
-    trajectory = done("time", stage_function("time", r.stages)(joint_path, path, robot, **job.timing))
-    r.post_checked(trajectory, robot, job, outdir)
+    trajectory = done("time", time_for_job(settings, joint_path, path, robot))
+    programs = done("post", post_checked(trajectory, robot, job, outdir))
     report = run_report(path, joint_path, trajectory, robot, job, job.planner.method)
     best = res.families[res.best]
     report["limits_ok"] = True
@@ -156,4 +154,5 @@ def run_reach_job(job: Job, outdir, on_stage=None):
         "families": res.table()}
     table = outdir / FAMILY_TABLE_FILE
     table.write_text(family_table_text(res))
-    return r.finish(report, path, joint_path, robot, {job.planner.method: trajectory}, outdir, [table])
+    return finish_run(log, programs, report, path, joint_path, robot, {job.planner.method: trajectory}, outdir,
+                      [table])

@@ -1,0 +1,38 @@
+"""``camtool post``: the post stage of a job (controller programs from a timed trajectory)."""
+from pathlib import Path
+
+import click
+
+from ..console import echo_json
+from ..job import load_job
+from ..post import preflight
+from ..settings import JobSettings
+from ..stages import post_checked, robot_for_job
+from .resume import trajectory_of
+
+
+@click.command("post")
+@click.argument("job_file", metavar="JOB", type=click.Path(path_type=Path))
+@click.option("--from", "from_file", type=click.Path(path_type=Path), default=None, metavar="TRAJECTORY.npz",
+              help="Resume from a saved trajectory (`camtool time JOB -o DIR` wrote DIR/trajectory.npz).")
+@click.option("-o", "--outdir", type=click.Path(path_type=Path), required=True, help="Folder for the programs.")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+              help="Override a job-file key, e.g. --set post.formats=[\"rapid\"] (repeatable).")
+@click.option("--json", "as_json", is_flag=True, help="Print the written files as JSON.")
+def command(job_file: Path, from_file: Path | None, outdir: Path, overrides: tuple[str, ...], as_json: bool) -> None:
+    """Write JOB's controller programs ([post] formats) from its timed trajectory.
+
+    The trajectory passes the independent limit check first and every program
+    is read back and checked before it is placed, as in `camtool run`.
+    """
+    job = load_job(job_file, list(overrides))
+    robot = robot_for_job(job)
+    preflight(robot, job, outdir)
+    settings = JobSettings.from_job(job, robot)
+    trajectory = trajectory_of(job, settings, robot, from_file)
+    files = post_checked(trajectory, robot, job, outdir)
+    if as_json:
+        echo_json({"job": str(job_file), "programs": [str(f) for f in files]})
+        return
+    for f in files:
+        click.echo(f"wrote {f}")

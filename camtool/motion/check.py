@@ -1,0 +1,546 @@
+"""The independent motion check: sample the joint-linear motion at <= 4 ms and
+measure it against the part (docs/motion-check.md).
+
+Nothing here comes from the planner or the timing stage: the inputs are
+waypoint times, joint values and zones; the robot's DH table gives the
+geometry (``fk_batch``); the part is a ``PartGeometry``.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import BadInput
+from ..toolpath import WORK, ZONE_CODE, ZONES
+from .fk_batch import BatchFK
+from .geometry import PartGeometry
+
+NON_WORK = tuple(ZONE_CODE[z] for z in ("self_motion", "approach", "depart", "retract"))
+LINK_ROLES = ("wrist", "forearm", "upper_arm")
+
+
+@dataclass(frozen=True)
+class MotionCheckSettings:
+    """What the check samples and what it accepts (lengths in mm)."""
+
+    dt_s: float = 0.004                  # largest sampling step of the joint-linear motion
+    penetration_tol_mm: float = 0.1      # deeper than this behind the surface fails
+    clearance_mm: float = 5.0            # free clearance required of tool and links off work
+    path_tol_mm: float = 0.1             # |TCP off the surface| allowed on work
+    tool_radius_mm: float = 25.0         # tool capsule, flange to TCP
+    link_radius_mm: float = 60.0         # link capsules
+    links: int = 3                       # links checked, counted back from the flange
+    tool_contact_exempt_mm: float = 30.0  # length of the chain before the TCP left out of the bodies
+    contact_allowance_mm: float = 2.0    # TCP clearance ignores samples this close to a surface waypoint
+    on_surface_tol_mm: float = 0.5       # a waypoint whose TCP is this close to the surface touches it
+    chunk_samples: int = 50_000          # samples processed at a time (bounded memory)
+    max_findings_per_kind: int = 10      # lines per body and kind before a summary line
+
+    def __post_init__(self):
+        positive = ("dt_s", "chunk_samples")
+        for name, value in asdict(self).items():
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
+            if not ok or value < 0 or (name in positive and value <= 0):
+                need = "> 0" if name in positive else ">= 0"
+                raise BadInput(f"motion check: {name}: expected a number {need}, found {value!r}")
+
+
+@dataclass(frozen=True)
+class Place:
+    """Where a figure was found: sample time, zone, the waypoint moved towards, and the body."""
+
+    t_s: float
+    zone: str
+    waypoint: int
+    at_waypoint: bool
+    index: int | None        # the caller's index (path index, segment) of that waypoint
+    index_label: str
+    index_relation: str      # "at", "before" or "after" that index
+    body: str
+
+    def text(self) -> str:
+        where = f"t = {self.t_s:.3f} s in {self.zone}"
+        if self.index is not None:
+            where += f" {self.index_relation} {self.index_label} {self.index}"
+        return where
+
+    def to_dict(self) -> dict:
+        return {"t_s": round(self.t_s, 6), "zone": self.zone, "waypoint": self.waypoint,
+                "index": self.index, "index_label": self.index_label, "relation": self.index_relation,
+                "body": self.body}
+
+
+@dataclass(frozen=True)
+class MotionReport:
+    """Figures of one motion check; ``ok`` is False when a finding fails it."""
+
+    ok: bool
+    samples: int
+    dt_s: float
+    duration_s: float
+    max_penetration_mm: float
+    max_penetration_at: Place | None
+    min_clearance_mm: float | None       # None: every off-work body stays beyond the part's horizon
+    min_clearance_at: Place | None
+    tcp_min_clearance_mm: float | None
+    tcp_min_clearance_at: Place | None
+    work_deviation_mm: float | None      # None: no work samples
+    work_deviation_at: Place | None
+    work_beyond_edge_mm: float | None    # information: farthest work sample beyond the part's edge
+    work_beyond_edge_at: Place | None
+    max_joint_step_deg_per_mm: float | None
+    max_joint_step_at: Place | None      # body = the joint
+    max_track_step_mm_per_mm: float | None
+    max_track_step_at: Place | None
+    findings: tuple[str, ...]
+    bodies: tuple[dict, ...]
+    part: dict
+    settings: MotionCheckSettings
+    check_seconds: float = 0.0
+    horizon_mm: float = field(default=0.0)
+
+    def to_dict(self) -> dict:
+        d = {}
+        for k, v in self.__dict__.items():
+            if isinstance(v, Place):
+                v = v.to_dict()
+            elif isinstance(v, MotionCheckSettings):
+                v = asdict(v)
+            elif isinstance(v, tuple):
+                v = list(v)
+            elif isinstance(v, float):
+                v = round(v, 6)
+            d[k] = v
+        return d
+
+
+@dataclass(frozen=True)
+class _Body:
+    name: str
+    kind: str          # "tool" or "link"
+    radius: float
+    start: int         # chain point index: 0..dof-1 joint origins, dof = flange, dof + 1 = TCP
+    end: int
+    exempt_before: float  # chain length between this body's end and the TCP
+
+
+class _Samples:
+    """The joint-linear sampling: per sample its interval, fraction, time, zone and waypoint."""
+
+    def __init__(self, t_s, zone, dt_s):
+        M = len(t_s)
+        if M == 1:
+            self.seg = np.zeros(1, np.int64)
+            self.frac = np.zeros(1)
+            self.t = t_s.copy()
+            self.wp = np.zeros(1, np.int64)
+            self.at_wp = np.ones(1, bool)
+            self.zone = zone.copy()
+            return
+        h = np.diff(t_s)
+        n = np.maximum(1, np.ceil(h / dt_s - 1e-9).astype(np.int64))
+        seg = np.repeat(np.arange(M - 1), n)
+        k = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
+        self.seg = np.append(seg, M - 2)
+        self.frac = np.append(k / n[seg], 1.0)
+        self.t = t_s[self.seg] + self.frac * h[self.seg]
+        self.t[-1] = t_s[-1]
+        self.at_wp = np.append(k == 0, True)
+        self.wp = np.where(self.at_wp, self.seg, self.seg + 1)
+        self.wp[-1] = M - 1
+        z0, z1 = zone[:-1], zone[1:]
+        seg_zone = np.where((z1 == WORK) & (z0 != WORK), z0, z1)
+        self.zone = np.where(self.at_wp, zone[self.wp], seg_zone[self.seg])
+
+    def __len__(self):
+        return len(self.t)
+
+    def q(self, q, sl: slice) -> np.ndarray:
+        s, f = self.seg[sl], self.frac[sl][:, None]
+        return q[s] + f * (q[np.minimum(s + 1, len(q) - 1)] - q[s])
+
+
+def _zone_codes(zone, M) -> np.ndarray:
+    z = np.asarray(zone)
+    if z.shape != (M,):
+        raise BadInput(f"motion check: zone has shape {z.shape}, expected ({M},)")
+    if z.dtype.kind in "UO":
+        bad = sorted({str(x) for x in z if str(x) not in ZONE_CODE})
+        if bad:
+            raise BadInput(f"motion check: unknown zone {bad[0]!r} (zones: {', '.join(ZONES)})")
+        return np.array([ZONE_CODE[str(x)] for x in z], dtype=np.int64)
+    z = z.astype(np.int64)
+    if len(z) and (z.min() < 0 or z.max() >= len(ZONES)):
+        raise BadInput(f"motion check: zone codes must be 0..{len(ZONES) - 1} (camtool.toolpath.ZONES)")
+    return z
+
+
+def _bodies(robot, fk: BatchFK, s: MotionCheckSettings) -> list[_Body]:
+    """Tool capsule and the last ``s.links`` links (distinct joint origins) before the flange."""
+    dof = robot.dof
+    offsets = fk.constant_offsets_mm()
+    kept = [0]
+    for i in range(dof):
+        if fk.prismatic[i] or offsets[i] > 1e-6:
+            kept.append(i + 1)
+    kept[-1] = dof  # the last distinct point coincides with the flange
+    if len(kept) == 1:
+        kept = [0, dof]
+    links = list(zip(kept[:-1], kept[1:]))[::-1][: int(s.links)]
+    names = list(robot.joint_names) + ["flange"]
+    tool_len = float(np.linalg.norm(np.asarray(robot.tool_T_mm)[:3, 3]))
+    bodies = [_Body("tool", "tool", s.tool_radius_mm, dof, dof + 1, 0.0)]
+    chain = tool_len
+    for k, (a, b) in enumerate(links):
+        role = LINK_ROLES[k] if k < len(LINK_ROLES) else f"link{k + 1}"
+        bodies.append(_Body(f"{role} ({names[a]}-{names[b]})", "link", s.link_radius_mm, a, b, chain))
+        chain += float(offsets[a]) if not fk.prismatic[a] else 0.0
+    return bodies
+
+
+def _points(fkb, i: int, dof: int) -> np.ndarray:
+    if i < dof:
+        return fkb.joint_origins[:, i]
+    return fkb.flange if i == dof else fkb.tcp
+
+
+class _Best:
+    """Running extreme (min) with the sample and body where it happened."""
+
+    def __init__(self):
+        self.value, self.sample, self.body = np.inf, -1, ""
+
+    def offer(self, values: np.ndarray, samples: np.ndarray, body: str | np.ndarray):
+        if len(values) == 0:
+            return
+        k = int(np.argmin(values))
+        if values[k] < self.value:
+            self.value, self.sample = float(values[k]), int(samples[k])
+            self.body = body if isinstance(body, str) else str(body[k])
+
+
+def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckSettings | None = None,
+                 path_index=None, *, index_label: str = "path index") -> MotionReport:
+    """Measure the joint-linear motion through the waypoints against the part.
+
+    ``t_s`` (M,) strictly increasing waypoint times; ``q`` (M, dof) joint values
+    (rad / mm); ``zone`` (M,) zone codes or names (camtool.toolpath.ZONES);
+    ``robot`` placed (base and tool); ``part`` the placed part;
+    ``path_index`` (M,) optional index per waypoint used in the findings
+    (``index_label`` names it, e.g. "segment"; -1 = none).
+    """
+    clock = time.perf_counter()
+    s = settings or MotionCheckSettings()
+    t_s = np.asarray(t_s, dtype=float).reshape(-1)
+    M = len(t_s)
+    q = np.asarray(q, dtype=float)
+    if M == 0:
+        raise BadInput("motion check: no waypoints")
+    if q.shape != (M, robot.dof):
+        raise BadInput(f"motion check: q has shape {q.shape}, expected ({M}, {robot.dof}) for {robot.name}")
+    if not (np.isfinite(t_s).all() and np.isfinite(q).all()):
+        raise BadInput("motion check: t_s and q must be finite")
+    if M > 1 and not (np.diff(t_s) > 0).all():
+        k = int(np.nonzero(np.diff(t_s) <= 0)[0][0])
+        raise BadInput(f"motion check: waypoint times must increase (t[{k + 1}] = {t_s[k + 1]} after {t_s[k]})")
+    zone = _zone_codes(zone, M)
+    pidx = None
+    if path_index is not None:
+        pidx = np.asarray(path_index).astype(np.int64).reshape(-1)
+        if pidx.shape != (M,):
+            raise BadInput(f"motion check: path_index has shape {pidx.shape}, expected ({M},)")
+
+    fk = BatchFK(robot)
+    bodies = _bodies(robot, fk, s)
+    samples = _Samples(t_s, zone, s.dt_s)
+    S = len(samples)
+    G = part.horizon_mm
+    dof = robot.dof
+
+    # waypoints: TCP, its surface value (contacts) and the joint step per mm on work
+    fk_wp = _fk_chunks(fk, q, s.chunk_samples)
+    tcp_wp = fk_wp
+    wp_value = part.signed_distance(tcp_wp)
+    touching = np.abs(wp_value) <= s.on_surface_tol_mm
+    contact_tree = cKDTree(tcp_wp[touching]) if touching.any() else None
+
+    best_pen = _Best()        # min of c (= -penetration) over all bodies incl. the TCP
+    best_clear = _Best()      # min clearance, off-work tool + links
+    best_tcp = _Best()        # min TCP value, off-work, not at contacts
+    best_dev = _Best()        # min of -|TCP deviation| on work
+    best_edge = _Best()       # min of -(TCP beyond the part's edge) on work
+    fails = {"penetration": [], "clearance": [], "deviation": []}
+    body_pen = {name: _Best() for name in ["tcp"] + [b.name for b in bodies]}
+
+    U_body, U_tcp = np.inf, np.inf
+    nonwork_codes = np.array(NON_WORK)
+
+    for start in range(0, S, int(s.chunk_samples)):
+        sl = slice(start, min(start + int(s.chunk_samples), S))
+        n = sl.stop - sl.start
+        qc = samples.q(q, sl)
+        fkb = fk(qc)
+        zc = samples.zone[sl]
+        work = zc == WORK
+        nonwork = np.isin(zc, nonwork_codes)
+        gidx = np.arange(sl.start, sl.stop)
+        # ---- TCP
+        tcp = fkb.tcp
+        contact = np.zeros(n, bool)
+        if contact_tree is not None and s.contact_allowance_mm > 0:
+            sel = np.nonzero(~work)[0]
+            d, _ = contact_tree.query(tcp[sel], distance_upper_bound=s.contact_allowance_mm)
+            contact[sel[np.isfinite(d)]] = True
+        eligible = nonwork & ~contact
+        if eligible.any():
+            U_tcp = min(U_tcp, float(part.upper_bound_distance(tcp[eligible]).min()))
+        thr = np.where(work, np.inf, np.where(eligible, max(0.0, min(U_tcp, G)), 0.0))
+        ev = np.nonzero(part.lower_bound(tcp, 0.0) <= thr)[0]
+        tv = np.full(n, np.inf)
+        dv = np.full(n, np.inf)  # work deviation: the value, or beyond the edge the normal offset
+        tq = part.query(tcp[ev])
+        tv[ev] = tq.value_mm
+        dv[ev] = np.where(tq.in_footprint, tq.value_mm, tq.normal_offset_mm)
+        out = ev[~tq.in_footprint & work[ev]]
+        if len(out):
+            lateral = np.sqrt(np.maximum(tq.distance_mm[~tq.in_footprint & work[ev]] ** 2
+                                         - tq.normal_offset_mm[~tq.in_footprint & work[ev]] ** 2, 0.0))
+            best_edge.offer(-lateral, gidx[out], "tcp")
+        best_pen.offer(tv, gidx, "tcp")
+        body_pen["tcp"].offer(tv, gidx, "tcp")
+        pen = tv < -s.penetration_tol_mm
+        fails["penetration"].append((gidx[pen], np.full(pen.sum(), "tcp"), -tv[pen]))
+        el = np.nonzero(eligible & np.isfinite(tv))[0]
+        best_tcp.offer(tv[el], gidx[el], "tcp")
+        if len(el):
+            U_tcp = min(U_tcp, float(tv[el].min()))
+        wk = np.nonzero(work)[0]
+        best_dev.offer(-np.abs(dv[wk]), gidx[wk], "tcp")
+        dev = work & (np.abs(dv) > s.path_tol_mm)
+        fails["deviation"].append((gidx[dev], np.full(dev.sum(), "tcp"), dv[dev]))
+        # ---- capsules
+        cmin, U_body = _capsules(part, fkb, bodies, dof, s, work, nonwork, U_body)
+        for b, body in enumerate(bodies):
+            c = cmin[:, b]
+            best_pen.offer(c, gidx, body.name)
+            body_pen[body.name].offer(c, gidx, body.name)
+            pen = c < -s.penetration_tol_mm
+            fails["penetration"].append((gidx[pen], np.full(pen.sum(), body.name, dtype=object), -c[pen]))
+            nw = np.nonzero(nonwork)[0]
+            best_clear.offer(c[nw], gidx[nw], body.name)
+            low = nonwork & (c < s.clearance_mm) & ~pen
+            fails["clearance"].append((gidx[low], np.full(low.sum(), body.name, dtype=object), c[low]))
+
+    place = _Placer(samples, zone, pidx, index_label)
+    findings: list[str] = []
+    findings += _finding_lines(fails["penetration"], place, s, "penetration")
+    findings += _finding_lines(fails["clearance"], place, s, "clearance")
+    findings += _finding_lines(fails["deviation"], place, s, "deviation")
+
+    max_pen = max(0.0, -best_pen.value) if np.isfinite(best_pen.value) else 0.0
+    pen_at = place(best_pen.sample, best_pen.body) if max_pen > 0 else None
+    min_clear = best_clear.value if best_clear.value <= G else None
+    tcp_clear = best_tcp.value if best_tcp.value <= G else None
+    dev = -best_dev.value if np.isfinite(best_dev.value) else None
+    step_rev, step_rev_at, step_pri, step_pri_at = _joint_steps(q, tcp_wp, zone, robot, t_s, pidx, index_label)
+    ok = not any(fails[k][i][0].size for k in fails for i in range(len(fails[k])))
+    return MotionReport(
+        ok=ok, samples=S, dt_s=float(s.dt_s), duration_s=float(t_s[-1] - t_s[0]),
+        max_penetration_mm=max_pen, max_penetration_at=pen_at,
+        min_clearance_mm=min_clear,
+        min_clearance_at=place(best_clear.sample, best_clear.body) if min_clear is not None else None,
+        tcp_min_clearance_mm=tcp_clear,
+        tcp_min_clearance_at=place(best_tcp.sample, "tcp") if tcp_clear is not None else None,
+        work_deviation_mm=dev, work_deviation_at=place(best_dev.sample, "tcp") if dev is not None else None,
+        work_beyond_edge_mm=-best_edge.value if np.isfinite(best_edge.value) else None,
+        work_beyond_edge_at=place(best_edge.sample, "tcp") if np.isfinite(best_edge.value) else None,
+        max_joint_step_deg_per_mm=step_rev, max_joint_step_at=step_rev_at,
+        max_track_step_mm_per_mm=step_pri, max_track_step_at=step_pri_at,
+        findings=tuple(findings),
+        bodies=tuple(_body_figures(name, kind, radius, body_pen[name])
+                     for name, kind, radius in [("tcp", "tcp", 0.0)] + [(b.name, b.kind, b.radius) for b in bodies]),
+        part=part.describe(), settings=s, check_seconds=time.perf_counter() - clock, horizon_mm=G)
+
+
+def _body_figures(name, kind, radius, pen: _Best) -> dict:
+    return {"name": name, "kind": kind, "radius_mm": radius,
+            "max_penetration_mm": max(0.0, -pen.value) if np.isfinite(pen.value) else 0.0}
+
+
+def _fk_chunks(fk: BatchFK, q: np.ndarray, chunk: int) -> np.ndarray:
+    return np.concatenate([fk(q[i:i + chunk]).tcp for i in range(0, len(q), chunk)])
+
+
+def _capsules(part, fkb, bodies, dof, s, work, nonwork, U):
+    """Smallest clearance c = value - radius per (sample, body) over the capsule axis samples
+    that can matter (inf where every piece was provably above the threshold).
+
+    Each capsule axis is split in halves until pieces are <= radius / 2 long; a
+    piece is dropped as soon as the part's lower bound over its ball shows it
+    cannot go below the threshold: 0 on work (penetration only), the
+    clearance or the smallest clearance seen so far off work.
+    """
+    n = len(work)
+    G = part.horizon_mm
+    cmin = np.full((n, len(bodies)), np.inf)
+    S_, B_, M_, U_, H_, R_, HL_ = [], [], [], [], [], [], []
+    for b, body in enumerate(bodies):
+        A = _points(fkb, body.start, dof)
+        B = _points(fkb, body.end, dof)
+        if body.kind == "tool":
+            left = np.full(n, s.tool_contact_exempt_mm)
+        else:
+            left = np.full(n, max(s.tool_contact_exempt_mm - body.exempt_before, 0.0))
+        axis = B - A
+        L = np.linalg.norm(axis, axis=1)
+        u = axis / np.maximum(L, 1e-12)[:, None]
+        L2 = L - np.minimum(left, L)
+        keep = L2 > 1e-9
+        if not keep.any():
+            continue
+        idx = np.nonzero(keep)[0]
+        h = L2[idx] / 2.0
+        r = body.radius
+        levels = np.ceil(np.log2(np.maximum(h / (r / 4.0), 1.0))) if r > 0 else np.zeros(len(h))
+        zero = np.zeros(len(idx))
+        # the axis: pieces split down to <= r/2 long, evaluated at their middles; plus both ends
+        S_ += [idx, idx, idx]
+        B_.append(np.full(3 * len(idx), b))
+        M_ += [A[idx] + u[idx] * h[:, None], A[idx], A[idx] + u[idx] * L2[idx, None]]
+        U_ += [u[idx]] * 3
+        H_ += [h, zero, zero]
+        R_.append(np.full(3 * len(idx), r))
+        HL_ += [h / 2.0**levels, zero, zero]
+    if not S_:
+        return cmin, U
+    si, bi = np.concatenate(S_), np.concatenate(B_)
+    M, u, h, r, hl = (np.concatenate(x) for x in (M_, U_, H_, R_, HL_))
+    while len(si):
+        lb = part.lower_bound(M, h) - r
+        nw = nonwork[si]
+        if nw.any():
+            pt = M[nw] - u[nw] * np.where(h[nw] > hl[nw] * (1 + 1e-9), hl[nw], 0.0)[:, None]
+            U = min(U, float((part.upper_bound_distance(pt) - r[nw]).min()))
+        thr = np.where(nw, max(s.clearance_mm, min(U, G)), 0.0)
+        keep = lb <= thr
+        leaf = keep & (h <= hl * (1 + 1e-9))
+        if leaf.any():
+            c = part.signed_distance(M[leaf]) - r[leaf]
+            np.minimum.at(cmin, (si[leaf], bi[leaf]), c)
+            nwl = nonwork[si[leaf]]
+            if nwl.any():
+                U = min(U, float(c[nwl].min()))
+        split = keep & ~leaf
+        if not split.any():
+            break
+        hs = h[split] / 2.0
+        us = u[split]
+        Ms = M[split]
+        si = np.concatenate([si[split], si[split]])
+        bi = np.concatenate([bi[split], bi[split]])
+        M = np.concatenate([Ms - us * hs[:, None], Ms + us * hs[:, None]])
+        u = np.concatenate([us, us])
+        h = np.concatenate([hs, hs])
+        r = np.concatenate([r[split], r[split]])
+        hl = np.concatenate([hl[split], hl[split]])
+    return cmin, U
+
+
+class _Placer:
+    """Place of a sample: time, zone, the waypoint it moves towards and the caller's index there."""
+
+    def __init__(self, samples: _Samples, zone, pidx, label):
+        self.samples, self.label = samples, label
+        self.pidx = pidx
+        if pidx is not None:
+            M = len(pidx)
+            valid = pidx >= 0
+            pos = np.arange(M)
+            nxt = np.where(valid, pos, M)
+            self.next = np.minimum.accumulate(nxt[::-1])[::-1]
+            prv = np.where(valid, pos, -1)
+            self.prev = np.maximum.accumulate(prv)
+
+    def __call__(self, k: int, body: str) -> Place | None:
+        if k < 0:
+            return None
+        sm = self.samples
+        wp = int(sm.wp[k])
+        at = bool(sm.at_wp[k])
+        if self.pidx is None:
+            index, rel, label = wp, "at" if at else "before", "waypoint"
+        else:
+            label = self.label
+            if self.pidx[wp] >= 0:
+                index, rel = int(self.pidx[wp]), "at" if at else "before"
+            elif self.next[wp] < len(self.pidx):
+                index, rel = int(self.pidx[self.next[wp]]), "before"
+            elif self.prev[wp] >= 0:
+                index, rel = int(self.pidx[self.prev[wp]]), "after"
+            else:
+                index, rel = None, ""
+        return Place(float(sm.t[k]), ZONES[int(sm.zone[k])], wp, at, index, label, rel, body)
+
+
+def _finding_lines(parts, place: _Placer, s: MotionCheckSettings, kind: str) -> list[str]:
+    """One line per run of consecutive failing samples of one body (its worst sample)."""
+    idx = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, np.int64)
+    if not len(idx):
+        return []
+    body = np.concatenate([np.asarray(p[1], dtype=object) for p in parts])
+    val = np.concatenate([p[2] for p in parts])
+    lines = []
+    for name in dict.fromkeys(body.tolist()):
+        sel = body == name
+        k, v = idx[sel], val[sel]
+        order = np.argsort(k, kind="stable")
+        k, v = k[order], v[order]
+        runs = np.split(np.arange(len(k)), np.nonzero(np.diff(k) > 1)[0] + 1)
+        for run in runs[: s.max_findings_per_kind]:
+            if kind == "penetration":
+                j = run[np.argmax(v[run])]
+                what = f"part penetrated by {v[j]:.3f} mm"
+            elif kind == "clearance":
+                j = run[np.argmin(v[run])]
+                what = f"clearance {v[j]:.3f} mm < {s.clearance_mm:g} mm"
+            else:
+                j = run[np.argmax(np.abs(v[run]))]
+                side = "in front of" if v[j] > 0 else "behind"
+                what = f"TCP {abs(v[j]):.3f} mm {side} the surface on work (> {s.path_tol_mm:g} mm)"
+            p = place(int(k[j]), name)
+            t0, t1 = place.samples.t[k[run[0]]], place.samples.t[k[run[-1]]]
+            span = f"; from t = {t0:.3f} to {t1:.3f} s" if len(run) > 1 else ""
+            lines.append(f"{what} at {p.text()} (body: {name}{span})")
+        if len(runs) > s.max_findings_per_kind:
+            lines.append(f"{kind}: {len(runs) - s.max_findings_per_kind} more intervals for body {name}")
+    return lines
+
+
+def _joint_steps(q, tcp_wp, zone, robot, t_s, pidx, label):
+    """Largest joint step per mm of TCP travel between consecutive work waypoints:
+    (deg/mm of revolute joints, place, mm/mm of prismatic joints, place)."""
+    if len(q) < 2:
+        return None, None, None, None
+    both = (zone[:-1] == WORK) & (zone[1:] == WORK)
+    travel = np.linalg.norm(np.diff(tcp_wp, axis=0), axis=1)
+    sel = np.nonzero(both & (travel > 1e-6))[0]
+    if not len(sel):
+        return None, None, None, None
+    dq = np.abs(np.diff(q, axis=0))[sel]
+    prism = np.asarray(robot.prismatic, bool)
+    ratio = np.where(prism, dq, np.degrees(dq)) / travel[sel, None]
+    out = []
+    for mask in (~prism, prism):
+        if not mask.any():
+            out += [None, None]
+            continue
+        r = np.where(mask, ratio, -np.inf)
+        i, j = np.unravel_index(int(np.argmax(r)), r.shape)
+        wp = int(sel[i] + 1)
+        index, rel = (wp, "at") if pidx is None else (int(pidx[wp]) if pidx[wp] >= 0 else None, "at")
+        out += [float(r[i, j]), Place(float(t_s[wp]), "work", wp, True, index,
+                                      "waypoint" if pidx is None else label, rel, robot.joint_names[j])]
+    return out[0], out[1], out[2], out[3]

@@ -1,0 +1,497 @@
+"""The part as the motion check sees it: signed distance to an open surface.
+
+A workpiece is often an open patch (a scan, one face of a part), so "inside"
+cannot be a closed solid. Here it is **behind the surface within its
+footprint**: with ``c`` the closest surface point of ``p`` and ``n`` the
+outward normal there (towards the tool side),
+
+- ``value(p) = +|p - c|`` when ``p`` is in front (``(p - c).n >= 0``),
+- ``value(p) = -|p - c|`` when ``p`` is behind, inside the footprint,
+- ``value(p) = +|p - c|`` (unsigned) when ``c`` lies on the patch's edge (``p``
+  is beyond the footprint: "behind" means nothing there) or when ``p`` is
+  more than ``horizon_mm`` from the surface (the part counts as material down
+  to ``horizon_mm`` behind its surface).
+
+Meshes: open3d's ``RaycastingScene`` gives the closest point and triangle; the
+edge test uses the mesh's boundary edges (edges of one face only). Point
+clouds: a scipy ``cKDTree``; ``c`` is the nearest point; the patch edge is the
+set of points whose neighbours leave an angular gap > 90 deg round them, and
+``p`` is beyond it when its offset points out of that gap by more than the
+point spacing; inside the footprint the value is the distance with the
+in-plane part of the offset up to ``lateral_tol_mm`` (sampling, not shape)
+removed, so a point on the surface between two samples reads ~0.
+
+Outward normals are made consistent with a hint: points with outward
+directions, normally the work poses of the path (outward = -tool z). Mesh
+windings are made consistent per connected piece and each piece is turned to
+agree with the hint (area-weighted vote of its faces near hint points); cloud
+normals are flipped one by one to agree with the nearest hint point.
+
+For speed, a coarse grid over the part's box grown by ``horizon_mm`` keeps,
+per node, the exact distance and a "clean" radius: the ball round the node in
+which no point can be behind the surface (it touches neither the surface nor
+the "wall" swept from the patch edge along -normal, the only ways behind).
+``lower_bound`` uses it to drop capsule pieces that are provably far
+(1-Lipschitz distance); only the rest are measured exactly.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import BadInput
+
+DEFAULT_HORIZON_MM = 300.0
+DEFAULT_GRID_NODES = 100_000
+EDGE_EPS_REL = 1e-6          # closest point on a boundary edge: within this share of the part size
+CLOUD_NEIGHBOURS = 30        # neighbours of the angular-gap edge test
+EDGE_GAP_RAD = 2 * np.pi / 3  # a point with a larger angular gap round it is on the cloud's edge
+EDGE_BAND = 3.0              # points this many spacings (p90) from a flagged edge point count as edge too
+LATERAL_SPACINGS = 3.0       # cloud: in-plane offsets up to this many spacings (p90) are sampling holes
+HINT_NEAR_FACTOR = 3.0       # mesh orientation vote: faces within this many hint spacings vote
+
+
+@dataclass(frozen=True)
+class PartQuery:
+    """Exact query result per point: value (signed, see module doc), distance, closest point,
+    footprint flag and the offset along the normal there."""
+
+    value_mm: np.ndarray
+    distance_mm: np.ndarray
+    closest_mm: np.ndarray
+    in_footprint: np.ndarray
+    normal_offset_mm: np.ndarray  # (p - c).n: the offset along the outward normal at c
+
+
+class PartGeometry:
+    """Signed distance to the placed workpiece (world frame, mm); build with ``from_workpiece``."""
+
+    def __init__(self):
+        raise TypeError("use PartGeometry.from_workpiece(...) or part_from_path(...)")
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_workpiece(cls, workpiece, outward_points_mm=None, outward_dirs=None, *,
+                       horizon_mm: float = DEFAULT_HORIZON_MM,
+                       grid_nodes: int = DEFAULT_GRID_NODES) -> "PartGeometry":
+        """Build from a placed Workpiece; a mesh when it has faces, else its point cloud.
+
+        ``outward_points_mm`` (K, 3) and ``outward_dirs`` (K, 3) orient the
+        surface: the outward normal near each hint point agrees with its
+        direction. Without a hint, mesh windings and cloud normals are taken
+        as they are.
+        """
+        self = object.__new__(cls)
+        if not horizon_mm > 0:
+            raise BadInput(f"horizon_mm: expected a length > 0 mm, found {horizon_mm!r}")
+        self.horizon_mm = float(horizon_mm)
+        hint_p, hint_d = _hint(outward_points_mm, outward_dirs)
+        mesh = (workpiece.faces is not None and workpiece.vertices_mm is not None
+                and len(workpiece.faces) > 0)
+        pts = np.asarray(workpiece.vertices_mm if mesh else workpiece.points_mm, dtype=float)
+        if len(pts) == 0 or not np.isfinite(pts).all():
+            raise BadInput("workpiece: no finite points to check the motion against")
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        self.origin_mm = (lo + hi) / 2.0  # queries are made relative to it (float32 in open3d)
+        self.size_mm = float(np.linalg.norm(hi - lo))
+        self._lo, self._hi = lo - self.origin_mm, hi - self.origin_mm
+        if hint_p is not None:
+            hint_p = hint_p - self.origin_mm
+        self._grid_setup(int(grid_nodes))
+        if mesh:
+            self.kind = "mesh"
+            self._build_mesh(pts - self.origin_mm, np.asarray(workpiece.faces, dtype=np.int64), hint_p, hint_d)
+        else:
+            self.kind = "cloud"
+            self._build_cloud(pts - self.origin_mm, np.asarray(workpiece.normals, dtype=float), hint_p, hint_d)
+        self._build_grid()
+        return self
+
+    def _build_mesh(self, V, F, hint_p, hint_d):
+        import open3d as o3d
+        import trimesh
+
+        m = trimesh.Trimesh(V, F, process=False, validate=False)
+        m.merge_vertices()
+        m.update_faces(m.nondegenerate_faces())
+        if len(m.faces) == 0:
+            raise BadInput("workpiece: the mesh has no triangles with area")
+        trimesh.repair.fix_winding(m)
+        normals = np.asarray(m.face_normals, dtype=float).copy()
+        faces = np.asarray(m.faces, dtype=np.int64)
+        verts = np.asarray(m.vertices, dtype=float)
+        if hint_p is not None:
+            centroids = verts[faces].mean(axis=1)
+            tree = cKDTree(hint_p)
+            dist, idx = tree.query(centroids, workers=-1)
+            agree = np.einsum("ij,ij->i", normals, hint_d[idx])
+            if m.is_winding_consistent:
+                labels = trimesh.graph.connected_component_labels(m.face_adjacency, node_count=len(faces))
+                spacing = _spacing(hint_p) if len(hint_p) > 1 else 10.0
+                near = dist <= HINT_NEAR_FACTOR * spacing + 1.0
+                area = np.asarray(m.area_faces)
+                w = area * np.where(near, 1.0, 1e-6 / (1.0 + dist))  # far faces only break ties
+                vote = np.bincount(labels, weights=w * np.sign(agree), minlength=labels.max() + 1)
+                flip = vote[labels] < 0
+            else:  # no consistent winding: each face follows its nearest hint
+                flip = agree < 0
+            normals[flip] *= -1
+            faces[flip] = faces[flip][:, ::-1]
+        self.verts_mm = verts
+        self.faces = faces
+        self.face_normals = normals
+        # boundary edges: an edge used by one face only; edge k of a face joins corners k and k+1
+        e = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+        _, inv, cnt = np.unique(e, axis=0, return_inverse=True, return_counts=True)
+        self.edge_boundary = (cnt[inv.ravel()] == 1).reshape(-1, 3)
+        bvert = np.zeros(len(verts), bool)
+        bvert[faces[self.edge_boundary]] = True
+        bvert[np.roll(faces, -1, axis=1)[self.edge_boundary]] = True
+        self.vertex_boundary = bvert[faces]  # (F, 3): corner k is on the patch's edge
+        self.face_on_boundary = self.vertex_boundary.any(axis=1)
+        self.boundary_edges = int(self.edge_boundary.sum())
+        self._edge_eps = max(1e-3, EDGE_EPS_REL * self.size_mm)
+        self._slack = 1e-3 + 1e-6 * self.size_mm  # float32 closest points
+        self._sheet = self._slack
+        self._scene = o3d.t.geometry.RaycastingScene()
+        self._scene.add_triangles(o3d.core.Tensor(verts.astype(np.float32)),
+                                  o3d.core.Tensor(faces.astype(np.uint32)))
+        step = self._g_cell / 2.0
+        self._surface_samples = _sample_triangles(verts[faces], step)
+        self._surface_gap = step  # every surface point lies within this of a sample
+        self._wall_points = self._mesh_wall(verts, faces, normals, step) if self.boundary_edges else np.zeros((0, 3))
+        self._wall_tol = step + self._slack
+
+    def _mesh_wall(self, verts, faces, normals, step):
+        """Points (spacing <= step) of the wall: each boundary edge swept along -(its face normal)
+        to depth 2 x horizon, and at each boundary vertex the fans between the normals of the
+        faces round it (where the closest point passes from inside the patch to its edge)."""
+        D = 2.0 * self.horizon_mm
+        fi, k = np.nonzero(self.edge_boundary)
+        a, b = faces[fi, k], faces[fi, (k + 1) % 3]
+        n = normals[fi]
+        parts = [_sample_ruled(verts[a], verts[b], n, n, D, step)]
+        bverts = np.unique(np.concatenate([a, b]))
+        vf_face = np.repeat(np.arange(len(faces)), 3)
+        vf_vert = faces.ravel()
+        sel = np.isin(vf_vert, bverts)
+        order = np.argsort(vf_vert[sel], kind="stable")
+        vv, ff = vf_vert[sel][order], vf_face[sel][order]
+        starts = np.r_[0, np.nonzero(np.diff(vv))[0] + 1]
+        counts = np.diff(np.r_[starts, len(vv)])
+        for c in np.unique(counts):
+            if c < 2:
+                continue
+            grp = starts[counts == c][:, None] + np.arange(c)  # (groups, c)
+            v = verts[vv[grp[:, 0]]]
+            nn = normals[ff[grp]]
+            i, j = np.triu_indices(c, 1)
+            ni, nj = nn[:, i].reshape(-1, 3), nn[:, j].reshape(-1, 3)
+            vb = np.repeat(v, len(i), axis=0)
+            parts.append(_sample_ruled(vb, vb, ni, nj, D, step))
+        return np.concatenate(parts)
+
+    def _build_cloud(self, P, N, hint_p, hint_d):
+        if len(P) < 4:
+            raise BadInput("workpiece: a point cloud needs at least 4 points for the motion check")
+        length = np.linalg.norm(N, axis=1) if N.shape == P.shape else np.zeros(len(P))
+        N = np.where(length[:, None] > 1e-9, N / np.maximum(length, 1e-12)[:, None], 0.0) \
+            if N.shape == P.shape else np.zeros_like(P)
+        self._tree = cKDTree(P)
+        if hint_p is not None:
+            _, idx = cKDTree(hint_p).query(P, workers=-1)
+            h = hint_d[idx]
+            missing = np.linalg.norm(N, axis=1) < 0.5
+            N[missing] = h[missing]
+            N[np.einsum("ij,ij->i", N, h) < 0] *= -1
+        missing = np.linalg.norm(N, axis=1) < 0.5
+        if missing.any():
+            raise BadInput(f"workpiece: {int(missing.sum())} cloud points have no normal; "
+                           "give an outward hint (the path) to orient them")
+        self.points_mm = P
+        self.normals = N
+        k = min(CLOUD_NEIGHBOURS, len(P) - 1)
+        dist, nb = self._tree.query(P, k=k + 1, workers=-1)
+        nn1 = dist[:, 1]
+        self.spacing_mm = float(np.median(nn1))
+        s90 = float(np.percentile(nn1, 90))
+        # Random sampling leaves holes of a few spacings: up to this in-plane offset from the
+        # nearest point is sampling, not shape.
+        self.lateral_tol_mm = LATERAL_SPACINGS * s90
+        # angular-gap edge test in each point's tangent plane
+        off = P[nb[:, 1:]] - P[:, None, :]
+        e1 = np.cross(N, np.where(np.abs(N[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+        e1 /= np.linalg.norm(e1, axis=1)[:, None]
+        e2 = np.cross(N, e1)
+        x, y = np.einsum("ikj,ij->ik", off, e1), np.einsum("ikj,ij->ik", off, e2)
+        ang = np.sort(np.arctan2(y, x), axis=1)
+        gaps = np.diff(np.concatenate([ang, ang[:, :1] + 2 * np.pi], axis=1), axis=1)
+        self.is_edge = gaps.max(axis=1) > EDGE_GAP_RAD
+        # outward in the tangent plane: away from the neighbours' centroid
+        out = -(x.mean(axis=1)[:, None] * e1 + y.mean(axis=1)[:, None] * e2)
+        self.out_dir = out / np.maximum(np.linalg.norm(out, axis=1), 1e-12)[:, None]
+        # The test misses some outermost points (random sampling): the edge band is every point
+        # within EDGE_BAND spacings of a flagged one, facing out like its nearest flagged neighbour.
+        band = self.is_edge[nb[:, 1:]] & (dist[:, 1:] <= EDGE_BAND * s90)
+        first = np.argmax(band, axis=1)
+        grow = ~self.is_edge & band.any(axis=1)
+        self.out_dir[grow] = self.out_dir[nb[grow, 1 + first[grow]]]
+        self.near_edge = self.is_edge | grow
+        self.boundary_edges = int(self.is_edge.sum())
+        self._slack = self.lateral_tol_mm
+        self._sheet = self.lateral_tol_mm  # a ball this far from every point does not pass the sheet
+        self._surface_samples = P
+        self._surface_gap = 0.0  # the cloud is the point set
+        self._wall_points = np.zeros((0, 3))
+        self._wall_tol = 0.0
+        if self.boundary_edges:
+            step = max(2.0 * s90, self.horizon_mm / 60.0)
+            b = P[self.is_edge]
+            bn = N[self.is_edge]
+            keep = np.unique(np.floor(b / step).astype(np.int64), axis=0, return_index=True)[1]
+            b, bn = b[keep], bn[keep]
+            t = np.arange(0.0, 2.0 * self.horizon_mm + step, step)
+            self._wall_points = (b[:, None, :] - t[None, :, None] * bn[:, None, :]).reshape(-1, 3)
+            # gaps of the sampled wall (along depth and between kept edge points), the
+            # out-of-gap tolerance of the footprint test and the normals' spread
+            self._wall_tol = np.sqrt(3.0) * step + (EDGE_BAND + 1.0) * s90 + self.lateral_tol_mm \
+                + 0.05 * self.horizon_mm
+
+    # ------------------------------------------------------------------ exact query
+    def query(self, points_mm: np.ndarray) -> PartQuery:
+        """Exact value (see module doc), distance, closest point and footprint flag per point."""
+        p = np.asarray(points_mm, dtype=float).reshape(-1, 3) - self.origin_mm
+        value, dist, closest, inside, behind, normal = self._query_local(p, with_normal=True)
+        return PartQuery(value, dist, closest + self.origin_mm, inside, normal)
+
+    def signed_distance(self, points_mm: np.ndarray) -> np.ndarray:
+        """Signed distance (mm) of each point: + in front or beyond the edge, - behind the surface."""
+        p = np.asarray(points_mm, dtype=float).reshape(-1, 3) - self.origin_mm
+        return self._query_local(p)[0]
+
+    def _query_local(self, p: np.ndarray, with_normal: bool = False):
+        """(value, distance, closest point, in footprint, behind[, normal offset]) per local point."""
+        if len(p) == 0:
+            z = np.zeros(0)
+            out = (z, z, np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0, bool))
+            return out + (z,) if with_normal else out
+        if self.kind == "mesh":
+            import open3d as o3d
+
+            ans = self._scene.compute_closest_points(o3d.core.Tensor(p.astype(np.float32)))
+            c = ans["points"].numpy().astype(float)
+            prim = ans["primitive_ids"].numpy().astype(np.int64)
+            off = p - c
+            dist = np.linalg.norm(off, axis=1)
+            normal = np.einsum("ij,ij->i", off, self.face_normals[prim])
+            behind = normal < 0
+            outside = np.zeros(len(p), bool)
+            rows = np.nonzero(self.face_on_boundary[prim])[0]
+            if len(rows):
+                outside[rows] = self._on_boundary_edge(c[rows], prim[rows])
+            value = np.where(behind & ~outside & (dist <= self.horizon_mm), -dist, dist)
+            out = (value, dist, c, ~outside, behind)
+            return out + (normal,) if with_normal else out
+        dist, idx = self._tree.query(p, workers=-1)
+        c = self.points_mm[idx]
+        off = p - c
+        n = self.normals[idx]
+        normal_part = np.einsum("ij,ij->i", off, n)
+        lateral = np.sqrt(np.maximum(dist**2 - normal_part**2, 0.0))
+        outside = (self.near_edge[idx] & (lateral > self.lateral_tol_mm)
+                   & (np.einsum("ij,ij->i", off, self.out_dir[idx]) > 0))
+        inner = np.sqrt(np.maximum(dist**2 - np.minimum(lateral, self.lateral_tol_mm) ** 2, 0.0))
+        behind = normal_part < 0
+        value = np.where(outside | (dist > self.horizon_mm), dist, np.where(behind, -inner, inner))
+        out = (value, dist, c, ~outside, behind)
+        return out + (normal_part,) if with_normal else out
+
+    def _on_boundary_edge(self, c: np.ndarray, prim: np.ndarray) -> np.ndarray:
+        """Whether each closest point lies on the patch's edge: a boundary edge or a boundary
+        corner of its triangle (a triangle may touch the edge at one corner only)."""
+        tri = self.verts_mm[self.faces[prim]]  # (R, 3, 3)
+        on = np.zeros(len(c), bool)
+        for k in range(3):
+            on |= self.vertex_boundary[prim, k] & (np.linalg.norm(c - tri[:, k], axis=1) <= self._edge_eps)
+            a, b = tri[:, k], tri[:, (k + 1) % 3]
+            ab = b - a
+            t = np.clip(np.einsum("ij,ij->i", c - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
+            d = np.linalg.norm(c - (a + t[:, None] * ab), axis=1)
+            on |= self.edge_boundary[prim, k] & (d <= self._edge_eps)
+        return on
+
+    # ------------------------------------------------------------------ bounds (grid)
+    def _grid_setup(self, max_nodes: int):
+        G = self.horizon_mm
+        lo, hi = self._lo - G, self._hi + G
+        span = hi - lo
+        cell = max(float(np.cbrt(np.prod(span) / max(max_nodes, 8))), 1e-3 * float(span.max()), 0.5)
+        self._g_shape = np.ceil(span / cell).astype(int) + 1
+        self._g_lo, self._g_cell = lo, cell
+        self._box_lo, self._box_hi = lo, lo + (self._g_shape - 1) * cell
+
+    def _build_grid(self):
+        """Per grid node: distance bounds and the clean radius rho (see module doc).
+
+        Distances come from a Euclidean distance transform of the cells holding
+        surface samples (bounds within half a cell diagonal), made exact near the
+        surface; the side (front / behind) of the far nodes from one exact query
+        per connected group of nodes that touch neither the surface nor the wall.
+        """
+        from scipy import ndimage
+
+        G, cell, shape = self.horizon_mm, self._g_cell, self._g_shape
+        ii = np.stack(np.meshgrid(*[np.arange(s) for s in shape], indexing="ij"), axis=-1).reshape(-1, 3)
+        nodes = self._g_lo + ii * cell
+        n = len(nodes)
+        half_diag = cell * np.sqrt(3.0) / 2.0
+        e = self._edt(self._surface_samples, shape)
+        d_lb = np.maximum(e - half_diag - self._surface_gap, 0.0)
+        d_ub = e + half_diag
+        wall = (self._edt(self._wall_points, shape) - half_diag if len(self._wall_points)
+                else np.full(n, np.inf))
+        value, inside, behind = np.full(n, np.inf), np.zeros(n, bool), np.zeros(n, bool)
+        known = e <= 4.0 * cell  # near the surface: exact (near queries are cheap)
+        if known.any():
+            v, d, _, i, b = self._query_local(nodes[known])
+            value[known], d_lb[known], d_ub[known], inside[known], behind[known] = v, d, d, i, b
+        near = np.minimum.reduce([d_lb - self._sheet, wall - self._wall_tol, np.full(n, G / 2.0)])
+        # Nodes whose ball of radius cell/2 touches neither the surface nor the wall: each
+        # 6-connected group of them lies on one side; one exact query per group tells which.
+        free = (near >= cell / 2.0).reshape(tuple(shape))
+        labels, count = ndimage.label(free)
+        labels = labels.ravel()
+        todo = np.nonzero(~known & (labels > 0))[0]
+        if len(todo):
+            lab = labels[todo]
+            order = np.argsort(lab, kind="stable")
+            first = todo[order[np.r_[0, np.nonzero(np.diff(lab[order]))[0] + 1]]]
+            _, _, _, i, b = self._query_local(nodes[first])
+            side_behind = np.zeros(count + 1, bool)
+            side_behind[labels[first]] = b & i
+            inside[todo], behind[todo] = True, side_behind[labels[todo]]
+            value[todo] = np.where(behind[todo], -1.0, 1.0)
+            known[todo] = True
+        front = value >= 0
+        deep = behind & inside  # behind the surface (farther than G it reads unsigned)
+        rho = np.where(known & front & ~deep, np.maximum(d_lb - G, near), d_lb - G)
+        self._g_dist = d_lb
+        self._g_dist_ub = d_ub
+        self._g_rho = rho
+        self.grid_cell_mm = cell
+        self.grid_nodes = n
+
+    def _edt(self, points: np.ndarray, shape) -> np.ndarray:
+        """Distance (mm) from each node to the nearest node whose cell holds a point (points
+        outside the box are moved onto it: distances only shrink)."""
+        from scipy import ndimage
+
+        idx = np.clip(np.rint((points - self._g_lo) / self._g_cell).astype(np.int64), 0, shape - 1)
+        empty = np.ones(tuple(shape), bool)
+        empty[idx[:, 0], idx[:, 1], idx[:, 2]] = False
+        return ndimage.distance_transform_edt(empty, sampling=self._g_cell).ravel()
+
+    def _nearest_node(self, p):
+        idx = np.clip(np.rint((p - self._g_lo) / self._g_cell).astype(np.int64), 0, self._g_shape - 1)
+        flat = (idx[:, 0] * self._g_shape[1] + idx[:, 1]) * self._g_shape[2] + idx[:, 2]
+        a = np.linalg.norm(p - (self._g_lo + idx * self._g_cell), axis=1)
+        return flat, a
+
+    def lower_bound(self, points_mm: np.ndarray, half_length_mm) -> np.ndarray:
+        """A lower bound of ``value`` over the ball of radius ``half_length_mm`` round each point.
+
+        ``-inf`` where the grid cannot tell (near the surface, near its edge or
+        behind it); the exact query decides there.
+        """
+        p = np.asarray(points_mm, dtype=float).reshape(-1, 3) - self.origin_mm
+        h = np.broadcast_to(np.asarray(half_length_mm, float), (len(p),))
+        out_excess = np.maximum(np.maximum(self._box_lo - p, p - self._box_hi), 0.0)
+        t = np.linalg.norm(out_excess, axis=1)
+        flat, a = self._nearest_node(p)
+        ok = self._g_rho[flat] >= a + h
+        lb = np.where(ok, self._g_dist[flat] - a - h - self._slack, -np.inf)
+        return np.where(t > h, np.maximum(lb, self.horizon_mm + t - h), lb)
+
+    def upper_bound_distance(self, points_mm: np.ndarray) -> np.ndarray:
+        """An upper bound of the distance (hence of ``value``) at each point; ``inf`` when unknown."""
+        p = np.asarray(points_mm, dtype=float).reshape(-1, 3) - self.origin_mm
+        flat, a = self._nearest_node(p)
+        return self._g_dist_ub[flat] + a
+
+    def describe(self) -> dict:
+        d = {"kind": self.kind, "horizon_mm": self.horizon_mm, "grid_nodes": int(self.grid_nodes),
+             "grid_cell_mm": round(float(self.grid_cell_mm), 3), "edge_elements": self.boundary_edges}
+        if self.kind == "cloud":
+            d.update(points=int(len(self.points_mm)), spacing_mm=round(self.spacing_mm, 4),
+                     lateral_tol_mm=round(self.lateral_tol_mm, 4))
+        else:
+            d.update(faces=int(len(self.faces)))
+        return d
+
+
+def _hint(points, dirs):
+    if points is None and dirs is None:
+        return None, None
+    if points is None or dirs is None:
+        raise BadInput("outward hint: give both outward_points_mm and outward_dirs, or neither")
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    d = np.asarray(dirs, dtype=float).reshape(-1, 3)
+    if len(p) != len(d) or len(p) == 0:
+        raise BadInput(f"outward hint: {len(p)} points and {len(d)} directions; expected the same number > 0")
+    n = np.linalg.norm(d, axis=1)
+    ok = np.isfinite(p).all(axis=1) & np.isfinite(d).all(axis=1) & (n > 1e-9)
+    if not ok.any():
+        raise BadInput("outward hint: no finite point with a non-zero direction")
+    p, d = p[ok], d[ok] / n[ok, None]
+    if len(p) > 20000:  # plenty to orient a surface
+        sel = np.linspace(0, len(p) - 1, 20000).astype(int)
+        p, d = p[sel], d[sel]
+    return p, d
+
+
+def _sample_ruled(a0, a1, d0, d1, depth, step):
+    """Points (spacing <= step along both directions) of the ruled patches
+    (1 - w)(a0 - s depth d0) + w (a1 - s depth d1), s, w in [0, 1]."""
+    m_d = max(1, int(np.ceil(depth / step)))
+    width = np.maximum(np.linalg.norm(a1 - a0, axis=1), np.linalg.norm(a1 - a0 - depth * (d1 - d0), axis=1))
+    m_w = np.maximum(1, np.ceil(width / step).astype(int))
+    s = np.linspace(0.0, 1.0, m_d + 1)[None, :, None]
+    out = []
+    for m in np.unique(m_w):
+        k = m_w == m
+        w = np.linspace(0.0, 1.0, m + 1)[None, None, :, None]
+        p0 = a0[k][:, None, :] - s * depth * d0[k][:, None, :]  # (P, S, 3)
+        p1 = a1[k][:, None, :] - s * depth * d1[k][:, None, :]
+        out.append(((1 - w) * p0[:, :, None] + w * p1[:, :, None]).reshape(-1, 3))
+    return np.concatenate(out)
+
+
+def _sample_triangles(tri, step):
+    """Points such that every point of the triangles (T, 3, 3) lies within ``step`` of one."""
+    edge = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    m_all = np.maximum(1, np.ceil(edge / step).astype(int))
+    out = []
+    for m in np.unique(m_all):
+        t = tri[m_all == m]
+        i, j = np.nonzero(np.add.outer(np.arange(m + 1), np.arange(m + 1)) <= m)
+        a, b = (i / m)[None, :, None], (j / m)[None, :, None]
+        out.append((t[:, :1] + a * (t[:, 1:2] - t[:, :1]) + b * (t[:, 2:3] - t[:, :1])).reshape(-1, 3))
+    return np.concatenate(out)
+
+
+def _spacing(points: np.ndarray) -> float:
+    d, _ = cKDTree(points).query(points, k=2, workers=-1)
+    return float(np.median(d[:, 1]))
+
+
+def part_from_path(workpiece, path, **kwargs) -> PartGeometry:
+    """PartGeometry oriented by a ``camtool.toolpath.Path``: outward = -tool z at its work poses."""
+    from ..toolpath import WORK
+
+    poses = np.asarray(path.poses_mm, dtype=float)
+    sel = np.asarray(path.zone) == WORK
+    if not sel.any():
+        sel = np.ones(len(poses), bool)
+    return PartGeometry.from_workpiece(workpiece, poses[sel, :3, 3], -poses[sel, :3, 2], **kwargs)

@@ -1,0 +1,510 @@
+"""``report.html``: one self-contained, interactive page of a run (docs/report-html.md).
+
+Plotly figures with plotly.js embedded inline (opens offline, no external
+script or stylesheet), fixed div ids and no timestamps, so the same inputs give
+the same bytes. What is displayed is decimated (workpiece <= 20k points, path
+<= 20k poses, feed and heat map bounded) and rounded (0.1 mm), which keeps a
+100k-point job well under 15 MB.
+
+Shown: the summary figures of report.json; a 3-D scene with the workpiece, the
+fitted surface's boundary, the path coloured by zone (work poses by TCP feed
+when a trajectory is given), reverse plans, retracts, singular, not-reached
+and failing poses, and the robot as a stick figure on a slider along the path;
+TCP feed along the path length; joint use as a share of the limits (one heat
+map, joint x time); and the redundancy map (``camtool.redundancy_map``).
+"""
+from __future__ import annotations
+
+import html
+import os
+from pathlib import Path as FsPath
+
+import numpy as np
+
+from .robots.dh import MM_TO_M
+from .toolpath import WORK, ZONES
+
+MAX_WORKPIECE_POINTS = 20_000
+MAX_PATH_POINTS = 20_000
+MAX_MARKERS = 5_000
+ROBOT_FRAMES = 40
+MAX_FEED_POINTS = 8_000
+MAX_HEAT_COLUMNS = 1_500
+ZONE_COLORS = {"work": "#1f77b4", "self_motion": "#ff7f0e", "lead_in": "#2ca02c", "lead_out": "#9467bd",
+               "approach": "#8c564b", "depart": "#e377c2", "retract": "#d62728"}
+PLOTLY_CONFIG = {"displaylogo": False, "responsive": True}
+DIV = {"scene": "camtool-scene", "feed": "camtool-feed", "joint_use": "camtool-joint-use",
+       "redundancy": "camtool-redundancy"}
+FAILING_NAME = "unreachable or failing poses"
+
+
+def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,
+                      trajectory=None, failing_indices=(), redundancy=None) -> FsPath:
+    """Write the interactive report of a run (or of a failed plan) to ``file``; returns its path.
+
+    Only ``report`` and ``robot`` are required: a failed job passes its path
+    and ``failing_indices`` (path indices; ``report['unreachable']`` entries
+    are marked too). ``redundancy`` is a ``RedundancyMap``.
+    """
+    from plotly.offline import get_plotlyjs
+
+    file = FsPath(file)
+    feed = _feed(robot, trajectory) if trajectory is not None else None
+    sections = [_summary_section(report, robot, surface, path, failing_indices)]
+    scene = _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices)
+    sections.append(("Workpiece, path and robot", _SCENE_NOTE, _fig_html(scene, DIV["scene"])))
+    if trajectory is not None:
+        sections.append(("TCP feed along the path", _FEED_NOTE,
+                         _fig_html(_feed_figure(feed, report), DIV["feed"])))
+        sections.append(("Joint use", _JOINT_NOTE,
+                         _fig_html(_joint_use_figure(robot, trajectory), DIV["joint_use"])))
+    else:
+        sections.append(("TCP feed and joint use", "", "<p>No trajectory: the plan or its timing did not "
+                                                       "finish, so there is no feed or joint use to show.</p>"))
+    if redundancy is not None:
+        what = f"{redundancy.robot}: {redundancy.y_label} over the work poses"
+        if redundancy.notes:
+            what += " (" + "; ".join(redundancy.notes) + ")"
+        sections.append(("Redundancy map", f'<p class="note"><b>{html.escape(what)}.</b></p>' + _REDUNDANCY_NOTE,
+                         _fig_html(_redundancy_figure(redundancy), DIV["redundancy"])))
+    title = f"camtool report: {robot.name}"
+    if report.get("status"):
+        title += f" ({report['status']})"
+    body = "\n".join(f'<section><h2>{html.escape(h)}</h2>{note}{content}</section>'
+                     for h, note, content in sections)
+    page = (f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+            f'<title>{html.escape(title)}</title>\n<style>{_CSS}</style>\n'
+            f'<script type="text/javascript">{get_plotlyjs()}</script>\n</head>\n<body>\n'
+            f'<h1>{html.escape(title)}</h1>\n{body}\n</body>\n</html>\n')
+    file.parent.mkdir(parents=True, exist_ok=True)
+    tmp = file.with_name(f".tmp-{file.name}")
+    tmp.write_text(page, encoding="utf-8")
+    os.replace(tmp, file)          # never half-written
+    return file
+
+
+def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,
+                   trajectory=None, failing_indices=()) -> list[FsPath]:
+    """``OUTDIR/report.html`` and, for robots with closed-form IK, ``OUTDIR/plots/redundancy_map.png``.
+
+    The redundancy map is computed here (``redundancy_map``, failing poses
+    included as columns); robots without closed-form families get none.
+    Returns the files written.
+    """
+    from .errors import BadInput
+    from .redundancy_map import plot_redundancy_map_png, redundancy_kind, redundancy_map
+
+    outdir = FsPath(outdir)
+    files, rmap = [], None
+    if path is not None and len(path) and redundancy_kind(robot) is not None:
+        try:
+            rmap = redundancy_map(path, robot, joint_path, include=failing_indices)
+        except BadInput:
+            rmap = None
+        if rmap is not None:
+            files.append(plot_redundancy_map_png(rmap, outdir / "plots" / "redundancy_map.png"))
+    html_file = write_report_html(outdir / "report.html", report=report, robot=robot, workpiece=workpiece,
+                                  surface=surface, path=path, joint_path=joint_path, trajectory=trajectory,
+                                  failing_indices=failing_indices, redundancy=rmap)
+    return [html_file, *files]
+
+
+# ----------------------------------------------------------------------------- helpers
+
+def _fig_html(fig, div_id: str) -> str:
+    """A figure as a div with a fixed id (plotly.js comes once, in the page head)."""
+    return fig.to_html(include_plotlyjs=False, full_html=False, div_id=div_id, config=PLOTLY_CONFIG)
+
+
+def _list(a, decimals: int) -> list:
+    """Rounded values as a JSON-friendly list, NaN / inf as None (plotly leaves a gap)."""
+    a = np.round(np.asarray(a, dtype=float), decimals)
+    return [v if np.isfinite(v) else None for v in a.tolist()]
+
+
+def _xyz(p: np.ndarray) -> dict:
+    """Scatter3d coordinates of (N, 3) points in mm, rounded to 0.1 mm."""
+    p = np.asarray(p, float).reshape(-1, 3)
+    return {"x": _list(p[:, 0], 1), "y": _list(p[:, 1], 1), "z": _list(p[:, 2], 1)}
+
+
+def subsample(n: int, limit: int) -> np.ndarray:
+    """Evenly spread indices (at most ``limit``, first and last kept) of n items: deterministic."""
+    if n <= limit:
+        return np.arange(n)
+    return np.unique(np.round(np.linspace(0, n - 1, limit)).astype(int))
+
+
+def _world(robot, p_base: np.ndarray) -> np.ndarray:
+    T = robot.base_T_mm
+    return np.asarray(p_base) @ T[:3, :3].T + T[:3, 3]
+
+
+def tcp_positions(robot, q: np.ndarray) -> np.ndarray:
+    """(N, 3) TCP positions (world frame, mm) at joint rows q."""
+    out = np.empty((len(q), 3))
+    for k, qk in enumerate(q):
+        out[k] = robot.fk_tcp(qk)[:3, 3]
+    return _world(robot, out)
+
+
+def joint_origins(robot, q) -> np.ndarray:
+    """Stick-figure points (world, mm): base, every joint frame origin, flange, TCP."""
+    import pinocchio as pin
+
+    data = robot.model.createData()
+    qp = np.where(robot.prismatic, np.asarray(q, float) * MM_TO_M, np.asarray(q, float))
+    pin.framesForwardKinematics(robot.model, data, qp)
+    pts = [np.zeros(3)]
+    pts += [np.array(data.oMi[i].translation) / MM_TO_M for i in range(1, robot.model.njoints)]
+    pts.append(np.array(data.oMf[robot.flange_frame_id].translation) / MM_TO_M)
+    pts.append(robot.fk_tcp(q)[:3, 3])
+    return _world(robot, np.array(pts))
+
+
+def _feed(robot, trajectory) -> dict:
+    """TCP feed (mm/s) per trajectory waypoint from FK: central difference of position over time."""
+    p = tcp_positions(robot, trajectory.q)
+    t = np.asarray(trajectory.t_s, float)
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    n = len(t)
+    lo, hi = np.maximum(np.arange(n) - 1, 0), np.minimum(np.arange(n) + 1, n - 1)
+    dt = t[hi] - t[lo]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        v = np.where(dt > 0, (s[hi] - s[lo]) / np.where(dt > 0, dt, 1.0), np.nan)
+    return {"p": p, "s": s, "t": t, "v": v, "zone": np.asarray(trajectory.zone),
+            "path_index": np.asarray(trajectory.path_index)}
+
+
+# ----------------------------------------------------------------------------- summary
+
+def _flatten(report: dict) -> list[tuple[str, str]]:
+    rows = []
+
+    def fmt(v):
+        if isinstance(v, float):
+            return f"{v:.6g}"
+        if isinstance(v, (np.floating,)):
+            return f"{float(v):.6g}"
+        return str(v)
+
+    def walk(prefix, v):
+        if isinstance(v, dict):
+            for k, x in v.items():
+                walk(f"{prefix}.{k}" if prefix else str(k), x)
+        elif isinstance(v, (list, tuple)):
+            if v and all(isinstance(x, dict) for x in v):
+                rows.append((prefix, f"{len(v)} entr{'y' if len(v) == 1 else 'ies'}"))
+            elif len(v) > 12:
+                rows.append((prefix, f"{len(v)} values"))
+            else:
+                rows.append((prefix, ", ".join(fmt(x) for x in v) if v else "none"))
+        else:
+            rows.append((prefix, fmt(v)))
+
+    walk("", report)
+    return rows
+
+
+def _summary_section(report, robot, surface, path, failing_indices):
+    rows = _flatten(report)
+    extra = [("robot.dof", str(robot.dof)), ("robot.joints", ", ".join(robot.joint_names))]
+    if surface is not None:
+        extra.append(("surface.model", str(getattr(surface, "model", type(surface).__name__))))
+        if getattr(surface, "model", "") == "sphere":
+            extra.append(("surface.radius_mm", f"{surface.radius_mm:.6g}"))
+            extra.append(("surface.center_mm", ", ".join(f"{v:.1f}" for v in surface.center_mm)))
+        elif getattr(surface, "model", "") == "plane":
+            extra.append(("surface.normal", ", ".join(f"{v:.4f}" for v in surface.normal)))
+        if getattr(surface, "stats", None) is not None:
+            extra.append(("surface.rms_mm", f"{surface.stats.rms_mm:.4g}"))
+    if path is not None:
+        extra.append(("path.length_mm", f"{path.length_mm():.1f}"))
+    if len(failing_indices):
+        extra.append(("failing_poses", str(len(failing_indices))))
+    body = "".join(f'<div class="kv"><span class="k">{html.escape(k)}</span> '
+                   f'<span class="v">{html.escape(v)}</span></div>' for k, v in rows + extra)
+    return ("Summary (report.json)", "", f'<div class="summary">{body}</div>')
+
+
+# ----------------------------------------------------------------------------- 3-D scene
+
+def _boundary_lines(surface) -> np.ndarray | None:
+    """The material boundary on the fitted surface as polylines (None-separated rows of NaN)."""
+    b = getattr(surface, "boundary", None)
+    if b is None:
+        return None
+    out = []
+    for poly in (b.outer_uv, *b.holes_uv):
+        poly = np.asarray(poly, float)
+        if len(poly) < 2:
+            continue
+        closed = np.vstack([poly, poly[:1]])
+        uv = np.vstack([np.linspace(a, c, 8, endpoint=False) for a, c in zip(closed[:-1], closed[1:])]
+                       + [closed[-1:]])
+        out.append(surface.point_mm(uv[:, 0], uv[:, 1]))
+        out.append(np.full((1, 3), np.nan))
+    return np.vstack(out) if out else None
+
+
+def _row_points(robot, path, joint_path, rows: np.ndarray) -> np.ndarray:
+    """World TCP positions of joint-path rows: the path pose, or FK for inserted rows."""
+    idx = joint_path.path_index[rows]
+    p = np.empty((len(rows), 3))
+    on = idx >= 0
+    if path is not None and on.any():
+        p[on] = path.poses_mm[idx[on]][:, :3, 3]
+    else:
+        on[:] = False
+    if (~on).any():
+        p[~on] = tcp_positions(robot, joint_path.q[rows[~on]])
+    return p
+
+
+def _marker(go, name, p, symbol, color, size=4):
+    keep = subsample(len(p), MAX_MARKERS)
+    return go.Scatter3d(mode="markers", name=f"{name} ({len(p)})", **_xyz(p[keep]),
+                        marker={"symbol": symbol, "color": color, "size": size}, hoverinfo="name+x+y+z")
+
+
+def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices):
+    import plotly.graph_objects as go
+
+    traces = []
+    if workpiece is not None and workpiece.n_points:
+        n = workpiece.n_points
+        keep = np.sort(np.random.default_rng(0).choice(n, MAX_WORKPIECE_POINTS, replace=False)) \
+            if n > MAX_WORKPIECE_POINTS else np.arange(n)
+        traces.append(go.Scatter3d(mode="markers", name=f"workpiece ({len(keep)} of {n} points)",
+                                   **_xyz(workpiece.points_mm[keep]), hoverinfo="skip",
+                                   marker={"size": 1.2, "color": "#b0b0b0", "opacity": 0.5}))
+    if surface is not None:
+        lines = _boundary_lines(surface)
+        if lines is not None:
+            traces.append(go.Scatter3d(mode="lines", name="fitted surface boundary", **_xyz(lines),
+                                       line={"color": "#444444", "width": 3}, hoverinfo="skip"))
+    if path is not None and len(path):
+        traces += _path_traces(go, path, feed)
+    traces += _event_traces(go, report, robot, path, joint_path, failing_indices)
+    robot_trace, steps = _robot_traces(go, robot, path, joint_path)
+    traces.append(robot_trace)
+    fig = go.Figure(traces)
+    fig.update_layout(height=780, margin={"l": 0, "r": 0, "t": 30, "b": 0},
+                      legend={"itemsizing": "constant", "x": 0.0, "y": 1.0, "bgcolor": "rgba(255,255,255,0.7)"},
+                      scene={"aspectmode": "data", "xaxis_title": "x [mm]", "yaxis_title": "y [mm]",
+                             "zaxis_title": "z [mm]"}, uirevision="scene")
+    if steps:
+        fig.update_layout(sliders=[{"active": 0, "currentvalue": {"prefix": "robot at "}, "pad": {"t": 10},
+                                    "steps": [dict(s, args=[s["args"][0], [len(traces) - 1]]) for s in steps]}])
+    return fig
+
+
+def _path_traces(go, path, feed) -> list:
+    p = path.poses_mm[:, :3, 3]
+    shown = subsample(len(path), MAX_PATH_POINTS)
+    traces = [go.Scatter3d(mode="lines", name="path order", **_xyz(p[shown]), hoverinfo="skip",
+                           line={"color": "#cccccc", "width": 1}, visible="legendonly")]
+    zone = path.zone[shown]
+    v_path = None
+    if feed is not None:  # feed per path index from the waypoints that carry it
+        v_path = np.full(len(path), np.nan)
+        pi = feed["path_index"]
+        ok = (pi >= 0) & (pi < len(path))
+        v_path[pi[ok][::-1]] = feed["v"][ok][::-1]   # the first waypoint of each path index wins
+    for code, name in enumerate(ZONES):
+        sel = shown[zone == code]
+        if not len(sel):
+            continue
+        if code == WORK and v_path is not None and np.isfinite(v_path[sel]).any():
+            v_path[sel] = np.where(np.isfinite(v_path[sel]), v_path[sel], np.nanmedian(v_path[sel]))
+            traces.append(go.Scatter3d(
+                mode="markers", name=f"work: TCP feed ({int(np.count_nonzero(path.zone == code))} poses)",
+                **_xyz(p[sel]), marker={"size": 2, "color": _list(v_path[sel], 1), "colorscale": "Turbo",
+                                        "colorbar": {"title": {"text": "feed [mm/s]"}, "x": 1.0, "len": 0.6}},
+                customdata=[int(i) for i in sel],
+                hovertemplate="pose %{customdata}<br>feed %{marker.color} mm/s<extra>work</extra>"))
+        else:
+            traces.append(go.Scatter3d(
+                mode="markers", name=f"{name} ({int(np.count_nonzero(path.zone == code))} poses)", **_xyz(p[sel]),
+                marker={"size": 2 if code == WORK else 1.6, "color": ZONE_COLORS.get(name, "#333333")},
+                customdata=[int(i) for i in sel], hovertemplate=f"pose %{{customdata}}<extra>{name}</extra>"))
+    return traces
+
+
+def _event_traces(go, report, robot, path, joint_path, failing_indices) -> list:
+    traces = []
+    if joint_path is not None:
+        for flag, name, symbol, color in ((joint_path.reverse_planned, "reverse planned", "diamond", "#17becf"),
+                                          (joint_path.retract, "retract", "square", "#8c564b"),
+                                          (joint_path.singular, "singular", "x", "#d62728"),
+                                          (~joint_path.reached, "not reached (IK)", "circle-open", "#000000")):
+            rows = np.flatnonzero(flag)
+            if len(rows):
+                traces.append(_marker(go, name, _row_points(robot, path, joint_path, rows), symbol, color, 4))
+    failing = {}
+    for u in report.get("unreachable", []) or []:
+        if "xyz_mm" in u:
+            failing[int(u.get("index", -1 - len(failing)))] = np.asarray(u["xyz_mm"], float)
+    if path is not None:
+        for i in failing_indices:
+            i = int(i)
+            if 0 <= i < len(path) and i not in failing:
+                failing[i] = path.poses_mm[i][:3, 3]
+    if failing:
+        keys = sorted(failing)
+        traces.append(_marker(go, FAILING_NAME, np.array([failing[k] for k in keys]), "cross", "#ff0000", 5))
+    return traces
+
+
+def _robot_traces(go, robot, path, joint_path):
+    """The stick figure (first slider pose) and the slider's restyle steps."""
+    line = {"color": "#222222", "width": 7}
+    marker = {"size": 3, "color": "#222222"}
+    ok = np.flatnonzero(joint_path.reached) if joint_path is not None else np.zeros(0, int)
+    if not len(ok):
+        q0 = np.clip(np.zeros(robot.dof), robot.limits.lower, robot.limits.upper)
+        return go.Scatter3d(mode="lines+markers", name="robot (zero joint values; no plan)",
+                            **_xyz(joint_origins(robot, q0)), line=line, marker=marker), []
+    rows = ok[subsample(len(ok), ROBOT_FRAMES)]   # reached rows only
+    steps = []
+    first = None
+    for k in rows:
+        pts = _xyz(joint_origins(robot, joint_path.q[k]))
+        first = first or pts
+        i = int(joint_path.path_index[k])
+        zone = ZONES[joint_path.zone[k]]
+        label = f"pose {i} ({zone})" if i >= 0 else f"row {int(k)} ({zone})"
+        steps.append({"method": "restyle", "label": label,
+                      "args": [{"x": [pts["x"]], "y": [pts["y"]], "z": [pts["z"]]}]})
+    return go.Scatter3d(mode="lines+markers", name="robot (slider below)", **first, line=line, marker=marker,
+                        hoverinfo="skip"), steps
+
+
+# ----------------------------------------------------------------------------- feed, joint use
+
+def _feed_figure(feed, report):
+    import plotly.graph_objects as go
+
+    s, v, zone = feed["s"], feed["v"], feed["zone"]
+    n = len(s)
+    if n > MAX_FEED_POINTS:  # the lowest feed per display bin, so slowdowns stay visible
+        edges = np.round(np.linspace(0, n, MAX_FEED_POINTS + 1)).astype(int)
+        pick = np.array([a + int(np.nanargmin(v[a:b])) if np.isfinite(v[a:b]).any() else a
+                         for a, b in zip(edges[:-1], edges[1:]) if b > a])
+    else:
+        pick = np.arange(n)
+    s, v, zone = s[pick], v[pick], zone[pick]
+    work_v = np.where(zone == WORK, v, np.nan)
+    traces = [go.Scattergl(x=_list(s, 1), y=_list(v, 1), mode="lines", name="all zones",
+                           line={"color": "#bbbbbb", "width": 1}),
+              go.Scattergl(x=_list(s, 1), y=_list(work_v, 1), mode="lines", name="work",
+                           line={"color": "#1f77b4", "width": 2}, connectgaps=False)]
+    fig = go.Figure(traces)
+    target = report.get("tcp_speed_mm_s")
+    if isinstance(target, (int, float)):
+        fig.add_hline(y=float(target), line={"color": "#d62728", "dash": "dot"},
+                      annotation_text=f"tcp_speed_mm_s = {target:g}")
+    fig.update_layout(height=360, margin={"l": 60, "r": 20, "t": 30, "b": 50},
+                      xaxis_title="TCP path length [mm]", yaxis_title="TCP feed [mm/s]")
+    return fig
+
+
+def _joint_use_figure(robot, trajectory):
+    import plotly.graph_objects as go
+
+    L = robot.limits
+    cols = subsample(len(trajectory.t_s), MAX_HEAT_COLUMNS)
+    q = trajectory.q[cols]
+    mid, half = 0.5 * (L.lower + L.upper), 0.5 * (L.upper - L.lower)
+    share = ((q - mid) / np.where(half > 0, half, 1.0)).T                # (dof, T): -1 lower, +1 upper limit
+    names = [f"{n} [{'mm' if p else 'deg'}]" for n, p in zip(robot.joint_names, robot.prismatic)]
+    work = (np.asarray(trajectory.zone)[cols] == WORK).astype(float)
+    fig = go.Figure([
+        go.Heatmap(x=_list(trajectory.t_s[cols], 3), y=names, z=[_list(r, 3) for r in share], zmin=-1, zmax=1,
+                   colorscale="RdBu", reversescale=True,
+                   colorbar={"title": {"text": "share of limit"}, "tickvals": [-1, -0.5, 0, 0.5, 1],
+                             "ticktext": ["lower", "-0.5", "mid", "0.5", "upper"]},
+                   hovertemplate="%{y}<br>t %{x} s<br>%{z}<extra></extra>"),
+        go.Heatmap(x=_list(trajectory.t_s[cols], 3), y=["work zone"], z=[_list(work, 0)], zmin=0, zmax=1,
+                   colorscale=[[0, "#ffffff"], [1, "#1f77b4"]], showscale=False, yaxis="y2",
+                   hovertemplate="t %{x} s<extra>work</extra>"),
+    ])
+    fig.update_layout(height=120 + 28 * robot.dof, margin={"l": 90, "r": 20, "t": 20, "b": 50},
+                      xaxis_title="time [s]", yaxis={"domain": [0.0, 0.86], "autorange": "reversed"},
+                      yaxis2={"domain": [0.9, 1.0], "showticklabels": True})
+    return fig
+
+
+# ----------------------------------------------------------------------------- redundancy map
+
+def _redundancy_figure(rmap):
+    import plotly.graph_objects as go
+
+    from .redundancy_map import NO_IK, OUTSIDE_LIMITS
+
+    x, y = _list(rmap.x, 0), _list(rmap.y, 2)
+    bad = np.where(rmap.code == NO_IK, 0.0, np.where(rmap.code == OUTSIDE_LIMITS, 1.0, np.nan))
+    planned = np.asarray(rmap.planned, float).copy()
+    if rmap.kind != "track":  # no line across the +-180 deg wrap
+        jump = np.flatnonzero(np.abs(np.diff(planned)) > 180.0)
+        planned = np.insert(planned, jump + 1, np.nan)
+        xs = np.insert(rmap.x.astype(float), jump + 1, np.nan)
+    else:
+        xs = rmap.x.astype(float)
+    traces = [
+        go.Heatmap(x=x, y=y, z=[_list(r, 0) for r in bad], zmin=0, zmax=1, showscale=False, name="unreachable",
+                   colorscale=[[0, "#555555"], [0.5, "#555555"], [0.5, "#f4b6b6"], [1, "#f4b6b6"]],
+                   hovertemplate="pose %{x}<br>%{y}<br>%{z}<extra>0 no IK, 1 outside limits</extra>"),
+        go.Heatmap(x=x, y=y, z=[_list(r, 3) for r in rmap.margin], zmin=0, zmax=0.5, colorscale="Viridis",
+                   name="joint-limit margin", colorbar={"title": {"text": "margin"}},
+                   hovertemplate="pose %{x}<br>%{y}<br>margin %{z}<extra></extra>"),
+        go.Heatmap(x=x, y=y, z=[_list(r, 3) for r in rmap.manipulability], zmin=0, zmax=1,
+                   colorscale="Viridis", name="manipulability", visible=False,
+                   colorbar={"title": {"text": "manip."}},
+                   hovertemplate="pose %{x}<br>%{y}<br>manipulability %{z}<extra></extra>"),
+    ]
+    if np.isfinite(planned).any():
+        traces.append(go.Scatter(x=_list(xs, 0), y=_list(planned, 2), mode="lines+markers", name="planned",
+                                 line={"color": "#000000", "width": 1.5}, marker={"size": 3},
+                                 connectgaps=False))
+    n = len(traces)
+    vis_margin = [True, True, False] + [True] * (n - 3)
+    vis_manip = [True, False, True] + [True] * (n - 3)
+    fig = go.Figure(traces)
+    fig.update_layout(
+        height=480, margin={"l": 70, "r": 20, "t": 50, "b": 50},
+        xaxis_title="path index (work poses)", yaxis_title=rmap.y_label,
+        updatemenus=[{"type": "buttons", "direction": "right", "x": 0.0, "y": 1.02, "xanchor": "left",
+                      "yanchor": "bottom",
+                      "buttons": [{"label": "joint-limit margin", "method": "restyle",
+                                   "args": [{"visible": vis_margin}]},
+                                  {"label": "manipulability", "method": "restyle",
+                                   "args": [{"visible": vis_manip}]}]}])
+    return fig
+
+
+# ----------------------------------------------------------------------------- page text
+
+_CSS = ("body{font-family:system-ui,sans-serif;margin:1.2em;color:#222}h1{font-size:1.4em}"
+        "h2{font-size:1.15em;margin-top:1.6em;border-bottom:1px solid #ddd}"
+        "div.summary{column-width:24em;column-gap:2em;font-size:0.85em}"
+        "div.kv{break-inside:avoid;display:flex;justify-content:space-between;border-bottom:1px dotted #e4e4e4}"
+        "span.k{color:#555;padding-right:1em}span.v{font-family:monospace;text-align:right;overflow-wrap:anywhere}"
+        "p.note{font-size:0.9em;color:#444;max-width:70em}")
+_SCENE_NOTE = ('<p class="note">World frame, mm. Workpiece points decimated for display; the path coloured by zone, '
+               'work poses by TCP feed when the run was timed. Markers: reverse planned (diamond), retract '
+               '(square), singular (x), not reached (open circle), unreachable or failing (red cross). '
+               'The slider moves the robot stick figure (base, joint frame origins, flange, TCP) along the '
+               'path. Click a legend entry to hide or show it.</p>')
+_FEED_NOTE = ('<p class="note">TCP speed from forward kinematics of the timed waypoints (distance / time), '
+              'against the length the TCP has travelled; work zones in blue. Long runs show the lowest '
+              'feed per display bin, so slowdowns stay visible.</p>')
+_JOINT_NOTE = ('<p class="note">Each joint\'s position as a share of its range: -1 at the lower limit, 0 at '
+               'mid-range, +1 at the upper limit. The top strip marks work zones.</p>')
+_REDUNDANCY_NOTE = ('<p class="note">Columns: work poses (subsampled); rows: the robot\'s redundant parameter. '
+                    'Grey: no IK solution; red: solutions only outside the joint limits; coloured: reachable, '
+                    'by joint-limit margin (share of range, 0.5 = every joint mid-range) or normalised '
+                    'manipulability (buttons). The black curve is the planned solution. '
+                    'See docs/report-html.md.</p>')
+

@@ -1,0 +1,238 @@
+"""Settings objects: one frozen dataclass per stage, built once from the validated job.
+
+The job file speaks the process engineer's units (degrees, ms); the stages
+work in radians and seconds. This module is the one place where a job key
+becomes a stage setting, so unit conversions happen here and nowhere else,
+and the defaults live only in the job schema (``camtool.job.SCHEMA``)::
+
+    job = load_job("job.toml")
+    robot = robot_for_job(job)
+    settings = JobSettings.from_job(job, robot)
+    path = raster_path(surface, settings.raster)
+
+``XSettings.make(**job_keys)`` builds one from job-file keys (schema defaults
+for the rest, the same validation as a job file): handy in scripts and tests,
+e.g. ``RasterSettings.make(step_over_mm=20)``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import ClassVar
+
+import numpy as np
+
+from .errors import BadInput
+from .job import Job, validate
+
+
+def _section(name: str, keys: dict) -> dict:
+    """Job keys of one section, checked against the schema, defaults filled."""
+    return validate({name: dict(keys)}, f"[{name}]")[name]
+
+
+class _FromSection:
+    """Shared constructors: ``from_section`` (validated keys) and ``make`` (keys + defaults)."""
+
+    SECTION: ClassVar[str] = ""
+
+    @classmethod
+    def from_section(cls, sec: dict):  # pragma: no cover - every subclass defines it
+        raise NotImplementedError
+
+    @classmethod
+    def make(cls, **job_keys):
+        """Settings from job-file keys of this section (unit as in the job file), schema defaults for the rest."""
+        return cls.from_section(_section(cls.SECTION, job_keys))
+
+    def as_dict(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass(frozen=True)
+class WorkpieceSettings(_FromSection):
+    """How the workpiece file is read."""
+
+    SECTION: ClassVar[str] = "workpiece"
+    file: str
+    units: str
+    sample_points: int
+    normal_neighbours: int
+
+    @classmethod
+    def from_section(cls, sec):
+        return cls(sec["file"], sec["units"], int(sec["sample_points"]), int(sec["normal_neighbours"]))
+
+
+@dataclass(frozen=True)
+class FitSettings(_FromSection):
+    """RANSAC plane / sphere fit and boundary extraction (mm)."""
+
+    SECTION: ClassVar[str] = "fit"
+    model: str
+    threshold_mm: float
+    iterations: int
+    min_inlier_ratio: float
+    seed: int
+    boundary_cell_mm: float
+    close_gaps_mm: float
+    simplify_mm: float
+
+    @classmethod
+    def from_section(cls, sec):
+        return cls(**{f.name: sec[f.name] for f in fields(cls)})
+
+
+@dataclass(frozen=True)
+class RasterSettings(_FromSection):
+    """S-path raster: lengths in mm on the surface, angles in rad."""
+
+    SECTION: ClassVar[str] = "raster"
+    step_over_mm: float
+    pitch_mm: float
+    angle_rad: float
+    lead_mm: float
+    clearance_mm: float
+    transition_points: int
+    tool_x: str
+    tool_x_world: tuple[float, float, float]
+    lead_rad: float
+    tilt_rad: float
+    free_spin: bool
+
+    @classmethod
+    def from_section(cls, sec):
+        return cls(step_over_mm=float(sec["step_over_mm"]), pitch_mm=float(sec["pitch_mm"]),
+                   angle_rad=math.radians(sec["angle_deg"]), lead_mm=float(sec["lead_mm"]),
+                   clearance_mm=float(sec["clearance_mm"]), transition_points=int(sec["transition_points"]),
+                   tool_x=sec["tool_x"], tool_x_world=tuple(float(x) for x in sec["tool_x_world"]),
+                   lead_rad=math.radians(sec["lead_deg"]), tilt_rad=math.radians(sec["tilt_deg"]),
+                   free_spin=bool(sec["free_spin"]))
+
+
+@dataclass(frozen=True)
+class PlannerSettings(_FromSection):
+    """The redundant-arm planner: CWLN IK, jump detection, reverse planning, retracts.
+
+    Angles in rad, lengths in mm; ``q_home`` is the start configuration in
+    native joint units (rad / mm) or None.
+    """
+
+    SECTION: ClassVar[str] = "planner"
+    method: str
+    damping: float
+    orientation_weight_mm: float
+    position_tol_mm: float
+    orientation_tol_rad: float
+    max_iterations: int
+    track_scale_mm: float
+    posture_gain: float
+    clamp_buffer_rad: float
+    clamp_buffer_mm: float
+    jump_threshold_rad: float
+    jump_threshold_mm: float
+    retract_mm: float
+    lift_mm: float
+    lift_steps: int
+    reconfigure_threshold_rad: float
+    reconfigure_threshold_mm: float
+    reverse_samples: int
+    seed: int
+    ik_seeds: str
+    q_home: tuple[float, ...] | None = None
+
+    @classmethod
+    def from_section(cls, sec, q_home=None):
+        return cls(method=sec["method"], damping=float(sec["damping"]),
+                   orientation_weight_mm=float(sec["orientation_weight_mm"]),
+                   position_tol_mm=float(sec["position_tol_mm"]),
+                   orientation_tol_rad=math.radians(sec["orientation_tol_deg"]),
+                   max_iterations=int(sec["max_iterations"]), track_scale_mm=float(sec["track_scale_mm"]),
+                   posture_gain=float(sec["posture_gain"]),
+                   clamp_buffer_rad=math.radians(sec["clamp_buffer_deg"]),
+                   clamp_buffer_mm=float(sec["clamp_buffer_mm"]),
+                   jump_threshold_rad=math.radians(sec["jump_threshold_deg"]),
+                   jump_threshold_mm=float(sec["jump_threshold_mm"]), retract_mm=float(sec["retract_mm"]),
+                   lift_mm=float(sec["lift_mm"]), lift_steps=int(sec["lift_steps"]),
+                   reconfigure_threshold_rad=math.radians(sec["reconfigure_threshold_deg"]),
+                   reconfigure_threshold_mm=float(sec["reconfigure_threshold_mm"]),
+                   reverse_samples=int(sec["reverse_samples"]), seed=int(sec["seed"]), ik_seeds=sec["ik_seeds"],
+                   q_home=None if q_home is None else tuple(float(x) for x in q_home))
+
+    @classmethod
+    def make(cls, q_home=None, **job_keys):
+        """Settings from [planner] keys (job-file units); ``q_home`` in native units (rad / mm)."""
+        return cls.from_section(_section(cls.SECTION, job_keys), q_home)
+
+    def jump_threshold(self, prismatic: np.ndarray) -> np.ndarray:
+        """Per-joint jump threshold in native units (rad, or mm for prismatic joints)."""
+        return np.where(prismatic, self.jump_threshold_mm, self.jump_threshold_rad)
+
+    def with_method(self, method: str) -> "PlannerSettings":
+        from dataclasses import replace
+
+        return replace(self, method=method)
+
+
+@dataclass(frozen=True)
+class TimingSettings(_FromSection):
+    """Time parameterisation: TCP speed on work (mm/s), check step (s), free-zone mode."""
+
+    SECTION: ClassVar[str] = "timing"
+    method: str
+    tcp_speed_mm_s: float
+    check_dt_s: float
+    zones: str
+
+    @classmethod
+    def from_section(cls, sec):
+        return cls(method=sec["method"], tcp_speed_mm_s=float(sec["tcp_speed_mm_s"]),
+                   check_dt_s=float(sec["check_dt_ms"]) / 1000.0, zones=sec["zones"])
+
+
+@dataclass(frozen=True)
+class PostSettings(_FromSection):
+    """Post-processing: formats, program name, profiles, the shortest move (s)."""
+
+    SECTION: ClassVar[str] = "post"
+    formats: tuple[str, ...]
+    program_name: str
+    profiles: dict
+    min_move_s: float
+    csv_angle_unit: str
+
+    @classmethod
+    def from_section(cls, sec):
+        return cls(formats=tuple(sec["formats"]), program_name=sec["program_name"], profiles=dict(sec["profiles"]),
+                   min_move_s=float(sec["min_move_ms"]) / 1000.0, csv_angle_unit=sec["csv_angle_unit"])
+
+
+def home_q(job: Job, robot) -> np.ndarray | None:
+    """``robot.home_deg`` in native joint units (rad / mm), or None when the job gives none."""
+    values = job.robot.home_deg
+    if not values:
+        return None
+    if len(values) != robot.dof:
+        raise BadInput(f"{job.path}: robot.home_deg: {robot.name} needs {robot.dof} values, found {len(values)}")
+    return robot.q_from_edge(values)
+
+
+@dataclass(frozen=True)
+class JobSettings:
+    """Every stage's settings of one job."""
+
+    workpiece: WorkpieceSettings
+    fit: FitSettings
+    raster: RasterSettings
+    planner: PlannerSettings
+    timing: TimingSettings
+    post: PostSettings
+
+    @classmethod
+    def from_job(cls, job: Job, robot=None) -> "JobSettings":
+        """All settings of ``job``; ``robot`` (for the home configuration's units) may be omitted."""
+        q_home = home_q(job, robot) if robot is not None else None
+        return cls(workpiece=WorkpieceSettings.from_section(job.workpiece), fit=FitSettings.from_section(job.fit),
+                   raster=RasterSettings.from_section(job.raster),
+                   planner=PlannerSettings.from_section(job.planner, q_home),
+                   timing=TimingSettings.from_section(job.timing), post=PostSettings.from_section(job.post))

@@ -1,0 +1,124 @@
+"""Save and load stage boxes, so a user can stop after any stage, inspect, edit and resume.
+
+One format for every box (``Path``, ``JointPath``, ``Trajectory`` and
+``TimedTrajectory``): a NumPy ``.npz`` archive holding
+
+- ``header``: a JSON document (as a 0-d unicode array) with
+  ``{"format": "camtool-stage", "version": 1, "kind": "<class name>",
+  "fields": {name: JSON value}}`` for every field that is not an array;
+- one entry per array field, under the field's name, bit for bit.
+
+Arrays round-trip exactly and JSON floats are written with ``repr``, so a
+resumed stage reproduces the run's programs byte for byte. Fields marked
+``metadata={"transient": True}`` (caches) are not saved. Surfaces keep their
+JSON format (``camtool.surface.save_surface``, versioned the same way). See
+docs/stage-files.md.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path as FsPath
+
+import numpy as np
+
+from .errors import BadInput
+from .files import output_file
+from .timing import TimedTrajectory
+from .toolpath import ZONES, Path
+from .trajectory import JointPath, Trajectory
+
+FORMAT = "camtool-stage"
+VERSION = 1
+KINDS = {cls.__name__: cls for cls in (Path, JointPath, Trajectory, TimedTrajectory)}
+STAGE_OF_KIND = {"Path": "raster", "JointPath": "plan", "Trajectory": "time", "TimedTrajectory": "time"}
+
+
+def _jsonable(x):
+    if isinstance(x, np.ndarray):
+        return {"__array__": x.tolist(), "dtype": str(x.dtype)}
+    if isinstance(x, (np.bool_,)):
+        return bool(x)
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.floating):
+        return float(x)
+    if isinstance(x, tuple):
+        return {"__tuple__": [_jsonable(v) for v in x]}
+    if isinstance(x, list):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    return x
+
+
+def _restore(x):
+    if isinstance(x, dict):
+        if "__array__" in x:
+            return np.asarray(x["__array__"], dtype=x["dtype"])
+        if "__tuple__" in x:
+            return tuple(_restore(v) for v in x["__tuple__"])
+        return {k: _restore(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_restore(v) for v in x]
+    return x
+
+
+def save_stage(box, file: str | FsPath) -> FsPath:
+    """Write a stage box (Path, JointPath, Trajectory, TimedTrajectory) to ``.npz``; returns the file."""
+    kind = type(box).__name__
+    if kind not in KINDS:
+        raise TypeError(f"cannot save a {kind}")
+    arrays, values = {}, {}
+    for f in dataclasses.fields(box):
+        if f.metadata.get("transient"):
+            continue
+        v = getattr(box, f.name)
+        if isinstance(v, np.ndarray) and v.dtype != object:
+            arrays[f.name] = v
+        else:
+            values[f.name] = _jsonable(v)
+    header = {"format": FORMAT, "version": VERSION, "kind": kind, "fields": values}
+    if kind == "Path":
+        header["zones"] = list(ZONES)
+    file = output_file(file)
+    with open(file, "wb") as fh:
+        np.savez_compressed(fh, header=np.array(json.dumps(header, allow_nan=True)), **arrays)
+    return file
+
+
+def load_stage(file: str | FsPath, expect: tuple[str, ...] = ()):
+    """Read a stage box saved by ``save_stage``; BadInput naming the file when it is not one (of ``expect``)."""
+    file = FsPath(file)
+    try:
+        with np.load(file, allow_pickle=False) as d:
+            header = json.loads(str(d["header"]))
+            arrays = {k: d[k] for k in d.files if k != "header"}
+    except FileNotFoundError:
+        raise BadInput(f"{file}: stage file not found") from None
+    except (KeyError, ValueError, OSError, json.JSONDecodeError) as exc:
+        raise BadInput(f"{file}: not a camtool stage file ({type(exc).__name__})") from None
+    if header.get("format") != FORMAT or header.get("kind") not in KINDS:
+        raise BadInput(f"{file}: not a camtool stage file")
+    if header.get("version") != VERSION:
+        raise BadInput(f"{file}: stage file version {header.get('version')} is not supported "
+                       f"(this camtool reads version {VERSION}); rerun the stage")
+    kind = header["kind"]
+    if expect and kind not in expect:
+        raise BadInput(f"{file}: holds a {kind} (the {STAGE_OF_KIND[kind]} stage's output), "
+                       f"expected {' or '.join(expect)}")
+    if kind == "Path" and tuple(header.get("zones", ())) != ZONES:
+        raise BadInput(f"{file}: path file uses zone labels {header.get('zones')}, expected {list(ZONES)}")
+    cls = KINDS[kind]
+    values = {k: _restore(v) for k, v in header["fields"].items()}
+    names = {f.name for f in dataclasses.fields(cls) if f.init}
+    missing = [n for n in names if n not in values and n not in arrays
+               and next(f for f in dataclasses.fields(cls) if f.name == n).default is dataclasses.MISSING
+               and next(f for f in dataclasses.fields(cls) if f.name == n).default_factory is dataclasses.MISSING]
+    if missing:
+        raise BadInput(f"{file}: {kind} file lacks {', '.join(sorted(missing))}")
+    kwargs = {k: v for k, v in {**values, **arrays}.items() if k in names}
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        raise BadInput(f"{file}: the {kind} in it is damaged ({exc})") from None

@@ -1,0 +1,242 @@
+"""The stages of a job, one function each, shared by every task kind.
+
+    job -> robot, workpiece -> surface -> path -> joint path -> trajectory -> programs + report
+
+Each function takes the job (or its settings) and the previous stage's box and
+returns the next box; none of them writes files except ``post_checked`` and
+``finish_run``. Task modules (``camtool.tasks``) compose these; this module
+imports no task, so the import graph stays acyclic.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Callable
+
+import numpy as np
+import trimesh
+
+from .errors import PlanInfeasible
+from .fit import fit_surface
+from .job import Job
+from .plan import plan_path
+from .plan.connectors import LiftSettings, lift_reconfigurations
+from .plan.cwln import CwlnSolver
+from .plan.strategy import ik_settings
+from .plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
+from .post import write_programs
+from .raster import raster_path
+from .report import plan_metrics, plot_joints, plot_unreachable, write_json_atomic, write_points_csv
+from .report_html import write_run_html
+from .robots import get_robot
+from .settings import FitSettings, JobSettings, PlannerSettings, RasterSettings, TimingSettings, WorkpieceSettings
+from .timing import check_trajectory, samples_for, time_trajectory, timing_report
+from .transforms import matrix_from_xyz_rpy
+from .workpiece import load_workpiece
+
+FREE_MOVE_RADIUS_MM = 60.0   # link capsule radius of the approach / depart collision check
+CONTACT_ALLOWANCE_MM = 20.0  # the exempt ball round the first / last tool contact: capsule radius + this
+CONNECTOR_RADIUS_MM = 40.0   # link capsule radius of the reconfiguration check at the lift height
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What a run produced: the stages that ran (in order), their outputs, and the files written."""
+
+    stages: tuple[str, ...]
+    outputs: MappingProxyType
+    files: tuple[Path, ...]
+
+
+@dataclass
+class StageLog:
+    """Records finished stages while a run goes on and tells ``on_stage(name, value)`` of each.
+
+    The log is the runner's notebook; the stage boxes it records are immutable.
+    ``result()`` freezes it into a RunResult.
+    """
+
+    on_stage: Callable | None = None
+    stages: list[str] = field(default_factory=list)
+    outputs: dict = field(default_factory=dict)
+
+    def done(self, name: str, value):
+        """Record a finished stage's output and pass the value on."""
+        self.outputs[name] = value
+        self.stages.append(name)
+        if self.on_stage is not None:
+            self.on_stage(name, value)
+        return value
+
+    def result(self, files=()) -> RunResult:
+        return RunResult(tuple(self.stages), MappingProxyType(dict(self.outputs)), tuple(Path(f) for f in files))
+
+
+# --------------------------------------------------------------------------- job -> stage inputs
+
+
+def robot_for_job(job: Job):
+    """The job's robot with its base placement and tool."""
+    return get_robot(job.robot.name, job.robot.params, job.dir).with_placement(
+        matrix_from_xyz_rpy(job.cell.base_xyz_mm, job.cell.base_rpy_deg),
+        matrix_from_xyz_rpy(job.tool.tcp_xyz_mm, job.tool.tcp_rpy_deg))
+
+
+def workpiece_for_job(job: Job):
+    """Load the job's workpiece and place it in the world frame (cell.workpiece_*)."""
+    s = WorkpieceSettings.from_section(job.workpiece)
+    wp = load_workpiece(job.resolve(s.file), units=s.units, sample_points=s.sample_points,
+                        normal_neighbours=s.normal_neighbours, seed=job.fit.seed)
+    return wp.transformed(matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg))
+
+
+def surface_for_job(job: Job, workpiece):
+    """Fit the job's surface (world frame) to a placed workpiece."""
+    return fit_surface(workpiece, FitSettings.from_section(job.fit))
+
+
+def path_for_job(job: Job, surface):
+    """Raster the job's surface into a tool Path (world frame)."""
+    return raster_path(surface, RasterSettings.from_section(job.raster))
+
+
+# --------------------------------------------------------------------------- plan and time
+
+
+def free_move_checker(workpiece, robot, contact_xyz_mm=None, radius_mm: float = FREE_MOVE_RADIUS_MM):
+    """Validity check of a free move: link capsules against the placed workpiece, the tool contact exempt.
+
+    A mesh gives ``CapsuleChecker`` (signed distance if watertight), a point
+    cloud ``CloudChecker`` (KD-tree distance to the points).
+    """
+    exempt = [] if contact_xyz_mm is None else [(contact_xyz_mm, radius_mm + CONTACT_ALLOWANCE_MM)]
+    if workpiece.faces is not None and workpiece.vertices_mm is not None and len(workpiece.faces):
+        mesh = trimesh.Trimesh(workpiece.vertices_mm, workpiece.faces, process=False)
+        return CapsuleChecker(robot, mesh, radius_mm, exempt=exempt)
+    return CloudChecker(robot, workpiece.points_mm, radius_mm, exempt=exempt)
+
+
+def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_path):
+    """Every reconfiguring connector between runs made a lift - reconfigure - descend (``plan/connectors.py``).
+
+    The reconfiguration at the lift height is checked against the placed
+    workpiece (link capsules) and re-planned by RRT-Connect where needed.
+    """
+    lift = LiftSettings(clearance_mm=settings.lift_mm, steps=settings.lift_steps,
+                        threshold_rad=settings.reconfigure_threshold_rad,
+                        threshold_mm=settings.reconfigure_threshold_mm, track_scale_mm=settings.track_scale_mm,
+                        seed=settings.seed)
+    valid = None if workpiece is None else free_move_checker(workpiece, robot, radius_mm=CONNECTOR_RADIUS_MM)
+    solver = CwlnSolver(robot, ik_settings(settings), free_spin=path.free_spin)
+    return lift_reconfigurations(joint_path, path, robot, lift, solver, valid)
+
+
+def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path):
+    """With a home configuration: RRT-Connect approach (home -> first row) and depart (last row -> home).
+
+    The moves are inserted as 'approach' / 'depart' rows (path_index -1); the
+    returned joint path's ``events['free_moves']`` has their figures. Without
+    ``settings.q_home`` the joint path is returned unchanged.
+    """
+    if settings.q_home is None:
+        return joint_path
+    q_home = np.asarray(settings.q_home, float)
+    pidx = joint_path.path_index
+    first, last = path.poses_mm[pidx[pidx >= 0][0]][:3, 3], path.poses_mm[pidx[pidx >= 0][-1]][:3, 3]
+    figures, moves = {}, {}
+    for name, contact, qa, qb in (("approach", first, q_home, joint_path.q[0]),
+                                  ("depart", last, joint_path.q[-1], q_home)):
+        valid = free_move_checker(workpiece, robot, contact)
+        try:
+            moves[name], info = free_move(robot, qa, qb, valid, seed=settings.seed,
+                                          track_scale_mm=settings.track_scale_mm)
+        except PlanInfeasible as exc:
+            raise PlanInfeasible(f"{name} move from/to robot.home_deg: {exc}") from None
+        info["check"] = ("mesh capsules" if hasattr(valid, "mesh") else "point-cloud capsules (KD-tree)")
+        info["capsule_radius_mm"] = FREE_MOVE_RADIUS_MM
+        info["exempt_contact_radius_mm"] = FREE_MOVE_RADIUS_MM + CONTACT_ALLOWANCE_MM
+        figures[name] = info
+    return insert_home_moves(joint_path, moves["approach"], moves["depart"], {"free_moves": figures})
+
+
+def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str | None = None):
+    """Plan ``path`` with the job's planner (or another ``method``), plus home moves when a workpiece is given."""
+    planner = settings.planner if method is None else settings.planner.with_method(method)
+    joint_path = lift_connectors(planner, workpiece, path, robot, plan_path(path, robot, planner))
+    if workpiece is not None:
+        joint_path = add_home_moves(planner, workpiece, path, robot, joint_path)
+    return joint_path
+
+
+def time_for_job(settings: JobSettings, joint_path, path, robot):
+    """Time a joint path with the job's timing settings."""
+    return time_trajectory(joint_path, path, robot, settings.timing)
+
+
+def plan_and_time(settings: JobSettings, path, robot, method: str | None = None, workpiece=None):
+    """(joint path, trajectory) of ``path``: ``plan_for_job`` then ``time_for_job``."""
+    joint_path = plan_for_job(settings, path, robot, workpiece, method)
+    return joint_path, time_for_job(settings, joint_path, path, robot)
+
+
+# --------------------------------------------------------------------------- check, post, report
+
+
+def post_checked(trajectory, robot, job: Job, outdir: Path) -> list[Path]:
+    """The independent 4 ms limit check of the timed trajectory, then the post stage.
+
+    PlanInfeasible on any finding: no program is written from a trajectory that
+    breaks a limit.
+    """
+    timing = TimingSettings.from_section(job.timing)
+    findings = check_trajectory(trajectory, robot, samples=samples_for(trajectory, timing.check_dt_s))
+    if findings:
+        raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
+    return list(write_programs(trajectory, robot, job, outdir))
+
+
+def timing_figures(trajectory, robot, job: Job) -> dict:
+    """The timing stage's figures, its method named ``timing_method``."""
+    figures = timing_report(trajectory, robot, samples_for(trajectory, TimingSettings.from_section(job.timing).check_dt_s))
+    figures["timing_method"] = figures.pop("method")
+    return figures
+
+
+def run_report(path, joint_path, trajectory, robot, job: Job, method: str) -> dict:
+    """The planner's and the timing stage's figures of a run, for report.json."""
+    report = plan_metrics(path, joint_path, robot, method, job.planner.jump_threshold_deg,
+                          job.planner.jump_threshold_mm)
+    report.update(timing_figures(trajectory, robot, job))
+    return report
+
+
+def report_unreachable(exc: PlanInfeasible, path, robot, job: Job, outdir: Path, workpiece=None,
+                       surface=None) -> None:
+    """Write report.json, report.html (failing poses marked, with the redundancy map) and a PNG map of
+    unreachable poses for an infeasible plan."""
+    unreachable = exc.report.get("unreachable", [])
+    report = {"robot": robot.name, "method": job.planner.method, "status": "infeasible",
+              "reason": str(exc), "points_total": len(path), "unreachable_count": len(unreachable),
+              "unreachable": unreachable}
+    if unreachable:
+        report["unreachable_map"] = str(plot_unreachable(path, unreachable, Path(outdir) / "plots" / "unreachable.png"))
+    write_json_atomic(report, Path(outdir) / "report.json")
+    write_run_html(outdir, report=report, robot=robot, workpiece=workpiece, surface=surface, path=path,
+                   joint_path=exc.report.get("joint_path"), failing_indices=[u["index"] for u in unreachable])
+
+
+def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, trajectories: dict, outdir: Path,
+               extra_files=()) -> RunResult:
+    """Write the plots, points.csv and report.json of a successful run; the RunResult lists every file."""
+    outdir = Path(outdir)
+    plots = plot_joints(trajectories, robot, outdir / "plots")
+    write_points_csv(path, joint_path, robot, outdir / "points.csv")
+    report["programs"] = [str(f) for f in programs]
+    report["plots"] = [str(f) for f in plots]
+    write_json_atomic(report, outdir / "report.json")
+    log.outputs["report"] = report
+    html = write_run_html(outdir, report=report, robot=robot, workpiece=log.outputs.get("workpiece"),
+                          surface=log.outputs.get("fit"), path=path, joint_path=joint_path,
+                          trajectory=next(iter(trajectories.values())))
+    return log.result([*programs, outdir / "report.json", *extra_files, outdir / "points.csv", *plots, *html])

@@ -1,0 +1,363 @@
+"""Assemble a timed trajectory from its pieces: surface runs, free chains, the time line.
+
+``time_trajectory`` is the chain of these steps, each a function returning a
+frozen dataclass (no shared state between them)::
+
+    layout  = run_layout(joint_path, path)                        # RunLayout: runs of surface rows
+    surface = time_surface(joint_path, path, robot, layout, ...)   # SurfaceTiming: all runs at once
+    pieces  = timeline_pieces(joint_path, robot, layout, surface, zones)  # [Piece]: chain, run, chain, ...
+    placed  = place(pieces)                                        # Placement: one Samples, piece starts
+    slowdowns(surface, layout, placed, joint_path)                 # the report of slowed pieces
+
+A ``Piece`` holds its samples with times from its own start; ``place`` puts the
+pieces one after another on the time line (a piece's first sample is the
+previous piece's last one and is dropped) and concatenates every field once.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..toolpath import ZONE_CODE, ZONES
+from .flow import flow_chain, hard_steps
+from .quintic import MARGIN, TimedRuns, time_runs
+from .ruckig_moves import RuckigMover, rest_to_rest_chain
+from .ruckig_through import on_grid, through_pieces
+
+SURFACE_ZONES = ("work", "lead_in", "lead_out")
+SLOWDOWN_REPORT_RATIO = 0.995  # pieces slower than this share of the planned TCP speed are reported
+
+
+# ----------------------------------------------------------------------------- runs
+
+
+@dataclass(frozen=True)
+class RunLayout:
+    """Per JointPath row: surface pose, first row of a run, last row of a run (a run: surface poses of one segment)."""
+
+    surface: np.ndarray  # (n,) bool
+    start: np.ndarray    # (n,) bool
+    end: np.ndarray      # (n,) bool
+
+    def runs(self) -> list[tuple[int, int]]:
+        """(first row, last row) of every run, in JointPath order."""
+        return [(int(a), int(b)) for a, b in zip(np.nonzero(self.start)[0], np.nonzero(self.end)[0])]
+
+
+def run_layout(joint_path, path) -> RunLayout:
+    """The runs of ``joint_path``: consecutive surface poses (work, lead-in, lead-out) of one Path segment."""
+    zone = np.asarray(joint_path.zone)
+    pidx = np.asarray(joint_path.path_index)
+    surface = np.isin(zone, [ZONE_CODE[z] for z in SURFACE_ZONES])
+    seg = np.where(pidx >= 0, np.asarray(path.segment)[np.maximum(pidx, 0)], -1)
+    n = len(zone)
+    same_prev = np.zeros(n, bool)
+    same_prev[1:] = surface[:-1] & surface[1:] & (seg[1:] == seg[:-1])
+    start = surface & ~same_prev
+    end = np.zeros(n, bool)
+    end[:-1] = surface[:-1] & ~same_prev[1:]
+    end[-1] = surface[-1]
+    return RunLayout(surface, start, end)
+
+
+def tcp_positions_mm(joint_path, path, robot) -> np.ndarray:
+    """World-frame TCP position per JointPath row: from the Path, or by FK for inserted poses."""
+    pidx = np.asarray(joint_path.path_index)
+    pos = np.empty((len(pidx), 3))
+    on = pidx >= 0
+    pos[on] = np.asarray(path.poses_mm)[pidx[on], :3, 3]
+    for i in np.nonzero(~on)[0]:
+        pos[i] = (robot.base_T_mm @ robot.fk_tcp(joint_path.q[i]))[:3, 3]
+    return pos
+
+
+# ----------------------------------------------------------------------------- surface runs
+
+
+@dataclass(frozen=True)
+class InnerSamples:
+    """Samples inside surface pieces (ruckig pieces written out at their jerk switches).
+
+    ``waypoint``: surface waypoint the piece starts at; ``t_s``: time from the piece start.
+    """
+
+    waypoint: np.ndarray  # (K,)
+    t_s: np.ndarray       # (K,)
+    q: np.ndarray         # (K, dof)
+    qd: np.ndarray
+    qdd: np.ndarray
+
+
+@dataclass(frozen=True)
+class PieceInterpolation:
+    """How the surface pieces are interpolated: final durations, inner samples, ruckig flag and reason."""
+
+    h_s: np.ndarray                 # (S-1,) final piece durations (undefined across run ends)
+    inner: InnerSamples | None      # None: every piece is the quintic between its waypoints
+    piece_ruckig: np.ndarray        # (P,) bool
+    piece_reason: np.ndarray        # (P,) "" or why a ruckig piece kept its quintic
+
+
+@dataclass(frozen=True)
+class SurfaceTiming:
+    """Every run timed at once, indexed by surface waypoint k (the k-th surface row of the JointPath).
+
+    Piece p goes from surface waypoint ``pieces[p]`` to the next one (same run).
+    """
+
+    rows: np.ndarray        # (S,) JointPath row of each surface waypoint
+    run_id: np.ndarray      # (S,) run number
+    q: np.ndarray           # (S, dof)
+    qd: np.ndarray          # (S, dof) through-velocities (0 at run ends)
+    qdd: np.ndarray         # (S, dof) through-accelerations
+    h_plan_s: np.ndarray    # (S-1,) piece durations of the TCP time law
+    pieces: np.ndarray      # (P,) surface waypoint each piece starts at
+    interpolation: PieceInterpolation
+
+    @property
+    def h_s(self) -> np.ndarray:
+        return self.interpolation.h_s
+
+    def waypoint_of_row(self, row: int) -> int:
+        """Surface waypoint index of a JointPath row that is a surface pose."""
+        return int(np.searchsorted(self.rows, row))
+
+
+def _quintic_pieces(limits, q, runs: TimedRuns, pieces) -> PieceInterpolation:
+    return PieceInterpolation(runs.h_s.copy(), None, np.zeros(len(pieces), bool),
+                              np.full(len(pieces), "", dtype=object))
+
+
+def _ruckig_pieces(limits, q, runs: TimedRuns, pieces) -> PieceInterpolation:
+    if not len(pieces):
+        return _quintic_pieces(limits, q, runs, pieces)
+    through = through_pieces(limits, q, runs.qd, runs.qdd, runs.h_s, pieces, share=MARGIN)
+    h = runs.h_s.copy()
+    h[pieces] = through.duration_s
+    inner = InnerSamples(pieces[through.piece], through.t_s, through.q, through.qd, through.qdd)
+    return PieceInterpolation(h, inner, through.used, through.reason)
+
+
+PIECE_INTERPOLATIONS = {"quintic": _quintic_pieces, "ruckig": _ruckig_pieces}  # timing.method
+
+
+def time_surface(joint_path, path, robot, layout: RunLayout, method: str, tcp_speed_mm_s: float) -> SurfaceTiming:
+    """Time every run: TCP time law, through-derivatives, local slow-down (``quintic.py``); then the
+    pieces' interpolation by ``method`` (quintic, or ruckig state-to-state moves, ``ruckig_through.py``)."""
+    q = np.asarray(joint_path.q, float)
+    sidx = np.nonzero(layout.surface)[0]
+    pos = tcp_positions_mm(joint_path, path, robot)
+    first, last = layout.start[sidx], layout.end[sidx]
+    run_id = np.cumsum(first) - 1
+    step_mm = np.linalg.norm(np.diff(pos[sidx], axis=0), axis=1)
+    runs = time_runs(q[sidx], step_mm, first, last, run_id, robot.limits, tcp_speed_mm_s)
+    pieces = np.nonzero(~last[:-1])[0] if len(sidx) > 1 else np.zeros(0, int)
+    interpolation = PIECE_INTERPOLATIONS[method](robot.limits, q[sidx], runs, pieces)
+    return SurfaceTiming(sidx, run_id, q[sidx], runs.qd, runs.qdd, runs.h_plan_s, pieces, interpolation)
+
+
+# ----------------------------------------------------------------------------- pieces of the time line
+
+
+@dataclass(frozen=True)
+class Samples:
+    """Waypoints of a trajectory, or of one piece of it (then ``t_s`` counts from the piece's start)."""
+
+    t_s: np.ndarray         # (M,)
+    q: np.ndarray           # (M, dof)
+    qd: np.ndarray
+    qdd: np.ndarray
+    zone: np.ndarray        # (M,) zone codes
+    path_index: np.ndarray  # (M,) Path pose, -1 for samples and inserted poses
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One free chain or one run, timed on its own; ``rows``: its first and last JointPath row."""
+
+    samples: Samples
+    rows: tuple[int, int]
+    run: bool               # a surface run (else a free chain)
+    starts_on_grid: bool    # must start on the exact ruckig time grid (a run with ruckig pieces)
+
+
+def _inner_zone(z0: np.ndarray, z1: np.ndarray) -> np.ndarray:
+    """Zone of samples inside a piece: its ends' zone, or the non-work one where they differ.
+
+    So a piece counts as work time (both ends work) exactly as it does without samples.
+    """
+    return np.where((z0 == z1) | (z1 == ZONE_CODE["work"]), z0, z1)
+
+
+def _stop_chain(mover, joint_path, rows, robot):
+    return rest_to_rest_chain(mover, np.asarray(joint_path.q, float)[rows])
+
+
+def _flow_chain(mover, joint_path, rows, robot):
+    q = np.asarray(joint_path.q, float)[rows]
+    zone = np.asarray(joint_path.zone)[rows]
+    hard = hard_steps(q, robot.prismatic, np.asarray(joint_path.jump)[rows],
+                      (zone == ZONE_CODE["retract"]) | np.asarray(joint_path.retract)[rows])
+    return flow_chain(mover, q, hard)
+
+
+CHAIN_TIMINGS = {"stop": _stop_chain, "flow": _flow_chain}  # timing.zones
+
+
+def free_chain(rows, joint_path, robot, layout: RunLayout, mover: RuckigMover, zones: str) -> Piece:
+    """Time the free chain through JointPath ``rows`` (from the last pose of a run to the first of the next).
+
+    Samples inside a step get the zone of the step's free pose (``self_motion``
+    for a hop between two runs); samples at a pose carry its zone and Path index.
+    """
+    rows = np.asarray(rows)
+    zone = np.asarray(joint_path.zone)
+    pidx = np.asarray(joint_path.path_index)
+    t_rel, cq, cv, ca, pose = CHAIN_TIMINGS[zones](mover, joint_path, rows, robot)
+    surface = layout.surface
+    step_zone = np.empty(len(rows), int)
+    for k in range(len(rows)):
+        nxt = rows[min(k + 1, len(rows) - 1)]
+        if not surface[nxt]:
+            step_zone[k] = zone[nxt]
+        elif not surface[rows[k]]:
+            step_zone[k] = zone[rows[k]]
+        else:
+            step_zone[k] = ZONE_CODE["self_motion"]
+    prev_pose = np.maximum.accumulate(np.where(pose >= 0, pose, 0))
+    zz = np.where(pose >= 0, zone[rows[np.maximum(pose, 0)]], step_zone[prev_pose])
+    pp = np.where(pose >= 0, pidx[rows[np.maximum(pose, 0)]], -1)
+    return Piece(Samples(t_rel, cq, cv, ca, zz, pp), (int(rows[0]), int(rows[-1])), run=False,
+                 starts_on_grid=False)
+
+
+def run_waypoint_times(surface: SurfaceTiming, ka: int, kb: int) -> np.ndarray:
+    """Times (s from the run start) of surface waypoints ``ka`` .. ``kb`` (one run)."""
+    return np.concatenate([[0.0], np.cumsum(surface.h_s[ka:kb])])
+
+
+def surface_run(a: int, b: int, surface: SurfaceTiming, joint_path) -> Piece:
+    """The run from JointPath row ``a`` to row ``b``: its waypoints, plus the ruckig pieces' inner samples."""
+    zone = np.asarray(joint_path.zone)
+    pidx = np.asarray(joint_path.path_index)
+    sidx = surface.rows
+    inner = surface.interpolation.inner
+    ka, kb = surface.waypoint_of_row(a), surface.waypoint_of_row(b)
+    t_way = run_waypoint_times(surface, ka, kb)
+    t_rel, rq, rv, ra = t_way, surface.q[ka:kb + 1], surface.qd[ka:kb + 1], surface.qdd[ka:kb + 1]
+    zz, pp = zone[sidx[ka:kb + 1]], pidx[sidx[ka:kb + 1]]
+    if inner is not None and kb > ka:
+        sel = (inner.waypoint >= ka) & (inner.waypoint < kb)
+        if sel.any():
+            w = inner.waypoint[sel]
+            t_rel = np.concatenate([t_rel, t_way[w - ka] + inner.t_s[sel]])
+            rq = np.concatenate([rq, inner.q[sel]])
+            rv = np.concatenate([rv, inner.qd[sel]])
+            ra = np.concatenate([ra, inner.qdd[sel]])
+            zz = np.concatenate([zz, _inner_zone(zone[sidx[w]], zone[sidx[w + 1]])])
+            pp = np.concatenate([pp, np.full(int(sel.sum()), -1)])
+            o = np.argsort(t_rel, kind="stable")
+            t_rel, rq, rv, ra, zz, pp = t_rel[o], rq[o], rv[o], ra[o], zz[o], pp[o]
+    return Piece(Samples(t_rel, rq, rv, ra, zz, pp), (a, b), run=True, starts_on_grid=inner is not None)
+
+
+def timeline_pieces(joint_path, robot, layout: RunLayout, surface: SurfaceTiming, zones: str) -> list[Piece]:
+    """The pieces in JointPath order: the free chain before each run (if any), the run, and the tail."""
+    mover = RuckigMover(robot.limits)
+    pieces: list[Piece] = []
+    prev_end = 0
+    for a, b in layout.runs():
+        if a + 1 - prev_end >= 2:
+            pieces.append(free_chain(np.arange(prev_end, a + 1), joint_path, robot, layout, mover, zones))
+        pieces.append(surface_run(a, b, surface, joint_path))
+        prev_end = b
+    n = len(layout.surface)
+    if n - prev_end >= 2 or not pieces:
+        pieces.append(free_chain(np.arange(prev_end, n), joint_path, robot, layout, mover, zones))
+    return pieces
+
+
+# ----------------------------------------------------------------------------- the time line
+
+
+@dataclass(frozen=True)
+class Placement:
+    """The pieces on one time line: all samples concatenated, and each piece's start time (s)."""
+
+    samples: Samples
+    start_s: tuple[float, ...]
+
+
+def place(pieces: list[Piece]) -> Placement:
+    """Put the pieces one after another on the time line and concatenate them once.
+
+    Every piece but the first drops its first sample (the previous piece's last).
+    A piece that ``starts_on_grid`` starts at the next multiple of the ruckig time
+    grid: the previous sample is moved there (the last free interval stretched by < 1 ns).
+    """
+    t_parts: list[np.ndarray] = []
+    starts: list[float] = []
+    t_offset = 0.0
+    for i, piece in enumerate(pieces):
+        if piece.starts_on_grid and i > 0:
+            g = float(on_grid(t_offset, up=True))
+            if g != t_offset:
+                last = next(p for p in reversed(t_parts) if len(p))
+                last[-1] = g  # an array made here, below
+                t_offset = g
+        s = 1 if i > 0 else 0
+        starts.append(t_offset)
+        t_parts.append(t_offset + piece.samples.t_s[s:])
+        t_offset += float(piece.samples.t_s[-1])
+    samples = Samples(np.concatenate(t_parts), *(_joined(pieces, name) for name in ("q", "qd", "qdd", "zone",
+                                                                                  "path_index")))
+    return Placement(samples, tuple(starts))
+
+
+def _joined(pieces: list[Piece], name: str) -> np.ndarray:
+    """Field ``name`` of every piece's samples, concatenated (first sample of every piece but the first dropped)."""
+    return np.concatenate([np.asarray(getattr(p.samples, name))[1 if i else 0:] for i, p in enumerate(pieces)])
+
+
+# ----------------------------------------------------------------------------- report of slowed pieces
+
+
+def slowdowns(surface: SurfaceTiming, pieces: list[Piece], placement: Placement, joint_path) -> tuple:
+    """Group consecutive surface pieces that run below the planned TCP speed (one dict per stretch)."""
+    p = surface.pieces
+    if not len(p):
+        return ()
+    piece_t0 = np.zeros(max(len(surface.rows) - 1, 0))  # start time of each piece on the time line
+    for piece, start in zip(pieces, placement.start_s):
+        if piece.run:
+            ka, kb = surface.waypoint_of_row(piece.rows[0]), surface.waypoint_of_row(piece.rows[1])
+            piece_t0[ka:kb] = start + run_waypoint_times(surface, ka, kb)[:-1]
+    h_plan, h_final = surface.h_plan_s[p], surface.h_s[p]
+    piece_rows, run_of_piece, t_piece_start = surface.rows[p], surface.run_id[p], piece_t0[p]
+    zone = np.asarray(joint_path.zone)
+    pidx = np.asarray(joint_path.path_index)
+    ratio = h_plan / h_final
+    slow = ratio < SLOWDOWN_REPORT_RATIO
+    out = []
+    k = 0
+    n = len(slow)
+    while k < n:
+        if not slow[k]:
+            k += 1
+            continue
+        e = k
+        while e + 1 < n and slow[e + 1] and run_of_piece[e + 1] == run_of_piece[k]:
+            e += 1
+        a, b = int(piece_rows[k]), int(piece_rows[e]) + 1
+        out.append({
+            "first_row": a, "last_row": b,
+            "first_path_index": int(pidx[a]), "last_path_index": int(pidx[b]),
+            "t_start_s": float(t_piece_start[k]), "t_end_s": float(t_piece_start[e] + h_final[e]),
+            "speed_ratio": float(ratio[k:e + 1].min()),
+            "zone": ZONES[int(zone[a])],
+            "at_run_end": bool(k == 0 or run_of_piece[k - 1] != run_of_piece[k]
+                               or e == n - 1 or run_of_piece[e + 1] != run_of_piece[e]),
+        })
+        k = e + 1
+    return tuple(out)

@@ -1,0 +1,118 @@
+"""`camtool check`: exit codes, --json, --format, and bad files that are findings, not crashes."""
+import json
+import re
+
+import pytest
+from click.testing import CliRunner
+
+from camtool.cli import cli
+from camtool.profiles import Profile, default_options, load_profile
+from camtool.robots import get_robot
+from post_fixtures import smooth_trajectory
+from postprocessors.abb_rapid import RapidPost
+from postprocessors.csv_joint import CsvPost
+from postprocessors.yaskawa_inform import InformPost
+
+
+def _program(tmp_path, fmt, robot_name, n=20):
+    r = get_robot(robot_name)
+    if fmt == "csv":
+        p = Profile("<t>", "csv", options=default_options("csv"))
+    else:
+        p = load_profile(None, robot_name, fmt, r)
+    post = {"rapid": RapidPost(), "inform": InformPost(), "csv": CsvPost()}[fmt]
+    return post.write(smooth_trajectory(r, n), r, p, tmp_path)[0]
+
+
+def _check(*args):
+    return CliRunner().invoke(cli, ["check", *map(str, args)])
+
+
+@pytest.mark.parametrize("fmt,robot_name,moves", [("rapid", "seed8", 20), ("inform", "sia20", 20),
+                                                  ("csv", "irb2400", 20)])
+def test_json_of_a_clean_program(fmt, robot_name, moves, tmp_path):
+    f = _program(tmp_path, fmt, robot_name)
+    res = _check(f, "--robot", robot_name, "--json")
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert out["file"] == str(f) and out["format"] == fmt and out["robot"] == robot_name
+    assert out["ok"] is True and out["findings"] == [] and out["moves"] == moves
+    # the first move (from wherever the robot is) has no duration: 19 steps of the 8 s trajectory
+    assert out["duration_s"] == pytest.approx(8.0, rel=0.01 if fmt == "inform" else 1e-3)
+    assert set(out) == {"file", "format", "robot", "profile", "ok", "findings", "moves", "duration_s"}
+
+
+def test_json_with_findings_exits_2(tmp_path):
+    f = _program(tmp_path, "csv", "seed8")
+    lines = f.read_text().splitlines()
+    f.write_text("\n".join(lines[:-2]) + "\n")  # cut at a row boundary
+    res = _check(f, "--robot", "seed8", "--json")
+    assert res.exit_code == 2
+    out = json.loads(res.stdout)
+    assert out["ok"] is False and out["moves"] == 19
+    assert any("no trailer" in x for x in out["findings"])
+
+
+def test_json_of_an_unreadable_program_has_null_figures(tmp_path):
+    f = _program(tmp_path, "inform", "sia20")
+    f.write_bytes(re.sub(rb"C00004=(-?\d+),", b"C00004=99999999999999999999,", f.read_bytes()))
+    res = _check(f, "--robot", "sia20", "--json")
+    assert res.exit_code == 2
+    out = json.loads(res.stdout)
+    assert out["ok"] is False and out["moves"] is None and out["duration_s"] is None
+    assert any("pulse value 99999999999999999999 is beyond the int64 range" in x for x in out["findings"])
+
+
+def test_jbi_pulse_beyond_int64_is_bad_input_not_an_internal_error(tmp_path):
+    f = _program(tmp_path, "inform", "seed8")
+    f.write_bytes(re.sub(rb"C00007=(-?\d+),", b"C00007=-9223372036854775809,", f.read_bytes()))
+    res = _check(f, "--robot", "seed8")
+    assert res.exit_code == 2, res.output
+    assert "internal error" not in res.output
+    assert any(ln.startswith(f"{f}:") and "pulse value -9223372036854775809 is beyond the int64 range" in ln
+               for ln in res.stdout.splitlines())
+
+
+@pytest.mark.parametrize("fmt,robot_name,old,new", [
+    ("rapid", "irb2400", rb"\\T:=[0-9.]+, z1", rb"\\T:=nan, z1"),
+    ("rapid", "irb2400", rb"MoveAbsJ \[\[[-0-9.]+,", rb"MoveAbsJ [[inf,"),
+    ("rapid", "irb2400", rb"tooldata camtool_tool:=\[TRUE,\[\[[-0-9.]+,", rb"tooldata camtool_tool:=[TRUE,[[nan,"),
+    ("inform", "sia20", rb"VJ=[0-9.]+ PL=0\r\nMOVJ C00009", rb"VJ=nan PL=0\r\nMOVJ C00009"),
+    ("csv", "seed8", rb"\n2\.", rb"\nnan,"),
+    ("csv", "seed8", rb",-?[0-9.]+(e-?\d+)?\n", rb",inf\n"),
+])
+def test_nan_and_inf_fail_the_check(fmt, robot_name, old, new, tmp_path):
+    f = _program(tmp_path, fmt, robot_name)
+    target = f.with_suffix(".mod") if fmt == "rapid" else f  # the .pgf names the module
+    raw = target.read_bytes()
+    spoilt = re.sub(old, new, raw, count=1)
+    assert spoilt != raw
+    assert _check(f, "--robot", robot_name).exit_code == 0
+    target.write_bytes(spoilt)
+    res = _check(f, "--robot", robot_name)
+    assert res.exit_code == 2, res.output
+    assert res.stdout.strip() and "internal error" not in res.output
+
+
+def test_truncated_programs_exit_2(tmp_path):
+    for fmt, robot_name in (("rapid", "irb2400"), ("inform", "sia20"), ("csv", "irb2400")):
+        d = tmp_path / fmt
+        d.mkdir()
+        f = _program(d, fmt, robot_name)
+        target = f.with_suffix(".mod") if fmt == "rapid" else f
+        sep = b"\r\n" if fmt == "inform" else b"\n"
+        lines = target.read_bytes().split(sep)
+        target.write_bytes(sep.join(lines[:len(lines) // 2]) + sep)
+        res = _check(f, "--robot", robot_name)
+        assert res.exit_code == 2, (fmt, res.output)
+
+
+def test_format_option_and_unknown_extension(tmp_path):
+    f = _program(tmp_path, "csv", "seed8")
+    g = f.rename(f.with_suffix(".dat"))
+    res = _check(g, "--robot", "seed8")
+    assert res.exit_code == 2 and "unknown program type '.dat'" in res.output and "--format" in res.output
+    res = _check(g, "--robot", "seed8", "--format", "csv")
+    assert res.exit_code == 0, res.output
+    res = _check(g, "--robot", "seed8", "--format", "gcode")
+    assert res.exit_code == 2 and "no post-processor 'gcode'" in res.output
