@@ -1,6 +1,6 @@
 """Time a synthetic seed8 job of many work runs; print wall time, cycle time and peak RSS.
 
-Usage: .venv/bin/python benchmarks/timing_speed.py [n_runs] [poses_per_run] [method] [zones]
+Usage: .venv/bin/python benchmarks/timing_speed.py [n_runs] [poses_per_run] [method] [zones (flow)]
 
 "timing+check" is ``time_trajectory`` (which resamples once and checks); the
 report reuses those samples (``check_samples``), as the pipeline does.
@@ -24,7 +24,7 @@ def main():
     n_runs = int(sys.argv[1]) if len(sys.argv) > 1 else 80
     per_run = int(sys.argv[2]) if len(sys.argv) > 2 else 125
     method = sys.argv[3] if len(sys.argv) > 3 else "quintic"
-    zones = sys.argv[4] if len(sys.argv) > 4 else "stop"
+    zones = sys.argv[4] if len(sys.argv) > 4 else "flow"
     settings = TimingSettings.make(method=method, zones=zones)
     robot = seed8()
     jp, _ = two_runs(robot, n=per_run, pitch_mm=400.0 / per_run)

@@ -35,7 +35,11 @@ def boundary_from_uv(uv: np.ndarray, radius_mm: float | None = None, cell_mm: fl
     if len(uv) < 3:
         raise BadInput(f"{source}: too few surface points ({len(uv)}) to find a boundary")
     xy = _to_image_plane(uv, radius_mm)
-    cell_mm = max(cell_mm, 4.0 * _median_spacing_mm(xy))  # >= ~3.5 points per cell
+    spacing_mm = _median_spacing_mm(xy)
+    # a sparse scan (points farther apart than two cells): the cells grow with the spacing, and so does the
+    # smoothing's overshoot past the last points, which is then cut back to half a step
+    sparse = spacing_mm > 2.0 * cell_mm
+    cell_mm = max(cell_mm, 4.0 * spacing_mm)  # >= ~3.5 points per cell
     lo = xy.min(axis=0)
     span = xy.max(axis=0) - lo
     close_px = int(math.ceil(close_gaps_mm / cell_mm)) if close_gaps_mm > 0 else 0
@@ -63,13 +67,17 @@ def boundary_from_uv(uv: np.ndarray, radius_mm: float | None = None, cell_mm: fl
     best = max(outers, key=lambda i: (cv2.contourArea(contours[i]), len(contours[i])))
     eps_px = max(simplify_mm / cell_mm, 1.0)  # steps finer than a cell are sampling noise
 
-    def to_uv(c: np.ndarray) -> np.ndarray:
+    def to_uv(c: np.ndarray, reach_mm: float | None = None) -> np.ndarray:
         if eps_px > 0:
             c = cv2.approxPolyDP(c, eps_px, True)
         px = c.reshape(-1, 2).astype(float)
-        return _from_image_plane((px - pad + 0.5) * cell_mm + lo, radius_mm)
+        poly = (px - pad + 0.5) * cell_mm + lo
+        if reach_mm is not None:
+            poly = _within_reach_of_points(poly, xy, reach_mm)
+        return _from_image_plane(poly, radius_mm)
 
-    outer = _oriented(to_uv(contours[best]), ccw=True)
+    # a sparse scan: the material ends within half a sampling step of the last measured point
+    outer = _oriented(to_uv(contours[best], 0.5 * spacing_mm if sparse else None), ccw=True)
     holes = []
     child = hierarchy[best][2]
     min_hole_px = max(9.0, (close_gaps_mm / cell_mm) ** 2)  # smaller: a sampling gap
@@ -82,6 +90,26 @@ def boundary_from_uv(uv: np.ndarray, radius_mm: float | None = None, cell_mm: fl
     # Deterministic order of holes: by their first vertex.
     holes.sort(key=lambda h: (round(float(h[:, 0].min()), 9), round(float(h[:, 1].min()), 9)))
     return Boundary(outer, tuple(holes))
+
+
+def _within_reach_of_points(poly: np.ndarray, xy: np.ndarray, reach_mm: float, step_mm: float | None = None):
+    """The polygon (image plane, mm) densified and pulled in so no vertex lies farther than ``reach_mm`` from a
+    data point: the density image's smoothing (a few cells of 4 sampling steps) must not invent material
+    beyond a sparse scan's edge."""
+    from scipy.spatial import cKDTree
+
+    step = step_mm or max(reach_mm, 1e-3)
+    closed = np.vstack([poly, poly[:1]])
+    seg = np.diff(closed, axis=0)
+    n = np.maximum(np.ceil(np.linalg.norm(seg, axis=1) / step).astype(int), 1)
+    dense = np.concatenate([a + np.linspace(0, 1, k, endpoint=False)[:, None] * d
+                            for a, d, k in zip(closed[:-1], seg, n)])
+    dist, idx = cKDTree(xy).query(dense)
+    far = dist > reach_mm
+    if far.any():
+        p = xy[idx[far]]
+        dense[far] = p + (dense[far] - p) * (reach_mm / dist[far])[:, None]
+    return dense
 
 
 def _median_spacing_mm(xy: np.ndarray, sample: int = 20000, queries: int = 2000) -> float:

@@ -4,20 +4,43 @@
 """
 from __future__ import annotations
 
+import logging
 import sys
 import traceback
 
 import click
 
 from . import __version__
-from .commands import batch, check, design, fit, fk, plan, post, posts, raster, robots, run, timing, watch
+from .commands import batch, check, design, fit, fk, place, plan, post, posts, raster, robots, run, timing, watch
 from .errors import CamtoolError
 
 DEBUG_KEY = "camtool.debug"  # ctx.meta key set by the group's --debug option
 
 
+def one_line(text: str) -> str:
+    """A message as one line: line breaks (e.g. from a file name) are shown as \\n."""
+    return str(text).replace("\r", "\\r").replace("\n", "\\n")
+
+
 class CamtoolGroup(click.Group):
     """A click group that turns exceptions into one line and an exit code."""
+
+    def main(self, args=None, prog_name=None, **kwargs):
+        """Usage errors are one line too (click prints four); then the exit code."""
+        kwargs["standalone_mode"] = False
+        try:
+            code = super().main(args=args, prog_name=prog_name, **kwargs)
+        except click.UsageError as exc:
+            cmd = exc.ctx.command_path if exc.ctx is not None else "camtool"
+            click.echo(f"camtool: error: {one_line(exc.format_message())} (see `{cmd} --help`)", err=True)
+            sys.exit(exc.exit_code)
+        except click.ClickException as exc:
+            click.echo(f"camtool: error: {one_line(exc.format_message())}", err=True)
+            sys.exit(exc.exit_code)
+        except click.Abort:
+            click.echo("camtool: interrupted", err=True)
+            sys.exit(130)
+        sys.exit(code if isinstance(code, int) else 0)
 
     def invoke(self, ctx):
         try:
@@ -25,7 +48,7 @@ class CamtoolGroup(click.Group):
         except CamtoolError as exc:
             if ctx.meta.get(DEBUG_KEY):
                 traceback.print_exc()
-            click.echo(f"camtool: error: {exc}", err=True)
+            click.echo(f"camtool: error: {one_line(exc)}", err=True)
             ctx.exit(exc.exit_code)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
@@ -37,7 +60,7 @@ class CamtoolGroup(click.Group):
         except Exception as exc:  # an internal error: one line, traceback with --debug
             if ctx.meta.get(DEBUG_KEY):
                 traceback.print_exc()
-            first = str(exc).splitlines()[0] if str(exc) else ""
+            first = one_line(str(exc).splitlines()[0]) if str(exc) else ""
             click.echo(f"camtool: internal error: {type(exc).__name__}: {first} "
                        "(rerun with --debug for the traceback, and please report it)", err=True)
             ctx.exit(1)
@@ -62,10 +85,13 @@ def cli(ctx: click.Context, debug: bool) -> None:
     available yet, 1 internal error.
     """
     ctx.meta[DEBUG_KEY] = debug
+    if debug:  # library messages (loaders, plugins) through camtool's logger, on stderr
+        logging.basicConfig(stream=sys.stderr, format="camtool: debug: %(name)s: %(message)s")
+        logging.getLogger("camtool").setLevel(logging.DEBUG)
 
 
 def _register() -> None:
-    for module in (robots, fk, fit, raster, plan, timing, post, run, batch, watch, design, posts, check):
+    for module in (robots, fk, fit, raster, plan, timing, post, run, batch, watch, design, place, posts, check):
         cli.add_command(module.command)
 
 

@@ -48,3 +48,50 @@ def progress(description: str, total: int | None = None):
                   TimeRemainingColumn(), console=Console(stderr=True), transient=True) as bar:
         task = bar.add_task(description, total=total)
         yield lambda n=1: bar.advance(task, n)
+
+
+class StageProgress:
+    """Progress of a run's stages on stderr: a rich status line on a terminal, one log line per stage elsewhere.
+
+    ``done(name)`` is called when a stage finishes; ``NEXT`` names what comes
+    after it, so the terminal shows what is running now. Off a terminal (batch
+    logs, CI) and with ``log``, each finished stage is one line
+    ``camtool: <stage> (<t> s)``; without ``log`` nothing is printed there, so an
+    error stays the one line on stderr. ``quiet`` silences both.
+    """
+
+    NEXT = {"workpiece": "fitting the surface", "fit": "rastering the path", "raster": "planning the joints",
+            "plan": "timing the trajectory", "time": "checking the motion", "check": "writing the programs",
+            "post": "writing the report"}
+    DONE = {"workpiece": "loaded workpiece", "fit": "fitted surface", "raster": "rastered path",
+            "plan": "planned joints", "time": "timed trajectory", "check": "motion check passed",
+            "post": "wrote programs"}
+
+    def __init__(self, quiet: bool = False, log: bool = False):
+        import time
+
+        self._clock = time.perf_counter
+        self.t0 = self._clock()
+        self.quiet = quiet or not (progress_enabled() or log)
+        self.live = progress_enabled() and not quiet
+        self._status = None
+        if self.live:
+            from rich.console import Console
+
+            self._status = Console(stderr=True).status("loading the workpiece")
+            self._status.start()
+
+    def done(self, name: str) -> None:
+        t = self._clock() - self.t0
+        if self.quiet:
+            return
+        if self._status is not None:
+            self._status.console.print(f"  {self.DONE.get(name, name):<20} {t:7.1f} s")
+            self._status.update(self.NEXT.get(name, "finishing"))
+        else:
+            click.echo(f"camtool: {self.DONE.get(name, name)} ({t:.1f} s)", err=True)
+
+    def close(self) -> None:
+        if self._status is not None:
+            self._status.stop()
+            self._status = None

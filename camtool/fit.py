@@ -235,7 +235,7 @@ def fit_surface(workpiece, settings: FitSettings) -> PlaneSurface | SpherePatch:
     normals = np.asarray(workpiece.normals, dtype=float)[inl]
     if fit.model == "plane":
         return _plane_surface(P[inl], normals, *fit.params, stats, bkw)
-    return _sphere_patch(P[inl], *fit.params, stats, bkw)
+    return _sphere_patch(P[inl], normals, *fit.params, stats, bkw)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -263,9 +263,14 @@ def _plane_surface(Q, normals, n, d, stats, bkw) -> PlaneSurface:
     return PlaneSurface(origin, n, u_axis, v_axis, boundary, stats)
 
 
-def _sphere_patch(Q, c, r, stats, bkw) -> SpherePatch:
-    """Sphere patch (worked from outside) with e3 = world up when the patch keeps clear of the poles."""
+def _sphere_patch(Q, normals, c, r, stats, bkw) -> SpherePatch:
+    """Sphere patch with e3 = world up when the patch keeps clear of the poles.
+
+    The material side comes from the data's normals: when most of them point
+    to the centre, the patch is a bowl (``concave``), worked from inside.
+    """
     dirs = (Q - c) / np.linalg.norm(Q - c, axis=1)[:, None]
+    concave = bool(np.median(np.sum(np.asarray(normals, float) * dirs, axis=1)) < 0) if len(normals) else False
     m = dirs.mean(axis=0)
     m = _unit(m) if np.linalg.norm(m) > 1e-9 else np.array([1.0, 0, 0])
     z, x = np.array([0.0, 0, 1]), np.array([1.0, 0, 0])
@@ -279,4 +284,4 @@ def _sphere_patch(Q, c, r, stats, bkw) -> SpherePatch:
     frame = np.column_stack([e1, np.cross(e3, e1), e3])
     patch = SpherePatch(c, r, frame, None, stats)  # boundary filled below
     boundary = boundary_from_uv(patch.uv_from_points(Q), r, **bkw)
-    return SpherePatch(c, r, frame, boundary, stats)
+    return SpherePatch(c, r, frame, boundary, stats, concave)

@@ -11,6 +11,7 @@ Errors name the file, the key path, what was expected and what was found::
 """
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
 from dataclasses import dataclass
@@ -18,6 +19,16 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .errors import BadInput
+
+
+MAX_LENGTH_MM = 1e6   # no length of a robot cell is longer than 1 km
+MAX_ANGLE_DEG = 3600.0  # no angle of a job is more than ten turns
+
+
+def _closest(word: str, known) -> str:
+    """ "; did you mean X?" for the closest known name, or ""."""
+    match = difflib.get_close_matches(word, list(known), n=1, cutoff=0.6)
+    return f"; did you mean {match[0]!r}?" if match else ""
 
 
 @dataclass(frozen=True)
@@ -48,26 +59,28 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "workpiece": {
         "file": Key("str", "", "Mesh (STL, OBJ, PLY, OFF, GLB) or point cloud (PLY, PCD, XYZ, CSV, TXT); relative to the job file."),
         "units": Key("str", "mm", "Length unit of the file; everything becomes mm.", choices=("mm", "m", "in")),
-        "sample_points": Key("int", 100000, "Points sampled (area-weighted) from a mesh.", check=lambda x: x >= 100, expect="an integer >= 100"),
-        "normal_neighbours": Key("int", 30, "Neighbours used to estimate point-cloud normals.", check=lambda x: x >= 3, expect="an integer >= 3"),
+        "drop_nonfinite": Key("bool", False, "Drop points (and the triangles using them) with NaN, infinite or damaged coordinates, with a warning giving the count, instead of refusing the file."),
+        "sample_points": Key("int", 100000, "Points sampled (area-weighted) from a mesh.", check=lambda x: 100 <= x <= 5_000_000, expect="an integer in 100..5000000"),
+        "normal_neighbours": Key("int", 30, "Neighbours used to estimate point-cloud normals.", check=lambda x: 3 <= x <= 1000, expect="an integer in 3..1000"),
     },
     "fit": {
         "model": Key("str", "auto", "Surface model; auto takes the one with most inliers (a huge sphere counts as a plane).", choices=("auto", "plane", "sphere")),
         "threshold_mm": _pos("RANSAC inlier distance.", 0.5, " mm"),
-        "iterations": Key("int", 1000, "RANSAC hypotheses per model.", check=lambda x: x >= 1, expect="an integer >= 1"),
+        "iterations": Key("int", 1000, "RANSAC hypotheses per model.", check=lambda x: 1 <= x <= 100_000, expect="an integer in 1..100000"),
         "min_inlier_ratio": Key("float", 0.2, "Smallest inlier share a model must reach.", check=lambda x: 0 < x <= 1, expect="a number in (0, 1]"),
-        "seed": Key("int", 0, "Random seed: the same seed gives the same fit."),
+        "seed": Key("int", 0, "Random seed: the same seed gives the same fit.", check=lambda x: 0 <= x < 2**63, expect="an integer >= 0"),
         "boundary_cell_mm": _pos("Cell size of the occupancy image used to find the boundary.", 2.0, " mm"),
         "close_gaps_mm": _nonneg("Gaps in the material up to this width are closed before contours are taken.", 6.0),
         "simplify_mm": _nonneg("Boundary polygons are simplified to this tolerance.", 0.5),
     },
     "raster": {
-        "step_over_mm": _pos("Distance between rows, measured on the surface (geodesic on a sphere).", 10.0, " mm"),
-        "pitch_mm": _pos("Spacing of points along a row, measured on the surface.", 5.0, " mm"),
-        "angle_deg": Key("float", 0.0, "Row direction in the (u, v) domain, from the u axis."),
+        "step_over_mm": Key("float", 10.0, "Distance between rows, measured on the surface (geodesic on a sphere).", check=lambda x: 0.1 <= x <= 10_000, expect="a number in 0.1..10000 mm"),
+        "pitch_mm": Key("float", 5.0, "Spacing of points along a row, measured on the surface.", check=lambda x: 0.1 <= x <= 10_000, expect="a number in 0.1..10000 mm"),
+        "angle_deg": Key("float", 0.0, "Row direction in the (u, v) domain, from the u axis.", check=lambda x: -360 <= x <= 360, expect="an angle within -360..360 deg"),
         "lead_mm": _nonneg("Lead-in / lead-out length beyond the boundary at each segment end.", 20.0),
-        "clearance_mm": _nonneg("Lift of lead and transition points along the surface normal.", 0.0),
-        "transition_points": Key("int", 5, "Poses in each self-motion zone between segments.", check=lambda x: x >= 2, expect="an integer >= 2"),
+        "clearance_mm": _nonneg("Lift of lead and transition points along the surface normal (the leads ramp up to it).", 0.0),
+        "self_motion_lift_mm": _nonneg("The self-motion zone between rows runs at least this far off the surface (a sine arc along the normal), so the transition never cuts into the part: on a convex part a chord between two surface points dips below the surface.", 5.0),
+        "transition_points": Key("int", 5, "Poses in each self-motion zone between segments.", check=lambda x: 2 <= x <= 1000, expect="an integer in 2..1000"),
         "tool_x": Key("str", "fixed", "Tool x axis: a fixed world direction, or the travel direction.", choices=("fixed", "travel")),
         "tool_x_world": Key("vec3", [0.0, 0.0, 1.0], "World direction the tool x axis follows when tool_x = 'fixed'."),
         "lead_deg": _angle89("Lead angle: tilt of the tool about its y axis, in the travel direction."),
@@ -97,7 +110,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "orientation_weight_mm": _pos("Length that weighs orientation error against position error: 1 rad counts as this many mm.", 200.0),
         "position_tol_mm": _pos("IK position tolerance.", 1e-4, " mm"),
         "orientation_tol_deg": _pos("IK orientation tolerance.", 1e-4, " deg"),
-        "max_iterations": Key("int", 100, "IK iterations per point.", check=lambda x: x >= 1, expect="an integer >= 1"),
+        "max_iterations": Key("int", 100, "IK iterations per point.", check=lambda x: 1 <= x <= 10_000, expect="an integer in 1..10000"),
         "track_scale_mm": _pos("Joint-space metric: 1 rad of a revolute joint weighs as much as this much track travel.", 500.0),
         "posture_gain": _nonneg("seed method only: per-point null-space pull towards mid-range (0 = off); keeps least-norm drift out of singular postures.", 0.001),
         "clamp_buffer_deg": _pos("Width of the buffer inside each revolute limit where the clamping weight falls to 0.", 10.0),
@@ -105,49 +118,66 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "jump_threshold_deg": _pos("A revolute joint step above this between adjacent points is a jump.", 50.0),
         "jump_threshold_mm": _pos("A track step above this between adjacent points is a jump.", 100.0),
         "retract_mm": _pos("Lift of the tool along the surface normal (a Cartesian move of all joints) in a retract-reorient-return move inside a run.", 200.0),
+        "chord_tol_mm": Key("float", 0.05, "Largest distance of the TCP from the straight line between two work poses when the controller moves the joints linearly between them; steps that bow further get intermediate poses (half of check.path_tol_mm by default).", check=lambda x: 0.001 <= x <= 10, expect="a number in 0.001..10 mm"),
         "lift_mm": _pos("Reconfigure off the surface: a connector between runs whose joints change by more than the reconfigure thresholds lifts the tool this far along the surface normal, reconfigures there and comes back down. Default: 100 mm, room for a tool of up to ~60 mm radius plus margin; raise it for bigger tools.", 100.0, " mm"),
         "lift_steps": Key("int", 5, "Poses of each Cartesian lift and descent.", check=lambda x: 1 <= x <= 100, expect="an integer in 1..100"),
         "reconfigure_threshold_deg": _pos("A connector whose revolute joints change by more than this is a reconfiguration and is lifted off the surface.", 10.0, " deg"),
         "reconfigure_threshold_mm": _pos("The same for the track (mm).", 50.0, " mm"),
-        "reverse_samples": Key("int", 50, "Random IK solutions tried by reverse planning.", check=lambda x: x >= 1, expect="an integer >= 1"),
-        "seed": Key("int", 0, "Random seed for reverse planning and start-configuration search."),
+        "reverse_samples": Key("int", 50, "Random IK solutions tried by reverse planning.", check=lambda x: 1 <= x <= 100000, expect="an integer in 1..100000"),
+        "reverse_best_of": Key("int", 5, "Reverse planning keeps the cheapest of up to this many successful candidates (reconfiguration time at the speed limits into the run, plus the run's own joint travel); 1 = the first that works.", check=lambda x: 1 <= x <= 1000, expect="an integer in 1..1000"),
+        "seed": Key("int", 0, "Random seed for reverse planning and start-configuration search.", check=lambda x: 0 <= x < 2**63, expect="an integer >= 0"),
         "ik_seeds": Key("str", "random", "Where reverse planning, the start-configuration search and lost-pose restarts take their IK candidates: random = CWLN from random starts; analytic = the closed-form families (SRS arm-angle IK at a random arm angle and track value; 6R spherical wrist), each polished by one CWLN solve, then random starts; auto = analytic when the robot has closed-form families, else random (docs/seed-methods.md).", choices=("random", "auto", "analytic")),
     },
     "timing": {
-        "method": Key("str", "quintic", "Interpolation on work zones: quintic polynomials (the paper) or ruckig.", choices=("quintic", "ruckig")),
-        "tcp_speed_mm_s": _pos("TCP speed on work zones.", 100.0, " mm/s"),
+        "method": Key("str", "quintic", "Interpolation between surface poses: quintic = the time law's own quintic Hermite pieces (a cubic spline through the poses, exact at constant feed); ruckig = jerk-limited ruckig state-to-state moves between the same states (docs/timing.md).", choices=("quintic", "ruckig")),
+        "tcp_speed_mm_s": _pos("Commanded TCP feed on work zones (see feed and slow_scope).", 100.0, " mm/s"),
         "check_dt_ms": _pos("Step at which the independent checker resamples the trajectory.", 4.0, " ms"),
-        "zones": Key("str", "stop", "Free zones between runs (self-motion, approach, depart): stop = a rest-to-rest move per free pose; flow = one continuous motion through the free poses (through-velocities, ruckig state-to-state moves), rest only at run ends, reconfiguration jumps and retract steps (docs/timing.md).", choices=("stop", "flow")),
+        "zones": Key("str", "flow", "Free zones between runs (self-motion, approach, depart): flow = one continuous jerk-limited motion along a spline through the free poses, at rest only at run ends, reconfiguration jumps, retract steps and corners of inserted free moves; stop = a rest-to-rest move per free pose (docs/timing.md).", choices=("flow", "stop")),
+        "feed": Key("str", "constant", "Feed on work: constant = each row's work at one feed (the commanded one, or the highest constant feed the limits allow, see slow_scope), speed changes in the leads; max = as fast as the limits allow up to the commanded feed, speed changes wherever needed (docs/timing.md).", choices=("constant", "max")),
+        "slow_scope": Key("str", "row", "feed = 'constant': where a row cannot run at the commanded feed, row = the whole row runs at the highest constant feed that fits; stretch = only the stretch that cannot, at its own highest constant feed (the speed changes in the work next to it).", choices=("row", "stretch")),
+    },
+    "check": {
+        "dt_ms": Key("float", 4.0, "Step at which the independent motion check samples the program's joint-linear motion (docs/motion-check.md).", check=lambda x: 0.1 <= x <= 4.0, expect="a number in 0.1..4 ms"),
+        "penetration_tol_mm": Key("float", 0.1, "Deepest the TCP or any checked body may go behind the part's surface. Point clouds add 3x the fit's RMS residual for scan noise.", check=lambda x: 0 <= x <= 10, expect="a number in 0..10 mm"),
+        "clearance_mm": Key("float", 5.0, "Free clearance required of the tool and the wrist / forearm links off work (self-motion, approach, depart, retract).", check=lambda x: 0 <= x <= 1000, expect="a number in 0..1000 mm"),
+        "path_tol_mm": Key("float", 0.1, "Largest distance of the TCP from the part's surface on work (the joint-linear bow between program points, measured at dt_ms). Point clouds add 3x the fit's RMS residual for scan noise.", check=lambda x: 0 < x <= 100, expect="a number in (0, 100] mm"),
+        "tool_radius_mm": Key("float", 25.0, "Radius of the tool capsule (flange to TCP).", check=lambda x: 0 < x <= 1000, expect="a number in (0, 1000] mm"),
+        "link_radius_mm": Key("float", 60.0, "Radius of the wrist, forearm and upper-arm capsules.", check=lambda x: 0 < x <= 1000, expect="a number in (0, 1000] mm"),
+        "tool_contact_exempt_mm": Key("float", 100.0, "Length of the chain before the TCP left out of the capsule checks (the tool touches the part on work by design; the TCP itself is always checked). It reaches into the wrist when the tool is shorter.", check=lambda x: 0 <= x <= 2000, expect="a number in 0..2000 mm"),
     },
     "task": {
         "kind": Key("str", "raster", "What the job does: raster = the surface raster of the main seed; sequential_reach = seed 002's reaching task on a plane; cartesian = seed 001's line and arc moves (docs/seed-methods.md).", choices=("raster", "sequential_reach", "cartesian")),
+        "allow_partial": Key("bool", False, "raster: when some poses are out of reach, plan and program the reachable stretches of the rows (each cut at its unreachable poses, with a lift between) and report the coverage; never the default (docs/placement.md).", ),
         "route": Key("str", "horizontal", "sequential_reach: S-shaped sweep along the grid rows (horizontal) or columns (vertical).", choices=("horizontal", "vertical")),
         "plane": Key("str", "fit", "sequential_reach: the target plane is the RANSAC plane fitted to the workpiece (fit), or plane_point_mm / plane_normal (job); the grid is projected onto it.", choices=("fit", "job")),
         "plane_point_mm": Key("vec3", [0.0, 600.0, 0.0], "sequential_reach, plane = 'job': a point of the target plane (world frame)."),
         "plane_normal": Key("vec3", [0.0, 1.0, 0.0], "sequential_reach, plane = 'job': the plane's normal (either sign; the tool z axis points away from the robot base)."),
         "grid_origin_mm": Key("vec3", [-350.0, 600.0, 250.0], "sequential_reach: first target (m = n = 0), world frame."),
         "grid_step_mm": _pos("sequential_reach: target spacing in both grid directions.", 100.0, " mm"),
-        "grid_columns": Key("int", 8, "sequential_reach: targets per row (m = 0..columns-1, along the plane's horizontal).", check=lambda x: x >= 1, expect="an integer >= 1"),
-        "grid_rows": Key("int", 8, "sequential_reach: rows (n = 0..rows-1, along tool_y_world).", check=lambda x: x >= 1, expect="an integer >= 1"),
+        "grid_columns": Key("int", 8, "sequential_reach: targets per row (m = 0..columns-1, along the plane's horizontal).", check=lambda x: 1 <= x <= 1000, expect="an integer in 1..1000"),
+        "grid_rows": Key("int", 8, "sequential_reach: rows (n = 0..rows-1, along tool_y_world).", check=lambda x: 1 <= x <= 1000, expect="an integer in 1..1000"),
         "start_mm": Key("vec3", [350.0, 600.0, 950.0], "sequential_reach: start point (world frame), projected onto the plane; the sweep begins at the grid corner nearest to it."),
         "tool_y_world": Key("vec3", [0.0, 0.0, 1.0], "sequential_reach: world direction the tool y axis follows (projected onto the plane)."),
+        "hop_mm": Key("float", 20.0, "sequential_reach: between targets the tool lifts this far off the plane (along its normal), moves, and comes down, so no move grazes the part.", check=lambda x: 1 <= x <= 500, expect="a number in 1..500 mm"),
         "arm_angle0_deg": Key("float", 45.0, "arm-angle-sqp: the fixed arm angle and the SQP start (seed 002: pi/4)."),
-        "sqp_max_iterations": Key("int", 200, "arm-angle-sqp: SLSQP iteration limit per family.", check=lambda x: x >= 1, expect="an integer >= 1"),
+        "sqp_max_iterations": Key("int", 200, "arm-angle-sqp: SLSQP iteration limit per family.", check=lambda x: 1 <= x <= 10_000, expect="an integer in 1..10000"),
         "track_mm": Key("float", 0.0, "arm-angle-sqp on seed8: the fixed track position."),
         "cart_start_mm": Key("vec3", [900.0, -200.0, 1000.0], "cartesian: start TCP position (world frame)."),
         "cart_start_rpy_deg": Key("vec3", [0.0, 180.0, 0.0], "cartesian: start TCP orientation (fixed-axis roll, pitch, yaw); kept along every move."),
-        "line_down_mm": Key("float", 400.0, "cartesian: first line, this far along the tool z axis."),
-        "line_side_mm": Key("float", 400.0, "cartesian: second line, this far along world +y."),
-        "line_points": Key("int", 300, "cartesian: interpolation points of both lines together (seed 001: 300).", check=lambda x: x >= 4, expect="an integer >= 4"),
+        "line_down_mm": Key("float", 400.0, "cartesian: first line, this far along the tool z axis.", check=lambda x: abs(x) >= 1.0, expect="a length of at least 1 mm (either sign)"),
+        "line_side_mm": Key("float", 400.0, "cartesian: second line, this far along world +y.", check=lambda x: abs(x) >= 1.0, expect="a length of at least 1 mm (either sign)"),
+        "line_points": Key("int", 300, "cartesian: interpolation points of both lines together (seed 001: 300).", check=lambda x: 4 <= x <= 200_000, expect="an integer in 4..200000"),
         "arc_radius_mm": _pos("cartesian: radius of the arc after the lines (horizontal, centre on the -x side of its start).", 100.0, " mm"),
         "arc_angle_deg": Key("float", 360.0, "cartesian: angle the arc turns about world +z.", check=lambda x: x != 0, expect="a non-zero angle"),
-        "arc_points": Key("int", 628, "cartesian: interpolation points of the arc (seed 001: 628).", check=lambda x: x >= 2, expect="an integer >= 2"),
-        "path_tol_mm": _pos("cartesian: largest distance of the timed TCP from its line or arc, checked between points too; moves get more points until it holds.", 0.01, " mm"),
+        "arc_points": Key("int", 628, "cartesian: interpolation points of the arc (seed 001: 628).", check=lambda x: 2 <= x <= 200_000, expect="an integer in 2..200000"),
+        "path_tol_mm": Key("float", 0.01, "cartesian: largest distance of the timed TCP from its line or arc, checked between points too; moves get more points until it holds.", check=lambda x: 1e-4 <= x <= 100, expect="a number in 0.0001..100 mm"),
     },
     "post": {
-        "formats": Key("strs", ["rapid", "inform", "csv"], "Post-processor plugins to run (see `camtool posts`)."),
-        "program_name": Key("str", "CAMTOOL", "Program / job name (sanitised per controller)."),
+        "formats": Key("strs", ["rapid", "inform", "csv"], "Post-processor plugins to run (see `camtool posts`); at least one, each once.", check=lambda x: 0 < len(x) == len(set(x)), expect="a non-empty list of distinct format names"),
+        "program_name": Key("str", "CAMTOOL", "Program / job name (sanitised per controller).", check=lambda x: bool(x.strip()), expect="a non-empty name"),
         "profiles": Key("table", {}, "Controller profile file per format, e.g. {rapid = 'my_irc5.toml'}; default: the shipped profile for the robot."),
+        "path_tol_mm": _pos("Largest distance of the programs' interpolated TCP from the planned path on work (the program simulator checks it); moves are merged and corners blended within it.", 0.1, " mm"),
+        "ori_tol_deg": _pos("Largest tool-orientation deviation of merged Cartesian moves (MoveL / MOVL).", 0.5, " deg"),
         "min_move_ms": _nonneg("Shortest program move: inserted samples of free moves closer than this are dropped (path poses are always kept).", 20.0),
         "csv_angle_unit": Key("str", "deg", "Angle unit of CSV output.", choices=("deg", "rad")),
     },
@@ -229,6 +259,12 @@ def _coerce(key: Key, value, where: str):
             fail("a table")
     if key.check is not None and not key.check(value):
         fail(key.expect)
+    name = where.rsplit(".", 1)[-1]
+    values = value if isinstance(value, list) else [value] if k == "float" else []
+    if name.endswith("_mm") and any(abs(x) > MAX_LENGTH_MM for x in values):
+        fail(f"lengths within +-{MAX_LENGTH_MM:g} mm (1 km; a larger one is a typo or a unit slip)")
+    if name.endswith("_deg") and k in ("float", "vec3", "floats") and any(abs(x) > MAX_ANGLE_DEG for x in values):
+        fail(f"angles within +-{MAX_ANGLE_DEG:g} deg")
     return value
 
 
@@ -250,20 +286,24 @@ def validate(data: dict, source: str, overrides: list[str] = ()) -> dict[str, Se
     data = {k: dict(v) if isinstance(v, dict) else v for k, v in data.items()}
     for text in overrides:
         section, key, value = parse_override(text)
-        if section not in SCHEMA or key not in SCHEMA[section]:
-            raise BadInput(f"--set {section}.{key}: unknown key (see docs/job-file.md)")
+        if section not in SCHEMA:
+            raise BadInput(f"--set {section}.{key}: unknown section{_closest(section, SCHEMA)} (see docs/job-file.md)")
+        if key not in SCHEMA[section]:
+            raise BadInput(f"--set {section}.{key}: unknown key{_closest(key, SCHEMA[section])} (see docs/job-file.md)")
         data.setdefault(section, {})[key] = value
     sections = {}
     for name in data:
         if name not in SCHEMA:
-            raise BadInput(f"{source}: {name}: unknown section (expected one of {', '.join(SCHEMA)})")
+            raise BadInput(f"{source}: {name}: unknown section{_closest(name, SCHEMA)} (expected one of "
+                           f"{', '.join(SCHEMA)})")
         if not isinstance(data[name], dict):
             raise BadInput(f"{source}: {name}: expected a [{name}] table, found {_describe(data[name])}")
     for name, keys in SCHEMA.items():
         given = data.get(name, {})
         for k in given:
             if k not in keys:
-                raise BadInput(f"{source}: {name}.{k}: unknown key (expected one of {', '.join(keys)})")
+                raise BadInput(f"{source}: {name}.{k}: unknown key{_closest(k, keys)} (expected one of "
+                               f"{', '.join(keys)})")
         sec = Section()
         for k, key in keys.items():
             value = given.get(k, key.default)
@@ -307,6 +347,10 @@ def _check_cross(job: Job) -> None:
                            f"or a .toml/.urdf file, found {name!r}")
         if not job.resolve(name).is_file():
             raise BadInput(f"{job.path}: robot.name: robot file {job.resolve(name)} not found")
+    for fmt in job.post.profiles:
+        if fmt not in job.post.formats:
+            raise BadInput(f"{job.path}: post.profiles: {fmt!r} is not one of post.formats "
+                           f"({', '.join(job.post.formats)}){_closest(fmt, job.post.formats)}")
     if not job.workpiece.file:
         raise BadInput(f"{job.path}: workpiece.file: expected the workpiece file name, found nothing")
 
@@ -314,9 +358,13 @@ def _check_cross(job: Job) -> None:
 def schema_markdown() -> str:
     """The job-file reference as Markdown (docs/job-file.md)."""
     lines = ["# Job-file reference", "",
-             "A job is a TOML file. Every key is optional and has the default shown; relative",
-             "file names are taken from the job file's folder. Generated from `camtool/job.py`",
-             "by `python -m camtool.job --markdown`.", ""]
+             "A job is a TOML file. One key is required: `workpiece.file` (except that a",
+             "`task.kind = \"sequential_reach\"` job with `task.plane = \"job\"` or a `cartesian` job does not",
+             "read it, it must still name a file). Every other key is optional and has the default shown;",
+             "relative file names are taken from the job file's folder. Every count and step has an upper",
+             f"bound, lengths (`_mm`) lie within +-{MAX_LENGTH_MM:g} mm and angles (`_deg`) within",
+             f"+-{MAX_ANGLE_DEG:g} deg; an unknown key is refused with the closest known one named.",
+             "Generated from `camtool/job.py` by `python -m camtool.job --markdown`.", ""]
     for name, keys in SCHEMA.items():
         lines += [f"## [{name}]", "", "| key | type | default | meaning |", "|---|---|---|---|"]
         for k, key in keys.items():

@@ -3,11 +3,15 @@
 ``write_programs(trajectory, robot, job, outdir)`` runs every format of
 ``job.post.formats`` through its plugin (``postprocessors.base``), with the
 controller profile named in ``job.post.profiles`` or the shipped default.
-Programs are written into a temporary folder inside ``outdir``, every file is
-checked by its plugin (``plugin.check``; a plugin without one has its entry
-file read back and checked, ``postprocessors.check.read_back_check``), and
-only when all pass are they moved into place with ``os.replace``. Every plugin,
-built-in or not, goes through the same protocol. A failed check raises
+Plugins whose ``write`` takes ``process`` get a ``ProcessInfo`` (path
+tolerance, feed, job name and time, row labels). Programs are written into a
+temporary folder inside ``outdir``, every file is checked by its plugin
+(``plugin.check``; a plugin without one has its entry file read back and
+checked, ``postprocessors.check.read_back_check``), every program whose plugin
+can read it back move by move (``read_program``) is re-executed by the
+simulator (``camtool.simulate``) against the planned path, and only when all
+pass are they moved into place with ``os.replace``. Every plugin, built-in or
+not, goes through the same protocol. A failed check or simulation raises
 PlanInfeasible and leaves no program behind.
 """
 from __future__ import annotations
@@ -25,6 +29,8 @@ from .profiles import Profile, default_options, default_profile_path, load_profi
 
 log = logging.getLogger("camtool.post")
 MAX_LISTED = 10
+DEFAULT_PATH_TOL_MM = 0.1   # post.path_tol_mm: the program's TCP within this of the planned path on work
+DEFAULT_ORI_TOL_DEG = 0.5   # post.ori_tol_deg: tool orientation of merged Cartesian moves
 
 
 def profile_for_job(fmt: str, plugin, robot, job) -> Profile:
@@ -49,11 +55,89 @@ def profile_for_job(fmt: str, plugin, robot, job) -> Profile:
         tool["name"] = job.tool.name
     tool.update(tcp_xyz_mm=list(job.tool.tcp_xyz_mm), tcp_rpy_deg=list(job.tool.tcp_rpy_deg),
                 mass_kg=job.tool.mass_kg)
-    changes = {"program_name": job.post.program_name, "tool": tool}
+    changes = {"program_name": job.post.program_name, "tool": tool, "wobj": workpiece_wobj(job, robot)}
     job_options = getattr(plugin, "job_options", None)  # options a plugin takes from job keys
     if job_options is not None:
         changes["options"] = dict(job_options(job))
     return profile.with_changes(**changes)
+
+
+def workpiece_wobj(job, robot) -> dict:
+    """The job's workpiece frame in the robot base frame as profile ``wobj`` keys (xyz_mm,
+    rpy_deg): Cartesian targets are written in it, so the work object is the workpiece."""
+    from scipy.spatial.transform import Rotation
+
+    from .transforms import invert, matrix_from_xyz_rpy
+
+    wp = matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg)
+    T = invert(np.asarray(robot.base_T_mm, float)) @ wp
+    import warnings
+
+    with warnings.catch_warnings():  # a gimbal lock (pitch +-90 deg) still gives the same matrix
+        warnings.simplefilter("ignore")
+        rpy = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
+    return {"xyz_mm": [float(round(v, 6)) + 0.0 for v in T[:3, 3]],
+            "rpy_deg": [float(round(v, 9)) + 0.0 for v in rpy]}
+
+
+def _job_value(section, key, default):
+    try:
+        value = section[key]
+    except (KeyError, TypeError):
+        return default
+    return default if value is None else value
+
+
+def process_for_job(job, trajectory, path=None):
+    """The ``ProcessInfo`` of a job: ``post.path_tol_mm``, ``post.ori_tol_deg``, the feed
+    ``timing.tcp_speed_mm_s``, the job file's name and modification time (UTC) and, with
+    the raster ``path``, a label per work row naming its segment."""
+    from datetime import datetime, timezone
+
+    from postprocessors.base import DATE_FORMAT, ProcessInfo
+
+    from .toolpath import WORK
+
+    try:
+        when = datetime.fromtimestamp(Path(job.path).stat().st_mtime, timezone.utc).strftime(DATE_FORMAT)
+    except (OSError, TypeError, ValueError):
+        when = None
+    labels = ()
+    if path is not None:
+        work = np.asarray(trajectory.zone) == WORK
+        first = np.flatnonzero(work & ~np.r_[False, work[:-1]])
+        pidx = np.asarray(trajectory.path_index)[first]
+        seg = np.asarray(path.segment)
+        labels = tuple(f"segment {int(seg[i])}" if 0 <= i < len(seg) else "" for i in pidx)
+    return ProcessInfo(path_tol_mm=float(_job_value(job.post, "path_tol_mm", DEFAULT_PATH_TOL_MM)),
+                       ori_tol_deg=float(_job_value(job.post, "ori_tol_deg", DEFAULT_ORI_TOL_DEG)),
+                       feed_mm_s=float(_job_value(job.timing, "tcp_speed_mm_s", 0.0)) or None,
+                       job_name=Path(str(job.path)).name, job_time=when, row_labels=labels)
+
+
+def _dedupe(items):
+    seen, out = set(), []
+    for x in items:
+        if x not in seen:
+            seen.add(x)
+            out.append(x)
+    return out
+
+
+def summary_lines(sim):
+    from .simulate import summary_lines as lines
+    return lines(sim)
+
+
+def simulate_program(plugin, entry, robot, profile, trajectory, process, reference=None):
+    """The simulator's report of one written program (``camtool.simulate``), against the
+    planned path of ``trajectory``."""
+    from .simulate import reference_from_trajectory, simulate
+
+    prog = plugin.read_program(entry, robot, profile)
+    if reference is None:
+        reference = reference_from_trajectory(trajectory, robot, process.feed_mm_s)
+    return simulate(prog, robot, reference, path_tol_mm=process.path_tol_mm, profile=profile)
 
 
 def check_limits(trajectory, robot) -> None:
@@ -146,18 +230,27 @@ def _forget_stale_programs(outdir: Path, final: list[Path]) -> None:
     os.replace(tmp, manifest)
 
 
-def write_programs(trajectory, robot, job, outdir) -> list[Path]:
-    """Write, check and place the programs of every ``job.post.formats`` entry.
+def write_programs(trajectory, robot, job, outdir, path=None, report: dict | None = None) -> list[Path]:
+    """Write, check, simulate and place the programs of every ``job.post.formats`` entry.
 
-    Returns the final paths. Raises BadInput for an unknown format, a bad or
-    missing profile or an output folder that cannot be written, and
-    PlanInfeasible (listing the findings) when the trajectory leaves the joint
-    limits or a written program fails the checker; then nothing is left behind.
+    Returns the final paths. ``path`` (the raster Path, optional) names the work rows in
+    the programs. ``report`` (optional dict) receives, per format, the simulator's figures
+    (``{format: {...}}``). Raises BadInput for an unknown format, a bad or missing
+    profile or an output folder that cannot be written, and PlanInfeasible (listing the
+    findings) when the trajectory leaves the joint limits, a written program fails the
+    checker or its simulation; then nothing is left behind.
     """
-    from postprocessors.base import get_plugin
+    import time
+
+    from postprocessors.base import accepts_process, get_plugin
     from postprocessors.check import check_file
 
+    from .transforms import matrix_from_xyz_rpy
+
     outdir = Path(outdir)
+    process = process_for_job(job, trajectory, path)
+    # the simulator measures the job's TCP (the robot given may come without the job's tool)
+    tcp_robot = robot.with_placement(tool_T_mm=matrix_from_xyz_rpy(job.tool.tcp_xyz_mm, job.tool.tcp_rpy_deg))
     trajectory = thin_waypoints(trajectory, job.post.min_move_ms / 1000.0)
     plugins = {fmt: get_plugin(fmt) for fmt in job.post.formats}
     profiles = {fmt: profile_for_job(fmt, p, robot, job) for fmt, p in plugins.items()}
@@ -170,8 +263,14 @@ def write_programs(trajectory, robot, job, outdir) -> list[Path]:
     try:
         written: list[Path] = []
         findings: list[str] = []
+        reference = None
         for fmt, plugin in plugins.items():
-            files = [Path(f) for f in plugin.write(trajectory, robot, profiles[fmt], tmp)]
+            t0 = time.perf_counter()
+            if accepts_process(plugin):
+                files = [Path(f) for f in plugin.write(trajectory, robot, profiles[fmt], tmp, process=process)]
+            else:
+                files = [Path(f) for f in plugin.write(trajectory, robot, profiles[fmt], tmp)]
+            t_write = time.perf_counter() - t0
             for f in files:
                 if f.parent != tmp:
                     raise BadInput(f"post-processor {fmt!r} wrote {f} outside its output folder")
@@ -179,8 +278,29 @@ def write_programs(trajectory, robot, job, outdir) -> list[Path]:
                     raise BadInput(f"post-processor {fmt!r} wrote {f.name}, which another format also wrote")
             written += files
             # the plugin's own check for every file; without one, the entry file read back
-            for f in (files if hasattr(plugin, "check") else files[:1]):
-                findings += [s.replace(str(tmp), str(outdir)) for s in check_file(plugin, f, robot, profiles[fmt])]
+            t0 = time.perf_counter()
+            # a plugin whose check of the entry file follows every file it loads or calls says so
+            # (``check_covers_calls``): its entry file alone is checked
+            covered = hasattr(plugin, "check") and getattr(plugin, "check_covers_calls", False)
+            for f in (files if hasattr(plugin, "check") and not covered else files[:1]):
+                findings += [s.replace(str(tmp), str(outdir)) for s in check_file(plugin, f, tcp_robot, profiles[fmt])]
+            t_check = time.perf_counter() - t0
+            if hasattr(plugin, "read_program") and files and not findings:
+                t0 = time.perf_counter()
+                if reference is None:
+                    from .simulate import reference_from_trajectory
+                    reference = reference_from_trajectory(trajectory, tcp_robot, process.feed_mm_s)
+                sim = simulate_program(plugin, files[0], tcp_robot, profiles[fmt], trajectory, process, reference)
+                findings += [s.replace(str(tmp), str(outdir)) for s in sim.findings]
+                figures = sim.as_dict()
+                figures.pop("findings")
+                figures.update(write_s=round(t_write, 4), check_s=round(t_check, 4),
+                               simulate_s=round(time.perf_counter() - t0, 4),
+                               bytes=sum(f.stat().st_size for f in files), path_tol_mm=process.path_tol_mm)
+                if report is not None:
+                    report[fmt] = figures
+                log.info("%s: %s", fmt, "; ".join(summary_lines(sim)))
+        findings = _dedupe(findings)
         if findings:
             more = f" (and {len(findings) - MAX_LISTED} more)" if len(findings) > MAX_LISTED else ""
             raise PlanInfeasible(f"{len(findings)} program check finding(s), no program written: "

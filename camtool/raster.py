@@ -337,7 +337,8 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     f = np.arange(1, m + 1) / (m + 1)
     uv_t = uv[a_idx, None, :] + f[None, :, None] * (uv[b_idx] - uv[a_idx])[:, None, :]
     base = lift[a_idx, None] + f[None, :] * (lift[b_idx] - lift[a_idx])[:, None]
-    lift_t = base + (clear - base) * np.sin(np.pi * f)[None, :]
+    top = max(clear, settings.self_motion_lift_mm)  # the self-motion zone runs off the part
+    lift_t = base + (top - base) * np.sin(np.pi * f)[None, :]
     uv_t = uv_t.reshape(-1, 2)
     n_t = _unit(surface.normal_at(uv_t[:, 0], uv_t[:, 1]))
     pos_t = surface.point_mm(uv_t[:, 0], uv_t[:, 1]) + lift_t.reshape(-1, 1) * n_t

@@ -46,18 +46,16 @@ def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None
     and ``failing_indices`` (path indices; ``report['unreachable']`` entries
     are marked too). ``redundancy`` is a ``RedundancyMap``.
     """
-    from plotly.offline import get_plotlyjs
-
     file = FsPath(file)
     feed = _feed(robot, trajectory) if trajectory is not None else None
     sections = [_summary_section(report, robot, surface, path, failing_indices)]
     scene = _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices)
-    sections.append(("Workpiece, path and robot", _SCENE_NOTE, _fig_html(scene, DIV["scene"])))
+    sections.append(("Workpiece, path and robot", _SCENE_NOTE, fig_html(scene, DIV["scene"])))
     if trajectory is not None:
         sections.append(("TCP feed along the path", _FEED_NOTE,
-                         _fig_html(_feed_figure(feed, report), DIV["feed"])))
+                         fig_html(_feed_figure(feed, report), DIV["feed"])))
         sections.append(("Joint use", _JOINT_NOTE,
-                         _fig_html(_joint_use_figure(robot, trajectory), DIV["joint_use"])))
+                         fig_html(_joint_use_figure(robot, trajectory), DIV["joint_use"])))
     else:
         sections.append(("TCP feed and joint use", "", "<p>No trajectory: the plan or its timing did not "
                                                        "finish, so there is no feed or joint use to show.</p>"))
@@ -66,10 +64,19 @@ def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None
         if redundancy.notes:
             what += " (" + "; ".join(redundancy.notes) + ")"
         sections.append(("Redundancy map", f'<p class="note"><b>{html.escape(what)}.</b></p>' + _REDUNDANCY_NOTE,
-                         _fig_html(_redundancy_figure(redundancy), DIV["redundancy"])))
+                         fig_html(_redundancy_figure(redundancy), DIV["redundancy"])))
     title = f"camtool report: {robot.name}"
     if report.get("status"):
         title += f" ({report['status']})"
+    return write_html_page(file, title, sections)
+
+
+def write_html_page(file, title: str, sections: list[tuple[str, str, str]]) -> FsPath:
+    """One self-contained page (plotly.js inlined, no network) of (heading, note HTML, content HTML) sections;
+    written through a temporary file, never half-written. Returns the file."""
+    from plotly.offline import get_plotlyjs
+
+    file = FsPath(file)
     body = "\n".join(f'<section><h2>{html.escape(h)}</h2>{note}{content}</section>'
                      for h, note, content in sections)
     page = (f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
@@ -111,7 +118,7 @@ def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None,
 
 # ----------------------------------------------------------------------------- helpers
 
-def _fig_html(fig, div_id: str) -> str:
+def fig_html(fig, div_id: str) -> str:
     """A figure as a div with a fixed id (plotly.js comes once, in the page head)."""
     return fig.to_html(include_plotlyjs=False, full_html=False, div_id=div_id, config=PLOTLY_CONFIG)
 

@@ -58,10 +58,12 @@ class WorkpieceSettings(_FromSection):
     units: str
     sample_points: int
     normal_neighbours: int
+    drop_nonfinite: bool
 
     @classmethod
     def from_section(cls, sec):
-        return cls(sec["file"], sec["units"], int(sec["sample_points"]), int(sec["normal_neighbours"]))
+        return cls(sec["file"], sec["units"], int(sec["sample_points"]), int(sec["normal_neighbours"]),
+                   bool(sec["drop_nonfinite"]))
 
 
 @dataclass(frozen=True)
@@ -93,6 +95,7 @@ class RasterSettings(_FromSection):
     angle_rad: float
     lead_mm: float
     clearance_mm: float
+    self_motion_lift_mm: float
     transition_points: int
     tool_x: str
     tool_x_world: tuple[float, float, float]
@@ -104,7 +107,8 @@ class RasterSettings(_FromSection):
     def from_section(cls, sec):
         return cls(step_over_mm=float(sec["step_over_mm"]), pitch_mm=float(sec["pitch_mm"]),
                    angle_rad=math.radians(sec["angle_deg"]), lead_mm=float(sec["lead_mm"]),
-                   clearance_mm=float(sec["clearance_mm"]), transition_points=int(sec["transition_points"]),
+                   clearance_mm=float(sec["clearance_mm"]), self_motion_lift_mm=float(sec["self_motion_lift_mm"]),
+                   transition_points=int(sec["transition_points"]),
                    tool_x=sec["tool_x"], tool_x_world=tuple(float(x) for x in sec["tool_x_world"]),
                    lead_rad=math.radians(sec["lead_deg"]), tilt_rad=math.radians(sec["tilt_deg"]),
                    free_spin=bool(sec["free_spin"]))
@@ -132,11 +136,13 @@ class PlannerSettings(_FromSection):
     jump_threshold_rad: float
     jump_threshold_mm: float
     retract_mm: float
+    chord_tol_mm: float
     lift_mm: float
     lift_steps: int
     reconfigure_threshold_rad: float
     reconfigure_threshold_mm: float
     reverse_samples: int
+    reverse_best_of: int
     seed: int
     ik_seeds: str
     q_home: tuple[float, ...] | None = None
@@ -153,10 +159,12 @@ class PlannerSettings(_FromSection):
                    clamp_buffer_mm=float(sec["clamp_buffer_mm"]),
                    jump_threshold_rad=math.radians(sec["jump_threshold_deg"]),
                    jump_threshold_mm=float(sec["jump_threshold_mm"]), retract_mm=float(sec["retract_mm"]),
+                   chord_tol_mm=float(sec["chord_tol_mm"]),
                    lift_mm=float(sec["lift_mm"]), lift_steps=int(sec["lift_steps"]),
                    reconfigure_threshold_rad=math.radians(sec["reconfigure_threshold_deg"]),
                    reconfigure_threshold_mm=float(sec["reconfigure_threshold_mm"]),
-                   reverse_samples=int(sec["reverse_samples"]), seed=int(sec["seed"]), ik_seeds=sec["ik_seeds"],
+                   reverse_samples=int(sec["reverse_samples"]), reverse_best_of=int(sec["reverse_best_of"]),
+                   seed=int(sec["seed"]), ik_seeds=sec["ik_seeds"],
                    q_home=None if q_home is None else tuple(float(x) for x in q_home))
 
     @classmethod
@@ -176,18 +184,21 @@ class PlannerSettings(_FromSection):
 
 @dataclass(frozen=True)
 class TimingSettings(_FromSection):
-    """Time parameterisation: TCP speed on work (mm/s), check step (s), free-zone mode."""
+    """Time parameterisation: TCP feed on work (mm/s), feed policy, check step (s), free-zone mode."""
 
     SECTION: ClassVar[str] = "timing"
     method: str
     tcp_speed_mm_s: float
     check_dt_s: float
     zones: str
+    feed: str = "constant"
+    slow_scope: str = "row"
 
     @classmethod
     def from_section(cls, sec):
         return cls(method=sec["method"], tcp_speed_mm_s=float(sec["tcp_speed_mm_s"]),
-                   check_dt_s=float(sec["check_dt_ms"]) / 1000.0, zones=sec["zones"])
+                   check_dt_s=float(sec["check_dt_ms"]) / 1000.0, zones=sec["zones"], feed=sec["feed"],
+                   slow_scope=sec["slow_scope"])
 
 
 @dataclass(frozen=True)
@@ -205,6 +216,26 @@ class PostSettings(_FromSection):
     def from_section(cls, sec):
         return cls(formats=tuple(sec["formats"]), program_name=sec["program_name"], profiles=dict(sec["profiles"]),
                    min_move_s=float(sec["min_move_ms"]) / 1000.0, csv_angle_unit=sec["csv_angle_unit"])
+
+
+@dataclass(frozen=True)
+class CheckSettings(_FromSection):
+    """The independent motion check: sampling step (s), tolerances and body sizes (mm)."""
+
+    SECTION: ClassVar[str] = "check"
+    dt_s: float
+    penetration_tol_mm: float
+    clearance_mm: float
+    path_tol_mm: float
+    tool_radius_mm: float
+    link_radius_mm: float
+    tool_contact_exempt_mm: float
+
+    @classmethod
+    def from_section(cls, sec):
+        return cls(dt_s=float(sec["dt_ms"]) / 1000.0, **{k: float(sec[k]) for k in (
+            "penetration_tol_mm", "clearance_mm", "path_tol_mm", "tool_radius_mm", "link_radius_mm",
+            "tool_contact_exempt_mm")})
 
 
 def home_q(job: Job, robot) -> np.ndarray | None:
@@ -227,6 +258,7 @@ class JobSettings:
     planner: PlannerSettings
     timing: TimingSettings
     post: PostSettings
+    check: CheckSettings
 
     @classmethod
     def from_job(cls, job: Job, robot=None) -> "JobSettings":
@@ -235,4 +267,5 @@ class JobSettings:
         return cls(workpiece=WorkpieceSettings.from_section(job.workpiece), fit=FitSettings.from_section(job.fit),
                    raster=RasterSettings.from_section(job.raster),
                    planner=PlannerSettings.from_section(job.planner, q_home),
-                   timing=TimingSettings.from_section(job.timing), post=PostSettings.from_section(job.post))
+                   timing=TimingSettings.from_section(job.timing), post=PostSettings.from_section(job.post),
+                   check=CheckSettings.from_section(job.check))

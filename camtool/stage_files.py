@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import zipfile
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -96,8 +97,8 @@ def load_stage(file: str | FsPath, expect: tuple[str, ...] = ()):
             arrays = {k: d[k] for k in d.files if k != "header"}
     except FileNotFoundError:
         raise BadInput(f"{file}: stage file not found") from None
-    except (KeyError, ValueError, OSError, json.JSONDecodeError) as exc:
-        raise BadInput(f"{file}: not a camtool stage file ({type(exc).__name__})") from None
+    except (KeyError, ValueError, OSError, EOFError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
+        raise BadInput(f"{file}: not a camtool stage file, or a damaged one ({type(exc).__name__})") from None
     if header.get("format") != FORMAT or header.get("kind") not in KINDS:
         raise BadInput(f"{file}: not a camtool stage file")
     if header.get("version") != VERSION:
@@ -118,7 +119,33 @@ def load_stage(file: str | FsPath, expect: tuple[str, ...] = ()):
     if missing:
         raise BadInput(f"{file}: {kind} file lacks {', '.join(sorted(missing))}")
     kwargs = {k: v for k, v in {**values, **arrays}.items() if k in names}
+    _check_rows(file, kind, kwargs)
     try:
         return cls(**kwargs)
     except (TypeError, ValueError) as exc:
         raise BadInput(f"{file}: the {kind} in it is damaged ({exc})") from None
+
+
+# per-row arrays of each box: the same length, and their shapes past the first axis
+ROWS = {"Path": {"poses_mm": (4, 4), "segment": (), "point": (), "zone": ()},
+        "JointPath": {"q": None, "path_index": (), "zone": (), "position_error_mm": (), "orientation_error_rad": (),
+                      "jump": (), "reverse_planned": (), "retract": (), "singular": (), "reached": ()},
+        "Trajectory": {"t_s": (), "q": None, "qd": None, "qdd": None, "zone": (), "path_index": ()}}
+ROWS["TimedTrajectory"] = ROWS["Trajectory"]
+
+
+def _check_rows(file, kind: str, fields: dict) -> None:
+    """BadInput unless the box's per-row arrays agree in length and shape and hold finite numbers."""
+    n = None
+    for name, tail in ROWS[kind].items():
+        a = np.asarray(fields.get(name))
+        if a.ndim == 0 or (tail is not None and a.shape[1:] != tail) or (tail is None and a.ndim != 2):
+            raise BadInput(f"{file}: {kind}.{name} has shape {a.shape}; the file is damaged")
+        if n is None:
+            n = len(a)
+        elif len(a) != n:
+            raise BadInput(f"{file}: {kind}.{name} has {len(a)} rows, {n} expected; the file is damaged")
+        if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+            raise BadInput(f"{file}: {kind}.{name} holds NaN or infinite values; the file is damaged")
+    if n == 0:
+        raise BadInput(f"{file}: the {kind} in it is empty")

@@ -9,7 +9,7 @@ imports no task, so the import graph stays acyclic.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import Callable
@@ -20,12 +20,15 @@ import trimesh
 from .errors import PlanInfeasible
 from .fit import fit_surface
 from .job import Job
+from .motion import MotionCheckSettings, check_motion, part_from_path
+from .placement.margins import reach_margins
 from .plan import plan_path
 from .plan.connectors import LiftSettings, lift_reconfigurations
 from .plan.cwln import CwlnSolver
+from .plan.densify import densify_work
 from .plan.strategy import ik_settings
 from .plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
-from .post import write_programs
+from .post import thin_waypoints, write_programs
 from .raster import raster_path
 from .report import plan_metrics, plot_joints, plot_unreachable, write_json_atomic, write_points_csv
 from .report_html import write_run_html
@@ -37,7 +40,9 @@ from .workpiece import load_workpiece
 
 FREE_MOVE_RADIUS_MM = 60.0   # link capsule radius of the approach / depart collision check
 CONTACT_ALLOWANCE_MM = 20.0  # the exempt ball round the first / last tool contact: capsule radius + this
-CONNECTOR_RADIUS_MM = 40.0   # link capsule radius of the reconfiguration check at the lift height
+SCAN_NOISE_FACTOR = 3.0      # a cloud's tolerances grow by this many times the fit's RMS residual
+CONNECTOR_RADIUS_MM = 20.0   # default link capsule radius of the planner's reconfiguration check (raster jobs
+                             # use check.link_radius_mm, the size the independent motion check measures)
 
 
 @dataclass(frozen=True)
@@ -87,7 +92,7 @@ def workpiece_for_job(job: Job):
     """Load the job's workpiece and place it in the world frame (cell.workpiece_*)."""
     s = WorkpieceSettings.from_section(job.workpiece)
     wp = load_workpiece(job.resolve(s.file), units=s.units, sample_points=s.sample_points,
-                        normal_neighbours=s.normal_neighbours, seed=job.fit.seed)
+                        normal_neighbours=s.normal_neighbours, seed=job.fit.seed, drop_nonfinite=s.drop_nonfinite)
     return wp.transformed(matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg))
 
 
@@ -104,32 +109,45 @@ def path_for_job(job: Job, surface):
 # --------------------------------------------------------------------------- plan and time
 
 
-def free_move_checker(workpiece, robot, contact_xyz_mm=None, radius_mm: float = FREE_MOVE_RADIUS_MM):
+def free_move_checker(workpiece, robot, contact_xyz_mm=None, radius_mm: float = FREE_MOVE_RADIUS_MM, path=None,
+                      clearance_mm: float = 0.0):
     """Validity check of a free move: link capsules against the placed workpiece, the tool contact exempt.
 
-    A mesh gives ``CapsuleChecker`` (signed distance if watertight), a point
-    cloud ``CloudChecker`` (KD-tree distance to the points).
+    A mesh gives ``CapsuleChecker`` (signed distance if watertight; with the
+    ``path``, an open patch is signed too: behind its surface, as the work
+    poses' tool axes say, is inside), a point cloud ``CloudChecker`` (KD-tree
+    distance to the points).
     """
     exempt = [] if contact_xyz_mm is None else [(contact_xyz_mm, radius_mm + CONTACT_ALLOWANCE_MM)]
     if workpiece.faces is not None and workpiece.vertices_mm is not None and len(workpiece.faces):
         mesh = trimesh.Trimesh(workpiece.vertices_mm, workpiece.faces, process=False)
-        return CapsuleChecker(robot, mesh, radius_mm, exempt=exempt)
-    return CloudChecker(robot, workpiece.points_mm, radius_mm, exempt=exempt)
+        outward = None
+        if path is not None and path.is_work.any():
+            work = path.poses_mm[path.is_work]
+            outward = (work[:, :3, 3], -work[:, :3, 2])
+        return CapsuleChecker(robot, mesh, radius_mm, clearance_mm, exempt=exempt, outward=outward)
+    return CloudChecker(robot, workpiece.points_mm, radius_mm, clearance_mm, exempt=exempt)
 
 
-def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_path):
+def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_path, every: bool = False,
+                    link_radius_mm: float | None = None, clearance_mm: float = 0.0):
     """Every reconfiguring connector between runs made a lift - reconfigure - descend (``plan/connectors.py``).
 
     The reconfiguration at the lift height is checked against the placed
     workpiece (link capsules) and re-planned by RRT-Connect where needed.
+    ``every``: lift between all runs, however small the joint change (touch
+    tasks such as seed 002's, whose moves between targets would graze the part).
     """
     lift = LiftSettings(clearance_mm=settings.lift_mm, steps=settings.lift_steps,
-                        threshold_rad=settings.reconfigure_threshold_rad,
-                        threshold_mm=settings.reconfigure_threshold_mm, track_scale_mm=settings.track_scale_mm,
-                        seed=settings.seed)
-    valid = None if workpiece is None else free_move_checker(workpiece, robot, radius_mm=CONNECTOR_RADIUS_MM)
+                        threshold_rad=0.0 if every else settings.reconfigure_threshold_rad,
+                        threshold_mm=0.0 if every else settings.reconfigure_threshold_mm,
+                        track_scale_mm=settings.track_scale_mm, seed=settings.seed)
+    # the bodies the motion check measures (raster jobs), or small ones that leave room for a short hop
+    radius = link_radius_mm if link_radius_mm is not None else min(CONNECTOR_RADIUS_MM, 0.5 * settings.lift_mm)
+    valid = None if workpiece is None else free_move_checker(workpiece, robot, radius_mm=radius, path=path,
+                                                             clearance_mm=clearance_mm)
     solver = CwlnSolver(robot, ik_settings(settings), free_spin=path.free_spin)
-    return lift_reconfigurations(joint_path, path, robot, lift, solver, valid)
+    return lift_reconfigurations(joint_path, path, robot, lift, solver, valid, touch_points=every)
 
 
 def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path):
@@ -161,9 +179,15 @@ def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path
 
 
 def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str | None = None):
-    """Plan ``path`` with the job's planner (or another ``method``), plus home moves when a workpiece is given."""
+    """Plan ``path`` with the job's planner (or another ``method``), plus home moves when a workpiece is given.
+
+    ``workpiece``: the part the free motion keeps clear of (``part_for_checks``)."""
     planner = settings.planner if method is None else settings.planner.with_method(method)
-    joint_path = lift_connectors(planner, workpiece, path, robot, plan_path(path, robot, planner))
+    joint_path = lift_connectors(planner, workpiece, path, robot, plan_path(path, robot, planner),
+                                 link_radius_mm=settings.check.link_radius_mm,
+                                 clearance_mm=settings.check.clearance_mm)
+    joint_path = densify_work(joint_path, path, robot, CwlnSolver(robot, ik_settings(planner), path.free_spin),
+                              planner.chord_tol_mm)
     if workpiece is not None:
         joint_path = add_home_moves(planner, workpiece, path, robot, joint_path)
     return joint_path
@@ -183,17 +207,59 @@ def plan_and_time(settings: JobSettings, path, robot, method: str | None = None,
 # --------------------------------------------------------------------------- check, post, report
 
 
-def post_checked(trajectory, robot, job: Job, outdir: Path) -> list[Path]:
+def part_for_checks(settings: JobSettings, workpiece, surface):
+    """The part that collision and motion checks measure against: a mesh as loaded; a scanned cloud without
+    the points off its fitted surface (outliers, clutter), those within 3x fit.threshold_mm of it."""
+    if workpiece.faces is not None or surface is None:
+        return workpiece
+    P = np.asarray(workpiece.points_mm, float)
+    on = np.linalg.norm(surface.point_mm(*surface.uv_from_points(P).T) - P, axis=1) <= 3.0 * settings.fit.threshold_mm
+    return replace(workpiece, points_mm=P[on], normals=np.asarray(workpiece.normals)[on])
+
+
+def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surface=None) -> dict:
+    """The independent motion check of what the controller will run; its figures for report.json.
+
+    The program's waypoints (thinned as the post-processors write them) are
+    interpolated joint-linearly at ``check.dt_ms`` and measured against the
+    placed workpiece: penetration, clearance off work, deviation on work, joint
+    steps per mm (``camtool.motion``, which shares no code with the planner).
+    PlanInfeasible (exit 3) naming the first finding when anything fails; the
+    figures are in the exception's report.
+    """
+    c = settings.check
+    noise = 0.0
+    if workpiece.faces is None and surface is not None and surface.stats is not None:
+        noise = SCAN_NOISE_FACTOR * surface.stats.rms_mm  # a scan is only as exact as its noise
+    path_tol, penetration_tol = c.path_tol_mm + noise, c.penetration_tol_mm + noise
+    part = part_for_checks(settings, workpiece, surface)
+    program = thin_waypoints(trajectory, settings.post.min_move_s)
+    report = check_motion(program.t_s, program.q, program.zone, robot, part_from_path(part, path),
+                          MotionCheckSettings(dt_s=c.dt_s, penetration_tol_mm=penetration_tol,
+                                              clearance_mm=c.clearance_mm, path_tol_mm=path_tol,
+                                              tool_radius_mm=c.tool_radius_mm, link_radius_mm=c.link_radius_mm,
+                                              tool_contact_exempt_mm=c.tool_contact_exempt_mm),
+                          path_index=np.where(program.path_index >= 0, np.asarray(path.segment)[
+                              np.maximum(program.path_index, 0)], -1), index_label="segment")
+    figures = report.to_dict()
+    if not report.ok:
+        raise PlanInfeasible(f"the motion check failed ({len(report.findings)} finding(s)); first: "
+                             f"{report.findings[0]}; no program written", report={"motion_check": figures})
+    return figures
+
+
+def post_checked(trajectory, robot, job: Job, outdir: Path, path=None, report: dict | None = None) -> list[Path]:
     """The independent 4 ms limit check of the timed trajectory, then the post stage.
 
     PlanInfeasible on any finding: no program is written from a trajectory that
-    breaks a limit.
+    breaks a limit. Every program is simulated the way its controller runs it
+    (against ``path``); ``report`` receives the simulation figures.
     """
     timing = TimingSettings.from_section(job.timing)
     findings = check_trajectory(trajectory, robot, samples=samples_for(trajectory, timing.check_dt_s))
     if findings:
         raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
-    return list(write_programs(trajectory, robot, job, outdir))
+    return list(write_programs(trajectory, robot, job, outdir, path=path, report=report))
 
 
 def timing_figures(trajectory, robot, job: Job) -> dict:
@@ -208,22 +274,41 @@ def run_report(path, joint_path, trajectory, robot, job: Job, method: str) -> di
     report = plan_metrics(path, joint_path, robot, method, job.planner.jump_threshold_deg,
                           job.planner.jump_threshold_mm)
     report.update(timing_figures(trajectory, robot, job))
+    report["margins"] = reach_margins(path, joint_path, robot, orientation_mm=job.planner.orientation_weight_mm,
+                                      track_scale_mm=job.planner.track_scale_mm)
     return report
 
 
 def report_unreachable(exc: PlanInfeasible, path, robot, job: Job, outdir: Path, workpiece=None,
-                       surface=None) -> None:
+                       surface=None, shift: dict | None = None) -> None:
     """Write report.json, report.html (failing poses marked, with the redundancy map) and a PNG map of
     unreachable poses for an infeasible plan."""
     unreachable = exc.report.get("unreachable", [])
     report = {"robot": robot.name, "method": job.planner.method, "status": "infeasible",
               "reason": str(exc), "points_total": len(path), "unreachable_count": len(unreachable),
               "unreachable": unreachable}
+    if shift is not None:
+        report["nearest_feasible_shift"] = shift
+    if exc.report.get("joint_path") is not None:
+        report["margins"] = reach_margins(path, exc.report["joint_path"], robot,
+                                          orientation_mm=job.planner.orientation_weight_mm,
+                                          track_scale_mm=job.planner.track_scale_mm)
     if unreachable:
         report["unreachable_map"] = str(plot_unreachable(path, unreachable, Path(outdir) / "plots" / "unreachable.png"))
     write_json_atomic(report, Path(outdir) / "report.json")
     write_run_html(outdir, report=report, robot=robot, workpiece=workpiece, surface=surface, path=path,
                    joint_path=exc.report.get("joint_path"), failing_indices=[u["index"] for u in unreachable])
+
+
+def report_failure(exc: PlanInfeasible, path, joint_path, robot, job: Job, outdir: Path, workpiece=None,
+                   surface=None) -> None:
+    """report.json (status "unsafe", the reason and the motion-check figures) and report.html for a plan
+    that failed a check after planning; no program is written."""
+    report = {"robot": robot.name, "method": job.planner.method, "status": "unsafe", "reason": str(exc),
+              "points_total": len(path), **exc.report}
+    write_json_atomic(report, Path(outdir) / "report.json")
+    write_run_html(outdir, report=report, robot=robot, workpiece=workpiece, surface=surface, path=path,
+                   joint_path=joint_path)
 
 
 def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, trajectories: dict, outdir: Path,

@@ -122,13 +122,18 @@ class PlaneSurface:
 
 @dataclass(frozen=True)
 class SpherePatch:
-    """A patch of a sphere, parameterised by azimuth u and elevation v (rad)."""
+    """A patch of a sphere, parameterised by azimuth u and elevation v (rad).
+
+    ``concave``: the material is outside the sphere (a bowl, worked from inside);
+    the normal then points to the centre.
+    """
 
     center_mm: np.ndarray
     radius_mm: float
     frame: np.ndarray  # 3x3, columns e1 (mean direction), e2, e3
     boundary: Boundary
     stats: FitStats | None = None
+    concave: bool = False
     model: str = field(default="sphere", init=False)
     uv_unit: str = field(default="rad", init=False)
 
@@ -143,8 +148,8 @@ class SpherePatch:
         return self.center_mm + self.radius_mm * self._direction(u, v)
 
     def normal_at(self, u, v) -> np.ndarray:
-        """Outward unit normals (..., 3) at u, v."""
-        return self._direction(u, v)
+        """Unit normals (..., 3) at u, v, out of the material (radial; to the centre when concave)."""
+        return -self._direction(u, v) if self.concave else self._direction(u, v)
 
     def uv_from_points(self, points_mm: np.ndarray) -> np.ndarray:
         """(N, 2) azimuth and elevation (rad) of points seen from the centre."""
@@ -165,6 +170,7 @@ class SpherePatch:
             "center_mm": self.center_mm.tolist(),
             "radius_mm": float(self.radius_mm),
             "frame": self.frame.tolist(),
+            "concave": bool(self.concave),
             "uv_unit": "rad",
             "boundary": self.boundary.to_dict(),
         }
@@ -186,8 +192,35 @@ def _with_stats(d: dict, stats: FitStats | None) -> dict:
     return d
 
 
+def _finite(d: dict, keys, limit_mm: float = 1e6) -> None:
+    for k in keys:
+        a = np.asarray(d[k], dtype=float)
+        if not np.all(np.isfinite(a)) or np.any(np.abs(a) > limit_mm):
+            raise ValueError(f"{k} must be finite numbers within +-{limit_mm:g}")
+
+
+def _unit_vectors(d: dict, keys) -> None:
+    for k in keys:
+        a = np.asarray(d[k], dtype=float).reshape(-1, 3)
+        if not np.allclose(np.linalg.norm(a, axis=1), 1.0, atol=1e-6):
+            raise ValueError(f"{k} must be unit vectors")
+
+
 def surface_from_dict(d: dict) -> Surface:
-    """Rebuild a surface from ``to_dict`` output."""
+    """Rebuild a surface from ``to_dict`` output (checked: finite, unit axes, a positive radius)."""
+    b = d["boundary"]
+    for poly in [b["outer_uv"], *b.get("holes_uv", [])]:
+        a = np.asarray(poly, dtype=float)
+        if a.ndim != 2 or a.shape[1] != 2 or len(a) < 3 or not np.all(np.isfinite(a)) or np.abs(a).max() > 1e6:
+            raise ValueError("boundary polygons must be 3 or more finite (u, v) vertices")
+    if d["model"] == "plane":
+        _finite(d, ("origin_mm", "normal", "u_axis", "v_axis"))
+        _unit_vectors(d, ("normal", "u_axis", "v_axis"))
+    elif d["model"] == "sphere":
+        _finite(d, ("center_mm", "radius_mm", "frame"))
+        _unit_vectors(d, ("frame",))
+        if not 0 < float(d["radius_mm"]) <= 1e6:
+            raise ValueError("radius_mm must be > 0")
     stats = None
     if "inlier_ratio" in d:
         stats = FitStats(d["inlier_ratio"], d["rms_mm"], d["max_residual_mm"], d["n_points"], d["n_inliers"])
@@ -200,7 +233,7 @@ def surface_from_dict(d: dict) -> Surface:
     if d["model"] == "sphere":
         return SpherePatch(
             np.asarray(d["center_mm"], float), float(d["radius_mm"]),
-            np.asarray(d["frame"], float), boundary, stats,
+            np.asarray(d["frame"], float), boundary, stats, bool(d.get("concave", False)),
         )
     raise BadInput(f"surface model {d['model']!r} is not 'plane' or 'sphere'")
 

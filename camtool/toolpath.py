@@ -23,6 +23,41 @@ def freeze_arrays(box) -> None:
 ZONES = ("work", "self_motion", "lead_in", "lead_out", "approach", "depart", "retract")
 ZONE_CODE = {name: code for code, name in enumerate(ZONES)}
 WORK = ZONE_CODE["work"]
+SURFACE_ZONES = ("work", "lead_in", "lead_out")  # the tool is on the part
+SURFACE_CODES = tuple(ZONE_CODE[z] for z in SURFACE_ZONES)
+
+
+def row_segments(path_index: np.ndarray, zone: np.ndarray, path_segment: np.ndarray) -> np.ndarray:
+    """The Path segment of every JointPath row; an inserted surface row (path_index -1, e.g. a densified
+    work pose) belongs to the segment of the row before it, other inserted rows to none (-1)."""
+    pidx = np.asarray(path_index)
+    seg = np.where(pidx >= 0, np.asarray(path_segment)[np.maximum(pidx, 0)], -1)
+    fill = (pidx < 0) & np.isin(zone, SURFACE_CODES)
+    if fill.any():
+        known = np.where(fill, -1, np.arange(len(seg)))
+        last = np.maximum.accumulate(known)
+        seg = np.where(fill & (last >= 0), seg[np.maximum(last, 0)], seg)
+    return seg
+
+
+def run_bounds(zone: np.ndarray, segment: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The one definition of a *run*: consecutive surface poses (work, lead-in, lead-out) of one segment.
+
+    ``zone`` and ``segment`` per row (a Path's poses or a JointPath's rows;
+    inserted rows may carry segment -1). Returns boolean arrays (surface,
+    start, end): which rows are on the surface, which start a run, which end one.
+    """
+    zone, segment = np.asarray(zone), np.asarray(segment)
+    surface = np.isin(zone, SURFACE_CODES)
+    n = len(zone)
+    same_prev = np.zeros(n, bool)
+    same_prev[1:] = surface[:-1] & surface[1:] & (segment[1:] == segment[:-1])
+    start = surface & ~same_prev
+    end = np.zeros(n, bool)
+    if n:
+        end[:-1] = surface[:-1] & ~same_prev[1:]
+        end[-1] = surface[-1]
+    return surface, start, end
 
 
 @dataclass(frozen=True)

@@ -23,19 +23,22 @@ trimesh returns fewer faces for a cut ASCII PLY and its default processing
 drops triangles with NaN vertices without a word. So the reading stays with the
 libraries, and every loader checks what they read against the file:
 
-- counts: PLY ``element`` counts, PCD ``POINTS`` = ``WIDTH`` x ``HEIGHT``,
-  OFF's counts, a binary STL's triangle count against the file length, a
-  leading point count in an XYZ/PTS file; the data present must match exactly
-  (no missing lines or bytes, no undeclared data after the last element);
-- ASCII bodies (PLY, PCD, STL ``vertex`` lines, OBJ ``v`` lines) are checked
-  line by line with a strict numpy parse, which must also agree with the
-  library's values: a reader that gave up on a token and filled in zeros is
-  caught because the text at that place does not say 0;
+- counts: PLY ``element`` counts (and, in binary PLY, every face's list
+  length), PCD ``POINTS`` = ``WIDTH`` x ``HEIGHT``, OFF's counts, a binary
+  STL's triangle count against the file length, a leading point count in an
+  XYZ/PTS file; the data present must match (no missing lines or bytes; for
+  PLY, PCD and binary STL no undeclared data after the last element either),
+  and the reader must return exactly that many points, vertices and faces;
+- text bodies (ASCII PLY and PCD, STL ``vertex`` lines, OBJ ``v`` lines, OFF)
+  are checked line by line with a strict parse (numpy or ``float``), which must
+  also agree with the library's values: a reader that gave up on a token and
+  filled in zeros, or dropped a byte that is not UTF-8, is caught because the
+  text at that place does not say what it read;
 - values: NaN or infinite coordinates, and non-zero coordinates below 1e-30 in
   magnitude (``TINY_COORDINATE``: no length a workpiece file holds is that
   small in any unit; such numbers come from flipped exponent bits or garbled
   text, e.g. ``1e-300``), are an error naming the file and the first bad
-  element. Exact zeros are fine. With ``drop_nonfinite=True`` (job key
+  element (numbered from 0, with its line in text files). Exact zeros are fine. With ``drop_nonfinite=True`` (job key
   ``workpiece.drop_nonfinite``) those points, or those vertices and the
   triangles using them, are dropped instead, with a warning giving the count.
 
@@ -142,8 +145,6 @@ def supported_extensions() -> list[str]:
 
 _trimesh_quiet_lock = threading.Lock()
 _trimesh_quiet_depth = 0
-
-
 _trimesh_propagate = True
 
 
@@ -197,6 +198,8 @@ def _open3d_quiet() -> Iterator[None]:
 # --------------------------------------------------------------------------- checks shared by loaders
 
 _CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f]")  # never in a header line of a sound text header
+_INT_TOKEN = re.compile(r"[+-]?\d+")
+
 
 def _strict_table(rows: list[str], ncols: int, path: Path, first_line: int, what: str) -> np.ndarray:
     """Rows of exactly ``ncols`` numbers each, parsed by numpy; else BadInput naming the line."""
@@ -360,6 +363,11 @@ def _load_obj(path: Path) -> _Raw:
     v_lines = []
     for no, line in enumerate(text.splitlines(), 1):
         tokens = line.split()
+        if tokens and tokens[0] == "f":  # indices count from 1 (or from the end when negative): 0 is none
+            if any(t.split("/")[0] in ("0", "-0", "+0") for t in tokens[1:]):
+                raise BadInput(f"{path}: line {no}: a face refers to vertex 0, but OBJ counts vertices from 1; "
+                               "the file is corrupt, export it again")
+            continue
         if not tokens or tokens[0] != "v":
             continue
         if len(tokens) - 1 not in (3, 4, 6, 7) or not all(_is_float(t) for t in tokens[1:]):
@@ -383,17 +391,43 @@ def _load_off(path: Path) -> _Raw:
     rest = lines[1:]
     if not counts and rest:
         counts, rest = rest[0].split(), rest[1:]
-    if len(counts) < 2 or not all(_is_int_token(t) for t in counts[:2]):
-        raise BadInput(f"{path}: not an OFF file (no 'OFF' line with vertex and face counts); export it again")
-    nv, nf = int(float(counts[0])), int(float(counts[1]))
-    if len(rest) < nv + nf:
+    if len(counts) != 3 or not all(t.isdigit() for t in counts):
+        raise BadInput(f"{path}: not an OFF file (no 'OFF' header with vertex, face and edge counts); "
+                       "export it again")
+    nv, nf = int(counts[0]), int(counts[1])
+    if len(rest) != nv + nf:
         raise BadInput(f"{path}: OFF header says {nv} vertices and {nf} faces, the file holds "
-                       f"{len(rest)} data lines; the file is truncated, export it again")
-    raw = _mesh_from_trimesh(_trimesh_load(path, "off"), path)
-    if len(raw.points) != nv:
-        raise BadInput(f"{path}: OFF header says {nv} vertices, the reader got {len(raw.points)}; "
+                       f"{len(rest)} data lines; the file is truncated or corrupt, export it again")
+    # x y z [colour]: trimesh drops bytes that are not UTF-8 (a damaged '600' may read as '00')
+    verts = [_floats3(line) for line in rest[:nv]]
+    bad = next((i for i, v in enumerate(verts) if v is None), None)
+    if bad is not None:
+        raise BadInput(f"{path}: OFF vertex {bad} is not x y z numbers ({rest[bad][:40]!r}); "
                        "the file is corrupt, export it again")
+    triangles = 0
+    for i, line in enumerate(rest[nv:nv + nf]):  # n i1 .. in [colour]: trimesh skips a short one
+        tokens = line.split()
+        n = int(tokens[0]) if tokens[0].isdigit() else 0
+        if n < 3 or len(tokens) < 1 + n or not all(_INT_TOKEN.fullmatch(t) for t in tokens[1:1 + n]):
+            raise BadInput(f"{path}: OFF face {i} is not a vertex count >= 3 and that many indices "
+                           f"({line[:40]!r}); the file is truncated or corrupt, export it again")
+        triangles += n - 2
+    raw = _mesh_from_trimesh(_trimesh_load(path, "off"), path)
+    got = 0 if raw.faces is None else len(raw.faces)
+    if len(raw.points) != nv or got != triangles:
+        raise BadInput(f"{path}: OFF header says {nv} vertices and {nf} faces ({triangles} triangles), the reader "
+                       f"got {len(raw.points)} and {got}; the file is corrupt, export it again")
+    if not _same_values(raw.points, np.array(verts, dtype=float).reshape(-1, 3)):
+        raise _disagree(path, "vertices")
     return raw
+
+
+def _floats3(line: str) -> list[float] | None:
+    """The first 3 numbers of a text line, or None if it does not start with 3 numbers."""
+    tokens = line.split()[:3]
+    if len(tokens) < 3 or not all(_is_float(t) for t in tokens):
+        return None
+    return [float(t) for t in tokens]
 
 
 @register_loader(".glb", ".gltf")
@@ -453,11 +487,11 @@ def _ply_header(path: Path, data: bytes) -> tuple[str, list[_PlyElement], int, i
         if _CONTROL.search(line.rstrip("\r")):
             raise bad
         if tok[0] == "format":
-            if len(tok) < 2 or tok[1] not in _PLY_FORMATS:
+            if len(tok) != 3 or tok[1] not in _PLY_FORMATS or fmt is not None:
                 raise bad
             fmt = tok[1]
         elif tok[0] == "element":
-            if len(tok) != 3 or not tok[2].isdigit():
+            if len(tok) != 3 or not tok[2].isdigit() or any(e.name == tok[1] for e in elements):
                 raise bad
             elements.append(_PlyElement(tok[1], int(tok[2]), ()))
         elif tok[0] == "property":
@@ -470,6 +504,8 @@ def _ply_header(path: Path, data: bytes) -> tuple[str, list[_PlyElement], int, i
             else:
                 raise bad
             el = elements[-1]
+            if any(q[0] == prop[0] for q in el.props):
+                raise bad
             elements[-1] = _PlyElement(el.name, el.count, el.props + (prop,))
         else:
             raise bad
@@ -491,18 +527,50 @@ def _ply_summary(elements: list[_PlyElement]) -> str:
     return " and ".join(_ply_count(e) for e in elements)
 
 
-def _check_binary_ply(path: Path, fmt: str, elements: list[_PlyElement], body_bytes: int) -> None:
-    """The body must hold what the header declares: exact when there are no lists, at least
-    the fixed parts and one count per list otherwise (trimesh checks the exact length then)."""
+def _check_binary_ply(path: Path, fmt: str, elements: list[_PlyElement], body: memoryview) -> None:
+    """The body must hold exactly what the header declares.
+
+    trimesh reads list properties (faces) assuming every list has the length of
+    the first one and never looks at the other counts, so a damaged count byte
+    would go unseen: here every count must equal the first (mixed polygon sizes
+    are not readable by trimesh either).
+    """
     order = "<" if fmt == "binary_little_endian" else ">"
-    need, exact = 0, True
+    truncated = BadInput(f"{path}: binary PLY is truncated or corrupt (the header says {_ply_summary(elements)}, "
+                         f"{len(body)} bytes of data present); export it again")
+    at = 0
     for e in elements:
-        row = sum(np.dtype(order + (c if c else t)).itemsize for _, t, c in e.props)
-        need += e.count * row
-        exact = exact and not e.has_lists
-    if body_bytes < need or (exact and body_bytes != need):
+        fields, row_at = [], at
+        for k, (name, t, c) in enumerate(e.props):
+            if c is None:
+                fields.append((f"p{k}", order + t))
+                row_at += np.dtype(t).itemsize
+                continue
+            if not e.count:
+                break
+            if row_at + np.dtype(c).itemsize > len(body):
+                raise truncated
+            n0 = int(np.frombuffer(body, dtype=order + c, count=1, offset=row_at)[0])
+            fields += [(f"n{k}", order + c), (f"p{k}", order + t, (n0,))]
+            row_at += np.dtype(c).itemsize + n0 * np.dtype(t).itemsize
+        if not e.count:
+            continue
+        dtype = np.dtype(fields)
+        if at + e.count * dtype.itemsize > len(body):
+            raise truncated
+        rec = np.frombuffer(body, dtype=dtype, count=e.count, offset=at)
+        for k, (name, _, c) in enumerate(e.props):
+            if c is not None:
+                n = rec[f"n{k}"]
+                odd = np.flatnonzero(n != n[0])
+                if len(odd):
+                    raise BadInput(f"{path}: binary PLY {e.name} {odd[0]} has {n[odd[0]]} {name} where the "
+                                   f"first has {n[0]}: a corrupt count (or mixed polygon sizes, which cannot be "
+                                   "read); export the mesh again")
+        at += e.count * dtype.itemsize
+    if at != len(body):
         raise BadInput(f"{path}: binary PLY is truncated or corrupt (the header says {_ply_summary(elements)}, "
-                       f"{'' if exact else 'at least '}{need} bytes of data; {body_bytes} present); export it again")
+                       f"{at} bytes of data; {len(body)} present); export it again")
 
 
 def _check_ascii_ply(path: Path, data: bytes, body_at: int, header_lines: int,
@@ -534,22 +602,30 @@ def _check_ascii_ply(path: Path, data: bytes, body_at: int, header_lines: int,
     return tables, first, triangles
 
 
+def _ply_token_ok(tok: str, numpy_type: str) -> bool:
+    return _is_float(tok) if numpy_type.startswith("f") else _INT_TOKEN.fullmatch(tok) is not None
+
+
 def _check_ply_list_rows(rows: list[str], e: _PlyElement, path: Path, line0: int) -> bool:
-    """Each row's token count must match its list lengths; True if every list has 3 items."""
+    """Each row: a number of each property's type, list lengths matching their items
+    (face indices whole numbers); True if every list has 3 items."""
     all_three = True
     for i, row in enumerate(rows):
-        tokens, at = row.split(), 0
-        for _, _, count_type in e.props:
+        tokens, at, ok = row.split(), 0, True
+        for _, item_type, count_type in e.props:
             if count_type is None:
+                ok = at < len(tokens) and _ply_token_ok(tokens[at], item_type)
                 at += 1
-                continue
-            if at >= len(tokens) or not _is_int_token(tokens[at]):
-                at = -1
+            else:
+                ok = at < len(tokens) and tokens[at].isdigit()
+                n = int(tokens[at]) if ok else 0
+                all_three = all_three and n == 3
+                items = tokens[at + 1:at + 1 + n]
+                ok = ok and len(items) == n and all(_ply_token_ok(t, item_type) for t in items)
+                at += 1 + n
+            if not ok:
                 break
-            n = int(float(tokens[at]))
-            all_three = all_three and n == 3
-            at += 1 + n
-        if at != len(tokens):
+        if not ok or at != len(tokens):
             raise BadInput(f"{path}: line {line0 + i}: {e.name} {i} does not match the header's properties "
                            f"({row.strip()[:40]!r}); the file is truncated or corrupt, export it again")
     return all_three
@@ -572,7 +648,7 @@ def _load_ply(path: Path) -> _Raw:
     if fmt == "ascii":
         tables, first, triangles = _check_ascii_ply(path, data, body_at, header_lines, elements)
     else:
-        _check_binary_ply(path, fmt, elements, len(data) - body_at)
+        _check_binary_ply(path, fmt, elements, memoryview(data)[body_at:])
         tables, first, triangles = {}, {}, {}
     obj = _trimesh_load(path, "ply")
     faces = np.asarray(obj.faces, dtype=np.int64) if isinstance(obj, trimesh.Trimesh) else None
@@ -589,12 +665,16 @@ def _load_ply(path: Path) -> _Raw:
         text = np.column_stack([text[:, k].astype(dtypes[k]) for k in range(3)]) if len(text) else text
         if not _same_values(pts, text):
             raise _disagree(path, "vertices")
+    n_faces = 0 if faces is None else len(faces)
     face_el = next((e for e in elements if e.name == "face"), None)
-    if face_el is not None and face_el.count and faces is not None:
-        short = len(faces) < face_el.count or (triangles.get("face") and len(faces) != face_el.count)
-        if short:
-            raise BadInput(f"{path}: the PLY header says {face_el.count} faces, the reader got {len(faces)}; "
+    if face_el is not None and face_el.count:
+        if n_faces < face_el.count or (triangles.get("face") and n_faces != face_el.count):
+            raise BadInput(f"{path}: the PLY header says {face_el.count} faces, the reader got {n_faces}; "
                            "the file is corrupt, export it again")
+    lists = [e.name for e in elements if e.has_lists and e.count and e.name != "face"]
+    if lists and not n_faces:  # e.g. triangle strips, or a damaged 'face' name: not a cloud either
+        raise BadInput(f"{path}: the PLY holds {lists[0]!r} elements camtool cannot read (triangles go in "
+                       "'face' elements); export the mesh again")
     lines = None if "vertex" not in first else first["vertex"] + np.arange(vertex.count)
     if faces is not None and len(faces):
         return _Raw(pts, None, faces, "vertex", 1, lines)
@@ -632,8 +712,9 @@ def _pcd_header(path: Path, data: bytes) -> dict:
         if not tok or tok[0].startswith("#"):
             continue
         if _CONTROL.search(line):
-            raise BadInput(f"{path}: PCD header line {no} holds control characters; the file is corrupt, export it again")
-        key = tok[0].upper()
+            raise BadInput(f"{path}: PCD header line {no} holds control characters; the file is corrupt, "
+                           "export it again")
+        key = tok[0]
         if key not in _PCD_KEYS or key in h:
             raise BadInput(f"{path}: PCD header line {no} ({line[:40]!r}) is not a PCD header field or repeats one; "
                            "the file is corrupt, export it again")
@@ -665,7 +746,7 @@ def _pcd_layout(path: Path, h: dict) -> tuple[list[str], list[int], int, str]:
         raise bad("WIDTH, HEIGHT or POINTS is missing or not a whole number") from None
     if min(width, height, points) < 0 or points != width * height:
         raise bad(f"says POINTS {points} but WIDTH x HEIGHT = {width} x {height}")
-    kind = (h["DATA"] or [""])[0].lower()
+    kind = (h["DATA"] or [""])[0]
     if kind not in ("ascii", "binary", "binary_compressed"):
         raise bad(f"has DATA {kind!r} (expected ascii, binary or binary_compressed)")
     h["_point_bytes"] = sum(int(s) * int(c) for s, c in zip(sizes, counts))
@@ -696,9 +777,10 @@ def _load_pcd(path: Path) -> _Raw:
             raise BadInput(f"{path}: binary PCD is truncated or corrupt (the header says {n} points, {need} bytes "
                            f"of data; {len(body)} present); export it again")
     else:
-        sizes = (int.from_bytes(body[0:4], "little"), int.from_bytes(body[4:8], "little")) if len(body) >= 8 else (-1, -1)
-        if sizes[1] != n * h["_point_bytes"] or len(body) < 8 + sizes[0]:
-            raise BadInput(f"{path}: compressed PCD is truncated or corrupt (the header says {n} points); export it again")
+        packed, unpacked = (int.from_bytes(body[k:k + 4], "little") for k in (0, 4)) if len(body) >= 8 else (-1, -1)
+        if unpacked != n * h["_point_bytes"] or len(body) < 8 + packed:
+            raise BadInput(f"{path}: compressed PCD is truncated or corrupt (the header says {n} points); "
+                           "export it again")
     with _open3d_quiet():
         pc = o3d.io.read_point_cloud(str(path), format="pcd", remove_nan_points=False,
                                      remove_infinite_points=False)
@@ -876,14 +958,20 @@ def _screen_values(raw: _Raw, points: np.ndarray, normals: np.ndarray | None, fa
                        f"{DROP_HINT}")
     keep = ~bad
     if faces is None:
+        if not keep.any():
+            raise BadInput(f"{path}: all {n_elements} {plural} have {kind} coordinates; nothing is left to use")
         msg = f"{path}: dropped {k} of {n_elements} {plural} with {kind} coordinates (workpiece.drop_nonfinite)"
         return points[keep], None if normals is None else normals[keep], None, (msg,)
     face_bad = bad[faces].any(axis=1)
+    if face_bad.all():
+        raise BadInput(f"{path}: all {len(faces)} triangles have a vertex with {kind} coordinates; "
+                       "nothing is left to use")
     new_index = np.cumsum(keep) - 1
     kept_faces = new_index[faces[~face_bad]]
-    msg = (f"{path}: dropped {int(bad.sum())} vertices with {kind} coordinates and the {int(face_bad.sum())} "
-           f"of {len(faces)} triangles using them (workpiece.drop_nonfinite)")
-    return points[keep], None, kept_faces if len(kept_faces) else None, (msg,)
+    n_bad = int(bad.sum())
+    msg = (f"{path}: dropped {n_bad} {'vertex' if n_bad == 1 else 'vertices'} with {kind} coordinates and the "
+           f"{int(face_bad.sum())} of {len(faces)} triangles using them (workpiece.drop_nonfinite)")
+    return points[keep], None, kept_faces, (msg,)
 
 
 def _merged_mesh(verts_mm: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import functools
 import logging
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
@@ -69,6 +69,68 @@ class PostProcessor(Protocol):
     def write(self, trajectory, robot, profile, outdir: Path) -> list[Path]: ...
 
     def read(self, path: Path, robot, profile) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+@dataclass(frozen=True)
+class ProcessInfo:
+    """What camtool knows about the process beyond the joint trajectory, for plugins that
+    take it: ``write(trajectory, robot, profile, outdir, process=ProcessInfo(...))``.
+
+    A plugin opts in by accepting the keyword ``process`` in ``write`` (camtool inspects the
+    signature; a plugin without it is called as before). Every field has a default, so a
+    plugin must work with ``ProcessInfo()`` too.
+
+    - ``path_tol_mm``: largest distance of the program's interpolated TCP from the planned
+      path (job key ``post.path_tol_mm``); moves are merged and corners blended within it.
+    - ``ori_tol_deg``: largest tool-orientation deviation of merged Cartesian moves.
+    - ``feed_mm_s``: the commanded TCP speed on work (``timing.tcp_speed_mm_s``), or None.
+    - ``job_name``: the job file's name (for program comments), ``""`` when unknown.
+    - ``job_time``: ``"yyyy/mm/dd hh:mm"`` (UTC) of the job file's modification, or None.
+    - ``row_labels``: a label per work row, in order (e.g. the raster segment), or ().
+    """
+
+    path_tol_mm: float = 0.1
+    ori_tol_deg: float = 0.5
+    feed_mm_s: float | None = None
+    job_name: str = ""
+    job_time: str | None = None
+    row_labels: tuple = field(default_factory=tuple)
+
+
+DATE_FORMAT = "%Y/%m/%d %H:%M"
+
+
+def program_date(option: str, process: "ProcessInfo | None" = None) -> str:
+    """The date a program shows, ``yyyy/mm/dd hh:mm`` (UTC):
+
+    - ``"job"`` (the default of the built-ins): the job file's modification time
+      (``process.job_time``), so rerunning the same job gives byte-identical programs;
+      without a job, as ``"now"``;
+    - ``"now"``: the clock, or ``SOURCE_DATE_EPOCH`` when set (reproducible builds);
+    - anything else is taken as the date itself (already checked by the plugin).
+    """
+    import os
+    from datetime import datetime, timezone
+
+    if option == "job" and process is not None and process.job_time:
+        return process.job_time
+    if option in ("job", "now"):
+        epoch = os.environ.get("SOURCE_DATE_EPOCH")
+        when = datetime.fromtimestamp(int(epoch), timezone.utc) if epoch and epoch.isdigit() \
+            else datetime.now(timezone.utc)
+        return when.strftime(DATE_FORMAT)
+    return option
+
+
+def accepts_process(plugin) -> bool:
+    """True when ``plugin.write`` takes the keyword ``process`` (a ``ProcessInfo``)."""
+    import inspect
+
+    try:
+        params = inspect.signature(plugin.write).parameters
+    except (TypeError, ValueError):
+        return False
+    return "process" in params or any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
 
 
 @dataclass(frozen=True)

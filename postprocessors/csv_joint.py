@@ -53,6 +53,13 @@ def _parse(path: Path, text: str) -> tuple[list[str], np.ndarray]:
     if len(lines) > 1 and lines[-1].startswith("#"):
         lines = lines[:-1]
     header = lines[0].split(",")
+    body = lines[1:]
+    if body and all(line.count(",") == len(header) - 1 for line in body):
+        try:  # every cell at once; a bad cell is found line by line below
+            cells = ",".join(body).split(",")
+            return header, np.array(cells, dtype=float).reshape(-1, len(header))
+        except ValueError:
+            pass
     rows = []
     for n, line in enumerate(lines[1:], 2):
         cells = line.split(",")
@@ -100,8 +107,9 @@ class CsvPost:
         q = np.asarray(trajectory.q, float)
         edge = np.where(robot.prismatic[None, :], q, np.degrees(q) if unit == "deg" else q)
         lines = [",".join(columns_for(robot, unit))]
-        for t, row in zip(np.asarray(trajectory.t_s, float), edge):
-            lines.append(",".join(repr(float(v)) for v in (t, *row)))
+        # numpy's float to text is Python's shortest round-trip repr, for a whole table at once
+        table = np.column_stack([np.asarray(trajectory.t_s, float), edge]).astype(str).tolist()
+        lines += [",".join(row) for row in table]
         lines.append(trailer(len(lines) - 1))
         path = Path(outdir) / f"{name}.csv"
         path.write_bytes(("\n".join(lines) + "\n").encode("ascii"))

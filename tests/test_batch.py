@@ -50,9 +50,9 @@ def test_discover_bad_input(tmp_path):
 
 @pytest.mark.parametrize("override, message", [
     ("raster.nope=1", "unknown key"),
-    ("nosection.key=1", "unknown key"),
-    ("raster.step_over_mm=fast", "expected a number > 0"),
-    ("raster.step_over_mm=-5", "expected a number > 0"),
+    ("nosection.key=1", "unknown section"),
+    ("raster.step_over_mm=fast", "expected a number in 0.1..10000"),
+    ("raster.step_over_mm=-5", "expected a number in 0.1..10000"),
     ("raster.step_over_mm", "expected SECTION.KEY=VALUE"),
 ])
 def test_bad_override_stops_the_batch_before_any_job(tmp_path, override, message):

@@ -69,3 +69,21 @@ def test_too_few_points():
     from camtool.errors import BadInput
     with pytest.raises(BadInput):
         boundary_from_uv(np.zeros((2, 2)), None)
+
+
+def test_a_sparse_scan_ends_within_half_a_step_of_its_points():
+    """A plate scanned every 20 mm: the boundary (and the work rows) stay within 10 mm of the points."""
+    from camtool.raster import raster_path
+    from camtool.settings import RasterSettings
+    from camtool.surface import PlaneSurface
+
+    xs, ys = np.meshgrid(np.arange(0.0, 401.0, 20.0), np.arange(0.0, 301.0, 20.0))
+    uv = np.column_stack([xs.ravel(), ys.ravel()])
+    b = boundary_from_uv(uv)
+    lo, hi = b.bounds()
+    assert np.all(lo >= -10.0 - 1e-6) and np.all(hi <= [410.0 + 1e-6, 310.0 + 1e-6])
+    surface = PlaneSurface(np.zeros(3), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), b)
+    path = raster_path(surface, RasterSettings.make(step_over_mm=20, pitch_mm=5, lead_mm=0))
+    work = path.poses_mm[path.is_work][:, :3, 3]
+    assert work[:, 0].min() >= -10.0 and work[:, 0].max() <= 410.0
+    assert work[:, 1].min() >= -10.0 and work[:, 1].max() <= 310.0

@@ -93,4 +93,12 @@ def test_deviation_measure_is_independent_of_the_solver(tmp_path):
     d2 = np.hypot(p[:, 0] - 900, p[:, 2] - 600) + np.maximum(0, p[:, 1] - 200) + np.maximum(0, -200 - p[:, 1])
     d3 = np.hypot(np.hypot(p[:, 0] - 800, p[:, 1] - 200) - 100, p[:, 2] - 600)
     d = np.minimum(np.minimum(d1, d2), d3)
-    assert d.max() > 0.01   # 20 / 40 points are too few: the quintic joint interpolation leaves the path
+    assert d.max() < 0.05   # the timed joint motion through the points follows the line and the circle
+    # but a controller's straight moves between 40 points of a circle of r = 100 mm cut its chords:
+    # the chord measure equals the analytic sagitta r (1 - cos(dtheta / 2)), the lines have none
+    from camtool.tasks.cartesian import chord_deviation_mm
+    _, prims = build_moves(matrix_from_xyz_rpy(job.task.cart_start_mm, job.task.cart_start_rpy_deg),
+                           seed001_moves(job), [1, 1, 1])
+    chord = chord_deviation_mm(poses, prims)
+    assert chord[:2] == pytest.approx([0.0, 0.0], abs=1e-9)
+    assert chord[2] == pytest.approx(100.0 * (1 - np.cos(np.radians(360.0 / 39) / 2)), rel=1e-6)

@@ -9,6 +9,7 @@ from camtool.cli import cli
 from camtool.profiles import Profile, default_options, load_profile
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory
+from test_post import rows_trajectory
 from postprocessors.abb_rapid import RapidPost
 from postprocessors.csv_joint import CsvPost
 from postprocessors.yaskawa_inform import InformPost
@@ -24,6 +25,16 @@ def _program(tmp_path, fmt, robot_name, n=20):
     return post.write(smooth_trajectory(r, n), r, p, tmp_path)[0]
 
 
+def _process_program(tmp_path, fmt, robot_name, **options):
+    """A program of a raster-like trajectory (rows, leads, free motion)."""
+    r = get_robot(robot_name)
+    p = load_profile(None, robot_name, fmt, r)
+    if options:
+        p = p.with_changes(options=options)
+    post = {"rapid": RapidPost(), "inform": InformPost()}[fmt]
+    return post.write(rows_trajectory(r, rows=2), r, p, tmp_path)[0]
+
+
 def _check(*args):
     return CliRunner().invoke(cli, ["check", *map(str, args)])
 
@@ -36,8 +47,11 @@ def test_json_of_a_clean_program(fmt, robot_name, moves, tmp_path):
     assert res.exit_code == 0, res.output
     out = json.loads(res.stdout)
     assert out["file"] == str(f) and out["format"] == fmt and out["robot"] == robot_name
+    if fmt != "csv":  # moves merged, or the planned motion followed closer: count what the program holds
+        text = "".join(g.read_text() for g in sorted(f.parent.glob("*.mod" if fmt == "rapid" else "*.JBI")))
+        moves = len(re.findall(r"^\s*(?:MoveAbsJ|MoveL|MOVJ|MOVL) ", text, flags=re.M))
     assert out["ok"] is True and out["findings"] == [] and out["moves"] == moves
-    # the first move (from wherever the robot is) has no duration: 19 steps of the 8 s trajectory
+    # the first move (from wherever the robot is) has no duration: the steps of the 8 s trajectory
     assert out["duration_s"] == pytest.approx(8.0, rel=0.01 if fmt == "inform" else 1e-3)
     assert set(out) == {"file", "format", "robot", "profile", "ok", "findings", "moves", "duration_s"}
 
@@ -74,15 +88,18 @@ def test_jbi_pulse_beyond_int64_is_bad_input_not_an_internal_error(tmp_path):
 
 
 @pytest.mark.parametrize("fmt,robot_name,old,new", [
-    ("rapid", "irb2400", rb"\\T:=[0-9.]+, z1", rb"\\T:=nan, z1"),
+    ("rapid", "irb2400", rb"\\T:=[0-9.]+, z", rb"\\T:=nan, z"),
+    ("rapid", "irb2400", rb"MoveL \[\[[-0-9.]+,", rb"MoveL [[nan,"),
+    ("rapid", "irb2400", rb"\], \[[0-9.]+,", rb"], [inf,"),
     ("rapid", "irb2400", rb"MoveAbsJ \[\[[-0-9.]+,", rb"MoveAbsJ [[inf,"),
     ("rapid", "irb2400", rb"tooldata camtool_tool:=\[TRUE,\[\[[-0-9.]+,", rb"tooldata camtool_tool:=[TRUE,[[nan,"),
-    ("inform", "sia20", rb"VJ=[0-9.]+ PL=0\r\nMOVJ C00009", rb"VJ=nan PL=0\r\nMOVJ C00009"),
+    ("inform", "sia20", rb"VJ=[0-9.]+ PL=1\r\n", rb"VJ=nan PL=1\r\n"),
+    ("inform", "sia20", rb"V=[0-9.]+ PL=", rb"V=inf PL="),
     ("csv", "seed8", rb"\n2\.", rb"\nnan,"),
     ("csv", "seed8", rb",-?[0-9.]+(e-?\d+)?\n", rb",inf\n"),
 ])
 def test_nan_and_inf_fail_the_check(fmt, robot_name, old, new, tmp_path):
-    f = _program(tmp_path, fmt, robot_name)
+    f = _program(tmp_path, fmt, robot_name) if fmt == "csv" else _process_program(tmp_path, fmt, robot_name)
     target = f.with_suffix(".mod") if fmt == "rapid" else f  # the .pgf names the module
     raw = target.read_bytes()
     spoilt = re.sub(old, new, raw, count=1)

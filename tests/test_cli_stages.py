@@ -5,7 +5,7 @@ from pathlib import Path
 
 from conftest import SAMPLES, run_camtool
 
-SMALL = ["--set", "raster.step_over_mm=60", "--set", "raster.pitch_mm=20"]
+SMALL = ["--set", "raster.step_over_mm=60", "--set", "raster.pitch_mm=8"]
 
 
 def test_resumed_stages_reproduce_run_byte_for_byte(tmp_path):

@@ -113,3 +113,25 @@ def test_degenerate_inputs():
         fit_surface(Workpiece(flat, np.tile([0, 0, 1.0], (50, 1))), FitSettings.make(model="sphere"))
     with pytest.raises(BadInput, match="fit.model"):
         fit_surface(Workpiece(flat, np.tile([0, 0, 1.0], (50, 1))), FitSettings.make(model="cone"))
+
+
+def test_a_bowl_is_worked_from_inside():
+    """A concave sphere patch (normals to the centre): the material side comes from the data's normals."""
+    from camtool.raster import raster_path
+    from camtool.settings import RasterSettings
+
+    rng = np.random.default_rng(5)
+    az, el = rng.uniform(-0.6, 0.6, 6000), rng.uniform(-0.4, 0.4, 6000)
+    d = np.stack([-np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=1)
+    centre = np.array([1200.0, 0.0, 500.0])
+    bowl = Workpiece(centre + 400.0 * d, -d)  # normals point to the centre: a bowl
+    s = fit_surface(bowl, FitSettings.make(model="sphere"))
+    assert s.concave
+    uv = s.uv_from_points(bowl.points_mm[:50])
+    assert np.all(np.sum(s.normal_at(uv[:, 0], uv[:, 1]) * bowl.normals[:50], axis=1) > 0.99)
+    path = raster_path(s, RasterSettings.make(step_over_mm=40, pitch_mm=20))
+    work = path.poses_mm[path.is_work]
+    radial = (work[:, :3, 3] - s.center_mm) / s.radius_mm
+    assert np.all(np.sum(work[:, :3, 2] * radial, axis=1) > 0.99)  # tool z into the material, away from the centre
+    convex = fit_surface(Workpiece(bowl.points_mm, d), FitSettings.make(model="sphere"))
+    assert not convex.concave

@@ -36,9 +36,9 @@ def test_override(tmp_path):
 
 @pytest.mark.parametrize("text, match", [
     (GOOD + "[raster]\nstepover = 3\n", r"job.toml: raster.stepover: unknown key"),
-    (GOOD + "[raster]\nstep_over_mm = \"ten\"\n", r"raster.step_over_mm: expected a number > 0 mm, found 'ten'"),
-    (GOOD + "[raster]\nstep_over_mm = -5\n", r"raster.step_over_mm: expected a number > 0 mm, found -5"),
-    (GOOD + "[raster]\npitch_mm = 0\n", r"raster.pitch_mm: expected a number > 0 mm, found 0"),
+    (GOOD + "[raster]\nstep_over_mm = \"ten\"\n", r"raster.step_over_mm: expected a number in 0.1..10000 mm, found 'ten'"),
+    (GOOD + "[raster]\nstep_over_mm = -5\n", r"raster.step_over_mm: expected a number in 0.1..10000 mm, found -5"),
+    (GOOD + "[raster]\npitch_mm = 0\n", r"raster.pitch_mm: expected a number in 0.1..10000 mm, found 0"),
     (GOOD + "[robot]\nname = \"kuka\"\n", r"robot.name: expected a built-in robot .* found 'kuka'"),
     (GOOD + "[robot]\nname = \"arm.urdf\"\n", r"robot.name: robot file .*arm.urdf not found"),
     (GOOD + "[fit]\nmodel = \"cone\"\n", r"fit.model: expected one of 'auto', 'plane', 'sphere', found 'cone'"),

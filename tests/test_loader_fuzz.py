@@ -1,7 +1,7 @@
 """Seeded, time-bounded fuzz of the workpiece loaders.
 
 Small valid files (PLY clouds and meshes, ASCII and binary; XYZ; PCD ASCII and
-binary; STL ASCII and binary; OBJ) are generated, mutated (cut at a random offset, random bytes
+binary; STL ASCII and binary; OBJ; OFF) are generated, mutated (cut at a random offset, random bytes
 flipped, a number replaced by nan / inf / 1e-300 / 1e300, a line dropped or
 doubled) and loaded. Every outcome must be
 
@@ -9,7 +9,7 @@ doubled) and loaded. Every outcome must be
 - a Workpiece whose points are all finite and are what the file really holds:
   for clouds exactly the rows an independent strict parse of the mutated file
   finds (so no point is made up, zero-filled or lost); for meshes the triangle
-  count of that parse (STL, PLY), and sampled points inside the box of the
+  count of that parse (STL, PLY, OFF), and sampled points inside the box of the
   file's vertices (the data sit far from the origin, so zero-filled vertices
   show).
 
@@ -43,7 +43,8 @@ def _cloud(rng, n=40):
 
 
 def _ply_ascii(pts):
-    head = f"ply\nformat ascii 1.0\nelement vertex {len(pts)}\nproperty double x\nproperty double y\nproperty double z\nend_header\n"
+    head = (f"ply\nformat ascii 1.0\nelement vertex {len(pts)}\n"
+            "property double x\nproperty double y\nproperty double z\nend_header\n")
     return (head + "".join(f"{p[0]:.6f} {p[1]:.6f} {p[2]:.6f}\n" for p in pts)).encode()
 
 
@@ -91,6 +92,7 @@ def base_files(rng):
         "mesh.obj": (_as_bytes(mesh.export(file_type="obj")), "obj"),
         "mesh_ascii.ply": (_as_bytes(mesh.export(file_type="ply", encoding="ascii")), "ply_mesh"),
         "mesh_binary.ply": (_as_bytes(mesh.export(file_type="ply")), "ply_mesh"),
+        "mesh.off": (_as_bytes(mesh.export(file_type="off")), "off"),
     }
 
 
@@ -205,7 +207,7 @@ def ref_ply_mesh(data: bytes):
     if not (head[1][:2] == ["element", "vertex"] and len(head[1]) == 3 and head[1][2].isdigit()
             and head[2:5] == [["property", "float", c] for c in "xyz"]
             and head[5][:2] == ["element", "face"] and len(head[5]) == 3 and head[5][2].isdigit()
-            and head[6] == ["property", "list", "uchar", "int", "vertex_indices"]):
+            and head[6][:4] == ["property", "list", "uchar", "int"] and len(head[6]) == 5):
         return None
     nv, nf = int(head[1][2]), int(head[5][2])
     body = data[end + len(b"end_header\n"):]
@@ -237,6 +239,31 @@ def ref_ply_mesh(data: bytes):
     if len(idx) and (idx.min() < 0 or idx.max() >= nv or (idx != np.round(idx)).any()):
         return None
     return verts, nf
+
+
+def ref_off(data: bytes):
+    """(vertices, triangle count) of an OFF of triangles (extra tokens are colours), or None."""
+    lines = [ln.split("#", 1)[0].strip() for ln in data.decode("utf-8", errors="replace").splitlines()]
+    lines = [ln for ln in lines if ln]
+    if len(lines) < 2 or lines[0] != "OFF":
+        return None
+    counts = lines[1].split()
+    if len(counts) != 3 or not all(c.isdigit() for c in counts):
+        return None
+    nv, nf = int(counts[0]), int(counts[1])
+    rows = [_floats(ln.split()) for ln in lines[2:2 + nv]]
+    if len(rows) != nv or any(r is None or len(r) < 3 for r in rows):
+        return None
+    faces = [ln.split() for ln in lines[2 + nv:]]
+    if len(faces) != nf or any(f[0] != "3" or len(f) < 4 for f in faces):
+        return None
+    try:
+        idx = np.array([[int(t) for t in f[1:4]] for f in faces]).reshape(-1, 3)
+    except ValueError:
+        return None
+    if len(idx) and (idx.min() < 0 or idx.max() >= nv):
+        return None
+    return np.array([r[:3] for r in rows], dtype=float).reshape(-1, 3), nf
 
 
 def ref_xyz(data: bytes):
@@ -354,8 +381,8 @@ def check_outcome(path, data: bytes, kind: str, what: str):
         assert wp.n_points == len(ref), f"{path.name}, {what}: {wp.n_points} points, the file holds {len(ref)}"
         assert np.allclose(wp.points_mm, ref, rtol=1e-6, atol=1e-9), f"{path.name}, {what}: points differ from the file"
         return "ok"
-    if kind in ("stl", "ply_mesh"):
-        ref = (ref_stl if kind == "stl" else ref_ply_mesh)(data)
+    if kind in ("stl", "ply_mesh", "off"):
+        ref = {"stl": ref_stl, "ply_mesh": ref_ply_mesh, "off": ref_off}[kind](data)
         assert ref is not None, f"{path.name}, {what}: accepted a file the strict reference parser rejects"
         verts, n_tri = ref
         assert len(wp.faces) == n_tri, f"{path.name}, {what}: {len(wp.faces)} triangles, the file holds {n_tri}"

@@ -112,7 +112,7 @@ def test_discovery_scans_the_entry_points_once_and_can_be_cleared(monkeypatch, t
     from camtool.job import load_job
     from camtool.post import write_programs
     from camtool.robots import get_robot
-    from post_fixtures import smooth_trajectory
+    from test_post import rows_trajectory
 
     scans = []
     real = base.entry_points
@@ -122,7 +122,7 @@ def test_discovery_scans_the_entry_points_once_and_can_be_cleared(monkeypatch, t
         job_file = tmp_path / "job.toml"
         job_file.write_text('[workpiece]\nfile = "x.stl"\n[robot]\nname = "seed8"\n[post]\n')
         r = get_robot("seed8")
-        write_programs(smooth_trajectory(r, 20), r, load_job(job_file), tmp_path / "out")  # 3 formats
+        write_programs(rows_trajectory(r), r, load_job(job_file), tmp_path / "out")  # 3 formats
         describe_plugins()
         get_plugin("csv")
         assert len(scans) == 1

@@ -8,14 +8,19 @@ from camtool.errors import BadInput
 from camtool.profiles import Profile, default_options, load_profile
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory, with_q
+from test_post import rows_trajectory
 from postprocessors.abb_rapid import RapidPost
 from postprocessors.check import check_program
 from postprocessors.csv_joint import CsvPost
 from postprocessors.yaskawa_inform import InformPost
 
 
-def _write(fmt, robot_name, tmp_path, n=40, **options):
+def _write(fmt, robot_name, tmp_path, n=40, cartesian=False, **options):
+    """A program of a raster-like trajectory (rows with leads, free motion between them) of
+    about n waypoints; joint moves only unless ``cartesian`` (the profile's own motion)."""
     r = get_robot(robot_name)
+    if fmt != "csv" and not cartesian:
+        options.setdefault("motion", "joint")
     if fmt == "csv":
         p = Profile("<t>", "csv", options=default_options("csv"))
     else:
@@ -23,15 +28,26 @@ def _write(fmt, robot_name, tmp_path, n=40, **options):
     if options:
         p = p.with_changes(options=options)
     post = {"rapid": RapidPost(), "inform": InformPost(), "csv": CsvPost()}[fmt]
-    files = post.write(smooth_trajectory(r, n), r, p, tmp_path)
+    rows = max(1, n // 14)
+    tr = smooth_trajectory(r, n) if fmt == "csv" else rows_trajectory(r, rows=rows, per_row=8, free=3)
+    files = post.write(tr, r, p, tmp_path)
     return r, p, files
 
 
 @pytest.mark.parametrize("fmt,robot_name", [("rapid", "seed8"), ("rapid", "irb2400"), ("inform", "seed8"),
                                             ("inform", "sia20"), ("csv", "seed8"), ("csv", "irb2400_paper")])
 def test_written_programs_are_clean(fmt, robot_name, tmp_path):
-    r, p, files = _write(fmt, robot_name, tmp_path, lines_per_module=15) if fmt == "rapid" else \
+    r, p, files = _write(fmt, robot_name, tmp_path, lines_per_module=20) if fmt == "rapid" else \
         _write(fmt, robot_name, tmp_path)
+    for f in files:
+        assert check_program(f, r, p) == [], f.name
+
+
+@pytest.mark.parametrize("fmt,robot_name", [("rapid", "irb2400"), ("inform", "sia20")])
+def test_written_cartesian_programs_are_clean(fmt, robot_name, tmp_path):
+    r, p, files = _write(fmt, robot_name, tmp_path, n=60, cartesian=True)
+    text = files[-1].read_bytes()
+    assert (b"MoveL [[" if fmt == "rapid" else b"\r\nMOVL C") in text
     for f in files:
         assert check_program(f, r, p) == [], f.name
 
@@ -72,7 +88,7 @@ def test_rapid_structure_defects(tmp_path):
 
 
 def test_rapid_missing_split_module_is_flagged(tmp_path):
-    r, p, files = _write("rapid", "irb2400", tmp_path, n=30, lines_per_module=10)
+    r, p, files = _write("rapid", "irb2400", tmp_path, n=30, lines_per_module=20)
     files[3].unlink()
     found = "\n".join(check_program(files[0], r, p))
     assert "CAMTOOL_002.mod: cannot read" in found and "CAMTOOL_002_run" in found
@@ -88,9 +104,11 @@ def test_inform_value_beyond_limits_is_flagged(tmp_path):
     assert any("s = 200.0000 deg outside the limits" in f for f in found)
 
 
-def test_inform_vj_above_the_speed_limit_is_flagged(tmp_path):
+def test_inform_vj_never_exceeds_the_robot_even_with_a_faster_profile(tmp_path):
+    """A profile whose max_speed is above the robot's limit: the writer caps VJ at what the
+    robot allows, so the check stays clean; a VJ raised by hand is flagged."""
     r = get_robot("sia20")
-    p = load_profile(None, "sia20", "inform", r)
+    p = load_profile(None, "sia20", "inform", r).with_changes(options={"motion": "joint"})
     fast = p.with_changes()
     object.__setattr__(fast, "axes", tuple(a if a.joint != "t" else type(a)(**{**a.__dict__, "max_speed": 800.0})
                                            for a in p.axes))
@@ -99,6 +117,8 @@ def test_inform_vj_above_the_speed_limit_is_flagged(tmp_path):
     q[:, 6] = tr.q[:, 6]  # only t moves: it needs up to ~565 deg/s, its limit is 400
     tr = with_q(tr, q)
     f = InformPost().write(tr, r, fast, tmp_path)[0]
+    assert check_program(f, r, fast) == []
+    f.write_bytes(re.sub(rb"VJ=\d+\.\d\d PL=([1-8])", rb"VJ=100.00 PL=\1", f.read_bytes()))
     found = check_program(f, r, fast)
     assert any(re.search(r"t speed [0-9.]+ deg/s above the limit 400.00 deg/s", x) for x in found)
 
@@ -115,6 +135,11 @@ def test_inform_vj_above_the_speed_limit_is_flagged(tmp_path):
 ])
 def test_inform_structure_defects(old, new, message, tmp_path):
     r, p, files = _write("inform", "seed8", tmp_path)
+    if old.startswith("///NPOS"):  # the counts of the file at hand
+        line = next(ln for ln in files[0].read_bytes().decode().split("\r\n") if ln.startswith("///NPOS"))
+        c = int(line.split()[1].split(",")[0])
+        old, new = line, line.replace(f"NPOS {c},", f"NPOS {c + 1},", 1)
+        message = f"NPOS says {c + 1} C positions, the file has {c}"
     _edit(files[0], old, new)
     found = check_program(files[0], r, p)
     assert any(message in f for f in found), found
@@ -130,7 +155,7 @@ def test_inform_line_ends_and_ascii(tmp_path):
 
 
 def test_inform_missing_called_job_is_flagged(tmp_path):
-    r, p, files = _write("inform", "seed8", tmp_path, n=30, lines_per_job=10)
+    r, p, files = _write("inform", "seed8", tmp_path, n=30, lines_per_job=20)
     files[2].unlink()
     assert any("CAMTOO_2.JBI: cannot read" in f for f in check_program(files[0], r, p))
 
@@ -318,8 +343,9 @@ def _cuts(data: bytes, sep: bytes):
                                                   ("inform", "sia20", 0), ("inform", "seed8", 2),
                                                   ("csv", "seed8", 0), ("csv", "irb2400", 0)])
 def test_every_truncated_file_is_flagged(fmt, robot_name, which, tmp_path):
-    split = {"rapid": dict(lines_per_module=8), "inform": dict(lines_per_job=8)}.get(fmt, {}) if which else {}
-    r, p, files = _write(fmt, robot_name, tmp_path, n=20, **split)
+    split = {"rapid": dict(lines_per_module=20), "inform": dict(lines_per_job=20)}.get(fmt, {}) if which else {}
+    r, p, files = _write(fmt, robot_name, tmp_path, n=40 if which else 20, **split)
+    assert len(files) > which
     p = None if fmt == "csv" else p
     assert check_program(files[0], r, p) == []
     target = files[which]
@@ -342,10 +368,11 @@ def test_truncated_rapid_module_names_the_missing_end(tmp_path):
 def test_truncated_inform_job_names_npos_and_end(tmp_path):
     r, p, files = _write("inform", "sia20", tmp_path, n=10)
     lines = files[0].read_bytes().decode().split("\r\n")
+    c = int(next(ln for ln in lines if ln.startswith("///NPOS")).split()[1].split(",")[0])
     cut = next(i for i, ln in enumerate(lines) if ln.startswith("C00006="))
     files[0].write_bytes(("\r\n".join(lines[:cut]) + "\r\n").encode())
     found = "\n".join(check_program(files[0], r, p))
-    assert "NPOS says 10 C positions, the file has 6" in found and "does not end with END" in found
+    assert f"NPOS says {c} C positions, the file has 6" in found and "does not end with END" in found
 
 
 def test_truncated_csv_names_the_trailer(tmp_path):

@@ -308,7 +308,8 @@ def test_dense_variant_size(sphere):
     ({"tool_x": "sideways"}, "tool_x"),
     ({"tool_x_world": (0, 0, 0)}, "tool_x_world"),
     ({"pitch_mm": float("nan")}, "pitch_mm"),
-    ({"step_over_mm": 0.01, "pitch_mm": 0.01}, "coarser"),
+    ({"step_over_mm": 0.01, "pitch_mm": 0.01}, "0.1..10000"),
+    ({"step_over_mm": 0.1, "pitch_mm": 0.1}, "coarser"),
 ])
 def test_bad_arguments(sphere, kw, words):
     with pytest.raises(BadInput, match=words) as exc:

@@ -104,7 +104,9 @@ def test_two_writes_are_byte_identical(job, tmp_path):
 def test_feed_is_the_programmed_tcp_speed_on_work(job):
     feed = _feed(job["robot"], job["trajectory"])
     work = (feed["zone"] == 0) & np.isfinite(feed["v"])
-    assert np.median(feed["v"][work]) == pytest.approx(100.0, rel=0.03)
+    # rows the limits slow run at their own constant feed; the rest at the programmed 100 mm/s
+    assert np.percentile(feed["v"][work], 90) == pytest.approx(100.0, rel=0.03)
+    assert np.all(feed["v"][work] <= 100.0 * 1.03)
     assert feed["s"][-1] == pytest.approx(np.linalg.norm(np.diff(feed["p"], axis=0), axis=1).sum())
 
 

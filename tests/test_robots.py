@@ -158,3 +158,128 @@ def test_user_toml_robot_errors_name_the_key(tmp_path):
 def test_unknown_robot():
     with pytest.raises(BadInput, match="unknown robot 'foo'"):
         get_robot("foo")
+
+
+# --------------------------------------------------------------------------- bad robot files: one line, BadInput
+
+BAD = __import__("pathlib").Path(__file__).resolve().parent / "bad_input"
+_LIMITS = "lower = -90\nupper = 90\nvelocity = 100\nacceleration = 200\njerk = 1000\n"
+_ONE_JOINT = 'name = "x"\n[[joint]]\nname = "j1"\na_mm = 300\n' + _LIMITS
+
+
+@pytest.mark.parametrize("text,message", [
+    ('name = "x"\njoint = [1, 2]\n', r"joint\[0\]: expected a \[\[joint\]\] table .*found 1$"),
+    (_ONE_JOINT + "[flange]\nxyz_mm = [0, 0]\n", r"\[flange\] xyz_mm: expected 3 numbers \[x, y, z\], found \[0, 0\]"),
+    (_ONE_JOINT + "[flange]\nxyz = [0, 0, 100]\n", r"\[flange\] xyz: unknown key; did you mean xyz_mm\?$"),
+    (_ONE_JOINT + "[flange]\nrpy_deg = [0, nan, 0]\n", r"\[flange\] rpy_deg: expected 3 finite numbers"),
+    ('name = "x"\n[params]\nL1 = "long"\n[[joint]]\na_mm = "L1"\n' + _LIMITS,
+     r"\[params\] L1: expected a length in mm, found 'long'"),
+    ('name = "x"\n[[joint]]\nlower = nan\nupper = 90\nvelocity = 100\nacceleration = 200\njerk = 1000\n',
+     r"joint\[0\]\.lower: expected a finite number, found nan"),
+    ('name = "x"\n[[joint]]\nlower = -90\nupper = inf\nvelocity = 100\nacceleration = 200\njerk = 1000\n',
+     r"joint\[0\]\.upper: expected a finite number, found inf"),
+    ('name = "x"\n[[joint]]\nlower = -90\nupper = 90\nvelocity = -inf\nacceleration = 200\njerk = 1000\n',
+     r"joint\[0\]\.velocity: expected a finite number, found -inf"),
+    (_ONE_JOINT + '[[joint]]\nname = "j1"\n' + _LIMITS,
+     r"joint\[1\]\.name: 'j1' is already the name of joint\[0\]; joint names must be unique"),
+    ('name = "x"\n[[joint]]\na = 300\n' + _LIMITS, r"joint\[0\] a: unknown key; did you mean a_mm\?$"),
+    ('name = "x"\n[[joint]]\nalpha_dge = 90\n' + _LIMITS, r"joint\[0\] alpha_dge: unknown key; did you mean alpha_deg\?$"),
+    ('nmae = "x"\n[[joint]]\n' + _LIMITS, r": nmae: unknown key; did you mean name\?$"),
+    ('name = "x"\n[[joint]]\na_mm = 1e12\n' + _LIMITS, r"joint\[0\]\.a_mm: 1e\+12 mm is not a plausible length"),
+    (_ONE_JOINT + "[flange]\nxyz_mm = [0, 0, 1e12]\n", r"\[flange\] xyz_mm: 1e\+12 mm is not a plausible length"),
+    ('name = "x"\n[params]\nL1 = 1e12\n[[joint]]\nd_mm = "L1"\n' + _LIMITS,
+     r"\[params\] L1: 1e\+12 mm is not a plausible length"),
+    ('name = "x"\n[[joint]]\ntype = "prismatic"\nlower = -1e9\nupper = 1000\nvelocity = 1\nacceleration = 1\njerk = 1\n',
+     r"joint\[0\]\.lower: -1e\+09 mm is not a plausible length"),
+    ('name = "x"\nparams = 5\n[[joint]]\n' + _LIMITS, r"params: expected a \[params\] table"),
+])
+def test_robot_toml_validation_one_line(tmp_path, text, message):
+    f = tmp_path / "arm.toml"
+    f.write_text(text)
+    with pytest.raises(BadInput, match=message) as exc:
+        get_robot(str(f))
+    assert str(exc.value).startswith(str(f)) and "\n" not in str(exc.value)
+
+
+def test_job_param_override_must_be_a_plausible_length():
+    with pytest.raises(BadInput, match=r"robot\.params\.L2: 1e\+12 mm is not a plausible length"):
+        get_robot("seed8", {"L2": 1e12})
+    with pytest.raises(BadInput, match=r"robot\.params\.L2: expected a length > 0 mm, found nan"):
+        get_robot("seed8", {"L2": float("nan")})
+    with pytest.raises(BadInput, match=r"no parameter 'L22'.*did you mean L2\?"):
+        get_robot("seed8", {"L22": 1.0})
+
+
+def test_robot_toml_unreadable(tmp_path):
+    (tmp_path / "dir.toml").mkdir()
+    with pytest.raises(BadInput, match="is a folder"):
+        get_robot(str(tmp_path / "dir.toml"))
+    (tmp_path / "bin.toml").write_bytes(b"\xff\xfe\x00")
+    with pytest.raises(BadInput, match="cannot read the robot file"):
+        get_robot(str(tmp_path / "bin.toml"))
+
+
+def _urdf(joints: str, links=("a", "b")) -> str:
+    return '<robot name="r">' + "".join(f'<link name="{n}"/>' for n in links) + joints + "</robot>"
+
+
+def _joint(name="j", kind="revolute", parent="a", child="b", extra='<limit lower="-1" upper="1" velocity="1" effort="1"/>'):
+    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>{extra}</joint>')
+
+
+@pytest.mark.parametrize("text,message", [
+    (_urdf(""), "has no movable joint"),
+    (_urdf(_joint(kind="fixed", extra="")), "has no movable joint"),
+    ("hello", r"not a URDF: XML error"),
+    ("<foo/>", r"root element is <foo>, expected <robot>"),
+    (_urdf(_joint(child="c")), r"joint 'j': <child link='c'> is not a <link> of the robot"),
+    (_urdf(_joint(kind="bogus")), r"joint 'j': type 'bogus' is not a URDF joint type"),
+    (_urdf(_joint(kind="continuous", extra="")), r"continuous joints are not supported"),
+    (_urdf(_joint(kind="floating", extra="")), r"floating joints are not supported"),
+    (_urdf(_joint(extra="")), r"joint 'j': <limit lower=\.\.\.> missing"),
+    (_urdf(_joint(extra='<limit lower="-1" upper="nan" velocity="1" effort="1"/>')),
+     r"<limit upper='nan'> is not a finite number"),
+    (_urdf(_joint(extra='<limit lower="-1" upper="1" velocity="inf" effort="1"/>')),
+     r"<limit velocity='inf'> is not a finite number"),
+    (_urdf(_joint(extra='<limit lower="1" upper="-1" velocity="1" effort="1"/>')), "lower must be below upper"),
+    (_urdf(_joint() + _joint(parent="b", child="c"), ("a", "b", "c")), r"joint 'j' is defined twice"),
+    (_urdf(_joint(), ("a", "a", "b")), r"link 'a' is defined twice"),
+    (_urdf(_joint(extra='<origin xyz="1e9 0 0"/><limit lower="-1" upper="1" velocity="1" effort="1"/>')),
+     r"<origin xyz> is 1e\+09 m from its parent"),
+    (_urdf(_joint(extra='<origin xyz="nan 0 0"/><limit lower="-1" upper="1" velocity="1" effort="1"/>')),
+     r"<origin xyz>: expected 3 finite numbers"),
+    (_urdf(_joint(extra='<axis xyz="0 0 0"/><limit lower="-1" upper="1" velocity="1" effort="1"/>')),
+     r"<axis xyz> is zero"),
+    (_urdf(_joint(), ("a", "b", "c")), r"the links form 2 separate trees"),
+])
+def test_urdf_checked_before_pinocchio(tmp_path, text, message):
+    f = tmp_path / "arm.urdf"
+    f.write_text(text)
+    with pytest.raises(BadInput, match=message) as exc:
+        robot_from_urdf(f)
+    assert str(exc.value).startswith(str(f)) and "\n" not in str(exc.value)
+
+
+def test_cli_robot_without_movable_joint_is_exit_2_not_a_crash():
+    from conftest import run_camtool
+
+    r = run_camtool("fk", BAD / "no_joints.urdf", "0", "--json")
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.count("\n") == 1 and "no_joints.urdf: the URDF has no movable joint" in r.stderr
+
+
+def test_cli_robot_toml_errors_exit_2(tmp_path):
+    from conftest import run_camtool
+
+    f = tmp_path / "arm.toml"
+    f.write_text(_ONE_JOINT + "[flange]\nxyz = [0, 0, 100]\n")
+    r = run_camtool("fk", f, "0", "--json")
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr == f"camtool: error: {f}: [flange] xyz: unknown key; did you mean xyz_mm?\n"
+
+
+def test_dh_model_never_sees_nan():
+    from camtool.robots.dh import DHRow, build_pinocchio_model
+
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        build_pinocchio_model([DHRow(np.nan, 0.0, 0.0, 0.0)], "modified", np.eye(4), ["j1"], "x")

@@ -11,10 +11,12 @@ import camtool.trajectory as trajectory_module
 from camtool.settings import TimingSettings
 from camtool.timing import (TrajectorySamples, check_trajectory, sample_trajectory, samples_for, time_trajectory,
                             timing_report)
-from camtool.timing.flow import flow_chain, hard_steps
-from camtool.timing.quintic import MARGIN, time_runs
+from camtool.timing.assemble import _stretched
+from camtool.timing.flow import corner_poses, flow_chain, hard_steps
+from camtool.timing.quintic import MARGIN
 from camtool.timing.ruckig_moves import RuckigMover, rest_to_rest_chain
 from camtool.timing.ruckig_through import TIME_GRID_S, through_pieces
+from camtool.timing.runs import time_runs
 from camtool.toolpath import ZONE_CODE, ZONES
 from camtool.trajectory import Trajectory
 from test_timing_fixtures import joint_path_and_path, retract_path, seed8, transition_path, two_runs
@@ -36,14 +38,14 @@ CASES = {"two_runs": two_runs(ROBOT), "transition": transition_path(ROBOT), "ret
          "leads": _with_leads()}
 
 
-def reference(jp, path, robot, method, zones, tcp_speed_mm_s):
+def reference(jp, path, robot, method, zones, tcp_speed_mm_s, feed="constant", scope="row"):
     """The timed waypoints and slow-downs, re-computed from the building blocks in one plain loop.
 
-    Runs (surface rows of one segment) are timed together by ``time_runs`` (and
-    ``through_pieces``); the free rows between runs by the chain timing of
-    ``zones``. Pieces follow one another; each after the first drops its first
-    sample; a run with ruckig pieces starts on the 2^-30 s grid (the sample
-    before it moved there).
+    Runs (surface rows of one segment) are timed together by ``runs.time_runs`` (and
+    ``through_pieces``, whose fallback pieces keep the law's samples stretched to the
+    time grid); the free rows between runs by the chain timing of ``zones``. Pieces
+    follow one another; each after the first drops its first sample; a run with ruckig
+    pieces starts on the 2^-30 s grid (the sample before it moved there).
     """
     L = robot.limits
     q, zone, pidx = np.asarray(jp.q, float), np.asarray(jp.zone), np.asarray(jp.path_index)
@@ -61,17 +63,30 @@ def reference(jp, path, robot, method, zones, tcp_speed_mm_s):
     last = np.array([r == run[-1] for run in runs for r in run])
     tcp = np.array([path.poses_mm[p][:3, 3] if p >= 0 else (robot.base_T_mm @ robot.fk_tcp(q[r]))[:3, 3]
                     for r, p in zip(rows, pidx[rows])])
-    timed = time_runs(q[rows], np.linalg.norm(np.diff(tcp, axis=0), axis=1), first, last, np.cumsum(first) - 1,
-                      L, tcp_speed_mm_s)
+    law = time_runs(q[rows], np.linalg.norm(np.diff(tcp, axis=0), axis=1), first, last, np.cumsum(first) - 1,
+                    zone[rows], L, tcp_speed_mm_s, feed, scope)
     pieces = np.flatnonzero(~last[:-1])
-    h = timed.h_s.copy()
+    h = law.h_s.copy()
     inner = {}  # surface waypoint -> [(t from piece start, q, qd, qdd)]
     ruckig = method == "ruckig" and len(pieces) > 0
+    law_pieces = set(range(len(h)))
     if ruckig:
-        tp = through_pieces(L, q[rows], timed.qd, timed.qdd, timed.h_s, pieces, share=MARGIN)
-        h[pieces] = tp.duration_s
+        tp = through_pieces(L, q[rows], law.qd, law.qdd, law.h_s, pieces, share=MARGIN)
+        grid = np.ceil(law.h_s[pieces] / TIME_GRID_S) * TIME_GRID_S
+        used = tp.used & (tp.duration_s <= grid)  # a ruckig piece that needs longer keeps the law's samples
+        h[pieces] = np.where(used, tp.duration_s, grid)
         for k, t, a, b, c in zip(pieces[tp.piece], tp.t_s, tp.q, tp.qd, tp.qdd):
-            inner.setdefault(int(k), []).append((t, a, b, c))
+            if used[np.flatnonzero(pieces == k)[0]]:
+                inner.setdefault(int(k), []).append((t, a, b, c))
+        law_pieces = set(pieces[~used].tolist())
+    sel = np.array([int(w) in law_pieces for w in law.inner_waypoint], bool)
+    from camtool.timing.assemble import InnerSamples
+    mine = InnerSamples(law.inner_waypoint[sel], law.inner_t_s[sel], law.inner_q[sel], law.inner_qd[sel],
+                        law.inner_qdd[sel])
+    if ruckig and sel.any():
+        mine = _stretched(mine, law, h)
+    for k, t, a, b, c in zip(mine.waypoint, mine.t_s, mine.q, mine.qd, mine.qdd):
+        inner.setdefault(int(k), []).append((t, a, b, c))
     k_of = {r: k for k, r in enumerate(rows)}
     mover = RuckigMover(L)
     out = []  # [t, q, qd, qdd, zone, path_index] per sample
@@ -92,42 +107,31 @@ def reference(jp, path, robot, method, zones, tcp_speed_mm_s):
                 offset = grid
         ks = [k_of[r] for r in run]
         t_way = np.concatenate([[0.0], np.cumsum(h[ks[0]:ks[-1]])])
-        samples = [(t_way[i], q[r], timed.qd[k], timed.qdd[k], zone[r], pidx[r]) for i, (r, k) in enumerate(zip(run, ks))]
+        samples = [(t_way[i], q[r], law.qd[k], law.qdd[k], zone[r], pidx[r]) for i, (r, k) in enumerate(zip(run, ks))]
         for i, k in enumerate(ks[:-1]):
             z0, z1 = zone[run[i]], zone[run[i + 1]]
             z = z0 if z0 == z1 or z1 == ZONE_CODE["work"] else z1
-            samples += [(t_way[i] + t, a, b, c, z, -1) for t, a, b, c in inner.get(k, [])]
+            samples += [(t_way[i] + t, a, b, c, z, -1) for t, a, b, c in sorted(inner.get(k, []), key=lambda x: x[0])]
         samples.sort(key=lambda x: x[0])  # stable: a waypoint before a sample at the same time
         run_start[run[0]] = offset
         out += [[offset + t, *x] for i, (t, *x) in enumerate(samples) if i or not out]
         offset += float(t_way[-1])
         prev = run[-1]
     t_s = np.array([x[0] for x in out])
-    ratio = timed.h_plan_s[pieces] / h[pieces]
-    slow = []
-    for p, k in enumerate(pieces):
-        if ratio[p] >= 0.995:
-            continue
-        run_id = int(np.cumsum(first)[k])
-        if slow and slow[-1]["pieces"][-1] == p - 1 and slow[-1]["run"] == run_id:
-            slow[-1]["pieces"].append(p)
-        else:
-            slow.append({"run": run_id, "pieces": [p]})
-    run_of = np.cumsum(first)[pieces]
     slowdowns = []
-    for s in slow:
-        p0, p1 = s["pieces"][0], s["pieces"][-1]
-        a, b = rows[pieces[p0]], rows[pieces[p1]] + 1
+    names = robot.joint_names
+    for s in law.slow:
+        ka, kb = s["first_waypoint"], s["last_waypoint"]
+        a, b = rows[ka], rows[kb]
         run = next(r for r in runs if a in r)
         ks = [k_of[r] for r in run]
-        t_way = np.concatenate([[0.0], np.cumsum(h[ks[0]:ks[-1]])])
-        t0 = run_start[run[0]] + t_way[:-1]
+        t_way = run_start[run[0]] + np.concatenate([[0.0], np.cumsum(h[ks[0]:ks[-1]])])
         slowdowns.append({
             "first_row": a, "last_row": b, "first_path_index": int(pidx[a]), "last_path_index": int(pidx[b]),
-            "t_start_s": float(t0[pieces[p0] - ks[0]]), "t_end_s": float(t0[pieces[p1] - ks[0]] + h[pieces[p1]]),
-            "speed_ratio": float(ratio[p0:p1 + 1].min()), "zone": ZONES[int(zone[a])],
-            "at_run_end": bool(p0 == 0 or run_of[p0 - 1] != run_of[p0] or p1 == len(pieces) - 1
-                               or run_of[p1 + 1] != run_of[p1])})
+            "t_start_s": float(t_way[ka - ks[0]]), "t_end_s": float(t_way[kb - ks[0]]),
+            "speed_ratio": float(s["speed_ratio"]), "feed_mm_s": float(s["feed_mm_s"]),
+            "joint": names[int(s["joint"])], "limit": s["limit"], "run": int(s["run"]), "zone": ZONES[int(zone[a])],
+            "at_run_end": bool(s["at_run_end"])})
     return {"t_s": t_s, "q": np.array([x[1] for x in out]), "qd": np.array([x[2] for x in out]),
             "qdd": np.array([x[3] for x in out]), "zone": np.array([x[4] for x in out]),
             "path_index": np.array([x[5] for x in out]), "slowdowns": tuple(slowdowns)}
@@ -141,7 +145,8 @@ def _chain_samples(jp, robot, mover, zones, chain_rows):
     if zones == "flow":
         hard = hard_steps(qs, robot.prismatic, np.asarray(jp.jump)[chain_rows],
                           (zone[chain_rows] == ZONE_CODE["retract"]) | np.asarray(jp.retract)[chain_rows])
-        t, cq, cv, ca, pose = flow_chain(mover, qs, hard)
+        rest = corner_poses(qs, pidx[chain_rows] < 0, robot.limits.velocity)
+        t, cq, cv, ca, pose = flow_chain(mover, qs, hard, rest)
     else:
         t, cq, cv, ca, pose = rest_to_rest_chain(mover, qs)
     result, at = [], 0
@@ -170,6 +175,18 @@ def test_assembly_is_the_plain_recomputation_bit_for_bit(case, method, zones, sp
         assert np.array_equal(getattr(tr, name), ref[name]), name
     assert tr.slowdowns == ref["slowdowns"]
     assert tr.slowdowns or speed < 1000  # the fast cases compare real slow-downs
+
+
+@pytest.mark.parametrize("feed,scope,method", [("constant", "stretch", "quintic"), ("max", "row", "ruckig")])
+def test_assembly_with_the_feed_policies(feed, scope, method):
+    jp, path = CASES["leads"]
+    tr = time_trajectory(jp, path, ROBOT, TimingSettings.make(method=method, feed=feed, slow_scope=scope,
+                                                              tcp_speed_mm_s=1500.0))
+    ref = reference(jp, path, ROBOT, method, "flow", 1500.0, feed, scope)
+    for name in ("t_s", "q", "qd", "qdd", "zone", "path_index"):
+        assert np.array_equal(getattr(tr, name), ref[name]), name
+    assert tr.slowdowns == ref["slowdowns"] and tr.slowdowns
+    assert (tr.feed, tr.slow_scope) == (feed, scope)
 
 
 TR = time_trajectory(*CASES["two_runs"], ROBOT, TimingSettings.make(method="ruckig", check_dt_ms=3.0))

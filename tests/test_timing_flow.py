@@ -48,12 +48,31 @@ def test_flow_keeps_jumps_rest_to_rest():
         assert np.all(tr.qd[k] == 0)
 
 
-def test_stop_is_the_default_and_bad_value_rejected():
+def test_flow_is_the_default_and_bad_value_rejected():
     d = time_trajectory(JP, PATH, ROBOT, TimingSettings.make())
     for f in ("t_s", "q", "qd", "qdd", "zone", "path_index"):
-        assert np.array_equal(getattr(d, f), getattr(STOP, f))
+        assert np.array_equal(getattr(d, f), getattr(FLOW, f))
     with pytest.raises(BadInput):
         TimingSettings.make(zones="glide")
+
+
+def test_inserted_corners_rest_and_keep_their_straight_edges():
+    """An inserted free pose (path_index -1) where the joint direction turns is a rest pose; between
+    two such corners the move stays on its straight joint-space edge (as it was collision-checked)."""
+    from dataclasses import replace
+    pidx = JP.path_index.copy()
+    pidx[N + 1:N + 4] = -1  # self-motion poses 1..3 inserted (as a lift connector's)
+    q = JP.q.copy()
+    q[N + 2, 3] += np.radians(5)  # a 5 deg kink at pose 2 of the zone
+    jp = replace(JP, path_index=pidx, q=q)
+    tr = time_trajectory(jp, PATH, ROBOT, TimingSettings.make(zones="flow"))
+    assert check_trajectory(tr, ROBOT, 0.004) == []
+    rows = [np.flatnonzero(np.all(tr.q == q[r], axis=1))[0] for r in (N + 1, N + 2, N + 3)]
+    assert all(np.all(tr.qd[k] == 0) for k in rows)
+    a, b = rows[0], rows[1]
+    d = (q[N + 2] - q[N + 1]) / np.linalg.norm(q[N + 2] - q[N + 1])
+    off = tr.q[a:b + 1] - q[N + 1]
+    assert np.abs(off - np.outer(off @ d, d)).max() < 1e-9
 
 
 def test_flow_deterministic():

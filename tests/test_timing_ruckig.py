@@ -9,7 +9,8 @@ from camtool.settings import TimingSettings
 from camtool.timing import check_trajectory, time_trajectory, timing_report
 from camtool.timing import ruckig_through
 from camtool.timing.assemble import run_layout, tcp_positions_mm
-from camtool.timing.quintic import MARGIN, piece_peaks, time_runs
+from camtool.timing.quintic import MARGIN, piece_peaks
+from camtool.timing.runs import time_runs
 from camtool.timing.ruckig_through import CHECK_SHARE, JERK_FACTORS, REASONS, TIME_GRID_S, through_pieces
 from camtool.toolpath import ZONE_CODE
 from camtool.trajectory import Trajectory
@@ -51,7 +52,8 @@ def _ruckig_1dof(i, x0, x1, duration_s, factor):
 def test_share_of_ruckig_pieces_and_report():
     rep = _report(TR)
     assert rep["surface_pieces"] == 2 * 119 == len(TR.piece_ruckig)
-    assert rep["ruckig_piece_share"] >= 0.95 and rep["ruckig_work_piece_share"] >= 0.95
+    # the pieces of the ramps at the run ends (no leads here) are the ones ruckig cannot always give
+    assert rep["ruckig_piece_share"] >= 0.9 and rep["ruckig_work_piece_share"] >= 0.9
     fb = rep["ruckig_fallbacks"]
     assert fb["count"] == int((~TR.piece_ruckig).sum()) == sum(fb["by_reason"].values())
     assert set(fb["by_reason"]) <= set(REASONS)
@@ -110,7 +112,12 @@ def test_tcp_schedule_is_kept():
         assert {k: v for k, v in x.items() if not isinstance(v, float)} == \
             {k: v for k, v in y.items() if not isinstance(v, float)}
         assert x["speed_ratio"] == pytest.approx(y["speed_ratio"], rel=1e-6)
-    surface = np.isin(TR.zone, [ZONE_CODE[z] for z in ("work", "lead_in", "lead_out")])
+    # poses and ruckig samples on the 2^-30 s grid (a fallback piece's own samples are stretched with it)
+    fallback_rows = set(TR.piece_row[~TR.piece_ruckig].tolist())
+    k = np.maximum.accumulate(np.where(TR.path_index >= 0, np.arange(len(TR.t_s)), 0))
+    in_fallback = np.array([TR.path_index[i] < 0 and int(JP.path_index.tolist().index(TR.path_index[k[i]])) in
+                            fallback_rows for i in range(len(TR.t_s))])
+    surface = np.isin(TR.zone, [ZONE_CODE[z] for z in ("work", "lead_in", "lead_out")]) & ~in_fallback
     assert np.array_equal(np.round(TR.t_s[surface] / TIME_GRID_S) * TIME_GRID_S, TR.t_s[surface])
     assert _report(TR)["work_time_s"] == pytest.approx(_report(QT)["work_time_s"], abs=1e-6)
 
@@ -120,7 +127,7 @@ def test_longer_pieces_where_limits_force_them():
     sidx = np.flatnonzero(layout.surface)
     first, last = layout.start[sidx], layout.end[sidx]
     step = np.linalg.norm(np.diff(tcp_positions_mm(JP, PATH, ROBOT)[sidx], axis=0), axis=1)
-    runs = time_runs(JP.q[sidx], step, first, last, np.cumsum(first) - 1, L, 100.0)
+    runs = time_runs(JP.q[sidx], step, first, last, np.cumsum(first) - 1, JP.zone[sidx], L, 100.0)
     pieces = np.flatnonzero(~last[:-1])[:60]
     h = 0.3 * runs.h_s  # far too short: ruckig must lengthen the pieces
     res = through_pieces(L, JP.q[sidx], runs.qd, runs.qdd, h, pieces, share=MARGIN)
@@ -146,8 +153,10 @@ def test_fallbacks_keep_quintic_and_are_reported(monkeypatch):
     assert rep["ruckig_piece_share"] < 0.2
     assert rep["ruckig_fallbacks"]["by_reason"].get("switch_times", 0) >= 0.8 * rep["surface_pieces"]
     fall = tr.piece_row[~tr.piece_ruckig]
-    for row in fall[:5]:  # a fallback piece is the quintic piece: no samples inside
-        assert _row_index(tr, row + 1) == _row_index(tr, row) + 1
+    for row in fall[:5]:  # a fallback piece keeps the time law's own samples (those of method quintic)
+        assert _row_index(tr, row + 1) - _row_index(tr, row) == _row_index(QT, row + 1) - _row_index(QT, row)
+    mid = [r for r in fall if 30 <= r < 90][:3]  # at constant feed: none (the Hermite piece is exact)
+    assert mid and all(_row_index(tr, r + 1) == _row_index(tr, r) + 1 for r in mid)
 
 
 def test_deterministic():

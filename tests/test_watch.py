@@ -16,7 +16,7 @@ from camtool.cli import cli as camtool_cli
 from conftest import ROOT, SAMPLES
 
 TEMPLATE = SAMPLES / "plate_hole.toml"
-COARSE = ["--set", "raster.step_over_mm=40", "--set", "raster.pitch_mm=30", "--set", 'post.formats=["csv"]']
+COARSE = ["--set", "raster.step_over_mm=40", "--set", "raster.pitch_mm=8", "--set", 'post.formats=["csv"]']
 BROKEN = "[raster\nstep_over_mm = 5\n"
 
 
@@ -173,7 +173,7 @@ def test_second_once_is_all_cached_and_merges_summary(hot, tmp_path):
     ("missing_template", "job file not found"),
     ("broken_template", "TOML syntax error"),
     ("unknown_key", "--set raster.nope: unknown key"),
-    ("bad_value", "raster.step_over_mm: expected a number > 0"),
+    ("bad_value", "raster.step_over_mm: expected a number in 0.1..10000"),
 ])
 def test_bad_input_exits_2_before_anything_runs(tmp_path, case, message):
     indir, template, extra = tmp_path / "in", TEMPLATE, []

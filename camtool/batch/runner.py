@@ -175,7 +175,7 @@ def _decided(base: dict, status: str, code: int, reason: str, t0: float, log: st
 
 def job_command(spec: JobSpec) -> list[str]:
     """The command line that runs one job."""
-    cmd = [sys.executable, "-m", "camtool.cli", "--debug", "run", spec.job, "-o", spec.outdir, "--json"]
+    cmd = [sys.executable, "-m", "camtool.cli", "--debug", "run", spec.job, "-o", spec.outdir, "--json", "--progress"]
     for o in spec.overrides:
         cmd += ["--set", o]
     return cmd

@@ -1,4 +1,4 @@
-"""``camtool check``: validate a controller program against a robot."""
+"""``camtool check``: validate a controller program against a robot, and optionally run it."""
 from pathlib import Path
 
 import click
@@ -7,22 +7,71 @@ from ..console import echo_json
 from ..robots import get_robot
 
 
+def _simulation(program: Path, robot, profile, fmt: str, against: Path | None, job, path_tol: float | None):
+    """(report, None) of simulating PROGRAM, or (None, reason) when its plugin cannot."""
+    from postprocessors.base import get_plugin
+
+    from ..errors import BadInput
+    from ..simulate import reference_from_samples, reference_from_trajectory, simulate
+
+    plugin = get_plugin(fmt)
+    if not hasattr(plugin, "read_program"):
+        return None, f"post-processor {fmt!r} cannot be simulated (it has no read_program)"
+    prog = plugin.read_program(program, robot, profile)
+    feed = None
+    if job is not None:
+        try:
+            feed = float(job.timing["tcp_speed_mm_s"])
+        except (KeyError, TypeError, ValueError):
+            feed = None
+    reference = None
+    if against is not None:
+        if not Path(against).is_file():
+            raise BadInput(f"{against}: planned path file not found")
+        if Path(against).suffix.lower() == ".npz":
+            from ..stage_files import load_stage
+
+            box = load_stage(against, expect=("Trajectory", "TimedTrajectory"))
+            reference = reference_from_trajectory(box, robot, feed)
+        else:
+            from postprocessors.csv_joint import CsvPost
+
+            t_s, q = CsvPost().read_trajectory(Path(against), robot)
+            reference = reference_from_samples(t_s, q, robot, feed)
+    return simulate(prog, robot, reference, path_tol_mm=path_tol, profile=profile), None
+
+
 @click.command("check")
 @click.argument("program", type=click.Path(path_type=Path))
-@click.option("--robot", "robot_name", required=True,
-              help="Robot the program is for: a built-in name or a .toml/.urdf file.")
+@click.option("--robot", "robot_name", default=None,
+              help="Robot the program is for: a built-in name or a .toml/.urdf file (default: the --job's).")
 @click.option("--profile", "profile_file", type=click.Path(path_type=Path), default=None,
               help="Controller profile (default: the shipped profile for the robot and format).")
 @click.option("--format", "fmt", default=None,
               help="Post-processor format (default: from the file extension, see `camtool posts`).")
+@click.option("--simulate", "run_sim", is_flag=True,
+              help="Also re-execute the program as the controller interpolates it (at 4 ms) and report "
+                   "deviation, feed, exact stops and module/job switches on the surface, and limit violations.")
+@click.option("--against", type=click.Path(path_type=Path), default=None, metavar="PLAN",
+              help="With --simulate: the planned path to measure against, a trajectory.npz (`camtool time`) "
+                   "or the run's CSV program.")
+@click.option("--job", "job_file", type=click.Path(path_type=Path), default=None,
+              help="The job the program was written for: its robot placement and tool, post.path_tol_mm "
+                   "and feed (for --simulate).")
 @click.option("--json", "as_json", is_flag=True,
-              help="Print one JSON object: file, format, robot, profile, ok, findings, moves, duration_s.")
-def command(program: Path, robot_name: str, profile_file: Path | None, fmt: str | None, as_json: bool) -> None:
+              help="Print one JSON object: file, format, robot, profile, ok, findings, moves, duration_s "
+                   "(and simulation).")
+def command(program: Path, robot_name: str | None, profile_file: Path | None, fmt: str | None, run_sim: bool,
+            against: Path | None, job_file: Path | None, as_json: bool) -> None:
     """Check PROGRAM (.pgf/.mod RAPID, .JBI INFORM, .csv, or any installed
     post-processor's files): its structure and completeness (a truncated file
     fails), every value a finite number, every joint value against the robot's
     limits, and every step against the robot's speed limits using the program's
     own timing.
+
+    With --simulate, the program is also re-executed the way the controller
+    interpolates it; with --against PLAN the simulated TCP is measured against
+    the planned path (the job's post.path_tol_mm, or 0.1 mm, is the tolerance).
 
     Exit 0 when clean, 2 with one line per finding otherwise (with --json: the
     JSON object, and the same exit code).
@@ -30,18 +79,58 @@ def command(program: Path, robot_name: str, profile_file: Path | None, fmt: str 
     from postprocessors.base import get_plugin
     from postprocessors.check import check_program, check_summary, format_of, profile_for_check
 
-    robot = get_robot(robot_name)
+    from ..errors import BadInput
+
+    job = None
+    if job_file is not None:
+        from ..job import load_job
+        from ..stages import robot_for_job
+
+        job = load_job(job_file, [])
+        robot = robot_for_job(job)
+        if robot_name is not None and get_robot(robot_name).name != robot.name:
+            raise BadInput(f"--robot {robot_name} is not the job's robot {robot.name}")
+    elif robot_name is None:
+        raise BadInput("give the robot: --robot NAME, or --job JOB")
+    else:
+        robot = get_robot(robot_name)
     fmt = fmt or format_of(program)
     profile = profile_for_check(fmt, get_plugin(fmt), robot, profile_file)
+    if job is not None and profile_file is None:
+        from ..post import profile_for_job
+
+        profile = profile_for_job(fmt, get_plugin(fmt), robot, job)
+    summary = check_summary(program, robot, profile, fmt) if as_json else None
+    findings = summary["findings"] if as_json else check_program(program, robot, profile, fmt)
+    sim_out, lines = None, []
+    if run_sim and not findings:
+        from ..post import DEFAULT_PATH_TOL_MM, _job_value
+        from ..simulate import summary_lines
+
+        tol = float(_job_value(job.post, "path_tol_mm", DEFAULT_PATH_TOL_MM)) if job is not None \
+            else DEFAULT_PATH_TOL_MM
+        rep, why = _simulation(program, robot, profile, fmt, against, job, tol)
+        if rep is None:
+            findings = findings + [f"{program}: {why}"]
+        else:
+            findings = findings + rep.findings
+            sim_out = rep.as_dict()
+            sim_out.pop("findings")
+            sim_out["path_tol_mm"] = tol if against is not None else None
+            lines = summary_lines(rep)
     if as_json:
-        summary = check_summary(program, robot, profile, fmt)
+        summary["findings"] = findings
+        summary["ok"] = not findings
+        if run_sim:
+            summary["simulation"] = sim_out
         echo_json(summary)
-        if not summary["ok"]:
+        if findings:
             click.get_current_context().exit(2)
         return
-    findings = check_program(program, robot, profile, fmt)
     for f in findings:
         click.echo(f)
+    for ln in lines:
+        click.echo(ln, err=True)
     if findings:
         click.get_current_context().exit(2)
     click.echo(f"{program}: ok", err=True)

@@ -59,12 +59,13 @@ def command(job_file: Path, vary: tuple[str, ...], particles: int, iters: int, e
     chosen design is the shortest 0-singularity design that also plans with
     0 unreachable points and 0 singularities on the FULL raster.
 
-    Writes OUTDIR/design_space.png, OUTDIR/pareto_front.png, OUTDIR/design.json,
+    Writes OUTDIR/design_space.png, OUTDIR/pareto_front.png, OUTDIR/design.html (both, interactive),
+    OUTDIR/design.json,
     OUTDIR/chosen_job.toml (`camtool run` accepts it) and OUTDIR/chosen_robot.toml.
     Exit 3 when no valid design was found.
     """
     from ..design import DesignProblem, MopsoSettings, design_arm, parse_vary
-    from ..design.plots import plot_design_space, plot_front
+    from ..design.plots import plot_design_html, plot_design_space, plot_front
     from ..design.study import write_chosen_job, write_chosen_robot
     from ..report import write_json_atomic
 
@@ -97,7 +98,8 @@ def command(job_file: Path, vary: tuple[str, ...], particles: int, iters: int, e
     wall_s = time.perf_counter() - t0
     names = problem.names
     outdir.mkdir(parents=True, exist_ok=True)
-    files = [plot_design_space(study, outdir / "design_space.png"), plot_front(study, outdir / "pareto_front.png")]
+    files = [plot_design_space(study, outdir / "design_space.png"), plot_front(study, outdir / "pareto_front.png"),
+             plot_design_html(study, outdir / "design.html")]
     summary = {
         "job": str(job_file), "robot": job.robot.name, "method": method, "seed": seed,
         "variables": {v.name: [v.lower_mm, v.upper_mm] for v in variables},

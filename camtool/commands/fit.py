@@ -42,11 +42,13 @@ def surface_summary(surface) -> dict:
 @click.option("--units", type=click.Choice(["mm", "m", "in"]), default="mm", show_default=True,
               help="Length unit of INPUT; everything becomes mm.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed (same seed, same fit).")
+@click.option("--drop-nonfinite", is_flag=True,
+              help="Drop points with NaN, infinite or damaged coordinates (with a warning) instead of refusing INPUT.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON for scripts.")
 @click.option("--save", type=click.Path(path_type=Path), default=None,
               help="Write the surface as JSON (camtool surface file).")
 def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, model: str, threshold_mm: float,
-            units: str, seed: int, as_json: bool, save: Path | None) -> None:
+            units: str, seed: int, drop_nonfinite: bool, as_json: bool, save: Path | None) -> None:
     """Fit a plane or sphere patch to a JOB's workpiece (placed in the cell, the job's [fit]
     settings), or to an INPUT mesh or point cloud in its own frame (the options below).
 
@@ -61,7 +63,7 @@ def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, m
             click.echo(f"camtool: warning: {w}", err=True)
         surface = surface_for_job(job, wp)
     else:
-        wp = load_workpiece(input_file, units=units, seed=seed)
+        wp = load_workpiece(input_file, units=units, seed=seed, drop_nonfinite=drop_nonfinite)
         for w in wp.warnings:
             click.echo(f"camtool: warning: {w}", err=True)
         surface = fit_surface(wp, FitSettings.make(model=model, threshold_mm=threshold_mm, seed=seed))

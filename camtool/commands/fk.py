@@ -26,8 +26,10 @@ def command(robot: str, q: tuple[str, ...], deg: bool, as_json: bool) -> None:
         raise BadInput(f"joint values must be numbers, got {' '.join(q)}") from None
     if len(values) != r.dof:
         raise BadInput(f"{r.name} has {r.dof} joints ({', '.join(r.joint_names)}); got {len(values)} values")
+    if not np.all(np.isfinite(values)) or np.any(np.abs(values) > 1e6):
+        raise BadInput(f"joint values must be finite numbers within +-1e6, got {' '.join(q)}")
     if deg:
-        values = np.where(r.prismatic, values, np.radians(values))
+        values = r.q_from_edge(values)
     T = r.fk(values)
     pos = np.round(T[:3, 3], 6) + 0.0
     quat = np.round(quaternion_wxyz_from_matrix(T[:3, :3]), 9) + 0.0

@@ -15,11 +15,14 @@ from .resume import trajectory_of
 @click.argument("job_file", metavar="JOB", type=click.Path(path_type=Path))
 @click.option("--from", "from_file", type=click.Path(path_type=Path), default=None, metavar="TRAJECTORY.npz",
               help="Resume from a saved trajectory (`camtool time JOB -o DIR` wrote DIR/trajectory.npz).")
+@click.option("--path", "path_file", type=click.Path(path_type=Path), default=None, metavar="PATH.npz",
+              help="The Path the trajectory belongs to (default: path.npz beside --from); it names the rows.")
 @click.option("-o", "--outdir", type=click.Path(path_type=Path), required=True, help="Folder for the programs.")
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
               help="Override a job-file key, e.g. --set post.formats=[\"rapid\"] (repeatable).")
 @click.option("--json", "as_json", is_flag=True, help="Print the written files as JSON.")
-def command(job_file: Path, from_file: Path | None, outdir: Path, overrides: tuple[str, ...], as_json: bool) -> None:
+def command(job_file: Path, from_file: Path | None, path_file: Path | None, outdir: Path, overrides: tuple[str, ...],
+            as_json: bool) -> None:
     """Write JOB's controller programs ([post] formats) from its timed trajectory.
 
     The trajectory passes the independent limit check first and every program
@@ -29,8 +32,8 @@ def command(job_file: Path, from_file: Path | None, outdir: Path, overrides: tup
     robot = robot_for_job(job)
     preflight(robot, job, outdir)
     settings = JobSettings.from_job(job, robot)
-    trajectory = trajectory_of(job, settings, robot, from_file)
-    files = post_checked(trajectory, robot, job, outdir)
+    path, trajectory = trajectory_of(job, settings, robot, from_file, path_file)
+    files = post_checked(trajectory, robot, job, outdir, path=path)
     if as_json:
         echo_json({"job": str(job_file), "programs": [str(f) for f in files]})
         return

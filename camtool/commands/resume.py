@@ -13,7 +13,8 @@ import click
 
 from ..errors import BadInput
 from ..stage_files import load_stage
-from ..stages import path_for_job, plan_for_job, surface_for_job, time_for_job, workpiece_for_job
+from ..stages import (part_for_checks, path_for_job, plan_for_job, surface_for_job, time_for_job,
+                      workpiece_for_job)
 from ..surface import load_surface
 
 SURFACE_FILE, PATH_FILE, JOINT_PATH_FILE, TRAJECTORY_FILE = "surface.json", "path.npz", "joint_path.npz", \
@@ -58,14 +59,15 @@ def joint_path_of(job, settings, robot, from_file: Path | None, path_file: Path 
     if from_file is not None:
         return load_stage(path_file, expect=("Path",)), load_stage(from_file, expect=("JointPath",))
     wp = workpiece(job)
-    path = load_stage(path_file, expect=("Path",)) if path_file is not None else \
-        path_for_job(job, surface_for_job(job, wp))
-    return path, plan_for_job(settings, path, robot, wp)
+    surface = surface_for_job(job, wp)
+    path = load_stage(path_file, expect=("Path",)) if path_file is not None else path_for_job(job, surface)
+    return path, plan_for_job(settings, path, robot, part_for_checks(settings, wp, surface))
 
 
-def trajectory_of(job, settings, robot, from_file: Path | None):
-    """The timed trajectory: from a saved file, or planned and timed now."""
+def trajectory_of(job, settings, robot, from_file: Path | None, path_file: Path | None = None):
+    """(Path, timed trajectory): from saved files (the Path beside the trajectory), or planned and timed now."""
     if from_file is not None:
-        return load_stage(from_file, expect=("TimedTrajectory", "Trajectory"))
+        path = load_stage(sibling(from_file, path_file, PATH_FILE, "path"), expect=("Path",))
+        return path, load_stage(from_file, expect=("TimedTrajectory", "Trajectory"))
     path, joint_path = joint_path_of(job, settings, robot, None, None)
-    return time_for_job(settings, joint_path, path, robot)
+    return path, time_for_job(settings, joint_path, path, robot)

@@ -1,15 +1,11 @@
 """``camtool run``: the whole pipeline for one job."""
-import time
 from pathlib import Path
 
 import click
 
-from ..console import echo_json, progress_enabled
+from ..console import StageProgress, echo_json
 from ..job import load_job
 from ..pipeline import run_job
-
-STAGE_NAMES = {"workpiece": "loaded workpiece", "fit": "fitted surface", "raster": "rastered path",
-               "plan": "planned joints", "time": "timed trajectory", "post": "wrote programs"}
 
 
 @click.command("run")
@@ -20,7 +16,14 @@ STAGE_NAMES = {"workpiece": "loaded workpiece", "fit": "fitted surface", "raster
               help="Override a job-file key, e.g. --set raster.step_over_mm=5 (repeatable).")
 @click.option("--compare", is_flag=True, help="Also plan with the other method (seed/general) and plot both.")
 @click.option("--json", "as_json", is_flag=True, help="Print the run summary (report.json) as JSON.")
-def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], compare: bool, as_json: bool) -> None:
+@click.option("--allow-partial", is_flag=True, help="When some poses are out of reach, program the reachable "
+              "stretches of the rows and report the coverage (task.allow_partial = true).")
+@click.option("--progress", "log_stages", is_flag=True,
+              help="Off a terminal too: one line on stderr per finished stage (batch jobs log it).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress on stderr (a status line on a terminal, one line "
+                                                  "per finished stage with --progress; --json implies it).")
+def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], compare: bool, as_json: bool,
+            allow_partial: bool, log_stages: bool, quiet: bool) -> None:
     """Run JOB end to end: workpiece, fit, raster, plan, time, check, post.
 
     [task] kind = "raster" (default) rasters the fitted surface; "sequential_reach"
@@ -33,18 +36,20 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     and every program passed `camtool check`. Exit 3 when the plan cannot be
     done (report.json and plots/unreachable.png say where and why).
     """
-    job = load_job(job_file, list(overrides))
+    job = load_job(job_file, list(overrides) + (["task.allow_partial=true"] if allow_partial else []))
     outdir = outdir or Path("out") / job_file.stem
-    t0 = time.perf_counter()
-    live = progress_enabled() and not as_json
+    # scripts read --json: no progress with it unless asked for (--progress, as batch jobs do for their log)
+    progress = StageProgress(quiet=quiet or (as_json and not log_stages), log=log_stages)
 
     def on_stage(name, value):
         for warning in getattr(value, "warnings", ()) if name == "workpiece" else ():
             click.echo(f"camtool: warning: {warning}", err=True)
-        if live:
-            click.echo(f"  {STAGE_NAMES.get(name, name):<18} {time.perf_counter() - t0:6.1f} s", err=True)
+        progress.done(name)
 
-    result = run_job(job, outdir, compare=compare, on_stage=on_stage)
+    try:
+        result = run_job(job, outdir, compare=compare, on_stage=on_stage)
+    finally:
+        progress.close()
     report = result.outputs["report"]
     if as_json:
         echo_json(report)
@@ -67,5 +72,9 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
         ends = sum(1 for s in slow if s.get("at_run_end"))
         click.echo(f"limits slowed the TCP in {len(slow)} stretches ({ends} at run ends), down to "
                    f"{100 * worst:.0f}% of {report['tcp_speed_mm_s']:.0f} mm/s; see slowdowns in report.json")
+    short = report.get("short_leads", [])
+    if short:
+        click.echo(f"{len(short)} speed ramps do not fit their leads (need up to "
+                   f"{max(s['needed_mm'] for s in short):.1f} mm, raster.lead_mm); see short_leads in report.json")
     for f in result.files:
         click.echo(f"wrote {f}")

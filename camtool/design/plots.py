@@ -109,3 +109,40 @@ def plot_front(study, file: Path, others: dict | None = None) -> Path:
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     return _save(plt, fig, file)
+
+
+def plot_design_html(study, file: Path) -> Path:
+    """design.html: the design space and the Pareto front as interactive plotly figures (offline page)."""
+    import plotly.graph_objects as go
+
+    from ..report_html import fig_html, write_html_page
+
+    names = study.names
+    bad = study.violation > 0
+    space = go.Figure()
+    for label, sel, style in (("invalid (obstacle)", bad, {"symbol": "x", "color": "#d62728", "size": 7}),
+                              ("valid particles", ~bad, {"color": "#1f77b4", "size": 5})):
+        x, y = _xy(study.X[sel], names)
+        space.add_trace(go.Scatter(x=x, y=y, mode="markers", name=label, marker=style))
+    for label, X, style in (("Pareto set", study.front_X, {"symbol": "circle-open", "color": "black", "size": 9}),
+                            ("chosen", study.chosen_X, {"symbol": "star", "color": "gold", "size": 16}),
+                            ("reference (job's arm)", study.reference_X, {"symbol": "triangle-up",
+                                                                           "color": "#9467bd", "size": 11})):
+        if X is not None and len(np.atleast_1d(X)):
+            x, y = _xy(X, names)
+            space.add_trace(go.Scatter(x=x, y=y, mode="markers", name=label, marker=style))
+    space.update_layout(xaxis_title=f"{names[0]} mm", yaxis_title=f"{names[1]} mm" if len(names) > 1 else "",
+                        height=520, margin={"l": 60, "r": 20, "t": 30, "b": 50})
+    front = go.Figure()
+    ok = study.violation == 0
+    front.add_trace(go.Scatter(x=study.F[ok, 0], y=study.F[ok, 1], mode="markers", name="valid evaluations",
+                               marker={"color": "#aaaaaa", "size": 5}))
+    front.add_trace(go.Scatter(x=study.front_F[:, 0], y=study.front_F[:, 1], mode="lines+markers",
+                               line={"shape": "hv", "color": "black"}, name=f"{study.method} front"))
+    front.update_layout(xaxis_title="F1: total arm length (mm)", yaxis_title="F2: singularities (coarse raster)",
+                        height=480, margin={"l": 60, "r": 20, "t": 30, "b": 50})
+    return write_html_page(file, f"camtool design: {study.method}", [
+        ("Design space", '<p class="note">The design variables of every evaluation (the first two).</p>',
+         fig_html(space, "camtool-design-space")),
+        ("Pareto front", '<p class="note">Length against singularities of the valid designs.</p>',
+         fig_html(front, "camtool-pareto-front"))])

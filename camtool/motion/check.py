@@ -8,7 +8,7 @@ geometry (``fk_batch``); the part is a ``PartGeometry``.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -20,6 +20,7 @@ from .geometry import PartGeometry
 
 NON_WORK = tuple(ZONE_CODE[z] for z in ("self_motion", "approach", "depart", "retract"))
 LINK_ROLES = ("wrist", "forearm", "upper_arm")
+MIN_HALF_PIECE_MM = 0.5  # capsule axes are sampled at <= max(radius / 2, 1 mm)
 
 
 @dataclass(frozen=True)
@@ -100,7 +101,7 @@ class MotionReport:
     part: dict
     settings: MotionCheckSettings
     check_seconds: float = 0.0
-    horizon_mm: float = field(default=0.0)
+    horizon_mm: float = 0.0
 
     def to_dict(self) -> dict:
         d = {}
@@ -184,7 +185,7 @@ def _bodies(robot, fk: BatchFK, s: MotionCheckSettings) -> list[_Body]:
     offsets = fk.constant_offsets_mm()
     kept = [0]
     for i in range(dof):
-        if fk.prismatic[i] or offsets[i] > 1e-6:
+        if offsets[i] > 1e-6:
             kept.append(i + 1)
     kept[-1] = dof  # the last distinct point coincides with the flange
     if len(kept) == 1:
@@ -197,7 +198,7 @@ def _bodies(robot, fk: BatchFK, s: MotionCheckSettings) -> list[_Body]:
     for k, (a, b) in enumerate(links):
         role = LINK_ROLES[k] if k < len(LINK_ROLES) else f"link{k + 1}"
         bodies.append(_Body(f"{role} ({names[a]}-{names[b]})", "link", s.link_radius_mm, a, b, chain))
-        chain += float(offsets[a]) if not fk.prismatic[a] else 0.0
+        chain += float(offsets[b - 1])
     return bodies
 
 
@@ -261,8 +262,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
     dof = robot.dof
 
     # waypoints: TCP, its surface value (contacts) and the joint step per mm on work
-    fk_wp = _fk_chunks(fk, q, s.chunk_samples)
-    tcp_wp = fk_wp
+    tcp_wp = _fk_chunks(fk, q, s.chunk_samples)
     wp_value = part.signed_distance(tcp_wp)
     touching = np.abs(wp_value) <= s.on_surface_tol_mm
     contact_tree = cKDTree(tcp_wp[touching]) if touching.any() else None
@@ -292,7 +292,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
         contact = np.zeros(n, bool)
         if contact_tree is not None and s.contact_allowance_mm > 0:
             sel = np.nonzero(~work)[0]
-            d, _ = contact_tree.query(tcp[sel], distance_upper_bound=s.contact_allowance_mm)
+            d, _ = contact_tree.query(tcp[sel], distance_upper_bound=s.contact_allowance_mm * (1 + 1e-9) + 1e-9)
             contact[sel[np.isfinite(d)]] = True
         eligible = nonwork & ~contact
         if eligible.any():
@@ -322,7 +322,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
         dev = work & (np.abs(dv) > s.path_tol_mm)
         fails["deviation"].append((gidx[dev], np.full(dev.sum(), "tcp"), dv[dev]))
         # ---- capsules
-        cmin, U_body = _capsules(part, fkb, bodies, dof, s, work, nonwork, U_body)
+        cmin, U_body = _capsules(part, fkb, bodies, dof, s, nonwork, U_body)
         for b, body in enumerate(bodies):
             c = cmin[:, b]
             best_pen.offer(c, gidx, body.name)
@@ -374,7 +374,7 @@ def _fk_chunks(fk: BatchFK, q: np.ndarray, chunk: int) -> np.ndarray:
     return np.concatenate([fk(q[i:i + chunk]).tcp for i in range(0, len(q), chunk)])
 
 
-def _capsules(part, fkb, bodies, dof, s, work, nonwork, U):
+def _capsules(part, fkb, bodies, dof, s, nonwork, U):
     """Smallest clearance c = value - radius per (sample, body) over the capsule axis samples
     that can matter (inf where every piece was provably above the threshold).
 
@@ -383,7 +383,7 @@ def _capsules(part, fkb, bodies, dof, s, work, nonwork, U):
     cannot go below the threshold: 0 on work (penetration only), the
     clearance or the smallest clearance seen so far off work.
     """
-    n = len(work)
+    n = len(nonwork)
     G = part.horizon_mm
     cmin = np.full((n, len(bodies)), np.inf)
     S_, B_, M_, U_, H_, R_, HL_ = [], [], [], [], [], [], []
@@ -404,7 +404,7 @@ def _capsules(part, fkb, bodies, dof, s, work, nonwork, U):
         idx = np.nonzero(keep)[0]
         h = L2[idx] / 2.0
         r = body.radius
-        levels = np.ceil(np.log2(np.maximum(h / (r / 4.0), 1.0))) if r > 0 else np.zeros(len(h))
+        levels = np.ceil(np.log2(np.maximum(h / max(r / 4.0, MIN_HALF_PIECE_MM), 1.0)))
         zero = np.zeros(len(idx))
         # the axis: pieces split down to <= r/2 long, evaluated at their middles; plus both ends
         S_ += [idx, idx, idx]

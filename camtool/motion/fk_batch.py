@@ -49,7 +49,9 @@ def _trans(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> np.ndarray:
 class FKBatch:
     """FK of S samples in the world frame (mm).
 
-    ``joint_origins`` (S, dof, 3): origin of each joint frame (on the joint axis);
+    ``joint_origins`` (S, dof, 3): origin of each joint frame (on the joint axis,
+    after the joint's own motion, as Pinocchio's ``oMi``), so the distance
+    between consecutive origins is constant;
     ``flange`` (S, 3) and ``tcp`` (S, 3): origins; ``tcp_R`` (S, 3, 3): TCP
     orientation (columns x, y, z).
     """
@@ -94,15 +96,8 @@ class BatchFK:
             flange[:3, 3] = np.asarray(M.translation) * MM_PER_M
             self._flange = flange
 
-    def link_lengths_constant(self) -> np.ndarray:
-        """(dof,) bool: the distance from joint origin i to joint origin i+1 (or to the flange) is constant.
-
-        It is, unless joint i is prismatic (its variable moves the next origin).
-        """
-        return ~self.prismatic
-
     def constant_offsets_mm(self) -> np.ndarray:
-        """(dof,) length (mm) from joint origin i to the next joint origin (the flange after the last)."""
+        """(dof,) constant length (mm) from joint origin i to the next one (the flange after the last)."""
         if not self.uses_dh:
             fk = self(np.zeros((1, self.dof)))
             pts = np.concatenate([fk.joint_origins[0], fk.flange[:1]])
@@ -126,7 +121,6 @@ class BatchFK:
         for i, before in enumerate(self._before):
             p += R @ before[:3, 3]
             R = R @ before[:3, :3]
-            origins[:, i] = p
             if self.prismatic[i]:
                 p += R[:, :, 2] * q[:, i, None]
             else:
@@ -134,6 +128,7 @@ class BatchFK:
                 x, y = R[:, :, 0].copy(), R[:, :, 1]
                 R[:, :, 0] = c * x + s * y
                 R[:, :, 1] = c * y - s * x
+            origins[:, i] = p
         flange_p = p + R @ self._flange[:3, 3]
         flange_R = R @ self._flange[:3, :3]
         tcp = flange_p + flange_R @ self._tool_p

@@ -12,14 +12,16 @@ outward normal there (towards the tool side),
   more than ``horizon_mm`` from the surface (the part counts as material down
   to ``horizon_mm`` behind its surface).
 
-Meshes: open3d's ``RaycastingScene`` gives the closest point and triangle; the
-edge test uses the mesh's boundary edges (edges of one face only). Point
-clouds: a scipy ``cKDTree``; ``c`` is the nearest point; the patch edge is the
-set of points whose neighbours leave an angular gap > 90 deg round them, and
-``p`` is beyond it when its offset points out of that gap by more than the
-point spacing; inside the footprint the value is the distance with the
-in-plane part of the offset up to ``lateral_tol_mm`` (sampling, not shape)
-removed, so a point on the surface between two samples reads ~0.
+Meshes: open3d's ``RaycastingScene`` gives the closest point and triangle;
+the patch edge is the mesh's boundary edges (used by one triangle) and their
+corners; where the closest point is an edge or a corner, the side comes from
+the angle-weighted pseudo-normal there. Point clouds: a scipy ``cKDTree``;
+``c`` is the nearest point; the edge is the points whose neighbours leave an
+angular gap > 120 deg round them (and a band of 3 spacings inside them); ``p``
+is beyond it when its in-plane offset from such a point exceeds
+``lateral_tol_mm`` and points out of the cloud. Inside, in-plane offsets up to
+``lateral_tol_mm`` are sampling holes, not shape, and come off the distance,
+so a point on the surface between two samples reads ~0.
 
 Outward normals are made consistent with a hint: points with outward
 directions, normally the work poses of the path (outward = -tool z). Mesh
@@ -27,12 +29,12 @@ windings are made consistent per connected piece and each piece is turned to
 agree with the hint (area-weighted vote of its faces near hint points); cloud
 normals are flipped one by one to agree with the nearest hint point.
 
-For speed, a coarse grid over the part's box grown by ``horizon_mm`` keeps,
-per node, the exact distance and a "clean" radius: the ball round the node in
-which no point can be behind the surface (it touches neither the surface nor
-the "wall" swept from the patch edge along -normal, the only ways behind).
-``lower_bound`` uses it to drop capsule pieces that are provably far
-(1-Lipschitz distance); only the rest are measured exactly.
+For speed, a grid over the part's box grown by ``horizon_mm`` keeps, per
+node, a lower bound of the distance and a "clean" radius: the ball round the
+node in which no point can be behind the surface (it touches neither the
+surface nor the "wall" swept from the patch edge along -normal, the only ways
+behind). ``lower_bound`` uses it to drop capsule pieces that are provably far
+(the distance is 1-Lipschitz); only the rest are measured exactly.
 """
 from __future__ import annotations
 
@@ -45,10 +47,12 @@ from ..errors import BadInput
 
 DEFAULT_HORIZON_MM = 300.0
 DEFAULT_GRID_NODES = 100_000
-EDGE_EPS_REL = 1e-6          # closest point on a boundary edge: within this share of the part size
+POSITION_TOL_MM = 0.2        # mesh closest points (float32) are this exact along the surface
+EDGE_EPS_REL = 2e-5          # ... plus this share of the part's size
 CLOUD_NEIGHBOURS = 30        # neighbours of the angular-gap edge test
 EDGE_GAP_RAD = 2 * np.pi / 3  # a point with a larger angular gap round it is on the cloud's edge
 EDGE_BAND = 3.0              # points this many spacings (p90) from a flagged edge point count as edge too
+CREASE_NEIGHBOURS = 8        # cloud: normals averaged for the sign where the offset is in-plane
 LATERAL_SPACINGS = 3.0       # cloud: in-plane offsets up to this many spacings (p90) are sampling holes
 HINT_NEAR_FACTOR = 3.0       # mesh orientation vote: faces within this many hint spacings vote
 
@@ -102,7 +106,7 @@ class PartGeometry:
         self._grid_setup(int(grid_nodes))
         if mesh:
             self.kind = "mesh"
-            self._build_mesh(pts - self.origin_mm, np.asarray(workpiece.faces, dtype=np.int64), hint_p, hint_d)
+            self._build_mesh(pts - self.origin_mm, np.array(workpiece.faces, dtype=np.int64), hint_p, hint_d)
         else:
             self.kind = "cloud"
             self._build_cloud(pts - self.origin_mm, np.asarray(workpiece.normals, dtype=float), hint_p, hint_d)
@@ -120,8 +124,8 @@ class PartGeometry:
             raise BadInput("workpiece: the mesh has no triangles with area")
         trimesh.repair.fix_winding(m)
         normals = np.asarray(m.face_normals, dtype=float).copy()
-        faces = np.asarray(m.faces, dtype=np.int64)
-        verts = np.asarray(m.vertices, dtype=float)
+        faces = np.array(m.faces, dtype=np.int64)
+        verts = np.array(m.vertices, dtype=float)
         if hint_p is not None:
             centroids = verts[faces].mean(axis=1)
             tree = cKDTree(hint_p)
@@ -150,11 +154,22 @@ class PartGeometry:
         bvert[faces[self.edge_boundary]] = True
         bvert[np.roll(faces, -1, axis=1)[self.edge_boundary]] = True
         self.vertex_boundary = bvert[faces]  # (F, 3): corner k is on the patch's edge
-        self.face_on_boundary = self.vertex_boundary.any(axis=1)
         self.boundary_edges = int(self.edge_boundary.sum())
-        self._edge_eps = max(1e-3, EDGE_EPS_REL * self.size_mm)
-        self._slack = 1e-3 + 1e-6 * self.size_mm  # float32 closest points
-        self._sheet = self._slack
+        # pseudo-normals (Baerentzen & Aanaes): the sign where the closest point is an edge or a
+        # corner, where a single face normal can give the wrong one
+        summed = np.zeros((cnt.size, 3))
+        np.add.at(summed, inv.ravel(), np.repeat(normals, 3, axis=0))
+        self.edge_normals = _unit(summed[inv.ravel()]).reshape(-1, 3, 3)
+        tri = verts[faces]
+        u, w = np.roll(tri, -1, axis=1) - tri, np.roll(tri, 1, axis=1) - tri
+        angle = np.arccos(np.clip(np.einsum("fkj,fkj->fk", _unit(u), _unit(w)), -1.0, 1.0))
+        vn = np.zeros_like(verts)
+        np.add.at(vn, faces.ravel(), (angle[:, :, None] * normals[:, None, :]).reshape(-1, 3))
+        self.vertex_normals = _unit(vn)
+        # open3d's closest points are off by up to ~0.1 mm along the surface (float32)
+        self._pos_tol = POSITION_TOL_MM + EDGE_EPS_REL * self.size_mm
+        self._slack = self._pos_tol  # |value| >= distance - this
+        self._sheet = 1e-3 + 1e-6 * self.size_mm
         self._scene = o3d.t.geometry.RaycastingScene()
         self._scene.add_triangles(o3d.core.Tensor(verts.astype(np.float32)),
                                   o3d.core.Tensor(faces.astype(np.uint32)))
@@ -286,12 +301,18 @@ class PartGeometry:
             off = p - c
             dist = np.linalg.norm(off, axis=1)
             normal = np.einsum("ij,ij->i", off, self.face_normals[prim])
-            behind = normal < 0
             outside = np.zeros(len(p), bool)
-            rows = np.nonzero(self.face_on_boundary[prim])[0]
+            # offset not along the face normal: the closest point is an edge or a corner
+            feature = dist**2 - normal**2 > self._pos_tol**2
+            rows = np.nonzero(feature)[0]
             if len(rows):
-                outside[rows] = self._on_boundary_edge(c[rows], prim[rows])
-            value = np.where(behind & ~outside & (dist <= self.horizon_mm), -dist, dist)
+                pn, outside[rows] = self._feature(c[rows], prim[rows])
+                normal[rows] = np.einsum("ij,ij->i", off[rows], pn)
+            behind = normal < 0
+            # along the face normal, the normal offset (the closest point's float32 error
+            # along the surface drops out); elsewhere the distance
+            mag = np.where(feature, dist, np.abs(normal))
+            value = np.where(outside, dist, np.where(behind & (dist <= self.horizon_mm), -mag, mag))
             out = (value, dist, c, ~outside, behind)
             return out + (normal,) if with_normal else out
         dist, idx = self._tree.query(p, workers=-1)
@@ -300,27 +321,34 @@ class PartGeometry:
         n = self.normals[idx]
         normal_part = np.einsum("ij,ij->i", off, n)
         lateral = np.sqrt(np.maximum(dist**2 - normal_part**2, 0.0))
-        outside = (self.near_edge[idx] & (lateral > self.lateral_tol_mm)
-                   & (np.einsum("ij,ij->i", off, self.out_dir[idx]) > 0))
+        side = lateral > self.lateral_tol_mm
+        outside = side & self.near_edge[idx] & (np.einsum("ij,ij->i", off, self.out_dir[idx]) > 0)
         inner = np.sqrt(np.maximum(dist**2 - np.minimum(lateral, self.lateral_tol_mm) ** 2, 0.0))
+        rows = np.nonzero(side & ~outside)[0]
+        if len(rows):  # offset mostly in-plane (a crease): the neighbours' mean normal decides
+            _, nb = self._tree.query(p[rows], k=min(CREASE_NEIGHBOURS, len(self.points_mm)), workers=-1)
+            normal_part[rows] = np.einsum("ij,ij->i", off[rows], _unit(self.normals[nb].sum(axis=1)))
         behind = normal_part < 0
         value = np.where(outside | (dist > self.horizon_mm), dist, np.where(behind, -inner, inner))
         out = (value, dist, c, ~outside, behind)
         return out + (normal_part,) if with_normal else out
 
-    def _on_boundary_edge(self, c: np.ndarray, prim: np.ndarray) -> np.ndarray:
-        """Whether each closest point lies on the patch's edge: a boundary edge or a boundary
-        corner of its triangle (a triangle may touch the edge at one corner only)."""
-        tri = self.verts_mm[self.faces[prim]]  # (R, 3, 3)
-        on = np.zeros(len(c), bool)
-        for k in range(3):
-            on |= self.vertex_boundary[prim, k] & (np.linalg.norm(c - tri[:, k], axis=1) <= self._edge_eps)
-            a, b = tri[:, k], tri[:, (k + 1) % 3]
-            ab = b - a
-            t = np.clip(np.einsum("ij,ij->i", c - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
-            d = np.linalg.norm(c - (a + t[:, None] * ab), axis=1)
-            on |= self.edge_boundary[prim, k] & (d <= self._edge_eps)
-        return on
+    def _feature(self, c: np.ndarray, prim: np.ndarray):
+        """(pseudo-normal, on the patch's edge) of the corner or edge of each triangle nearest ``c``."""
+        f = self.faces[prim]
+        tri = self.verts_mm[f]  # (R, 3, 3)
+        dv = np.linalg.norm(c[:, None, :] - tri, axis=2)
+        a, b = tri, np.roll(tri, -1, axis=1)
+        ab = b - a
+        t = np.clip(np.einsum("rkj,rkj->rk", c[:, None, :] - a, ab)
+                    / np.maximum(np.einsum("rkj,rkj->rk", ab, ab), 1e-300), 0.0, 1.0)
+        de = np.linalg.norm(c[:, None, :] - (a + t[:, :, None] * ab), axis=2)
+        rows = np.arange(len(c))
+        kv, ke = np.argmin(dv, axis=1), np.argmin(de, axis=1)
+        corner = dv[rows, kv] <= self._pos_tol
+        pn = np.where(corner[:, None], self.vertex_normals[f[rows, kv]], self.edge_normals[prim, ke])
+        on_edge = np.where(corner, self.vertex_boundary[prim, kv], self.edge_boundary[prim, ke])
+        return pn, on_edge
 
     # ------------------------------------------------------------------ bounds (grid)
     def _grid_setup(self, max_nodes: int):
@@ -479,6 +507,10 @@ def _sample_triangles(tri, step):
         a, b = (i / m)[None, :, None], (j / m)[None, :, None]
         out.append((t[:, :1] + a * (t[:, 1:2] - t[:, :1]) + b * (t[:, 2:3] - t[:, :1])).reshape(-1, 3))
     return np.concatenate(out)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
 
 
 def _spacing(points: np.ndarray) -> float:

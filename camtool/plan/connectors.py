@@ -28,13 +28,14 @@ import numpy as np
 
 from ..errors import PlanInfeasible
 from ..robots.model import Robot
-from ..toolpath import ZONE_CODE, Path
+from ..toolpath import ZONE_CODE, Path, row_segments, run_bounds
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
 from .rrt import edge_valid, free_move
 
-SURFACE = (ZONE_CODE["work"], ZONE_CODE["lead_in"], ZONE_CODE["lead_out"])
 EDGE_RESOLUTION_RAD = 0.01  # joint-space step at which a reconfiguration edge is collision-checked
+LIFT_FRACTIONS = (1.0, 0.75, 0.5, 0.25)  # of planner.lift_mm, tried in turn where the higher lifts are out of reach
+SEARCH_TRACK_SCALE_MM = 500.0  # RRT metric: 1 rad weighs as this much track travel (not the IK's metric)
 
 
 @dataclass(frozen=True)
@@ -83,47 +84,56 @@ def lift_and_reconfigure(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: n
     it, RRT-Connect replaces it. Raises PlanInfeasible when a lift cannot be
     solved or no collision-free reconfiguration is found.
     """
-    up = cartesian_lift(solver, Ta, qa, settings.clearance_mm, settings.steps)
-    down = cartesian_lift(solver, Tb, qb, settings.clearance_mm, settings.steps)
-    if up is None or down is None:
-        raise PlanInfeasible(f"the tool cannot be lifted {settings.clearance_mm:g} mm off the surface to "
-                             "reconfigure (out of reach); lower planner.lift_mm or move the part")
+    for height in settings.clearance_mm * np.array(LIFT_FRACTIONS):
+        up = cartesian_lift(solver, Ta, qa, height, settings.steps)
+        down = cartesian_lift(solver, Tb, qb, height, settings.steps) if up is not None else None
+        if up is not None and down is not None:
+            break
+    else:
+        raise PlanInfeasible(f"the tool cannot be lifted {LIFT_FRACTIONS[-1] * settings.clearance_mm:g}-"
+                             f"{settings.clearance_mm:g} mm "
+                             "off the surface to reconfigure: the part is at the edge of the robot's reach; move "
+                             "it closer (camtool place)")
     down = down[::-1]
-    info = {"lift_mm": settings.clearance_mm, "rrt": False}
+    info = {"lift_mm": float(height), "rrt": False}
     middle = np.zeros((0, len(qa)))
     if valid is not None:
-        w = np.where(robot.prismatic, 1.0 / settings.track_scale_mm, 1.0)
+        w = np.where(robot.prismatic, 1.0 / SEARCH_TRACK_SCALE_MM, 1.0)
         if not (valid(up[-1]) and valid(down[0])):
-            raise PlanInfeasible(f"at {settings.clearance_mm:g} mm above the surface the arm still touches the "
-                                 "part; raise planner.lift_mm")
+            raise PlanInfeasible(f"at {height:g} mm above the surface the arm still touches the part; "
+                                 "raise planner.lift_mm or move the part (camtool place)")
         if not edge_valid(up[-1], down[0], valid, EDGE_RESOLUTION_RAD, w):
             q, figures = free_move(robot, up[-1], down[0], valid, seed=settings.seed,
-                                   track_scale_mm=settings.track_scale_mm)
+                                   track_scale_mm=SEARCH_TRACK_SCALE_MM)
             middle = np.asarray(q)[1:-1]
             info.update(rrt=True, rrt_waypoints=int(len(q)))
+    info["straight_from"] = len(up)  # rows from here to the first descent row are reached by straight joint moves
+    info["straight_to"] = len(up) + len(middle)
     return np.concatenate([up, middle, down]), info
 
 
 def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, settings: LiftSettings,
-                          solver: CwlnSolver, valid=None) -> JointPath:
+                          solver: CwlnSolver, valid=None, touch_points: bool = False) -> JointPath:
     """``joint_path`` with every reconfiguring connector between runs replaced by lift-reconfigure-descend rows.
 
     A connector is the stretch of non-surface rows between the last row of one
-    run and the first row of the next. Inserted rows have path_index -1 and
-    zone 'self_motion'. The joint path's events get ``lifted_connectors``.
+    run and the first row of the next. With ``touch_points`` every path pose is
+    a contact of its own (seed 002's targets and its start point): the tool
+    lifts between any two of them. Inserted rows have path_index -1 and zone
+    'self_motion'. The joint path's events get ``lifted_connectors``.
     """
     jp = joint_path
-    surface = np.isin(jp.zone, SURFACE) & (jp.path_index >= 0)
-    rows = np.flatnonzero(surface)
-    if len(rows) < 2:
-        return jp
+    seg = np.asarray(path.segment)
+    _surface, start, end = run_bounds(jp.zone, row_segments(jp.path_index, jp.zone, seg))
+    if touch_points:
+        start = end = np.asarray(jp.path_index) >= 0
     base_inv = np.linalg.inv(robot.base_T_mm)
     keep = np.ones(len(jp.q), bool)
     inserts: dict[int, tuple[np.ndarray, dict]] = {}
-    seg = np.asarray(path.segment)
-    for r0, r1 in zip(rows[:-1], rows[1:]):
-        same_run = r1 == r0 + 1 and seg[jp.path_index[r0]] == seg[jp.path_index[r1]]
-        if same_run or not is_reconfiguration(jp.q[r0], jp.q[r1], robot, settings):
+    for r0, r1 in zip(np.flatnonzero(end)[:-1], np.flatnonzero(start)[1:]):
+        # two runs with no connector poses between them (a row cut at unreachable poses, --allow-partial)
+        # are joined off the part too: a direct move between two surface points cuts through a convex part
+        if r1 > r0 + 1 and not is_reconfiguration(jp.q[r0], jp.q[r1], robot, settings):
             continue
         Ta = base_inv @ path.poses_mm[jp.path_index[r0]]
         Tb = base_inv @ path.poses_mm[jp.path_index[r1]]
@@ -132,6 +142,7 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
         except PlanInfeasible as exc:
             raise PlanInfeasible(f"reconfiguration before segment {int(seg[jp.path_index[r1]])}: {exc}") from None
         keep[r0 + 1:r1] = False
+        info["retract"] = bool(np.any(jp.retract[r0 + 1:r1]))  # a strategy retract, re-planned here
         info.update(segment=int(seg[jp.path_index[r1]]), joint_change_deg=round(float(np.degrees(
             np.max(np.abs(jp.q[r1] - jp.q[r0])[~robot.prismatic], initial=0.0))), 3))
         inserts[int(r0)] = (new, info)
@@ -149,8 +160,9 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
             q.append(jp.q[r][None]); pidx.append([jp.path_index[r]]); zone.append([jp.zone[r]])
             new_rows.append([False])
         else:
-            block = inserts[r][0]
-            q.append(block); pidx.append(np.full(len(block), -1)); zone.append(np.full(len(block), ZONE_CODE["self_motion"]))
+            block, info = inserts[r]
+            code = ZONE_CODE["retract"] if info["retract"] else ZONE_CODE["self_motion"]
+            q.append(block); pidx.append(np.full(len(block), -1)); zone.append(np.full(len(block), code))
             new_rows.append(np.ones(len(block), bool))
     q = np.concatenate(q)
     pidx = np.concatenate(pidx).astype(jp.path_index.dtype)
@@ -165,9 +177,21 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
 
     jump = np.zeros(len(q), bool)
     jump[1:] = spread(jp.jump, False)[1:] & ~inserted[1:]
+    # the reconfiguration's own rows were collision-checked as straight joint moves: flag them as jumps, so
+    # the timing runs them rest to rest along exactly those lines (a blend would cut the checked corners)
+    at = 0
+    for kind, r in order:
+        if kind == "row":
+            at += 1
+            continue
+        block, info = inserts[r]
+        jump[at + info["straight_from"]:at + info["straight_to"] + 1] = True
+        at += len(block)
     pieces = [dict(info) for _, (_, info) in sorted(inserts.items())]
+    retract = spread(jp.retract, False)
+    retract[inserted] = zone[inserted] == ZONE_CODE["retract"]
     return JointPath(q=q, path_index=pidx, zone=zone, position_error_mm=spread(jp.position_error_mm, 0.0),
                      orientation_error_rad=spread(jp.orientation_error_rad, 0.0), jump=jump,
-                     reverse_planned=spread(jp.reverse_planned, False), retract=spread(jp.retract, False),
+                     reverse_planned=spread(jp.reverse_planned, False), retract=retract,
                      singular=spread(jp.singular, False), reached=spread(jp.reached, True),
                      events={**jp.events, "lifted_connectors": pieces})

@@ -99,10 +99,19 @@ class CapsuleChecker(_LinkCapsules):
     """
 
     def __init__(self, robot, mesh, radius_mm: float = 60.0, clearance_mm: float = 0.0,
-                 skip_links: int = 1, spacing_mm: float | None = None, exempt=(), backend: str = "open3d"):
+                 skip_links: int = 1, spacing_mm: float | None = None, exempt=(), backend: str = "open3d",
+                 outward=None):
         import trimesh
 
         super().__init__(robot, radius_mm, clearance_mm, skip_links, spacing_mm, exempt)
+        # an open surface patch is not a solid: with ``outward`` = (points_mm, unit directions towards the
+        # tool side), a point behind the surface (closest-point offset against the oriented face normal)
+        # counts as inside the part, however far it is from the surface
+        self.outward = None
+        if outward is not None and backend == "open3d":
+            from scipy.spatial import cKDTree
+
+            self.outward = (cKDTree(np.asarray(outward[0], float)), np.asarray(outward[1], float))
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise BadInput("the collision check needs a triangle mesh of the workpiece")
         self.mesh = mesh
@@ -129,11 +138,28 @@ class CapsuleChecker(_LinkCapsules):
             self.vertex_tree = cKDTree(np.asarray(mesh.vertices))
             self.edge_mm = float(mesh.edges_unique_length.max())
 
+    def _behind(self, P) -> np.ndarray:
+        """Distance of points from an open mesh, negative for points behind it (``outward`` given)."""
+        import open3d as o3d
+
+        ans = self.scene.compute_closest_points(o3d.core.Tensor((P - self.origin).astype(np.float32)))
+        c = ans["points"].numpy().astype(float) + self.origin
+        n = ans["primitive_normals"].numpy().astype(float)
+        tree, dirs = self.outward
+        hint = dirs[tree.query(c)[1]]
+        n *= np.where(np.sum(n * hint, axis=1) < 0, -1.0, 1.0)[:, None]
+        off = P - c
+        dist = np.linalg.norm(off, axis=1)
+        behind = np.sum(off * n, axis=1) < -0.5 * dist  # behind the face, not beside the patch's edge
+        return np.where(behind, -dist, dist)
+
     def _exact(self, P) -> np.ndarray:
         """Exact distance of points from the mesh: signed (negative inside) for watertight meshes."""
         if self.backend == "open3d":
             import open3d as o3d
 
+            if self.outward is not None and not self.signed:
+                return self._behind(P)
             X = o3d.core.Tensor((P - self.origin).astype(np.float32))
             d = self.scene.compute_signed_distance(X) if self.signed else self.scene.compute_distance(X)
             return d.numpy().astype(float)
@@ -143,6 +169,8 @@ class CapsuleChecker(_LinkCapsules):
 
     def distances(self, P) -> np.ndarray:
         """Distance of each point from the mesh (signed: negative inside), or a lower bound where clear."""
+        if self.outward is not None and not self.signed:
+            return self._behind(P)  # every point: one far behind the patch is inside the part
         gap = np.linalg.norm(np.maximum(0.0, np.maximum(self.lo - P, P - self.hi)), axis=1)
         reach = self.radius + max(self.clearance, 0.0) + EXACT_BAND_MM
         near = gap < reach

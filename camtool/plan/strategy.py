@@ -42,13 +42,12 @@ from ..errors import BadInput, PlanInfeasible
 from ..robots.ik_common import limit_equivalents
 from ..robots.model import Robot
 from ..settings import PlannerSettings
-from ..toolpath import ZONE_CODE, ZONES, Path
+from ..toolpath import ZONE_CODE, ZONES, Path, run_bounds
 from ..trajectory import JointPath
 from .connectors import cartesian_lift
 from .cwln import CwlnSolver, IkResult, IkSettings
 from .kernel import DhKernel
 
-RUN_ZONES = (ZONE_CODE["work"], ZONE_CODE["lead_in"], ZONE_CODE["lead_out"])
 RESTARTS_WHEN_LOST = 20
 RETRACT_LIFT_STEPS = 5  # poses of each Cartesian lift / descent of a retract
 
@@ -162,18 +161,9 @@ class AnalyticSeeds:
 
 
 def split_runs(path: Path) -> list[tuple[int, int]]:
-    """Inclusive (first, last) index spans of runs: same segment, run zones only."""
-    in_run = np.isin(path.zone, RUN_ZONES)
-    runs, start = [], None
-    for k in range(len(path)):
-        if in_run[k] and start is None:
-            start = k
-        elif start is not None and (not in_run[k] or path.segment[k] != path.segment[start]):
-            runs.append((start, k - 1))
-            start = k if in_run[k] else None
-    if start is not None:
-        runs.append((start, len(path) - 1))
-    return runs
+    """Inclusive (first, last) index spans of runs (``toolpath.run_bounds``)."""
+    _surface, start, end = run_bounds(path.zone, path.segment)
+    return [(int(a), int(b)) for a, b in zip(np.flatnonzero(start), np.flatnonzero(end))]
 
 
 class Planner:
@@ -301,6 +291,7 @@ class Planner:
     # -- runs --------------------------------------------------------------
     def plan_run(self, a, b, q_in):
         """Forward over run poses a..b (inclusive) from q_in."""
+        self.run_entry_q = np.asarray(q_in, float)
         res = self.ik(a, q_in, max_iterations=300)
         if self.st.method == "seed" and res.converged and self.is_jump(q_in, res.q):
             gp = self.gp(a, res.q, q_in)
@@ -346,8 +337,20 @@ class Planner:
         finally:
             self.events["reverse_plan_seconds"] += time.perf_counter() - t0
 
+    def reconfiguration_s(self, qa, qb) -> float:
+        """The shortest time (s) a joint move qa -> qb can take at the joints' speed limits."""
+        return float(np.max(np.abs(np.asarray(qb) - qa) / self.robot.limits.velocity))
+
     def _reverse_plan(self, k, a) -> bool:
+        """Up to ``reverse_best_of`` successful backward plans; keep the cheapest connector into the run.
+
+        Cost: the reconfiguration time from the run's entry configuration (the
+        previous run's end) to the chain's first pose, at the speed limits,
+        plus the chain's own joint travel in the same measure.
+        """
+        best, best_cost, successes, tried = None, np.inf, 0, 0
         for attempt, res in enumerate(islice(self.candidates(k), self.st.reverse_samples)):
+            tried = attempt + 1
             if res is None:
                 continue
             chain = [res]
@@ -358,14 +361,25 @@ class Planner:
                     ok = False
                     break
                 chain.append(r)
-            if ok:
-                for m, r in zip(range(k, a - 1, -1), chain):
-                    self.keep(m, r)
-                    self.reverse[m] = True
-                self.events["reverse_plans"].append({"index": int(k), "segment": int(self.path.segment[k]),
-                                                     "point": int(self.path.point[k]), "attempt": attempt + 1})
-                return True
-        return False
+            if not ok:
+                continue
+            successes += 1
+            cost = self.reconfiguration_s(self.run_entry_q, chain[-1].q) + sum(
+                self.reconfiguration_s(x.q, y.q) for x, y in zip(chain[:-1], chain[1:]))
+            if cost < best_cost:
+                best, best_cost, best_attempt = chain, cost, attempt + 1
+            if successes >= self.st.reverse_best_of:
+                break
+        if best is None:
+            return False
+        for m, r in zip(range(k, a - 1, -1), best):
+            self.keep(m, r)
+            self.reverse[m] = True
+        self.events["reverse_plans"].append({"index": int(k), "segment": int(self.path.segment[k]),
+                                             "point": int(self.path.point[k]), "attempt": best_attempt,
+                                             "candidates": successes, "tried": tried,
+                                             "reconfiguration_s": round(best_cost, 4)})
+        return True
 
     def fallback(self, k, q_prev, res):
         """Step 5: keep the self-motion solution closest to q_prev; mark k for a retract."""
@@ -416,22 +430,30 @@ class Planner:
     def retract_poses(self, k) -> list[np.ndarray]:
         """The retract-reorient-return configurations inserted before pose k.
 
-        A Cartesian lift of ``retract_mm`` along the surface normal from pose
-        k-1 (every joint, the track included, by CWLN), then the lifted pose of
-        k reached from above, then a Cartesian descent onto k
-        (``connectors.cartesian_lift``): the reconfiguration happens off the
-        part, for robots with or without a track.
+        A Cartesian lift along the surface normal from pose k-1 (every joint,
+        the track included, by CWLN), then the lifted pose of k reached from
+        above, then a Cartesian descent onto k (``connectors.cartesian_lift``):
+        the reconfiguration happens off the part, for robots with or without a
+        track. The lift is ``retract_mm``; where the robot cannot reach that
+        high (a part at the edge of reach), 1/2 and then 1/4 of it: the highest
+        lift that can be solved is taken, the least it needs to leave the part.
         """
         qa, qb = self.q[k - 1], self.q[k]
-        up = cartesian_lift(self.solver, self.targets[k - 1], qa, self.st.retract_mm, RETRACT_LIFT_STEPS)
-        down = cartesian_lift(self.solver, self.targets[k], qb, self.st.retract_mm, RETRACT_LIFT_STEPS)
-        if up is None or down is None:
+        best = None
+        for height in (self.st.retract_mm, self.st.retract_mm / 2, self.st.retract_mm / 4):
+            up = cartesian_lift(self.solver, self.targets[k - 1], qa, height, RETRACT_LIFT_STEPS)
+            down = cartesian_lift(self.solver, self.targets[k], qb, height, RETRACT_LIFT_STEPS) if up is not None \
+                else None
+            if up is not None and down is not None:
+                best = list(up) + list(down[::-1])
+                break
+        if best is None:
             p = self.path.poses_mm[k][:3, 3]
             raise PlanInfeasible(f"pose {k} (segment {int(self.path.segment[k])}) needs a reconfiguration, but the "
-                                 f"tool cannot be lifted {self.st.retract_mm:g} mm off the surface there "
-                                 f"(at {[round(float(x), 1) for x in p]} mm); lower planner.retract_mm or move "
-                                 "the part")
-        return list(up) + list(down[::-1])
+                                 f"tool cannot be lifted off the surface there (tried {self.st.retract_mm:g} mm and "
+                                 f"less; at {[round(float(x), 1) for x in p]} mm): the part is at the edge of the "
+                                 "robot's reach; move it closer (camtool place) or lower planner.retract_mm")
+        return best
 
     def joint_path(self) -> JointPath:
         rows, rows_idx, rows_retract = [], [], []

@@ -10,10 +10,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
+import threading
+
 import numpy as np
 import pinocchio as pin
 
 from .dh import MM_TO_M, DHRow
+
+# Pinocchio's Data is a mutable work buffer: it belongs to whoever computes, not to the
+# immutable Robot. Each thread keeps one per model (solvers such as CwlnSolver own theirs).
+_DATA = threading.local()
 
 
 @dataclass(frozen=True)
@@ -49,10 +55,17 @@ class Robot:
     tool_T_mm: np.ndarray = field(default_factory=lambda: np.eye(4))
     notes: str = ""
 
-    def __post_init__(self):
-        object.__setattr__(self, "_data", self.model.createData())
-        scale = np.where(self.prismatic, MM_TO_M, 1.0)
-        object.__setattr__(self, "_q_scale", scale)
+    @property
+    def _q_scale(self) -> np.ndarray:
+        return np.where(self.prismatic, MM_TO_M, 1.0)
+
+    def _work_data(self) -> pin.Data:
+        """Pinocchio's work buffers for this model, owned by the calling thread (``_DATA``), not by the Robot."""
+        cache = _DATA.__dict__.setdefault("by_model", {})
+        entry = cache.get(id(self.model))
+        if entry is None or entry[0] is not self.model:
+            entry = cache[id(self.model)] = (self.model, self.model.createData())
+        return entry[1]
 
     @property
     def dof(self) -> int:
@@ -74,8 +87,9 @@ class Robot:
 
     def fk(self, q) -> np.ndarray:
         """Flange pose (4x4, mm) in the base frame at joint values q (rad / mm)."""
-        pin.framesForwardKinematics(self.model, self._data, self._pin_q(q))
-        M = self._data.oMf[self.flange_frame_id]
+        data = self._work_data()
+        pin.framesForwardKinematics(self.model, data, self._pin_q(q))
+        M = data.oMf[self.flange_frame_id]
         T = np.eye(4)
         T[:3, :3] = M.rotation
         T[:3, 3] = M.translation / MM_TO_M
@@ -88,7 +102,7 @@ class Robot:
     def jacobian(self, q, tcp: bool = False) -> np.ndarray:
         """6 x n Jacobian of the flange (or TCP) in the base frame; see module doc for units."""
         qp = self._pin_q(q)
-        J = pin.computeFrameJacobian(self.model, self._data, qp, self.flange_frame_id, pin.LOCAL_WORLD_ALIGNED)
+        J = pin.computeFrameJacobian(self.model, self._work_data(), qp, self.flange_frame_id, pin.LOCAL_WORLD_ALIGNED)
         J = np.array(J)
         # Pinocchio: linear rows in m per (rad | m). Convert to mm per (rad | mm).
         J[:3, :] /= MM_TO_M

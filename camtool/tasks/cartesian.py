@@ -13,7 +13,8 @@
   001's test moves (a line 0.4 m down the tool z axis, then 0.4 m along +y,
   then a circle), each move a work run of its own; the timed trajectory is
   sampled every ``timing.check_dt_ms`` and the TCP's distance from the line or
-  arc is measured between the solved points too. A move that leaves its
+  arc is measured between the solved points too, and so is the straight line
+  a controller's linear move draws between two points (the chord of an arc). A move that leaves its
   primitive by more than ``task.path_tol_mm`` gets twice the points, up to
   ``MAX_DENSIFY`` times.
 
@@ -209,6 +210,17 @@ def path_of_moves(pose_lists: list[np.ndarray]) -> Path:
     return Path(poses, seg, point, zone)
 
 
+def chord_deviation_mm(pose_lists: list[np.ndarray], prims: list[Primitive]) -> np.ndarray:
+    """Per move: the largest distance (mm) of a straight line between consecutive points from the line or arc
+    (a controller's linear moves, MoveL / MOVL, between the program's points; at most the chord's sagitta)."""
+    worst = np.zeros(len(prims))
+    for i, (P, prim) in enumerate(zip(pose_lists, prims)):
+        p = P[:, :3, 3]
+        if len(p) > 1:
+            worst[i] = float(prim.distance_mm(0.5 * (p[1:] + p[:-1])).max())
+    return worst
+
+
 def trajectory_deviation_mm(trajectory, robot, path: Path, prims: list[Primitive], dt_s: float) -> np.ndarray:
     """Per move: the largest distance (mm) of the sampled TCP from its line or arc."""
     t, q, *_ = trajectory.sample(dt_s)
@@ -246,7 +258,8 @@ def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: 
         jp = JointPath(q, np.arange(n), path.zone.copy(), err, np.zeros(n), f, f.copy(), f.copy(), f.copy(),
                        err < 1e-6, {"cartesian": {}})
         trajectory = time_for_job(settings, jp, path, robot)
-        dev = trajectory_deviation_mm(trajectory, robot, path, prims, settings.timing.check_dt_s)
+        dev = np.maximum(trajectory_deviation_mm(trajectory, robot, path, prims, settings.timing.check_dt_s),
+                         chord_deviation_mm(poses, prims))
         history.append({"points": [len(p) for p in poses], "max_deviation_mm": dev.tolist()})
         bad = dev > job.task.path_tol_mm
         if not bad.any():
@@ -257,8 +270,10 @@ def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: 
                              f"{job.task.path_tol_mm:g} even after {MAX_DENSIFY} densifications")
     for name, value in (("raster", path), ("plan", jp), ("time", trajectory)):
         log.done(name, value)
-    programs = log.done("post", post_checked(trajectory, robot, job, outdir))
+    simulated: dict = {}
+    programs = log.done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated))
     report = run_report(path, jp, trajectory, robot, job, "cartesian")
+    report["programs_simulated"] = simulated
     report["limits_ok"] = True
     report["status"] = "ok"
     report["cartesian"] = {"moves": [{"kind": p.kind, "length_mm": p.length_mm} for p in prims],

@@ -8,9 +8,24 @@ from pathlib import Path
 
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job
+from ..placement.partial import partial_path, partial_summary, reachable_stretches
+from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
-from ..stages import (StageLog, RunResult, finish_run, path_for_job, plan_and_time, post_checked,
-                      report_unreachable, run_report, surface_for_job, workpiece_for_job)
+from ..timing import plot_feed_png, samples_for
+from ..stages import (RunResult, StageLog, finish_run, motion_check, part_for_checks, path_for_job, plan_and_time, post_checked,
+                      report_failure, report_unreachable, run_report, surface_for_job, workpiece_for_job)
+
+
+def partial_plan_path(path, exc: PlanInfeasible):
+    """(the reachable stretches as a Path, report figures) for ``task.allow_partial``; PlanInfeasible if none."""
+    bad = [u["index"] for u in exc.report["unreachable"]]
+    stretches = reachable_stretches(path, bad)
+    if not stretches:
+        raise exc
+    sub, index = partial_path(path, stretches, bad)
+    figures = {**partial_summary(path, stretches), "left_out_path_indices": bad,
+               "stretch_list": [s.as_dict() for s in stretches]}
+    return sub, figures
 
 
 def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool = False) -> RunResult:
@@ -22,26 +37,53 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     wp = log.done("workpiece", workpiece_for_job(job))
     surface = log.done("fit", surface_for_job(job, wp))
     path = log.done("raster", path_for_job(job, surface))
+    part = part_for_checks(settings, wp, surface)
+    partial = None
     try:
-        joint_path, trajectory = plan_and_time(settings, path, robot, workpiece=wp)
+        try:
+            joint_path, trajectory = plan_and_time(settings, path, robot, workpiece=part)
+        except PlanInfeasible as exc:
+            if not (job.task.allow_partial and exc.report.get("unreachable")):
+                raise
+            path, partial = partial_plan_path(path, exc)
+            joint_path, trajectory = plan_and_time(settings, path, robot, workpiece=part)
+            log.done("raster", path)  # the part of the raster that is programmed
     except PlanInfeasible as exc:
-        report_unreachable(exc, path, robot, job, outdir, wp, surface)
+        shift = None
+        if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, ~10 s of search
+            shift = nearest_feasible_shift(job, settings, robot, path, budget_s=10.0)
+        report_unreachable(exc, path, robot, job, outdir, wp, surface, shift=shift)
+        if shift is not None and not shift["already_reachable"]:
+            raise PlanInfeasible(f"{exc}; {shift['message']}", report=exc.report) from None
         raise
     log.done("plan", joint_path)
     log.done("time", trajectory)
-    programs = log.done("post", post_checked(trajectory, robot, job, outdir))
+    try:
+        motion = log.done("check", motion_check(settings, trajectory, robot, wp, path, surface))
+    except PlanInfeasible as exc:
+        report_failure(exc, path, joint_path, robot, job, outdir, wp, surface)
+        raise
+    simulated: dict = {}
+    programs = log.done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated))
     report = run_report(path, joint_path, trajectory, robot, job, settings.planner.method)
+    feed_png = plot_feed_png(trajectory, robot, samples_for(trajectory, settings.timing.check_dt_s),
+                             outdir / "plots" / "feed.png", title=job.path.name)
     if "free_moves" in joint_path.events:
         report["free_moves"] = joint_path.events["free_moves"]
+    report["lifted_connectors"] = joint_path.events.get("lifted_connectors", [])
+    if partial is not None:
+        report["partial"] = partial
+    report["motion_check"] = motion
+    report["programs_simulated"] = simulated
     report["limits_ok"] = True  # post_checked passed the independent check
     report["status"] = "ok"
     trajectories = {settings.planner.method: trajectory}
     if compare:
         other = "general" if settings.planner.method == "seed" else "seed"
         try:
-            jp2, tr2 = plan_and_time(settings, path, robot, other, workpiece=wp)
+            jp2, tr2 = plan_and_time(settings, path, robot, other, workpiece=part)
             trajectories[other] = tr2
             report["compare"] = run_report(path, jp2, tr2, robot, job, other)
         except PlanInfeasible as exc:
             report["compare"] = {"method": other, "status": "infeasible", "reason": str(exc)}
-    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir)
+    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir, extra_files=(feed_png,))

@@ -18,17 +18,18 @@ that target: the robot starts there.
 """
 from __future__ import annotations
 
-import numpy as np
-
+from dataclasses import replace
 from pathlib import Path as FsPath
+
+import numpy as np
 
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job
 from ..plan.arm_angle_sqp import plan_arm_angle_sqp
 from ..report import write_json_atomic
 from ..settings import JobSettings
-from ..stages import (RunResult, StageLog, finish_run, post_checked, run_report, surface_for_job, time_for_job,
-                      workpiece_for_job)
+from ..stages import (RunResult, StageLog, finish_run, lift_connectors, motion_check, part_for_checks, post_checked, report_failure, run_report,
+                      surface_for_job, time_for_job, workpiece_for_job)
 from ..toolpath import ZONE_CODE, Path
 
 FAMILY_TABLE_FILE = "arm_angle_families.txt"
@@ -123,7 +124,7 @@ def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: 
     outdir = FsPath(outdir)
     done = log.done
 
-    surface = None
+    surface = wp = None
     if job.task.plane == "fit":
         wp = done("workpiece", workpiece_for_job(job))
         surface = done("fit", surface_for_job(job, wp))
@@ -136,11 +137,25 @@ def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: 
         write_json_atomic({"robot": robot.name, "method": job.planner.method, "status": "infeasible",
                            "reason": str(exc), **exc.report}, outdir / "report.json")
         raise
+    if wp is not None:  # the tool leaves the wall between targets (a joint move between them grazes it)
+        joint_path = lift_connectors(replace(settings.planner, lift_mm=float(job.task.hop_mm), lift_steps=1),
+                                     part_for_checks(settings, wp, surface), path, robot, joint_path, every=True)
     done("plan", joint_path)
     trajectory = done("time", time_for_job(settings, joint_path, path, robot))
-    programs = done("post", post_checked(trajectory, robot, job, outdir))
+    motion = None
+    if wp is not None:  # the scanned wall: no move may go behind it
+        try:
+            motion = done("check", motion_check(settings, trajectory, robot, wp, path, surface))
+        except PlanInfeasible as exc:
+            report_failure(exc, path, joint_path, robot, job, outdir, wp, surface)
+            raise
+    simulated: dict = {}
+    programs = done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated))
     report = run_report(path, joint_path, trajectory, robot, job, job.planner.method)
     best = res.families[res.best]
+    if motion is not None:
+        report["motion_check"] = motion
+    report["programs_simulated"] = simulated
     report["limits_ok"] = True
     report["status"] = "ok"
     report["task"] = {"kind": "sequential_reach", "route": job.task.route, "plane": job.task.plane,

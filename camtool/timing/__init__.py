@@ -9,18 +9,18 @@ Entry points:
 - ``samples_for(trajectory, dt_s)``: the samples a TimedTrajectory was checked with, else a new resampling
 
 Surface zones (work, lead_in, lead_out) are split into *runs*: consecutive
-surface poses of one path segment. Each run starts and ends at rest; inside,
-the TCP moves at ``tcp_speed_mm_s`` (smooth ramps at both ends) and the joint
-path is interpolated by quintic Hermite pieces with finite-difference
-through-velocities and -accelerations, stretched locally where a limit would
-be broken (``quintic.py``). With ``method="ruckig"`` every such piece is then
-replaced by a jerk-limited ruckig state-to-state move between the same states,
-written out exactly (``ruckig_through.py``); a piece ruckig cannot give keeps
-its quintic and is listed as a fallback. Everything
-between runs (self-motion, approach, depart, retract) is timed by rest-to-rest
-ruckig moves (``ruckig_moves.py``) with ``zones="stop"``; with ``zones="flow"``
-a free chain passes its intermediate poses without stopping (``flow.py``).
-``assemble.py`` puts the pieces together. See docs/timing.md.
+surface poses of one path segment. Each run is a cubic spline through its poses
+in TCP length, at rest at both ends; its time law holds the work at a constant
+feed (``feed``, ``slow_scope``) and puts the jerk-limited ramps at the run ends,
+in the leads (``runs.py``, ``pathlaw.py``). With ``method="ruckig"`` every piece
+between two poses is then replaced by a jerk-limited ruckig state-to-state move
+between the same states, written out exactly (``ruckig_through.py``); a piece
+ruckig cannot give keeps the law's own samples and is listed as a fallback.
+Everything between runs (self-motion, approach, depart, retract) is a free
+chain: with ``zones="flow"`` (default) one jerk-limited motion along a spline
+through its poses (``flow.py``), with ``zones="stop"`` rest-to-rest ruckig moves
+(``ruckig_moves.py``). ``assemble.py`` puts the pieces together; ``feed.py``
+measures the TCP feed. See docs/timing.md.
 """
 from __future__ import annotations
 
@@ -32,25 +32,33 @@ import numpy as np
 from ..errors import BadInput, CamtoolError, PlanInfeasible
 from ..toolpath import ZONE_CODE, ZONES
 from ..trajectory import Trajectory, TrajectorySamples, sample_trajectory
-from .assemble import SURFACE_ZONES, place, run_layout, slowdowns, time_surface, timeline_pieces
+from .assemble import (SURFACE_ZONES, lead_needed_mm, place, run_layout, short_leads, slowdowns, time_surface,
+                       timeline_pieces)
 from .check import check_trajectory
+from .feed import feed_profile, feed_statistics, plot_feed, tcp_positions_world
+from .runs import lead_bound_mm
 
 if TYPE_CHECKING:
     from ..settings import TimingSettings
 
 __all__ = ["TimedTrajectory", "TrajectorySamples", "check_trajectory", "sample_trajectory", "samples_for",
-           "time_trajectory", "timing_report", "SURFACE_ZONES"]
+           "time_trajectory", "timing_report", "plot_feed_png", "feed_profile", "feed_statistics",
+           "lead_needed_mm", "lead_bound_mm", "tcp_positions_world", "SURFACE_ZONES"]
 
 MAX_LISTED_FALLBACKS = 20      # ruckig fallback pieces listed one by one in the report
 
 
 @dataclass(frozen=True)
 class TimedTrajectory(Trajectory):
-    """A Trajectory plus how it was timed: method, TCP speed and the slow-downs applied.
+    """A Trajectory plus how it was timed: method, TCP feed and policy, the slowed rows, the short leads.
 
-    ``slowdowns``: one dict per stretch of surface pieces slowed below the set
-    TCP speed to respect a limit: JointPath rows, Path indices, time span and
-    the lowest speed ratio (actual / planned). Per surface piece (waypoint to
+    ``slowdowns``: one dict per work stretch (the whole row with ``slow_scope="row"``)
+    run below the commanded feed because a limit does not allow it: JointPath rows,
+    Path indices, time span, ``feed_mm_s``, ``speed_ratio`` (feed / commanded), the
+    binding ``joint`` and ``limit`` ("speed", "acceleration", "jerk", or "ramps" when
+    lowered to fit its speed changes). ``short_leads``: one dict per ramp from / to
+    rest that does not fit its lead (run, side, first / last work row, ``lead_mm``,
+    ``needed_mm``). Per surface piece (waypoint to
     next waypoint of a run): ``piece_row`` (JointPath row it starts at),
     ``piece_zone``, ``piece_ruckig`` (True if it is a ruckig move) and
     ``piece_reason`` ("" or why a ruckig piece kept its quintic).
@@ -64,6 +72,9 @@ class TimedTrajectory(Trajectory):
     method: str = ""
     tcp_speed_mm_s: float = 0.0
     slowdowns: tuple = ()
+    feed: str = ""
+    slow_scope: str = ""
+    short_leads: tuple = ()
     piece_row: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     piece_zone: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     piece_ruckig: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
@@ -109,8 +120,10 @@ def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedT
     ``path`` gives the TCP positions (mm, world frame) used for the TCP speed on
     surface zones. ``settings`` (``TimingSettings``, validated by the job
     schema): ``method`` "quintic" or "ruckig" (surface-piece interpolation),
-    ``tcp_speed_mm_s``, ``zones`` "stop" (rest at every free pose) or "flow"
-    (free chains pass their poses without stopping, ``flow.py``), and
+    ``tcp_speed_mm_s`` (the commanded feed), ``feed`` "constant" or "max" and
+    ``slow_scope`` "row" or "stretch" (``runs.py``), ``zones`` "flow" (free chains
+    pass their poses without stopping, ``flow.py``) or "stop" (rest at every free
+    pose), and
     ``check_dt_s``: the result is verified by ``check_trajectory`` on a
     resampling at that step (kept as ``check_samples``), and a CamtoolError is
     raised if it breaks a limit.
@@ -119,7 +132,8 @@ def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedT
     L = robot.limits
     zone = np.asarray(joint_path.zone)
     layout = run_layout(joint_path, path)
-    surface = time_surface(joint_path, path, robot, layout, settings.method, settings.tcp_speed_mm_s)
+    surface = time_surface(joint_path, path, robot, layout, settings.method, settings.tcp_speed_mm_s,
+                           settings.feed, settings.slow_scope)
     pieces = timeline_pieces(joint_path, robot, layout, surface, settings.zones)
     placed = place(pieces)
     s = placed.samples
@@ -132,7 +146,8 @@ def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedT
         limits={"lower": L.lower.copy(), "upper": L.upper.copy(), "velocity": L.velocity.copy(),
                 "acceleration": L.acceleration.copy(), "jerk": L.jerk.copy()},
         method=settings.method, tcp_speed_mm_s=float(settings.tcp_speed_mm_s),
-        slowdowns=slowdowns(surface, pieces, placed, joint_path),
+        slowdowns=slowdowns(surface, pieces, placed, joint_path, robot),
+        feed=settings.feed, slow_scope=settings.slow_scope, short_leads=short_leads(surface, joint_path),
         piece_row=surface.rows[p].astype(int), piece_zone=zone[surface.rows[p]].astype(int),
         piece_ruckig=np.asarray(surface.interpolation.piece_ruckig, bool),
         piece_reason=np.asarray(surface.interpolation.piece_reason, str),
@@ -167,12 +182,30 @@ def _piece_figures(tr) -> dict:
     }
 
 
+def _feed_figures(tr, robot, samples) -> dict:
+    """TCP feed on work measured on the samples (``feed.py``); {} without a commanded feed."""
+    feed = float(getattr(tr, "tcp_speed_mm_s", 0.0) or 0.0)
+    if feed <= 0 or len(samples.t_s) < 2:
+        return {}
+    return feed_statistics(feed_profile(tr, robot, samples), feed)
+
+
+def plot_feed_png(trajectory: Trajectory, robot, samples: TrajectorySamples, png_path, title: str = ""):
+    """Write a PNG of the TCP feed against TCP path length (work highlighted, the commanded feed and its
+    +-1 % / +-2 % bands marked) measured on ``samples``; returns the file's path (matplotlib, Agg)."""
+    feed = float(getattr(trajectory, "tcp_speed_mm_s", 0.0) or 0.0)
+    return plot_feed(feed_profile(trajectory, robot, samples), feed, png_path, title)
+
+
 REPORT_BLOCK_SAMPLES = 200000  # samples reduced at a time for the peak ratios (bounded temporaries)
 
 
 def timing_report(trajectory: Trajectory, robot, samples: TrajectorySamples) -> dict:
     """Cycle time, peak joint use (|value| / limit over ``samples``, the trajectory's resampling from
-    ``sample_trajectory`` / ``samples_for``), work time, slow-downs, share of ruckig pieces and ruckig fallbacks."""
+    ``sample_trajectory`` / ``samples_for``), work time, the TCP feed on work measured on ``samples``
+    (``work_feed``: shares of work length within +-1 % / +-2 % of the commanded feed, min / median /
+    max work feed), slowed rows with their binding joint, short leads, share of ruckig pieces and
+    ruckig fallbacks."""
     tr = trajectory
     if not isinstance(samples, TrajectorySamples):
         raise TypeError("timing_report: samples must be the trajectory's TrajectorySamples "
@@ -201,7 +234,11 @@ def timing_report(trajectory: Trajectory, robot, samples: TrajectorySamples) -> 
             for i, name in enumerate(robot.joint_names)},
         "method": getattr(tr, "method", ""),
         "tcp_speed_mm_s": getattr(tr, "tcp_speed_mm_s", 0.0),
+        "feed_policy": getattr(tr, "feed", ""),
+        "slow_scope": getattr(tr, "slow_scope", ""),
+        "work_feed": _feed_figures(tr, robot, samples),
         "slowdowns": [dict(s) for s in getattr(tr, "slowdowns", ())],
+        "short_leads": [dict(s) for s in getattr(tr, "short_leads", ())],
         **_piece_figures(tr),
         "waypoints": int(len(tr.t_s)),
     }

@@ -4,10 +4,10 @@
 frozen dataclass (no shared state between them)::
 
     layout  = run_layout(joint_path, path)                        # RunLayout: runs of surface rows
-    surface = time_surface(joint_path, path, robot, layout, ...)   # SurfaceTiming: all runs at once
+    surface = time_surface(joint_path, path, robot, layout, ...)   # SurfaceTiming: all runs at once (runs.py)
     pieces  = timeline_pieces(joint_path, robot, layout, surface, zones)  # [Piece]: chain, run, chain, ...
     placed  = place(pieces)                                        # Placement: one Samples, piece starts
-    slowdowns(surface, layout, placed, joint_path)                 # the report of slowed pieces
+    slowdowns(surface, pieces, placed, joint_path, robot)          # the report of slowed work stretches
 
 A ``Piece`` holds its samples with times from its own start; ``place`` puts the
 pieces one after another on the time line (a piece's first sample is the
@@ -19,14 +19,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..toolpath import ZONE_CODE, ZONES
-from .flow import flow_chain, hard_steps
-from .quintic import MARGIN, TimedRuns, time_runs
+from ..toolpath import SURFACE_ZONES, ZONES, ZONE_CODE, row_segments, run_bounds
+from ..trajectory import quintic_coefficients
+from .flow import corner_poses, flow_chain, hard_steps
+from .quintic import MARGIN
 from .ruckig_moves import RuckigMover, rest_to_rest_chain
 from .ruckig_through import on_grid, through_pieces
+from .runs import RunsTiming, run_leads, time_runs
 
-SURFACE_ZONES = ("work", "lead_in", "lead_out")
-SLOWDOWN_REPORT_RATIO = 0.995  # pieces slower than this share of the planned TCP speed are reported
 
 
 # ----------------------------------------------------------------------------- runs
@@ -48,17 +48,8 @@ class RunLayout:
 def run_layout(joint_path, path) -> RunLayout:
     """The runs of ``joint_path``: consecutive surface poses (work, lead-in, lead-out) of one Path segment."""
     zone = np.asarray(joint_path.zone)
-    pidx = np.asarray(joint_path.path_index)
-    surface = np.isin(zone, [ZONE_CODE[z] for z in SURFACE_ZONES])
-    seg = np.where(pidx >= 0, np.asarray(path.segment)[np.maximum(pidx, 0)], -1)
-    n = len(zone)
-    same_prev = np.zeros(n, bool)
-    same_prev[1:] = surface[:-1] & surface[1:] & (seg[1:] == seg[:-1])
-    start = surface & ~same_prev
-    end = np.zeros(n, bool)
-    end[:-1] = surface[:-1] & ~same_prev[1:]
-    end[-1] = surface[-1]
-    return RunLayout(surface, start, end)
+    seg = row_segments(joint_path.path_index, zone, path.segment)
+    return RunLayout(*run_bounds(zone, seg))
 
 
 def tcp_positions_mm(joint_path, path, robot) -> np.ndarray:
@@ -91,12 +82,16 @@ class InnerSamples:
 
 @dataclass(frozen=True)
 class PieceInterpolation:
-    """How the surface pieces are interpolated: final durations, inner samples, ruckig flag and reason."""
+    """How the surface pieces are interpolated: final durations, inner samples, ruckig flag and reason.
+
+    ``inner``: samples inside pieces (the time law's S-curve samples, or ruckig's jerk switches).
+    """
 
     h_s: np.ndarray                 # (S-1,) final piece durations (undefined across run ends)
     inner: InnerSamples | None      # None: every piece is the quintic between its waypoints
     piece_ruckig: np.ndarray        # (P,) bool
-    piece_reason: np.ndarray        # (P,) "" or why a ruckig piece kept its quintic
+    piece_reason: np.ndarray        # (P,) "" or why a ruckig piece kept the law's samples
+    on_grid: bool = False           # runs start on the ruckig time grid (ruckig pieces)
 
 
 @dataclass(frozen=True)
@@ -104,6 +99,7 @@ class SurfaceTiming:
     """Every run timed at once, indexed by surface waypoint k (the k-th surface row of the JointPath).
 
     Piece p goes from surface waypoint ``pieces[p]`` to the next one (same run).
+    ``law``: the runs' time law with its report (slowed stretches, short leads, feed per run).
     """
 
     rows: np.ndarray        # (S,) JointPath row of each surface waypoint
@@ -111,9 +107,9 @@ class SurfaceTiming:
     q: np.ndarray           # (S, dof)
     qd: np.ndarray          # (S, dof) through-velocities (0 at run ends)
     qdd: np.ndarray         # (S, dof) through-accelerations
-    h_plan_s: np.ndarray    # (S-1,) piece durations of the TCP time law
     pieces: np.ndarray      # (P,) surface waypoint each piece starts at
     interpolation: PieceInterpolation
+    law: RunsTiming
 
     @property
     def h_s(self) -> np.ndarray:
@@ -124,37 +120,89 @@ class SurfaceTiming:
         return int(np.searchsorted(self.rows, row))
 
 
-def _quintic_pieces(limits, q, runs: TimedRuns, pieces) -> PieceInterpolation:
-    return PieceInterpolation(runs.h_s.copy(), None, np.zeros(len(pieces), bool),
+def _law_inner(law: RunsTiming, keep: np.ndarray | None = None) -> InnerSamples | None:
+    """The time law's samples inside pieces (those starting at waypoints in ``keep``, if given)."""
+    sel = np.ones(len(law.inner_waypoint), bool) if keep is None else np.isin(law.inner_waypoint, keep)
+    if not sel.any():
+        return None
+    return InnerSamples(law.inner_waypoint[sel], law.inner_t_s[sel], law.inner_q[sel], law.inner_qd[sel],
+                        law.inner_qdd[sel])
+
+
+def _quintic_pieces(limits, q, law: RunsTiming, pieces) -> PieceInterpolation:
+    return PieceInterpolation(law.h_s.copy(), _law_inner(law), np.zeros(len(pieces), bool),
                               np.full(len(pieces), "", dtype=object))
 
 
-def _ruckig_pieces(limits, q, runs: TimedRuns, pieces) -> PieceInterpolation:
+def _ruckig_pieces(limits, q, law: RunsTiming, pieces) -> PieceInterpolation:
+    """Every piece a ruckig state-to-state move between the law's through-states; a piece ruckig
+    cannot give keeps the law's own samples (``ruckig_through``)."""
     if not len(pieces):
-        return _quintic_pieces(limits, q, runs, pieces)
-    through = through_pieces(limits, q, runs.qd, runs.qdd, runs.h_s, pieces, share=MARGIN)
-    h = runs.h_s.copy()
-    h[pieces] = through.duration_s
-    inner = InnerSamples(pieces[through.piece], through.t_s, through.q, through.qd, through.qdd)
-    return PieceInterpolation(h, inner, through.used, through.reason)
+        return _quintic_pieces(limits, q, law, pieces)
+    through = through_pieces(limits, q, law.qd, law.qdd, law.h_s, pieces, share=MARGIN)
+    # a piece ruckig could only give in more time than the law's keeps the law's samples: ruckig would
+    # reach the same end velocity later, i.e. leave the path between the poses
+    used = np.asarray(through.used, bool).copy()
+    reason = np.asarray(through.reason, object).copy()
+    longer = used & (through.duration_s > on_grid(law.h_s[pieces], up=True))
+    used[longer] = False
+    reason[longer] = "longer"
+    h = law.h_s.copy()
+    h[pieces] = np.where(used, through.duration_s, on_grid(law.h_s[pieces], up=True))
+    keep = used[through.piece]
+    parts = [InnerSamples(pieces[through.piece[keep]], through.t_s[keep], through.q[keep], through.qd[keep],
+                          through.qdd[keep])]
+    fallback = _law_inner(law, pieces[~used])
+    if fallback is not None:
+        parts.append(_stretched(fallback, law, h))
+    inner = InnerSamples(*(np.concatenate([getattr(p, f) for p in parts])
+                           for f in ("waypoint", "t_s", "q", "qd", "qdd")))
+    return PieceInterpolation(h, inner, used, reason.astype(str), on_grid=True)
+
+
+def _stretched(inner: InnerSamples, law: RunsTiming, h_new: np.ndarray) -> InnerSamples:
+    """The law's samples of pieces whose duration was rounded up to the ruckig time grid (< 1 ns).
+
+    Times are scaled by f = new / planned duration and the states with them (q' / f,
+    q'' / f^2: the same motion, slower by f); the piece ends keep the law's states, so
+    the mismatch this leaves there (~1e-7 of q' and q'') is removed by adding the
+    quintic that carries it, spread over the whole piece (the Hermite pieces
+    reproduce a quintic exactly).
+    """
+    w = inner.waypoint
+    f = (h_new / law.h_s)[w][:, None]
+    T = h_new[w][:, None]
+    v0, a0, v1, a1 = law.qd[w], law.qdd[w], law.qd[w + 1], law.qdd[w + 1]
+    zero = np.zeros_like(v0)
+    c = quintic_coefficients(zero, (v0 - v0 / f) * T, (a0 - a0 / f**2) * T**2, zero, (v1 - v1 / f) * T,
+                             (a1 - a1 / f**2) * T**2)
+    t = inner.t_s * f[:, 0]
+    u = (t / T[:, 0])[:, None]
+    q = inner.q + c[0] + u * (c[1] + u * (c[2] + u * (c[3] + u * (c[4] + u * c[5]))))
+    qd = inner.qd / f + (c[1] + u * (2 * c[2] + u * (3 * c[3] + u * (4 * c[4] + u * 5 * c[5])))) / T
+    qdd = inner.qdd / f**2 + (2 * c[2] + u * (6 * c[3] + u * (12 * c[4] + u * 20 * c[5]))) / T**2
+    return InnerSamples(w, t, q, qd, qdd)
 
 
 PIECE_INTERPOLATIONS = {"quintic": _quintic_pieces, "ruckig": _ruckig_pieces}  # timing.method
 
 
-def time_surface(joint_path, path, robot, layout: RunLayout, method: str, tcp_speed_mm_s: float) -> SurfaceTiming:
-    """Time every run: TCP time law, through-derivatives, local slow-down (``quintic.py``); then the
-    pieces' interpolation by ``method`` (quintic, or ruckig state-to-state moves, ``ruckig_through.py``)."""
+def time_surface(joint_path, path, robot, layout: RunLayout, method: str, tcp_speed_mm_s: float,
+                 feed: str = "constant", slow_scope: str = "row") -> SurfaceTiming:
+    """Time every run: splines through the poses, constant-feed time law with ramps at the run ends
+    (``runs.py``, ``pathlaw.py``); then the pieces' interpolation by ``method`` (the law's own
+    samples, or ruckig state-to-state moves between its through-states, ``ruckig_through.py``)."""
     q = np.asarray(joint_path.q, float)
     sidx = np.nonzero(layout.surface)[0]
     pos = tcp_positions_mm(joint_path, path, robot)
     first, last = layout.start[sidx], layout.end[sidx]
     run_id = np.cumsum(first) - 1
     step_mm = np.linalg.norm(np.diff(pos[sidx], axis=0), axis=1)
-    runs = time_runs(q[sidx], step_mm, first, last, run_id, robot.limits, tcp_speed_mm_s)
+    zone = np.asarray(joint_path.zone)[sidx]
+    law = time_runs(q[sidx], step_mm, first, last, run_id, zone, robot.limits, tcp_speed_mm_s, feed, slow_scope)
     pieces = np.nonzero(~last[:-1])[0] if len(sidx) > 1 else np.zeros(0, int)
-    interpolation = PIECE_INTERPOLATIONS[method](robot.limits, q[sidx], runs, pieces)
-    return SurfaceTiming(sidx, run_id, q[sidx], runs.qd, runs.qdd, runs.h_plan_s, pieces, interpolation)
+    interpolation = PIECE_INTERPOLATIONS[method](robot.limits, q[sidx], law, pieces)
+    return SurfaceTiming(sidx, run_id, q[sidx], law.qd, law.qdd, pieces, interpolation, law)
 
 
 # ----------------------------------------------------------------------------- pieces of the time line
@@ -199,7 +247,8 @@ def _flow_chain(mover, joint_path, rows, robot):
     zone = np.asarray(joint_path.zone)[rows]
     hard = hard_steps(q, robot.prismatic, np.asarray(joint_path.jump)[rows],
                       (zone == ZONE_CODE["retract"]) | np.asarray(joint_path.retract)[rows])
-    return flow_chain(mover, q, hard)
+    rest = corner_poses(q, np.asarray(joint_path.path_index)[rows] < 0, robot.limits.velocity)
+    return flow_chain(mover, q, hard, rest)
 
 
 CHAIN_TIMINGS = {"stop": _stop_chain, "flow": _flow_chain}  # timing.zones
@@ -259,7 +308,8 @@ def surface_run(a: int, b: int, surface: SurfaceTiming, joint_path) -> Piece:
             pp = np.concatenate([pp, np.full(int(sel.sum()), -1)])
             o = np.argsort(t_rel, kind="stable")
             t_rel, rq, rv, ra, zz, pp = t_rel[o], rq[o], rv[o], ra[o], zz[o], pp[o]
-    return Piece(Samples(t_rel, rq, rv, ra, zz, pp), (a, b), run=True, starts_on_grid=inner is not None)
+    return Piece(Samples(t_rel, rq, rv, ra, zz, pp), (a, b), run=True,
+                 starts_on_grid=surface.interpolation.on_grid)
 
 
 def timeline_pieces(joint_path, robot, layout: RunLayout, surface: SurfaceTiming, zones: str) -> list[Piece]:
@@ -323,41 +373,69 @@ def _joined(pieces: list[Piece], name: str) -> np.ndarray:
 # ----------------------------------------------------------------------------- report of slowed pieces
 
 
-def slowdowns(surface: SurfaceTiming, pieces: list[Piece], placement: Placement, joint_path) -> tuple:
-    """Group consecutive surface pieces that run below the planned TCP speed (one dict per stretch)."""
-    p = surface.pieces
-    if not len(p):
-        return ()
-    piece_t0 = np.zeros(max(len(surface.rows) - 1, 0))  # start time of each piece on the time line
+def _waypoint_times(surface: SurfaceTiming, pieces: list[Piece], placement: Placement) -> np.ndarray:
+    """Time (s, on the whole time line) of every surface waypoint."""
+    t = np.zeros(len(surface.rows))
     for piece, start in zip(pieces, placement.start_s):
         if piece.run:
             ka, kb = surface.waypoint_of_row(piece.rows[0]), surface.waypoint_of_row(piece.rows[1])
-            piece_t0[ka:kb] = start + run_waypoint_times(surface, ka, kb)[:-1]
-    h_plan, h_final = surface.h_plan_s[p], surface.h_s[p]
-    piece_rows, run_of_piece, t_piece_start = surface.rows[p], surface.run_id[p], piece_t0[p]
+            t[ka:kb + 1] = start + run_waypoint_times(surface, ka, kb)
+    return t
+
+
+def slowdowns(surface: SurfaceTiming, pieces: list[Piece], placement: Placement, joint_path, robot=None) -> tuple:
+    """One dict per slowed work stretch (``runs.py``): rows, Path indices, time span, feed, binding joint."""
+    if not surface.law.slow:
+        return ()
+    t_way = _waypoint_times(surface, pieces, placement)
     zone = np.asarray(joint_path.zone)
     pidx = np.asarray(joint_path.path_index)
-    ratio = h_plan / h_final
-    slow = ratio < SLOWDOWN_REPORT_RATIO
+    names = None if robot is None else tuple(robot.joint_names)
     out = []
-    k = 0
-    n = len(slow)
-    while k < n:
-        if not slow[k]:
-            k += 1
-            continue
-        e = k
-        while e + 1 < n and slow[e + 1] and run_of_piece[e + 1] == run_of_piece[k]:
-            e += 1
-        a, b = int(piece_rows[k]), int(piece_rows[e]) + 1
+    for s in surface.law.slow:
+        ka, kb = s["first_waypoint"], s["last_waypoint"]
+        a, b = int(surface.rows[ka]), int(surface.rows[kb])
+        j = int(s["joint"])
         out.append({
-            "first_row": a, "last_row": b,
-            "first_path_index": int(pidx[a]), "last_path_index": int(pidx[b]),
-            "t_start_s": float(t_piece_start[k]), "t_end_s": float(t_piece_start[e] + h_final[e]),
-            "speed_ratio": float(ratio[k:e + 1].min()),
-            "zone": ZONES[int(zone[a])],
-            "at_run_end": bool(k == 0 or run_of_piece[k - 1] != run_of_piece[k]
-                               or e == n - 1 or run_of_piece[e + 1] != run_of_piece[e]),
+            "first_row": a, "last_row": b, "first_path_index": int(pidx[a]), "last_path_index": int(pidx[b]),
+            "t_start_s": float(t_way[ka]), "t_end_s": float(t_way[kb]),
+            "speed_ratio": float(s["speed_ratio"]), "feed_mm_s": float(s["feed_mm_s"]),
+            "joint": names[j] if names else j, "limit": s["limit"], "run": int(s["run"]),
+            "zone": ZONES[int(zone[a])], "at_run_end": bool(s["at_run_end"]),
         })
-        k = e + 1
     return tuple(out)
+
+
+def short_leads(surface: SurfaceTiming, joint_path) -> tuple:
+    """One dict per ramp that does not fit its lead: run, side, first / last work row, lead and needed length."""
+    pidx = np.asarray(joint_path.path_index)
+    out = []
+    for s in surface.law.short_leads:
+        row = int(surface.rows[s["waypoint"]])
+        out.append({"run": int(s["run"]), "side": s["side"], "work_row": row, "work_path_index": int(pidx[row]),
+                    "lead_mm": round(float(s["lead_mm"]), 3), "needed_mm": round(float(s["needed_mm"]), 3),
+                    "feed_mm_s": float(s["feed_mm_s"])})
+    return tuple(out)
+
+
+def lead_needed_mm(joint_path, path, robot, settings) -> dict:
+    """The lead length every run of ``joint_path`` needs for its ramps at ``settings``' feed.
+
+    ``settings``: ``TimingSettings`` (feed, policy). Returns ``lead_in_mm`` and
+    ``lead_out_mm`` (the largest over the runs) and ``per_run``: run number, the
+    lead lengths it has and the ones it needs (``runs.run_leads``), planned exactly
+    as ``time_trajectory`` plans them.
+    """
+    layout = run_layout(joint_path, path)
+    pos = tcp_positions_mm(joint_path, path, robot)
+    zone = np.asarray(joint_path.zone)
+    q = np.asarray(joint_path.q, float)
+    per_run = []
+    for r, (a, b) in enumerate(layout.runs()):
+        step = np.linalg.norm(np.diff(pos[a:b + 1], axis=0), axis=1)
+        item = run_leads(q[a:b + 1], step, zone[a:b + 1], robot.limits, settings.tcp_speed_mm_s, settings.feed,
+                         settings.slow_scope)
+        if item:
+            per_run.append({"run": r, **item})
+    return {"lead_in_mm": max((x["lead_in_needed_mm"] for x in per_run), default=0.0),
+            "lead_out_mm": max((x["lead_out_needed_mm"] for x in per_run), default=0.0), "per_run": per_run}

@@ -53,7 +53,7 @@ CHUNK_PIECES = 1000            # pieces handled at once
 CHECK_GRID = 4                # speed grid per sample interval in the check (intervals are ~1 ms)
 PHASES = 7
 
-REASONS = ("ruckig_error", "no_common_duration", "switch_times", "residual", "limits")
+REASONS = ("ruckig_error", "no_common_duration", "switch_times", "residual", "limits", "longer")  # "longer": assemble
 
 
 def on_grid(t, up: bool = False):

@@ -1,0 +1,209 @@
+"""``camtool place``: where to put the workpiece so that the robot reaches all of it, with margin."""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import click
+
+from ..console import echo_json, progress_enabled
+from ..errors import BadInput, PlanInfeasible
+from ..job import load_job
+
+
+def _offset_dict(o) -> dict:
+    return {"dx_mm": round(o[0], 3), "dy_mm": round(o[1], 3), "dz_mm": round(o[2], 3), "dyaw_deg": round(o[3], 3)}
+
+
+def _verified_dict(v: dict | None) -> dict | None:
+    if v is None:
+        return None
+    keep = ("ok", "unreachable", "cycle_s", "reverse_plans", "retracts", "limit_findings", "penalty", "penalty_from",
+            "plan_penalty", "cost", "reason", "margins", "seconds")
+    out = {k: v[k] for k in keep if k in v}
+    if not math.isfinite(out.get("cost", 0.0)):
+        out["cost"] = None
+    return out
+
+
+def _entry(study, job, r, rank=None) -> dict:
+    from ..placement.search import placement_of
+
+    xyz, rpy = placement_of(job, r.offset)
+    d = {"offset": _offset_dict(r.offset), "workpiece_xyz_mm": xyz, "workpiece_rpy_deg": rpy,
+         "screen": {k: v for k, v in r.as_dict().items() if k != "offset"},
+         "planned": _verified_dict(study.verified.get(r.offset))}
+    return d if rank is None else {"rank": rank, **d}
+
+
+@click.command("place")
+@click.argument("job_file", metavar="JOB", type=click.Path(path_type=Path))
+@click.option("--vary", "vary", multiple=True, metavar="NAME=LO:HI",
+              help="A placement offset to search and its range: x, y, z in mm (world frame), yaw in deg about "
+                   "world z; repeatable (default x=-300:300, y=-300:300, z=-300:300).")
+@click.option("-j", "--jobs", type=int, default=1, show_default=True,
+              help="Processes that screen and plan in parallel.")
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Random seed of the refinement: the same seed gives the same result.")
+@click.option("--grid", "grid_max", type=int, default=1000, show_default=True,
+              help="Placements of the raster screen at most (the grid is coarsened to fit).")
+@click.option("--verify", type=int, default=3, show_default=True,
+              help="Best placements planned in full (the real pipeline) per round.")
+@click.option("--max-checks", type=int, default=9, show_default=True,
+              help="Best placements tried in full before giving up.")
+@click.option("--reach-margin", type=float, default=10.0, show_default=True,
+              help="Goal of the reach margin (percent of the arm's reach); less is penalised.")
+@click.option("--joint-margin", type=float, default=10.0, show_default=True,
+              help="Goal of the joint-limit margin (percent of each joint's range); less is penalised.")
+@click.option("--top", type=int, default=10, show_default=True, help="Length of the ranked list.")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+              help="Override a job-file key, e.g. --set raster.step_over_mm=20 (repeatable).")
+@click.option("-o", "--outdir", type=click.Path(path_type=Path), default=None,
+              help="Output folder (default: out/<job file name>_place).")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary (placement.json) as JSON.")
+def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_max: int, verify: int, max_checks: int,
+            reach_margin: float, joint_margin: float, top: int, overrides: tuple[str, ...], outdir: Path | None,
+            as_json: bool) -> None:
+    """Find where to put JOB's workpiece: offsets of cell.workpiece_xyz_mm and a yaw added to
+    cell.workpiece_rpy_deg, within the --vary bounds.
+
+    Every pose of the raster must be reachable with margin. A fast screen
+    (wrist-centre reach bound on every pose, closed-form IK on a subsample)
+    scores a raster of placements and refines round the best; the best few
+    are then planned and timed in full. Cost: estimated work time x (1 +
+    penalty on joint-limit, reach and singularity margins below their goals)
+    x (1 + 2 % per metre moved); see docs/placement.md.
+
+    Writes OUTDIR/placed_job.toml (`camtool run` accepts it),
+    OUTDIR/feasible_region.png and OUTDIR/placement.json. Exit 3 when no
+    placement within the bounds plans with every pose reachable.
+    """
+    from ..placement.plots import plot_feasible_region
+    from ..placement.screen import ScreenSettings
+    from ..placement.search import (DEFAULT_VARY, PlacementProblem, format_offset, parse_vary, placement_of,
+                                    write_placed_job)
+    from ..report import write_json_atomic
+    from ..settings import JobSettings
+
+    for name, value, least in (("--grid", grid_max, 8), ("--verify", verify, 1), ("--max-checks", max_checks, 1),
+                               ("--top", top, 1), ("-j", jobs, 1)):
+        if value < least:
+            raise BadInput(f"{name}: expected at least {least}, found {value}")
+    for name, value in (("--reach-margin", reach_margin), ("--joint-margin", joint_margin)):
+        if not 0.0 < value < 50.0:
+            raise BadInput(f"{name}: expected a percentage in (0, 50), found {value:g}")
+    variables = [parse_vary(v) for v in (vary or DEFAULT_VARY)]
+    job = load_job(job_file, list(overrides))
+    outdir = outdir or Path("out") / f"{job_file.stem}_place"
+    t0 = time.perf_counter()
+    live = progress_enabled() and not as_json
+
+    def on_progress(msg):
+        if live:
+            click.echo(f"  {msg}  {time.perf_counter() - t0:6.1f} s", err=True)
+
+    from ..stages import robot_for_job
+
+    robot = robot_for_job(job)
+    st = JobSettings.from_job(job, robot)
+    settings = ScreenSettings(joint_margin_goal=joint_margin / 100.0, reach_margin_goal=reach_margin / 100.0,
+                              orientation_mm=st.planner.orientation_weight_mm, track_scale_mm=st.planner.track_scale_mm,
+                              tcp_speed_mm_s=st.timing.tcp_speed_mm_s)
+    with PlacementProblem(job, variables, jobs, settings) as problem:
+        study = problem.run(seed, verify, max_checks, grid_max, on_progress)
+    user = (0.0, 0.0, 0.0, 0.0)
+    files = [plot_feasible_region(study, outdir / "feasible_region.png")]
+    if study.chosen is not None:
+        files.insert(0, write_placed_job(job, study.chosen, outdir / "placed_job.toml", list(overrides)))
+    grid = [len(g) for g in study.grid]
+    summary = {
+        "job": str(job_file), "robot": study.robot_name, "families": study.families, "seed": seed,
+        "placement": {"workpiece_xyz_mm": list(job.cell.workpiece_xyz_mm),
+                      "workpiece_rpy_deg": list(job.cell.workpiece_rpy_deg)},
+        "variables": {v.name: [v.lower, v.upper] for v in study.variables},
+        "units": {"x": "mm", "y": "mm", "z": "mm", "yaw": "deg"},
+        "cost": {"formula": "est_work_s * (1 + penalty) * (1 + move_per_m * (|d| / 1 m + |yaw| / 90 deg)); planned: "
+                            "cycle_s in place of est_work_s, margins of the planned run",
+                 "joint_margin_goal": settings.joint_margin_goal, "reach_margin_goal": settings.reach_margin_goal,
+                 "dexterity_goal": settings.dexterity_goal, "move_per_m": settings.move_per_m},
+        "screen": {"poses": study.n_poses, "ik_poses": study.n_ik_poses, "grid": grid,
+                   "grid_placements": len(study.grid_offsets), "placements": len(study.results),
+                   "feasible": study.feasible_count, "seconds": round(study.screen_s, 3)},
+        "user": _entry(study, job, study.user),
+        "ranked": [_entry(study, job, r, k) for k, r in enumerate(study.ranked(top), 1)],
+        "planned": [{**_offset_dict(o), **_verified_dict(v)} for o, v in study.verified.items()],
+        "chosen": None if study.chosen is None else _entry(study, job, study.results[study.chosen]),
+        "plan_seconds": round(study.verify_s, 3), "wall_s": round(time.perf_counter() - t0, 3), "processes": jobs,
+    }
+    summary["files"] = [str(f) for f in files] + [str(outdir / "placement.json")]
+    write_json_atomic(summary, outdir / "placement.json")
+    if as_json:
+        echo_json(summary)
+    else:
+        _print_summary(summary, study, job, format_offset, placement_of, outdir)
+    if study.chosen is None:
+        v = study.verified.get(user)
+        raise PlanInfeasible("no placement within the --vary bounds plans with every pose reachable"
+                             + ("" if study.feasible_count else " (none passes the reach screen)")
+                             + "; widen the bounds or add a variable (see placement.json and feasible_region.png)"
+                             + ("" if v is None or v["ok"] else f"; your placement: {v.get('reason', '')}"))
+
+
+def _fmt_screen(s: dict) -> str:
+    if not s["feasible"]:
+        where = {"bound": "beyond the wrist-centre reach", "ik": "outside the joint limits (IK subsample)",
+                 "full": "outside the joint limits"}[s["stage"]]
+        return f"INFEASIBLE in the screen: {s['unreachable']} of {s['checked']} poses {where}"
+    return (f"screen cost {s['cost']:.1f} s, joint margin {100 * s['joint_margin']:.1f} % ({s['joint_margin_joint']}), "
+            f"reach used {100 * s['reach_used']:.1f} %, dexterity {s['dexterity']:.3f}")
+
+
+def _fmt_planned(v: dict | None) -> str:
+    if v is None:
+        return "not planned"
+    if not v["ok"]:
+        return f"plan FAILS: {v.get('reason', '')}"
+    m = v["margins"]
+    reach = f", reach used {m['reach']['max_used_pct']:.1f} %" if m.get("reach") else ""
+    jl = m["joint_limit"]
+    return (f"plans: 0 unreachable, cycle {v['cycle_s']:.1f} s, {v['reverse_plans']} reverse plans, "
+            f"{v['retracts']} retracts, joint margin {100 * jl['min_share']:.1f} % ({jl['joint']}){reach}, "
+            f"cost {v['cost']:.1f}")
+
+
+def _print_summary(s: dict, study, job, format_offset, placement_of, outdir) -> None:
+    sc = s["screen"]
+    click.echo(f"{s['robot']} ({s['families']}): {sc['poses']} poses; screen: wrist-centre bound on every pose, "
+               f"closed-form IK on {sc['ik_poses']}")
+    u = s["user"]
+    click.echo(f"your placement   xyz {u['workpiece_xyz_mm']} mm, rpy {u['workpiece_rpy_deg']} deg: "
+               f"{_fmt_screen(u['screen'])}")
+    click.echo(f"                 {_fmt_planned(u['planned'])}")
+    ranges = ", ".join(f"{n} {a:g}:{b:g} {s['units'][n]}" for n, (a, b) in s["variables"].items())
+    click.echo(f"searched         {ranges}: {sc['grid_placements']} grid ({' x '.join(map(str, sc['grid']))}) + "
+               f"{sc['placements'] - sc['grid_placements']} more placements, {sc['feasible']} feasible, "
+               f"{sc['seconds']:.1f} s screen + {s['plan_seconds']:.1f} s planning, {s['processes']} process(es)")
+    click.echo(" rank    dx mm    dy mm    dz mm  yaw deg  cost s  joint %  reach %  dexter  planned")
+    for e in s["ranked"]:
+        o, r, v = e["offset"], e["screen"], e["planned"]
+        if r["feasible"]:
+            figs = (f"{r['cost']:7.1f}  {100 * r['joint_margin']:7.1f}  {100 * r['reach_used']:7.1f}  "
+                    f"{r['dexterity']:6.3f}")
+        else:
+            figs = f"{'-':>7}  {'-':>7}  {100 * r['reach_used']:7.1f}  {'-':>6}"
+        plan = "-" if v is None else (f"ok, cycle {v['cycle_s']:.1f} s, cost {v['cost']:.1f}" if v["ok"]
+                                      else f"fails ({v.get('unreachable', 0)} unreachable)")
+        click.echo(f" {e['rank']:4d} {o['dx_mm']:8.1f} {o['dy_mm']:8.1f} {o['dz_mm']:8.1f} {o['dyaw_deg']:8.1f} "
+                   f"{figs}  {plan}")
+    c = s["chosen"]
+    if c is None:
+        click.echo("chosen           none: no placement within the bounds plans with every pose reachable")
+    else:
+        o = study.chosen
+        click.echo(f"chosen           xyz {c['workpiece_xyz_mm']} mm, rpy {c['workpiece_rpy_deg']} deg "
+                   f"({format_offset(o)})")
+        click.echo(f"                 {_fmt_planned(c['planned'])}")
+        click.echo(f"run it:          camtool run {outdir / 'placed_job.toml'}")
+    for f in s["files"]:
+        click.echo(f"wrote {f}")

@@ -1,0 +1,117 @@
+"""One consistent run per output folder: stage everything, then place it in one short step.
+
+A run writes every file (programs, report.json, report.html, points.csv,
+plots) into a staging folder ``OUT/.camtool-run-<pid>-<random>``. Only when
+the run has finished are the files placed into ``OUT``:
+
+1. ``OUT/report.json`` is removed first, so while placing the folder never
+   claims a finished run;
+2. files the previous run placed (``OUT/.camtool-manifest.json``) and this run
+   does not write are removed: no stale program survives a rerun;
+3. the manifest is written, then every new file is moved in with ``os.replace`` (a rename on one file
+   system: milliseconds, not the seconds writing takes), report.json last.
+
+A run that fails after it wrote its failure report (infeasible, unsafe) is
+placed the same way, so the folder then holds that report.json (status and
+reason), report.html and plots, and no program. A run that fails before it
+has a report (bad input) leaves the folder as it was. Leftover staging folders
+of killed runs (their process is gone) are removed by the next run into the
+same folder. Only files camtool listed in its manifest are ever removed.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+from .errors import BadInput
+
+STAGING_PREFIX = ".camtool-run-"
+LEFTOVER_PREFIXES = (STAGING_PREFIX, ".camtool-post-")
+MANIFEST = ".camtool-manifest.json"
+REPORT = "report.json"
+TEXT_WITH_PATHS = ("report.json", "report.html")  # files that name other files of the run
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def remove_leftovers(outdir: Path) -> list[Path]:
+    """Remove staging folders of killed camtool runs in ``outdir``; returns what was removed."""
+    removed = []
+    for d in Path(outdir).glob(".camtool-*"):
+        if not d.is_dir() or not d.name.startswith(LEFTOVER_PREFIXES):
+            continue
+        pid_text = d.name.split("-")[2] if d.name.startswith(STAGING_PREFIX) else ""
+        if pid_text.isdigit() and _alive(int(pid_text)) and int(pid_text) != os.getpid():
+            continue  # another run into the same folder is still writing
+        shutil.rmtree(d, ignore_errors=True)
+        removed.append(d)
+    return removed
+
+
+def _manifest(outdir: Path) -> list[str]:
+    try:
+        data = json.loads((outdir / MANIFEST).read_text())
+        return [str(x) for x in data.get("files", [])]
+    except (OSError, ValueError, AttributeError):
+        return []
+
+
+@contextmanager
+def staged_output(outdir: Path):
+    """A fresh staging folder inside ``outdir`` (created if needed); removed on exit whatever happens."""
+    outdir = Path(outdir)
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+        remove_leftovers(outdir)
+        stage = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=outdir))
+    except OSError as exc:
+        raise BadInput(f"{outdir}: cannot write into the output folder ({exc.strerror or exc})") from None
+    try:
+        yield stage
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def place(stage: Path, outdir: Path) -> list[Path]:
+    """Move every file of ``stage`` into ``outdir`` (see the module doc); returns the placed files."""
+    stage, outdir = Path(stage), Path(outdir)
+    new = sorted(str(p.relative_to(stage)) for p in stage.rglob("*") if p.is_file())
+    for name in TEXT_WITH_PATHS:  # the run named its files by their staging path
+        f = stage / name
+        if f.is_file():
+            f.write_text(f.read_text().replace(str(stage), str(outdir)))
+    (outdir / REPORT).unlink(missing_ok=True)
+    for old in _manifest(outdir):
+        if old not in new and old != MANIFEST:
+            (outdir / old).unlink(missing_ok=True)
+    manifest = outdir / MANIFEST  # written before the files: a killed placing is cleaned up by the next run
+    tmp = manifest.with_suffix(".tmp")
+    tmp.write_text(json.dumps({"files": new}, indent=1) + "\n")
+    os.replace(tmp, manifest)
+    placed = []
+    for name in [n for n in new if n != REPORT] + ([REPORT] if REPORT in new else []):
+        target = outdir / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(stage / name, target)
+        placed.append(target)
+    return placed
+
+
+def final_path(path: Path, stage: Path, outdir: Path) -> Path:
+    """Where a file written as ``path`` inside ``stage`` lies after ``place``."""
+    try:
+        return Path(outdir) / Path(path).relative_to(stage)
+    except ValueError:
+        return Path(path)

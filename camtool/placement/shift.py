@@ -1,0 +1,167 @@
+"""The smallest move of the workpiece that makes every pose reachable: for a run that failed for reach.
+
+``nearest_feasible_shift(job, settings, robot, path)`` searches translations
+of the workpiece on shells of growing radius (``step_mm`` apart, 98
+directions each: the 26 of a cube's faces, edges and corners and 72 spread by
+a Fibonacci lattice), cheapest test first (``screen.screen_batch``: the
+wrist-centre bound on every pose, then closed-form IK on a subsample), and
+confirms the first placement that passes with closed-form IK on every pose.
+The radius is then bisected along that direction. A placement counts when
+every pose is reachable and the screen leaves a small margin
+(``reach_margin`` of the arm's reach and ``joint_margin`` of each joint's
+range), so that the planner, which must also keep the path continuous, does
+not fail at the very edge. If no translation up to ``max_mm`` works, yaws
+about world z through the workpiece origin (``yaws_deg``, nearest first) are
+tried, alone and with translations.
+
+It imports nothing of the pipeline (``camtool.stages``), so a task can call
+it; the path is the one the failed run planned (world frame).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .kinematics import ClosedForm
+from .screen import PathGeometry, ScreenSettings, screen_batch
+
+YAWS_DEG = (5.0, -5.0, 10.0, -10.0, 20.0, -20.0, 30.0, -30.0, 45.0, -45.0, 90.0, -90.0, 180.0)
+
+
+def directions(n_extra: int = 72) -> np.ndarray:
+    """Unit directions: the 26 of a cube (faces first, then edges, then corners) and ``n_extra`` Fibonacci ones."""
+    cube = [np.array(v, float) for v in
+            [(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) != (0, 0, 0)]]
+    cube.sort(key=lambda v: (np.count_nonzero(v), tuple(-v)))
+    k = np.arange(n_extra) + 0.5
+    z = 1.0 - 2.0 * k / n_extra
+    phi = np.pi * (1.0 + 5 ** 0.5) * k
+    fib = np.column_stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z])
+    d = np.vstack([np.array(cube), fib])
+    return d / np.linalg.norm(d, axis=1)[:, None]
+
+
+def nearest_feasible_shift(job, settings, robot, path, budget_s: float = 10.0, *, max_mm: float = 600.0,
+                           step_mm: float = 25.0, reach_margin: float = 0.02, joint_margin: float = 0.02,
+                           yaws_deg=YAWS_DEG) -> dict | None:
+    """The smallest translation (then yaw) of the workpiece that the screen finds reachable (module doc).
+
+    ``job`` gives the workpiece placement (the yaw pivot), ``settings`` the job's
+    ``JobSettings`` (or None), ``path`` the world-frame path at that placement.
+    Returns None when the robot has no closed-form families or nothing is
+    found within ``max_mm`` and the time budget; else a dict::
+
+        {"dx_mm", "dy_mm", "dz_mm", "dyaw_deg", "distance_mm",
+         "workpiece_xyz_mm", "workpiece_rpy_deg",     # the new cell.workpiece_* values
+         "reach_used_pct", "joint_margin_pct",          # the screen's figures there
+         "poses_checked", "already_reachable", "seconds", "message"}
+
+    ``already_reachable`` is True when the screen finds every pose reachable
+    at the job's own placement (then the planner failed for another reason and
+    the shift, if any, only adds margin).
+    """
+    t0 = time.perf_counter()
+    model = ClosedForm.for_robot(robot, path.free_spin)
+    if model is None or len(path) == 0:
+        return None
+    st = ScreenSettings()
+    if settings is not None:
+        st = ScreenSettings(orientation_mm=settings.planner.orientation_weight_mm,
+                            track_scale_mm=settings.planner.track_scale_mm)
+    pivot = np.asarray(job.cell.workpiece_xyz_mm, float)
+    geom = PathGeometry.build(path, model, robot, pivot, st)
+
+    def out_of_time():
+        return time.perf_counter() - t0 > budget_s
+
+    def good(r):
+        return r.feasible and r.reach_used <= 1.0 - reach_margin and r.joint_margin >= joint_margin
+
+    def confirm(rs):
+        """The first result of rs (in order) that passes with its margins, then on every pose."""
+        for r in rs:
+            if out_of_time():
+                return None
+            if good(r):
+                f = screen_batch(model, geom, [r.offset], st, full=True)[0]
+                if good(f):
+                    return f
+        return None
+
+    here = screen_batch(model, geom, [(0.0, 0.0, 0.0, 0.0)], st)[0]
+    already = bool(here.feasible)
+    if good(here):
+        f = confirm([here])
+        if f is not None:
+            return _answer(job, f, 0.0, already, len(path), t0)
+    dirs = directions()
+    found = None
+    for yaw in (0.0, *yaws_deg):
+        radii = np.arange(0.0 if yaw else step_mm, max_mm + 1e-9, step_mm)
+        for r_mm in radii:
+            if out_of_time():
+                break
+            offs = [(*(r_mm * d), yaw) for d in (dirs if r_mm > 0 else dirs[:1])]
+            offs = [tuple(round(float(v), 3) for v in o) for o in offs]
+            rs = [r for r in screen_batch(model, geom, offs, st) if good(r)]
+            rs.sort(key=lambda r: (round(r.reach_used, 4), r.offset))
+            f = confirm(rs)
+            if f is not None:
+                found = (f, r_mm)
+                break
+        if found is not None or out_of_time():
+            break
+    if found is None:
+        return None
+    f, r_mm = found
+    # bisect the radius along the direction found (the yaw kept) with the subsample screen, then confirm
+    d = np.array(f.offset[:3], float)
+    if r_mm > 0:
+        u = d / np.linalg.norm(d)
+        lo, hi = max(r_mm - step_mm, 0.0), r_mm
+        best = None
+        for _ in range(5):
+            if out_of_time():
+                break
+            mid = 0.5 * (lo + hi)
+            o = tuple(round(float(v), 3) for v in (*(mid * u), f.offset[3]))
+            g = screen_batch(model, geom, [o], st)[0]
+            if good(g):
+                best, hi = g, mid
+            else:
+                lo = mid
+        if best is not None:
+            g = confirm([best])
+            f = g if g is not None else f
+    dist = float(np.linalg.norm(f.offset[:3]))
+    return _answer(job, f, dist, already, len(path), t0)
+
+
+def _answer(job, r, dist, already, n, t0) -> dict:
+    dx, dy, dz, dyaw = (float(v) for v in r.offset)
+    xyz = [round(float(a) + b, 3) for a, b in zip(job.cell.workpiece_xyz_mm, (dx, dy, dz))]
+    rr, pp, yy = (float(a) for a in job.cell.workpiece_rpy_deg)
+    rpy = [rr, pp, round((yy + dyaw + 180.0) % 360.0 - 180.0, 3)]
+    if dist == 0.0 and dyaw == 0.0:
+        msg = (f"the closed-form screen reaches every pose at this placement (reach used {100 * r.reach_used:.1f} %), "
+               "so the plan failed for another reason; camtool place searches placements with more margin")
+        return {"dx_mm": 0.0, "dy_mm": 0.0, "dz_mm": 0.0, "dyaw_deg": 0.0, "distance_mm": 0.0,
+                "workpiece_xyz_mm": [float(a) for a in job.cell.workpiece_xyz_mm],
+                "workpiece_rpy_deg": [float(a) for a in job.cell.workpiece_rpy_deg],
+                "reach_used_pct": round(100.0 * r.reach_used, 2),
+                "joint_margin_pct": None if r.joint_margin is None else round(100.0 * r.joint_margin, 2),
+                "poses_checked": n, "already_reachable": already, "seconds": round(time.perf_counter() - t0, 3),
+                "message": msg}
+    move = f"move the workpiece by ({dx:+.0f}, {dy:+.0f}, {dz:+.0f}) mm"
+    if dyaw:
+        move += f" and turn it {dyaw:+g} deg about world z"
+    msg = (f"{move}: cell.workpiece_xyz_mm = [{', '.join(f'{v:g}' for v in xyz)}]"
+           + (f", cell.workpiece_rpy_deg = [{', '.join(f'{v:g}' for v in rpy)}]" if dyaw else "")
+           + " reaches every pose in the closed-form screen (camtool place searches further)")
+    return {"dx_mm": round(dx, 3), "dy_mm": round(dy, 3), "dz_mm": round(dz, 3), "dyaw_deg": round(dyaw, 3),
+            "distance_mm": round(dist, 3), "workpiece_xyz_mm": xyz, "workpiece_rpy_deg": rpy,
+            "reach_used_pct": round(100.0 * r.reach_used, 2),
+            "joint_margin_pct": None if r.joint_margin is None else round(100.0 * r.joint_margin, 2),
+            "poses_checked": n, "already_reachable": already,
+            "seconds": round(time.perf_counter() - t0, 3), "message": msg}

@@ -1,0 +1,83 @@
+"""Reconfigure off the surface: Cartesian lifts, reconfiguration at a clearance, collision-checked connectors."""
+import numpy as np
+import pytest
+
+from camtool.job import load_job
+from camtool.plan.connectors import cartesian_lift, is_reconfiguration, LiftSettings
+from camtool.plan.cwln import CwlnSolver, IkSettings
+from camtool.robots import get_robot
+from camtool.settings import JobSettings
+from camtool.stages import path_for_job, plan_for_job, robot_for_job, surface_for_job, workpiece_for_job
+from camtool.toolpath import ZONE_CODE
+
+from conftest import SAMPLES
+
+# the issue's forcing settings: a costly track and no posture term make the seed planner reconfigure
+FORCING = ["raster.step_over_mm=40", "raster.pitch_mm=10", "planner.track_scale_mm=1", "planner.posture_gain=0"]
+
+
+def test_cartesian_lift_is_a_straight_line_along_minus_tool_z():
+    robot = get_robot("sia20")
+    solver = CwlnSolver(robot, IkSettings(max_iterations=300))
+    q0 = np.radians([10, 40, 0, -60, 0, 50, 0])
+    T0 = robot.fk_tcp(q0)
+    rows = cartesian_lift(solver, T0, q0, 80.0, 4)
+    assert rows.shape == (4, 7)
+    tcp = np.array([robot.fk_tcp(q)[:3, 3] for q in rows])
+    expected = T0[:3, 3] - np.outer([20, 40, 60, 80], T0[:3, 2])
+    assert np.allclose(tcp, expected, atol=1e-3)
+    assert cartesian_lift(solver, T0, q0, 5000.0, 4) is None  # out of reach: None, not a wrong pose
+
+
+def test_reconfiguration_threshold_per_joint_type():
+    robot = get_robot("seed8")
+    s = LiftSettings(100.0, 5, np.radians(10), 50.0, 500.0, 0)
+    q = np.zeros(8)
+    assert not is_reconfiguration(q, q + np.r_[49.0, np.full(7, np.radians(9))], robot, s)
+    assert is_reconfiguration(q, q + np.r_[51.0, np.zeros(7)], robot, s)
+    assert is_reconfiguration(q, q + np.r_[0.0, np.radians(11), np.zeros(6)], robot, s)
+
+
+@pytest.fixture(scope="module")
+def forced():
+    job = load_job(SAMPLES / "sphere.toml", FORCING)
+    robot = robot_for_job(job)
+    settings = JobSettings.from_job(job, robot)
+    wp = workpiece_for_job(job)
+    surface = surface_for_job(job, wp)
+    path = path_for_job(job, surface)
+    return robot, settings, surface, path, plan_for_job(settings, path, robot, wp)
+
+
+def _depth_below_patch_mm(robot, surface, q):
+    """Depth of the TCP below the sphere patch (0 outside its footprint or above it)."""
+    x = (robot.base_T_mm @ robot.fk_tcp(q))[:3, 3]
+    d = np.linalg.norm(x - surface.center_mm) - surface.radius_mm
+    if d >= 0 or not surface.boundary.contains(surface.uv_from_points(x[None]))[0]:
+        return 0.0
+    return -d
+
+
+def test_reconfigurations_happen_off_the_part(forced):
+    robot, settings, surface, path, jp = forced
+    lifted = jp.events["lifted_connectors"]
+    assert len(lifted) >= 3 and max(c["joint_change_deg"] for c in lifted) > 100
+    inserted = (jp.path_index < 0) & np.isin(jp.zone, [ZONE_CODE["self_motion"], ZONE_CODE["retract"]])
+    heights = np.array([np.linalg.norm((robot.base_T_mm @ robot.fk_tcp(q))[:3, 3] - surface.center_mm)
+                        - surface.radius_mm for q in jp.q[inserted]])
+    assert heights.max() >= 0.5 * settings.planner.lift_mm - 1.0
+
+
+def test_no_non_work_motion_enters_the_part(forced):
+    """Joint-linear interpolation between every pair of rows, the way a controller runs joint moves."""
+    robot, settings, surface, path, jp = forced
+    work = jp.zone == ZONE_CODE["work"]
+    worst = 0.0
+    for i in range(len(jp.q) - 1):
+        if work[i] and work[i + 1]:
+            continue
+        qa, qb = jp.q[i], jp.q[i + 1]
+        n = max(2, int(np.ceil(np.max(np.abs(qb - qa)[~robot.prismatic]) / 0.01)))
+        for f in np.linspace(0.0, 1.0, n):
+            worst = max(worst, _depth_below_patch_mm(robot, surface, qa + (qb - qa) * f))
+    assert worst <= 0.1
