@@ -43,12 +43,16 @@ class Key:
     expect: str = ""  # wording of the check for error messages
 
 
-def _pos(doc, default, unit=""):
-    return Key("float", default, doc, check=lambda x: x > 0, expect=f"a number > 0{unit}")
+def _pos(doc, default, unit="", most=None):
+    if most is None:
+        return Key("float", default, doc, check=lambda x: x > 0, expect=f"a number > 0{unit}")
+    return Key("float", default, doc, check=lambda x: 0 < x <= most, expect=f"a number in (0, {most:g}]{unit}")
 
 
-def _nonneg(doc, default):
-    return Key("float", default, doc, check=lambda x: x >= 0, expect="a number >= 0")
+def _nonneg(doc, default, most=None):
+    if most is None:
+        return Key("float", default, doc, check=lambda x: x >= 0, expect="a number >= 0")
+    return Key("float", default, doc, check=lambda x: 0 <= x <= most, expect=f"a number in 0..{most:g}")
 
 
 def _angle89(doc):
@@ -102,17 +106,17 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "name": Key("str", "tool0", "Tool name written to controller programs."),
         "tcp_xyz_mm": Key("vec3", [0.0, 0.0, 0.0], "Tool centre point in the flange frame."),
         "tcp_rpy_deg": Key("vec3", [0.0, 0.0, 0.0], "Tool frame orientation in the flange frame."),
-        "mass_kg": _nonneg("Tool mass for controller tool data.", 1.0),
+        "mass_kg": _nonneg("Tool mass for controller tool data.", 1.0, 10_000),
     },
     "planner": {
         "method": Key("str", "seed", "seed = CWLN + gradient projection + reverse planning; general = CWLN alone (the paper's baseline); arm-angle-sqp = seed 002's arm-angle SQP (task.kind = 'sequential_reach', SRS arms).", choices=("seed", "general", "arm-angle-sqp")),
-        "damping": _pos("Damping lambda of the least-norm solve (mm).", 0.1),
+        "damping": _pos("Damping lambda of the least-norm solve (mm).", 0.1, "", 1000),
         "orientation_weight_mm": _pos("Length that weighs orientation error against position error: 1 rad counts as this many mm.", 200.0),
         "position_tol_mm": _pos("IK position tolerance.", 1e-4, " mm"),
         "orientation_tol_deg": _pos("IK orientation tolerance.", 1e-4, " deg"),
         "max_iterations": Key("int", 100, "IK iterations per point.", check=lambda x: 1 <= x <= 10_000, expect="an integer in 1..10000"),
         "track_scale_mm": _pos("Joint-space metric: 1 rad of a revolute joint weighs as much as this much track travel.", 500.0),
-        "posture_gain": _nonneg("seed method only: per-point null-space pull towards mid-range (0 = off); keeps least-norm drift out of singular postures.", 0.001),
+        "posture_gain": _nonneg("seed method only: per-point null-space pull towards mid-range (0 = off); keeps least-norm drift out of singular postures.", 0.001, 10),
         "clamp_buffer_deg": _pos("Width of the buffer inside each revolute limit where the clamping weight falls to 0.", 10.0),
         "clamp_buffer_mm": _pos("The same buffer for prismatic joints.", 50.0),
         "jump_threshold_deg": _pos("A revolute joint step above this between adjacent points is a jump.", 50.0),
@@ -130,8 +134,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "timing": {
         "method": Key("str", "quintic", "Interpolation between surface poses: quintic = the time law's own quintic Hermite pieces (a cubic spline through the poses, exact at constant feed); ruckig = jerk-limited ruckig state-to-state moves between the same states (docs/timing.md).", choices=("quintic", "ruckig")),
-        "tcp_speed_mm_s": _pos("Commanded TCP feed on work zones (see feed and slow_scope).", 100.0, " mm/s"),
-        "check_dt_ms": _pos("Step at which the independent checker resamples the trajectory.", 4.0, " ms"),
+        "tcp_speed_mm_s": _pos("Commanded TCP feed on work zones (see feed and slow_scope).", 100.0, " mm/s", 10_000),
+        "check_dt_ms": Key("float", 4.0, "Step at which the independent checker resamples the trajectory.", check=lambda x: 0.1 <= x <= 100, expect="a number in 0.1..100 ms"),
         "zones": Key("str", "flow", "Free zones between runs (self-motion, approach, depart): flow = one continuous jerk-limited motion along a spline through the free poses, at rest only at run ends, reconfiguration jumps, retract steps and corners of inserted free moves; stop = a rest-to-rest move per free pose (docs/timing.md).", choices=("flow", "stop")),
         "feed": Key("str", "constant", "Feed on work: constant = each row's work at one feed (the commanded one, or the highest constant feed the limits allow, see slow_scope), speed changes in the leads; max = as fast as the limits allow up to the commanded feed, speed changes wherever needed (docs/timing.md).", choices=("constant", "max")),
         "slow_scope": Key("str", "row", "feed = 'constant': where a row cannot run at the commanded feed, row = the whole row runs at the highest constant feed that fits; stretch = only the stretch that cannot, at its own highest constant feed (the speed changes in the work next to it).", choices=("row", "stretch")),
@@ -178,7 +182,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "profiles": Key("table", {}, "Controller profile file per format, e.g. {rapid = 'my_irc5.toml'}; default: the shipped profile for the robot."),
         "path_tol_mm": _pos("Largest distance of the programs' interpolated TCP from the planned path on work (the program simulator checks it); moves are merged and corners blended within it.", 0.1, " mm"),
         "ori_tol_deg": _pos("Largest tool-orientation deviation of merged Cartesian moves (MoveL / MOVL).", 0.5, " deg"),
-        "min_move_ms": _nonneg("Shortest program move: inserted samples of free moves closer than this are dropped (path poses are always kept).", 20.0),
+        "min_move_ms": _nonneg("Shortest program move: inserted samples of free moves closer than this are dropped (path poses are always kept).", 20.0, 10_000),
         "csv_angle_unit": Key("str", "deg", "Angle unit of CSV output.", choices=("deg", "rad")),
     },
 }

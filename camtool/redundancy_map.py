@@ -37,6 +37,7 @@ import numpy as np
 
 from .errors import BadInput, PlanInfeasible
 from .robots.ik_common import rz_batch, wrap_pi
+from .robots.ik_srs import track_shift
 from .toolpath import WORK, Path
 
 NO_IK, OUTSIDE_LIMITS, REACHABLE = 0, 1, 2
@@ -250,19 +251,6 @@ def _sweep_arm_angle(robot, flanges: np.ndarray, psi: np.ndarray):
         best_m[:, ok] = m.reshape(ny, len(ok))
         has[:, ok] = h.reshape(ny, len(ok))
     return best_q, best_m, has
-
-
-def track_shift(robot, ik) -> np.ndarray | None:
-    """Base-frame translation of the arm per mm of seed8's track (None if the track is no pure translation)."""
-    from .robots.ik_srs import SrsIK
-
-    t0 = float(ik.fixed[0])
-    other = SrsIK(robot, [t0 + 100.0])
-    d = (other.pre[:3, 3] - ik.pre[:3, 3]) / 100.0
-    if not (np.allclose(other.pre[:3, :3], ik.pre[:3, :3], atol=1e-12)
-            and np.allclose(other.S - ik.S, 100.0 * d, atol=1e-9)):
-        return None
-    return d
 
 
 def _sweep_track(robot, flanges: np.ndarray, tracks: np.ndarray, n_angles: int):

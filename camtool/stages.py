@@ -26,8 +26,8 @@ from .plan import plan_path
 from .plan.connectors import LiftSettings, lift_reconfigurations
 from .plan.cwln import CwlnSolver
 from .plan.densify import densify_work
-from .plan.strategy import ik_settings
 from .plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
+from .plan.strategy import ik_settings
 from .post import thin_waypoints, write_programs
 from .raster import raster_path
 from .report import plan_metrics, plot_joints, plot_unreachable, write_json_atomic, write_points_csv

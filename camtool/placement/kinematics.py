@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import BadInput
 from ..robots.ik_common import Chain, rot_axis_batch, rz_batch, spherical_group_batch, wrap_pi
+from ..robots.ik_srs import track_shift
 
 TWO_PI = 2.0 * np.pi
 ARM_ANGLES = 8                        # arm angles sampled per pose (SRS)
@@ -146,7 +147,7 @@ class ClosedForm:
             if robot.dof == 8 and robot.prismatic[0] and not robot.prismatic[1:].any():
                 mid = 0.5 * (robot.limits.lower[0] + robot.limits.upper[0])
                 ik = SrsIK(robot, [mid])
-                shift = _track_shift(robot, ik)
+                shift = track_shift(robot, ik)
                 if shift is None:
                     return None
                 return ClosedForm(robot, "srs_track", ik, free_spin, shift)
@@ -345,19 +346,6 @@ class ClosedForm:
                 J[:, :3, i] = np.cross(axes[i], tcp - origins[i])
                 J[:, 3:, i] = axes[i]
         return J
-
-
-def _track_shift(robot, ik) -> np.ndarray | None:
-    """Base-frame translation of the arm per mm of a single track joint (None if not a pure translation)."""
-    from ..robots.ik_srs import SrsIK
-
-    t0 = float(ik.fixed[0])
-    other = SrsIK(robot, [t0 + 100.0])
-    d = (other.pre[:3, 3] - ik.pre[:3, 3]) / 100.0
-    if not (np.allclose(other.pre[:3, :3], ik.pre[:3, :3], atol=1e-12)
-            and np.allclose(other.S - ik.S, 100.0 * d, atol=1e-9)):
-        return None
-    return d
 
 
 def dexterity(J: np.ndarray, prismatic: np.ndarray, orientation_mm: float = 200.0,

@@ -40,6 +40,7 @@ import numpy as np
 
 from ..errors import BadInput, PlanInfeasible
 from ..robots.ik_common import limit_equivalents
+from ..robots.ik_srs import track_shift
 from ..robots.model import Robot
 from ..settings import PlannerSettings
 from ..toolpath import ZONE_CODE, ZONES, Path, run_bounds
@@ -73,22 +74,7 @@ class AnalyticSeeds:
         self.tool_inv = np.linalg.inv(robot.tool_T_mm)
         self.mid = 0.5 * (robot.limits.lower + robot.limits.upper)
         self.varies = kind == "srs" or free_spin  # whether a second draw can give new solutions
-        self.shift = self._track_shift() if self.n_pre == 1 and robot.prismatic[0] else None
-
-    def _track_shift(self):
-        """Base-frame translation of the arm per mm of a single track joint (None if not a pure translation).
-
-        Then one ``SrsIK`` (built at the mid track value) serves every track value t:
-        solving T at t is solving T moved by -(t - t_mid) * shift at t_mid.
-        """
-        from ..robots.ik_srs import SrsIK
-
-        t0 = float(self.ik.fixed[0])
-        other = SrsIK(self.robot, [t0 + 100.0])
-        d = (other.pre[:3, 3] - self.ik.pre[:3, 3]) / 100.0
-        if not (np.allclose(other.pre[:3, :3], self.ik.pre[:3, :3], atol=1e-12) and np.allclose(other.S - self.ik.S, 100.0 * d, atol=1e-9)):
-            return None
-        return d
+        self.shift = track_shift(robot, ik) if self.n_pre == 1 and robot.prismatic[0] else None
 
     @staticmethod
     def for_robot(robot: Robot, lo, hi, free_spin: bool = False) -> "AnalyticSeeds | None":

@@ -241,3 +241,16 @@ def srs_seed_solutions(robot: Robot, T_tcp_mm: np.ndarray, q_ref=None, arm_angle
             q = np.array([min(v, key=lambda x: abs(x - r)) for v, r in zip(eq, q_ref[n_pre:])])
             found.append(ik.full_q(q))
     return sorted(found, key=lambda q: float(np.sum((q - q_ref) ** 2)))
+
+
+def track_shift(robot, ik: "SrsIK") -> np.ndarray | None:
+    """Base-frame translation of the 7R arm per mm of a single track joint in front of it, or None when the
+    track is not a pure translation. Then one ``SrsIK`` (built at the track value ``ik.fixed[0]``) serves
+    every track value t: solving T at t is solving T moved by -(t - t0) * shift at t0."""
+    t0 = float(ik.fixed[0])
+    other = SrsIK(robot, [t0 + 100.0])
+    d = (other.pre[:3, 3] - ik.pre[:3, 3]) / 100.0
+    if not (np.allclose(other.pre[:3, :3], ik.pre[:3, :3], atol=1e-12)
+            and np.allclose(other.S - ik.S, 100.0 * d, atol=1e-9)):
+        return None
+    return d
