@@ -15,7 +15,7 @@ test: setup
 	$(PY) -m pytest
 
 bench: setup
-	$(PY) -m pip install -q -e '.[bench,design]'   # the anchors: pyransac3d, roboticstoolbox, pymoo
+	$(PY) -m pip install -q -e '.[bench,design]'   # the anchors: pyransac3d, roboticstoolbox, toppra, pymoo
 	@for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
 clean:
