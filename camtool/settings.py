@@ -17,7 +17,7 @@ e.g. ``RasterSettings.make(step_over_mm=20)``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import ClassVar
 
 import numpy as np
@@ -44,9 +44,6 @@ class _FromSection:
     def make(cls, **job_keys):
         """Settings from job-file keys of this section (unit as in the job file), schema defaults for the rest."""
         return cls.from_section(_section(cls.SECTION, job_keys))
-
-    def as_dict(self) -> dict:
-        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 @dataclass(frozen=True)
@@ -177,8 +174,6 @@ class PlannerSettings(_FromSection):
         return np.where(prismatic, self.jump_threshold_mm, self.jump_threshold_rad)
 
     def with_method(self, method: str) -> "PlannerSettings":
-        from dataclasses import replace
-
         return replace(self, method=method)
 
 

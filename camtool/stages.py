@@ -35,6 +35,7 @@ from .report_html import write_run_html
 from .robots import get_robot
 from .settings import FitSettings, JobSettings, PlannerSettings, RasterSettings, TimingSettings, WorkpieceSettings
 from .timing import check_trajectory, samples_for, time_trajectory, timing_report
+from .toolpath import row_segments
 from .transforms import matrix_from_xyz_rpy
 from .workpiece import load_workpiece
 
@@ -130,7 +131,7 @@ def free_move_checker(workpiece, robot, contact_xyz_mm=None, radius_mm: float = 
 
 
 def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_path, every: bool = False,
-                    link_radius_mm: float | None = None, clearance_mm: float = 0.0):
+                    link_radius_mm: float | None = None, clearance_mm: float = 0.0, solver: CwlnSolver | None = None):
     """Every reconfiguring connector between runs made a lift - reconfigure - descend (``plan/connectors.py``).
 
     The reconfiguration at the lift height is checked against the placed
@@ -146,7 +147,7 @@ def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_pat
     radius = link_radius_mm if link_radius_mm is not None else min(CONNECTOR_RADIUS_MM, 0.5 * settings.lift_mm)
     valid = None if workpiece is None else free_move_checker(workpiece, robot, radius_mm=radius, path=path,
                                                              clearance_mm=clearance_mm)
-    solver = CwlnSolver(robot, ik_settings(settings), free_spin=path.free_spin)
+    solver = solver or CwlnSolver(robot, ik_settings(settings), free_spin=path.free_spin)
     return lift_reconfigurations(joint_path, path, robot, lift, solver, valid, touch_points=every)
 
 
@@ -183,11 +184,11 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
 
     ``workpiece``: the part the free motion keeps clear of (``part_for_checks``)."""
     planner = settings.planner if method is None else settings.planner.with_method(method)
+    solver = CwlnSolver(robot, ik_settings(planner), free_spin=path.free_spin)  # lifts and densified poses
     joint_path = lift_connectors(planner, workpiece, path, robot, plan_path(path, robot, planner),
                                  link_radius_mm=settings.check.link_radius_mm,
-                                 clearance_mm=settings.check.clearance_mm)
-    joint_path = densify_work(joint_path, path, robot, CwlnSolver(robot, ik_settings(planner), path.free_spin),
-                              planner.chord_tol_mm)
+                                 clearance_mm=settings.check.clearance_mm, solver=solver)
+    joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
     if workpiece is not None:
         joint_path = add_home_moves(planner, workpiece, path, robot, joint_path)
     return joint_path
@@ -239,8 +240,8 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
                                               clearance_mm=c.clearance_mm, path_tol_mm=path_tol,
                                               tool_radius_mm=c.tool_radius_mm, link_radius_mm=c.link_radius_mm,
                                               tool_contact_exempt_mm=c.tool_contact_exempt_mm),
-                          path_index=np.where(program.path_index >= 0, np.asarray(path.segment)[
-                              np.maximum(program.path_index, 0)], -1), index_label="segment")
+                          path_index=row_segments(program.path_index, program.zone, path.segment),
+                          index_label="segment")
     figures = report.to_dict()
     if not report.ok:
         raise PlanInfeasible(f"the motion check failed ({len(report.findings)} finding(s)); first: "

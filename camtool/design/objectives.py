@@ -46,6 +46,7 @@ from ..robots.library import robot_toml_data
 from ..settings import PlannerSettings, home_q
 from ..stages import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
 from ..toolpath import Path
+from ..vary import parse_range
 
 CACHE_VERSION = 1
 
@@ -80,21 +81,10 @@ class Evaluation:
 
 def parse_vary(text: str) -> Variable:
     """``NAME=LO:HI`` (mm) -> Variable; BadInput with one clear line otherwise."""
-    if "=" not in text or ":" not in text.split("=", 1)[1]:
-        raise BadInput(f"--vary {text!r}: expected NAME=LO:HI in mm, e.g. L1=300:600")
-    name, rng = text.split("=", 1)
-    lo_txt, hi_txt = rng.split(":", 1)
-    try:
-        lo, hi = float(lo_txt), float(hi_txt)
-    except ValueError:
-        raise BadInput(f"--vary {text!r}: LO and HI must be numbers (mm)") from None
-    if not (np.isfinite(lo) and np.isfinite(hi)):
-        raise BadInput(f"--vary {text!r}: LO and HI must be finite numbers (mm)")
-    if not lo < hi:
-        raise BadInput(f"--vary {text!r}: empty range, LO must be below HI")
+    name, lo, hi = parse_range(text, " in mm, e.g. L1=300:600")
     if lo <= 0:
         raise BadInput(f"--vary {text!r}: lengths must be > 0 mm")
-    return Variable(name.strip(), lo, hi)
+    return Variable(name, lo, hi)
 
 
 def robot_params(job: Job) -> dict[str, float]:

@@ -22,27 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..robots.dh import rot_x, rot_z, trans
+
 MM_PER_M = 1000.0
-
-
-def _rot_x(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    T = np.eye(4)
-    T[1:3, 1:3] = [[c, -s], [s, c]]
-    return T
-
-
-def _rot_z(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    T = np.eye(4)
-    T[0:2, 0:2] = [[c, -s], [s, c]]
-    return T
-
-
-def _trans(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = (x, y, z)
-    return T
 
 
 @dataclass(frozen=True)
@@ -79,11 +61,11 @@ class BatchFK:
             pending = np.eye(4)
             for row in robot.dh:
                 if robot.convention == "modified":
-                    before = pending @ _rot_x(row.alpha_rad) @ _trans(x=row.a_mm) @ _rot_z(row.theta_rad)
-                    after = _trans(z=row.d_mm)
+                    before = pending @ rot_x(row.alpha_rad) @ trans(x=row.a_mm) @ rot_z(row.theta_rad)
+                    after = trans(z=row.d_mm)
                 else:
                     before = pending
-                    after = _rot_z(row.theta_rad) @ _trans(z=row.d_mm) @ _trans(x=row.a_mm) @ _rot_x(row.alpha_rad)
+                    after = rot_z(row.theta_rad) @ trans(z=row.d_mm) @ trans(x=row.a_mm) @ rot_x(row.alpha_rad)
                 self._before.append(before)
                 pending = after
             # the flange frame's placement in the last joint's frame (= pending @ [flange] of the TOML)

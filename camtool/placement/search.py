@@ -27,6 +27,7 @@ import numpy as np
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job, Section
 from ..settings import JobSettings
+from ..vary import parse_range
 from ..stages import (path_for_job, plan_for_job, robot_for_job, surface_for_job, time_for_job,
                       workpiece_for_job)
 from .kinematics import ClosedForm
@@ -63,20 +64,9 @@ class Variable:
 
 def parse_vary(text: str) -> Variable:
     """``NAME=LO:HI`` with NAME one of x, y, z (mm) or yaw (deg) -> Variable; BadInput otherwise."""
-    if "=" not in text or ":" not in text.split("=", 1)[1]:
-        raise BadInput(f"--vary {text!r}: expected NAME=LO:HI, e.g. z=-300:100 (mm) or yaw=-30:30 (deg)")
-    name, rng = (t.strip() for t in text.split("=", 1))
+    name, lo, hi = parse_range(text, ", e.g. z=-300:100 (mm) or yaw=-30:30 (deg)", lambda n: UNITS.get(n, "mm"))
     if name not in AXES:
         raise BadInput(f"--vary {text!r}: unknown variable {name!r}; use x, y, z (mm) or yaw (deg)")
-    lo_txt, hi_txt = rng.split(":", 1)
-    try:
-        lo, hi = float(lo_txt), float(hi_txt)
-    except ValueError:
-        raise BadInput(f"--vary {text!r}: LO and HI must be numbers ({UNITS[name]})") from None
-    if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise BadInput(f"--vary {text!r}: LO and HI must be finite numbers")
-    if not lo < hi:
-        raise BadInput(f"--vary {text!r}: empty range, LO must be below HI")
     if name == "yaw" and hi - lo > 360.0:
         raise BadInput(f"--vary {text!r}: a yaw range wider than 360 deg repeats itself")
     return Variable(name, lo, hi)

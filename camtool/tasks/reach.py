@@ -28,8 +28,8 @@ from ..job import Job
 from ..plan.arm_angle_sqp import plan_arm_angle_sqp
 from ..report import write_json_atomic
 from ..settings import JobSettings
-from ..stages import (RunResult, StageLog, finish_run, lift_connectors, motion_check, part_for_checks, post_checked, report_failure, run_report,
-                      surface_for_job, time_for_job, workpiece_for_job)
+from ..stages import (RunResult, StageLog, finish_run, lift_connectors, motion_check, part_for_checks, post_checked,
+                      report_failure, run_report, surface_for_job, time_for_job, workpiece_for_job)
 from ..toolpath import ZONE_CODE, Path
 
 FAMILY_TABLE_FILE = "arm_angle_families.txt"

@@ -1,4 +1,4 @@
-"""Timing of the motion check: ``python -m camtool.motion.bench [--samples N] [--points N]``.
+"""Timing of the motion check: ``.venv/bin/python benchmarks/motion_check_speed.py [--samples N] [--points N]``.
 
 A synthetic program on the seed arm (150 mm tool): an ~800 s raster-like
 sweep of the track with small wrist motions, waypoints every 40 ms, 80 % work,
@@ -9,19 +9,23 @@ Prints the part build time, the check time and samples per second.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def synthetic(samples: int, points: int, seed: int = 0):
     import trimesh
 
-    from ..robots import get_robot
-    from ..toolpath import ZONE_CODE
-    from ..transforms import matrix_from_xyz_rpy
-    from ..workpiece import Workpiece
-    from .fk_batch import BatchFK
+    from camtool.robots import get_robot
+    from camtool.toolpath import ZONE_CODE
+    from camtool.transforms import matrix_from_xyz_rpy
+    from camtool.workpiece import Workpiece
+    from camtool.motion.fk_batch import BatchFK
 
     robot = get_robot("seed8").with_placement(tool_T_mm=matrix_from_xyz_rpy([0, 0, 150], [0, 0, 0]))
     q0 = np.array([0.0, 0.3, 0.2, -0.4, 0.8, 0.1, -0.9, 0.2])
@@ -52,8 +56,8 @@ def synthetic(samples: int, points: int, seed: int = 0):
 
 
 def main(argv=None) -> None:
-    from .check import MotionCheckSettings, check_motion
-    from .geometry import PartGeometry
+    from camtool.motion.check import MotionCheckSettings, check_motion
+    from camtool.motion.geometry import PartGeometry
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=200_000)
