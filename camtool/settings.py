@@ -134,6 +134,7 @@ class PlannerSettings(_FromSection):
     jump_threshold_mm: float
     retract_mm: float
     chord_tol_mm: float
+    smooth_runs: bool
     lift_mm: float
     lift_steps: int
     reconfigure_threshold_rad: float
@@ -156,7 +157,7 @@ class PlannerSettings(_FromSection):
                    clamp_buffer_mm=float(sec["clamp_buffer_mm"]),
                    jump_threshold_rad=math.radians(sec["jump_threshold_deg"]),
                    jump_threshold_mm=float(sec["jump_threshold_mm"]), retract_mm=float(sec["retract_mm"]),
-                   chord_tol_mm=float(sec["chord_tol_mm"]),
+                   chord_tol_mm=float(sec["chord_tol_mm"]), smooth_runs=bool(sec["smooth_runs"]),
                    lift_mm=float(sec["lift_mm"]), lift_steps=int(sec["lift_steps"]),
                    reconfigure_threshold_rad=math.radians(sec["reconfigure_threshold_deg"]),
                    reconfigure_threshold_mm=float(sec["reconfigure_threshold_mm"]),

@@ -26,6 +26,7 @@ from .plan import plan_path
 from .plan.connectors import LiftSettings, lift_reconfigurations
 from .plan.cwln import CwlnSolver
 from .plan.densify import densify_work
+from .plan.smooth import SmoothSettings, smooth_runs
 from .plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
 from .plan.strategy import ik_settings
 from .post import thin_waypoints, write_programs
@@ -185,7 +186,11 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
     ``workpiece``: the part the free motion keeps clear of (``part_for_checks``)."""
     planner = settings.planner if method is None else settings.planner.with_method(method)
     solver = CwlnSolver(robot, ik_settings(planner), free_spin=path.free_spin)  # lifts and densified poses
-    joint_path = lift_connectors(planner, workpiece, path, robot, plan_path(path, robot, planner),
+    joint_path = plan_path(path, robot, planner)
+    if planner.smooth_runs:
+        smooth = SmoothSettings(feed_mm_s=settings.timing.tcp_speed_mm_s)
+        joint_path = smooth_runs(joint_path, path, robot, solver, smooth)
+    joint_path = lift_connectors(planner, workpiece, path, robot, joint_path,
                                  link_radius_mm=settings.check.link_radius_mm,
                                  clearance_mm=settings.check.clearance_mm, solver=solver)
     joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)

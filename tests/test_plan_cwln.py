@@ -123,3 +123,23 @@ def test_free_spin_ignores_rotation_about_tool_z():
     assert res.converged and res.iterations == 0  # already on the task: z axes agree
     kernel = DhKernel(robot, IkSettings(), True, np.full(7, 1.0))
     assert kernel.solve(spun, q)[3]
+
+
+def test_project_puts_the_tool_on_the_target_with_the_least_change_and_no_clamp_pull():
+    """``project`` (used between and next to solved poses) is a least-norm correction: from a start inside
+    the track's clamping buffer it stays inside it, where ``solve``'s clamp task pulls the track out."""
+    robot = get_robot("seed8")
+    solver = CwlnSolver(robot, IkSettings())
+    rng = np.random.default_rng(3)
+    q = robot.limits.lower + (robot.limits.upper - robot.limits.lower) * (0.2 + 0.6 * rng.random(8))
+    q[0] = robot.limits.lower[0] + 20.0  # 20 mm from the track's limit: inside the 50 mm buffer
+    T = robot.fk_tcp(q)
+    start = q + np.r_[0.5, 0.002 * rng.normal(size=7)]
+    projected = solver.project(T, start)
+    solved = solver.solve(T, start)
+    assert projected.converged and solved.converged
+    Tq = robot.fk_tcp(projected.q)
+    assert np.linalg.norm(Tq[:3, 3] - T[:3, 3]) <= 1e-4
+    assert rotation_angle_rad(Tq, T) <= np.radians(1e-4)
+    assert abs(projected.q[0] - start[0]) < 5.0            # the track barely moves ...
+    assert solved.q[0] - start[0] > 15.0                    # ... where the clamp task pushes it towards the buffer's edge

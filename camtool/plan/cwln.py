@@ -180,6 +180,27 @@ class CwlnSolver:
             q = np.clip(q + dq, self.lo, self.hi)
         return IkResult(q, pe, oe, self.converged(pe, oe), it)
 
+    def project(self, target: np.ndarray, q0: np.ndarray, iterations: int = 20) -> IkResult:
+        """Least-norm Newton steps from q0 onto ``target``, without the clamping task.
+
+        For a pose between (or next to) poses already solved: the smallest joint change
+        (in the joint-space metric) that puts the tool on the target. CWLN's clamp task
+        would pull a joint that its neighbours hold inside the clamping buffer back to
+        the buffer's edge, a spike in the joint path. Joint limits are not enforced;
+        the caller checks them.
+        """
+        q = np.array(q0, dtype=float)
+        pe = oe = np.inf
+        for it in range(iterations + 1):
+            e, J, pe, oe = self.task(q, target)
+            if self.converged(pe, oe) or it == iterations:
+                break
+            Js = J * self.jscale
+            A = Js @ Js.T
+            A[np.diag_indices_from(A)] += 1e-12
+            q = q + self.jscale * (Js.T @ np.linalg.solve(A, e))
+        return IkResult(q, pe, oe, self.converged(pe, oe), it)
+
     # -- gradient projection ---------------------------------------------
     def self_motion(self, target: np.ndarray, q: np.ndarray, q_ref: np.ndarray,
                     iterations: int = 200, alpha: float = 0.3) -> IkResult:

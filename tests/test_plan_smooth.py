@@ -1,0 +1,89 @@
+"""Null-space smoothing of surface runs (camtool.plan.smooth)."""
+import numpy as np
+import pytest
+
+from camtool.job import load_job
+from camtool.plan import plan_path
+from camtool.plan.cwln import CwlnSolver
+from camtool.plan.smooth import SmoothSettings, divided_difference, run_ratios, smooth_runs
+from camtool.plan.strategy import ik_settings
+from camtool.settings import JobSettings
+from camtool.stages import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
+from camtool.toolpath import row_segments, run_bounds
+from camtool.transforms import rotation_angle_rad
+
+from conftest import ROOT
+
+
+def test_divided_differences_are_exact_on_polynomials_on_an_uneven_grid():
+    s = np.cumsum(np.r_[0.0, np.random.default_rng(0).uniform(0.5, 2.0, 12)])
+    q = 2.0 * s ** 3 - s ** 2 + 3.0 * s
+    assert np.allclose(divided_difference(s, 3) @ q, 12.0)                      # q''' = 12
+    second = divided_difference(s, 2) @ (s ** 2)
+    assert np.allclose(second, 2.0)                                              # (s^2)'' = 2
+    assert np.allclose(divided_difference(s, 1) @ s, 1.0)
+
+
+@pytest.fixture(scope="module")
+def sample_plan():
+    job = load_job(ROOT / "samples" / "sphere.toml")
+    robot = robot_for_job(job)
+    path = path_for_job(job, surface_for_job(job, workpiece_for_job(job)))
+    settings = JobSettings.from_job(job, robot)
+    planned = plan_path(path, robot, settings.planner)
+    solver = CwlnSolver(robot, ik_settings(settings.planner), free_spin=path.free_spin)
+    smooth = SmoothSettings(feed_mm_s=settings.timing.tcp_speed_mm_s)
+    return robot, path, planned, smooth_runs(planned, path, robot, solver, smooth), smooth
+
+
+def _runs(jp, path):
+    seg = row_segments(jp.path_index, jp.zone, path.segment)
+    _, start, end = run_bounds(jp.zone, seg)
+    return list(zip(np.flatnonzero(start), np.flatnonzero(end)))
+
+
+def _s_mm(path, rows, jp):
+    p = path.poses_mm[jp.path_index[rows], :3, 3]
+    return np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))]
+
+
+def test_kinked_rows_of_the_sample_are_smoothed_below_the_limits_at_the_feed(sample_plan):
+    """The sample's rows whose track stops at its clamping buffer needed 2-6x j5's jerk limit at 100 mm/s;
+    smoothed, every run needs less than 85 % of every limit, and every pose is still on its target."""
+    robot, path, planned, smoothed, st = sample_plan
+    done = smoothed.events["smoothed_runs"]
+    assert len(done) >= 5
+    assert all(d["worst_ratio_before"] > 1.5 and d["worst_ratio_after"] <= 1.0 for d in done)
+    base_inv = np.linalg.inv(robot.base_T_mm)
+    for a, b in _runs(smoothed, path):
+        rows = np.arange(a, b + 1)
+        jerk, acc = run_ratios(smoothed.q[rows], _s_mm(path, rows, smoothed), robot, st.feed_mm_s)
+        assert jerk.max() <= st.jerk_ratio and acc.max() <= st.accel_ratio, (a, b)
+    for d in done:
+        for r in range(d["rows"][0], d["rows"][1] + 1):
+            q = smoothed.q[r]
+            T = base_inv @ path.poses_mm[smoothed.path_index[r]]
+            Tq = robot.fk_tcp(q)
+            assert np.linalg.norm(Tq[:3, 3] - T[:3, 3]) <= 1e-4
+            assert rotation_angle_rad(Tq, T) <= np.radians(1e-4) + 1e-12
+            assert robot.within_limits(q)
+            assert smoothed.position_error_mm[r] <= 1e-4
+
+
+def test_rows_that_run_at_the_feed_are_left_as_planned(sample_plan):
+    robot, path, planned, smoothed, st = sample_plan
+    changed = {tuple(d["rows"]) for d in smoothed.events["smoothed_runs"]}
+    untouched = [(a, b) for a, b in _runs(planned, path) if (a, b) not in changed]
+    assert len(untouched) > 50
+    for a, b in untouched:
+        assert np.array_equal(planned.q[a:b + 1], smoothed.q[a:b + 1])
+    # the joint path is a new box; the planner's stays as it was
+    assert not np.array_equal(planned.q, smoothed.q)
+
+
+def test_smoothing_is_deterministic(sample_plan):
+    robot, path, planned, smoothed, st = sample_plan
+    solver = CwlnSolver(robot, ik_settings(JobSettings.from_job(load_job(ROOT / "samples" / "sphere.toml"),
+                                                                 robot).planner), free_spin=path.free_spin)
+    again = smooth_runs(planned, path, robot, solver, st)
+    assert np.array_equal(again.q, smoothed.q)
