@@ -31,7 +31,8 @@ import numpy as np
 
 from camtool.job import load_job
 from camtool.settings import JobSettings
-from camtool.stages import path_for_job, plan_for_job, robot_for_job, surface_for_job, workpiece_for_job
+from camtool.stages import (part_for_checks, path_for_job, plan_with_sized_leads, robot_for_job, surface_for_job,
+                            workpiece_for_job)
 from camtool.timing import time_trajectory
 from camtool.timing.assemble import run_layout, tcp_positions_mm
 from camtool.timing.feed import feed_profile, feed_statistics, plot_feed
@@ -172,8 +173,10 @@ def run_case(name: str, overrides: list[str], png_dir: Path | None) -> dict:
     robot = robot_for_job(job)
     settings = JobSettings.from_job(job, robot)
     wp = workpiece_for_job(job)
-    path = path_for_job(job, surface_for_job(job, wp))
-    jp = plan_for_job(settings, path, robot, wp)
+    surface = surface_for_job(job, wp)
+    # planned as `camtool run` plans it: smoothed runs, leads sized for the ramps
+    path, jp = plan_with_sized_leads(settings, surface, path_for_job(job, surface), robot,
+                                     part_for_checks(settings, wp, surface))
     feed = settings.timing.tcp_speed_mm_s
     png = (lambda tag: None if png_dir is None else Path(png_dir) / f"feed_{name}{tag}.png")
     runs = [time_and_measure(jp, path, robot, settings.timing, png(""), f"{name}: {' '.join(overrides)}")]
@@ -185,6 +188,8 @@ def run_case(name: str, overrides: list[str], png_dir: Path | None) -> dict:
     anchor = toppra_anchor(jp, path, robot, feed)
     wall_anchor = time.perf_counter() - t1
     return {"name": name, "overrides": overrides, "poses": len(jp.q), "feed": feed, "camtool": runs,
+            "lead_mm": jp.events.get("leads", {}).get("lead_mm_used", settings.raster.lead_mm),
+            "smoothed_runs": len(jp.events.get("smoothed_runs", [])),
             "toppra": {**anchor, "timing_s": wall_anchor}}
 
 
@@ -192,7 +197,8 @@ def print_case(r: dict) -> None:
     runs, a = r["camtool"], r["toppra"]
     c0 = runs[0]
     print(f"\n{r['name']} ({' '.join(r['overrides']) or 'as is'}; {r['poses']} poses, "
-          f"work {c0['work_length_mm'] / 1000:.1f} m at {r['feed']:g} mm/s)")
+          f"work {c0['work_length_mm'] / 1000:.1f} m at {r['feed']:g} mm/s; leads {r['lead_mm']:g} mm, "
+          f"{r['smoothed_runs']} runs smoothed)")
     head = "".join(f"{'camtool ' + c['label']:>30s}{'ratio':>7s}" for c in runs)
     print(f"  {'':26s}{head}{'TOPP-RA':>10s}")
     for key, label in (("cycle_time_s", "cycle time [s]"), ("work_time_s", "work time [s]"),

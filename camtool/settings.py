@@ -91,6 +91,8 @@ class RasterSettings(_FromSection):
     pitch_mm: float
     angle_rad: float
     lead_mm: float
+    lead_auto: bool
+    lead_max_mm: float
     clearance_mm: float
     self_motion_lift_mm: float
     transition_points: int
@@ -104,6 +106,7 @@ class RasterSettings(_FromSection):
     def from_section(cls, sec):
         return cls(step_over_mm=float(sec["step_over_mm"]), pitch_mm=float(sec["pitch_mm"]),
                    angle_rad=math.radians(sec["angle_deg"]), lead_mm=float(sec["lead_mm"]),
+                   lead_auto=bool(sec["lead_auto"]), lead_max_mm=float(sec["lead_max_mm"]),
                    clearance_mm=float(sec["clearance_mm"]), self_motion_lift_mm=float(sec["self_motion_lift_mm"]),
                    transition_points=int(sec["transition_points"]),
                    tool_x=sec["tool_x"], tool_x_world=tuple(float(x) for x in sec["tool_x_world"]),

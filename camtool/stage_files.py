@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import zipfile
 from pathlib import Path as FsPath
 
@@ -83,8 +84,10 @@ def save_stage(box, file: str | FsPath) -> FsPath:
     if kind == "Path":
         header["zones"] = list(ZONES)
     file = output_file(file)
-    with open(file, "wb") as fh:
+    part = file.with_name(file.name + ".part")  # written aside, then moved: never a half-written stage file
+    with open(part, "wb") as fh:
         np.savez_compressed(fh, header=np.array(json.dumps(header, allow_nan=True)), **arrays)
+    os.replace(part, file)
     return file
 
 

@@ -9,6 +9,7 @@ imports no task, so the import graph stays acyclic.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
@@ -35,7 +36,7 @@ from .report import plan_metrics, plot_joints, plot_unreachable, write_json_atom
 from .report_html import write_run_html
 from .robots import get_robot
 from .settings import FitSettings, JobSettings, PlannerSettings, RasterSettings, TimingSettings, WorkpieceSettings
-from .timing import check_trajectory, samples_for, time_trajectory, timing_report
+from .timing import check_trajectory, lead_needed_mm, samples_for, time_trajectory, timing_report
 from .toolpath import row_segments
 from .transforms import matrix_from_xyz_rpy
 from .workpiece import load_workpiece
@@ -199,6 +200,48 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
     return joint_path
 
 
+LEAD_SIZING_ROUNDS = 2   # re-raster and re-plan at most this many times for longer leads
+LEAD_MARGIN = 1.05       # the chosen lead is this much longer than the longest ramp needs (before rounding)
+
+
+def plan_with_sized_leads(settings: JobSettings, surface, path, robot, workpiece=None):
+    """(path, joint path): ``plan_for_job``, then, with ``raster.lead_auto``, leads long enough for the ramps.
+
+    The length the ramps to and from the feed need (``timing.lead_needed_mm``: the
+    limits, the feed and the planned joint path) is measured on the plan; where a run
+    needs more than it has, ``surface`` is rastered again with a lead of that length
+    (times ``LEAD_MARGIN``, rounded up to whole mm, at most ``raster.lead_max_mm``)
+    and planned again. ``events['leads']`` records the lead set, the lead used and the
+    length needed. A longer lead that cannot be planned keeps the first plan.
+    """
+    joint_path = plan_for_job(settings, path, robot, workpiece)
+    raster = settings.raster
+    if not raster.lead_auto or raster.lead_mm <= 0:
+        return path, joint_path
+    lead = raster.lead_mm
+    record = {"lead_mm_set": lead, "lead_mm_used": lead, "max_mm": raster.lead_max_mm}
+    for _ in range(LEAD_SIZING_ROUNDS):
+        need = lead_needed_mm(joint_path, path, robot, settings.timing)
+        needed = max(need["lead_in_mm"], need["lead_out_mm"])
+        record["needed_mm"] = round(float(needed), 3)
+        have = min([min(r["lead_in_mm"], r["lead_out_mm"]) for r in need["per_run"]], default=lead)
+        if needed <= have + 1e-6:
+            break
+        longer = min(float(math.ceil(LEAD_MARGIN * needed - 1e-9)), raster.lead_max_mm)
+        if longer <= lead:
+            record["capped"] = True
+            break
+        try:
+            new_path = raster_path(surface, replace(raster, lead_mm=longer))
+            new_joint_path = plan_for_job(settings, new_path, robot, workpiece)
+        except PlanInfeasible as exc:
+            record["kept_because"] = f"a {longer:g} mm lead cannot be planned: {exc}"
+            break
+        path, joint_path, lead = new_path, new_joint_path, longer
+        record["lead_mm_used"] = lead
+    return path, replace(joint_path, events={**joint_path.events, "leads": record})
+
+
 def time_for_job(settings: JobSettings, joint_path, path, robot):
     """Time a joint path with the job's timing settings."""
     return time_trajectory(joint_path, path, robot, settings.timing)
@@ -208,6 +251,12 @@ def plan_and_time(settings: JobSettings, path, robot, method: str | None = None,
     """(joint path, trajectory) of ``path``: ``plan_for_job`` then ``time_for_job``."""
     joint_path = plan_for_job(settings, path, robot, workpiece, method)
     return joint_path, time_for_job(settings, joint_path, path, robot)
+
+
+def plan_and_time_sized(settings: JobSettings, surface, path, robot, workpiece=None):
+    """(path, joint path, trajectory): ``plan_with_sized_leads`` then ``time_for_job``."""
+    path, joint_path = plan_with_sized_leads(settings, surface, path, robot, workpiece)
+    return path, joint_path, time_for_job(settings, joint_path, path, robot)
 
 
 # --------------------------------------------------------------------------- check, post, report

@@ -79,3 +79,24 @@ def test_flow_deterministic():
     b = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(zones="flow"))
     for f in ("t_s", "q", "qd", "qdd", "zone", "path_index"):
         assert np.array_equal(getattr(FLOW, f), getattr(b, f))
+
+
+def test_a_soft_group_with_uneven_curvature_runs_each_piece_as_fast_as_it_allows():
+    """A chain whose middle is straight and whose ends turn: each piece at its own speed level is shorter
+    than one plateau at the slowest piece's speed, and keeps every limit (the exact Hermite check)."""
+    from camtool.timing.flow import _group
+    from camtool.timing.pathlaw import PathSpline, speed_bounds, time_section
+    t = np.linspace(0.0, 1.0, 13)
+    qs = np.zeros((13, 8))
+    qs[:, 0] = 400.0 * t                                  # the track runs straight through
+    qs[:, 4] = 0.3 * np.where(t < 0.15, np.sin(t / 0.15 * np.pi), 0.0)  # a wrist bump near the start only
+    qs[:, 5] = 0.2 * t
+    u = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(qs, axis=0) / ROBOT.limits.velocity, axis=1))])
+    spline = PathSpline(u, qs)
+    bound, _, _ = speed_bounds(*spline.piece_bounds(), ROBOT.limits)
+    assert bound.max() > 2 * bound.min()
+    _, one_plateau, _ = time_section(spline, np.full(len(bound), bound.min()), ROBOT.limits, fill_s=0.01)
+    t_s, q, qd, qdd, knot = _group(qs, ROBOT.limits, 0.01)
+    assert t_s[-1] < 0.9 * one_plateau.t_s[-1]
+    assert np.array_equal(q[knot >= 0], qs)
+    assert np.all(qd[[0, -1]] == 0) and np.all(qdd[[0, -1]] == 0)

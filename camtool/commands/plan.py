@@ -24,7 +24,8 @@ from .resume import JOINT_PATH_FILE, joint_path_of
 def command(job_file: Path, from_file: Path | None, outdir: Path, overrides: tuple[str, ...], as_json: bool) -> None:
     """Plan the joint values of JOB's path with the job's [planner] and save them.
 
-    Writes OUTDIR/joint_path.npz and OUTDIR/path.npz (the Path it plans), for
+    Writes OUTDIR/joint_path.npz and OUTDIR/path.npz (the Path it plans: with
+    raster.lead_auto the leads may be longer than the given Path's), for
     `camtool time JOB --from OUTDIR/joint_path.npz`. Exit 3 when poses are out
     of reach.
     """
@@ -32,14 +33,15 @@ def command(job_file: Path, from_file: Path | None, outdir: Path, overrides: tup
     robot = robot_for_job(job)
     settings = JobSettings.from_job(job, robot)
     path, joint_path = joint_path_of(job, settings, robot, None, from_file)
-    files = [save_stage(joint_path, outdir / JOINT_PATH_FILE)]
-    if from_file is None or Path(from_file).resolve() != (outdir / "path.npz").resolve():
-        files.append(save_stage(path, outdir / "path.npz"))
+    # the Path it planned: the given one, or rastered again with longer leads (raster.lead_auto)
+    files = [save_stage(joint_path, outdir / JOINT_PATH_FILE), save_stage(path, outdir / "path.npz")]
     ev = joint_path.events
     summary = {"job": str(job_file), "robot": robot.name, "method": settings.planner.method,
                "rows": int(len(joint_path.q)), "reverse_plans": len(ev.get("reverse_plans", [])),
                "retracts": len(ev.get("retracts", [])),
                "max_position_error_mm": float(np.max(joint_path.position_error_mm)),
+               "lead_mm": ev.get("leads", {}).get("lead_mm_used", settings.raster.lead_mm),
+               "smoothed_runs": len(ev.get("smoothed_runs", [])),
                "plan_seconds": float(ev.get("plan_seconds", 0.0)), "saved": [str(f) for f in files]}
     if as_json:
         echo_json(summary)

@@ -13,7 +13,7 @@ import click
 
 from ..errors import BadInput
 from ..stage_files import load_stage
-from ..stages import (part_for_checks, path_for_job, plan_for_job, surface_for_job, time_for_job,
+from ..stages import (part_for_checks, path_for_job, plan_with_sized_leads, surface_for_job, time_for_job,
                       workpiece_for_job)
 from ..surface import load_surface
 
@@ -61,7 +61,7 @@ def joint_path_of(job, settings, robot, from_file: Path | None, path_file: Path 
     wp = workpiece(job)
     surface = surface_for_job(job, wp)
     path = load_stage(path_file, expect=("Path",)) if path_file is not None else path_for_job(job, surface)
-    return path, plan_for_job(settings, path, robot, part_for_checks(settings, wp, surface))
+    return plan_with_sized_leads(settings, surface, path, robot, part_for_checks(settings, wp, surface))
 
 
 def trajectory_of(job, settings, robot, from_file: Path | None, path_file: Path | None = None):

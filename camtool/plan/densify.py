@@ -49,7 +49,8 @@ def _split(solver: CwlnSolver, Ta, qa, Tb, qb, tol_mm: float, depth: int) -> lis
 def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver, tol_mm: float) -> JointPath:
     """``joint_path`` with poses inserted where a surface step's joint-linear chord leaves the line by > ``tol_mm``.
 
-    Inserted rows have path_index -1 and the zone of the step's first row; the events get
+    Inserted rows have path_index -1 and the zone of the step's first row (the self-motion zone
+    on a step into or out of it); the events get
     ``densified_steps`` (how many steps were split, how many rows inserted).
     """
     jp = joint_path
@@ -85,7 +86,14 @@ def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSo
         out[new] = fill
         return out
 
-    return JointPath(q=q, path_index=spread(jp.path_index, -1), zone=np.asarray(jp.zone)[src].copy(),
+    # an inserted row takes the zone of its step, except across a run end: a step between a lead and the
+    # self-motion zone lies in the self-motion zone (in the run it would bend the run's spline off the surface)
+    zone = np.asarray(jp.zone)
+    sm = ZONE_CODE["self_motion"]
+    step_zone = {r: (sm if sm in (zone[r], zone[r + 1]) else zone[r]) for r in inserts}
+    new_zone = zone[src].copy()
+    new_zone[new] = np.concatenate([np.full(len(inserts[r]), step_zone[r]) for r in sorted(inserts)])
+    return JointPath(q=q, path_index=spread(jp.path_index, -1), zone=new_zone,
                      position_error_mm=spread(jp.position_error_mm, 0.0),
                      orientation_error_rad=spread(jp.orientation_error_rad, 0.0), jump=spread(jp.jump, False),
                      reverse_planned=spread(jp.reverse_planned, False), retract=spread(jp.retract, False),

@@ -12,8 +12,9 @@ from ..placement.partial import partial_path, partial_summary, reachable_stretch
 from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
 from ..timing import plot_feed_png, samples_for
-from ..stages import (RunResult, StageLog, finish_run, motion_check, part_for_checks, path_for_job, plan_and_time, post_checked,
-                      report_failure, report_unreachable, run_report, surface_for_job, workpiece_for_job)
+from ..stages import (RunResult, StageLog, finish_run, motion_check, part_for_checks, path_for_job, plan_and_time,
+                      plan_and_time_sized, post_checked, report_failure, report_unreachable, run_report,
+                      surface_for_job, workpiece_for_job)
 
 
 def partial_plan_path(path, exc: PlanInfeasible):
@@ -41,7 +42,9 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     partial = None
     try:
         try:
-            joint_path, trajectory = plan_and_time(settings, path, robot, workpiece=part)
+            path, joint_path, trajectory = plan_and_time_sized(settings, surface, path, robot, workpiece=part)
+            if joint_path.events.get("leads", {}).get("lead_mm_used", settings.raster.lead_mm) != settings.raster.lead_mm:
+                log.done("raster", path)  # rastered again with the leads the ramps need
         except PlanInfeasible as exc:
             if not (job.task.allow_partial and exc.report.get("unreachable")):
                 raise
@@ -71,6 +74,9 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     if "free_moves" in joint_path.events:
         report["free_moves"] = joint_path.events["free_moves"]
     report["lifted_connectors"] = joint_path.events.get("lifted_connectors", [])
+    if "leads" in joint_path.events:
+        report["leads"] = joint_path.events["leads"]
+    report["smoothed_runs"] = joint_path.events.get("smoothed_runs", [])
     if partial is not None:
         report["partial"] = partial
     report["motion_check"] = motion

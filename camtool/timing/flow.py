@@ -17,7 +17,8 @@ rest, and every *soft group* between them is one section of ``pathlaw``:
   joint-space edges, so the motion keeps to them there.
 - **Soft groups.** A cubic spline through the group's poses, in the chord length
   of the joint steps scaled by the speed limits (``u``, in s); one plateau at the
-  highest constant speed every piece allows, jerk-limited S-curves from and to
+  highest constant speed every piece allows, or every piece at its own highest
+  speed rounded down to a 2^(k/4) level (the shorter of the two is kept), jerk-limited S-curves from and to
   rest, lowered until they fit (``pathlaw.plan_section``); samples at every pose,
   every S-curve phase boundary and every ``FREE_SAMPLE_S``; every Hermite piece
   bounded exactly at 99.5 % of each limit and inside the joint range
@@ -38,6 +39,7 @@ from .ruckig_moves import FREE_SAMPLE_S, RuckigMover, rest_to_rest_chain
 
 JUMP_DEG = 20.0          # a revolute step above this between free poses is a reconfiguration jump
 CORNER_DEG = 10.0        # an inserted pose where the joint-space direction turns more than this is a rest pose
+SPEED_LEVELS_PER_OCTAVE = 4  # per-piece speeds of a soft group: rounded down to 2^(k/4) of the slowest piece
 MIN_STEP = 1e-12         # steps shorter than this (a repeated pose) are skipped, as in "stop"
 
 
@@ -74,12 +76,21 @@ def _group(qs: np.ndarray, limits, dt_s: float):
     u = np.concatenate([[0.0], np.cumsum(np.linalg.norm(d, axis=1))])
     spline = PathSpline(u, qs)
     bound, _, _ = speed_bounds(*spline.piece_bounds(), limits)
-    target = np.full(len(bound), float(bound.min()))
-    try:
-        _, smp, _ = time_section(spline, target, limits, fill_s=dt_s)
-    except RuntimeError:
+    best = None
+    # one plateau at the speed every piece allows, or each piece at its own highest speed (faster where
+    # the chain's curvature is uneven, e.g. a self-motion arc between two rows): the shorter one is kept
+    v_min = float(bound.min())
+    levels = v_min * 2.0 ** (np.floor(SPEED_LEVELS_PER_OCTAVE * np.log2(bound / v_min)) / SPEED_LEVELS_PER_OCTAVE)
+    for target in (np.full(len(bound), v_min), levels):
+        try:
+            _, smp, _ = time_section(spline, target, limits, fill_s=dt_s)
+        except RuntimeError:
+            continue
+        if best is None or smp.t_s[-1] < best.t_s[-1]:
+            best = smp
+    if best is None:
         return None
-    return smp.t_s, smp.q, smp.qd, smp.qdd, smp.knot
+    return best.t_s, best.q, best.qd, best.qdd, best.knot
 
 
 def flow_chain(mover: RuckigMover, qs: np.ndarray, hard: np.ndarray, rest=None, dt_s: float = FREE_SAMPLE_S):

@@ -1,0 +1,74 @@
+"""Stage helpers shared by the tasks (camtool.stages): leads sized for the ramps, densified rows' zones."""
+import numpy as np
+import pytest
+
+from camtool.job import load_job
+from camtool.settings import JobSettings
+from camtool.stages import (part_for_checks, path_for_job, plan_for_job, plan_with_sized_leads, robot_for_job,
+                            surface_for_job, workpiece_for_job)
+from camtool.timing import lead_needed_mm
+from camtool.toolpath import SURFACE_CODES, ZONE_CODE
+
+from conftest import SAMPLES
+
+
+def _job(*overrides):
+    job = load_job(SAMPLES / "sphere.toml", list(overrides))
+    robot = robot_for_job(job)
+    wp = workpiece_for_job(job)
+    surface = surface_for_job(job, wp)
+    settings = JobSettings.from_job(job, robot)
+    return settings, surface, path_for_job(job, surface), robot, part_for_checks(settings, wp, surface)
+
+
+@pytest.fixture(scope="module")
+def short_leads_job():
+    """The sample with 10 mm leads: too short for the ramps to and from 100 mm/s on every row."""
+    return _job("raster.lead_mm=10")
+
+
+def test_leads_are_lengthened_to_what_the_ramps_need(short_leads_job):
+    settings, surface, path, robot, part = short_leads_job
+    sized_path, jp = plan_with_sized_leads(settings, surface, path, robot, part)
+    leads = jp.events["leads"]
+    assert leads["lead_mm_set"] == 10.0 and leads["lead_mm_used"] > 10.0
+    assert leads["lead_mm_used"] >= leads["needed_mm"]
+    # the new path is rastered with the longer lead; the work poses are the same
+    assert len(sized_path) > len(path)
+    assert np.allclose(sized_path.poses_mm[sized_path.is_work], path.poses_mm[path.is_work], atol=1e-6)
+    after = lead_needed_mm(jp, sized_path, robot, settings.timing)
+    for run in after["per_run"]:
+        assert run["lead_in_needed_mm"] <= run["lead_in_mm"] + 1e-6
+        assert run["lead_out_needed_mm"] <= run["lead_out_mm"] + 1e-6
+
+
+def test_lead_auto_off_or_capped_keeps_the_set_lead(short_leads_job):
+    settings, surface, path, robot, part = short_leads_job
+    from dataclasses import replace
+    off = replace(settings, raster=replace(settings.raster, lead_auto=False))
+    same_path, jp = plan_with_sized_leads(off, surface, path, robot, part)
+    assert same_path is path and "leads" not in jp.events
+    capped = replace(settings, raster=replace(settings.raster, lead_max_mm=10.0))
+    same_path, jp = plan_with_sized_leads(capped, surface, path, robot, part)
+    assert same_path is path and jp.events["leads"]["capped"] and jp.events["leads"]["lead_mm_used"] == 10.0
+
+
+def test_rows_densified_next_to_the_self_motion_zone_belong_to_it():
+    """A row inserted on a step between a lead and the self-motion zone is a self-motion row: inside the
+    run it would bend the run's spline off the surface (the feed dropped to 70 mm/s on the sample)."""
+    settings, surface, path, robot, part = _job()
+    jp = plan_for_job(settings, path, robot, part)
+    inserted = np.flatnonzero(jp.path_index < 0)
+    prev_path_row = np.maximum.accumulate(np.where(jp.path_index >= 0, np.arange(len(jp.q)), 0))
+    # rows inserted on a step out of a lead-out: before the fix they were lead-out rows of the run
+    n = len(jp.q)
+    next_path_row = np.minimum.accumulate(np.where(jp.path_index >= 0, np.arange(n), n - 1)[::-1])[::-1]
+    next_to_lead = inserted[(jp.zone[prev_path_row[inserted]] == ZONE_CODE["lead_out"])
+                            & (jp.zone[next_path_row[inserted]] == ZONE_CODE["self_motion"])]
+    assert len(next_to_lead) > 0
+    assert np.all(jp.zone[next_to_lead] == ZONE_CODE["self_motion"])
+    for r in inserted[np.isin(jp.zone[inserted], SURFACE_CODES)]:  # inserted surface rows lie inside a run
+        after = r + 1
+        while jp.path_index[after] < 0:
+            after += 1
+        assert jp.zone[prev_path_row[r]] in SURFACE_CODES and jp.zone[after] in SURFACE_CODES, r
