@@ -33,6 +33,30 @@ def test_report(sphere_run):
     assert lines[0].startswith("row,path_index,segment,point,zone") and len(lines) > 10000
 
 
+def test_the_sample_runs_its_work_at_the_commanded_feed(sphere_run):
+    """Issue 15's acceptance on the sample, measured on the 4 ms resampling of the timed trajectory:
+    >= 98 % of the work length within +-2 % of the feed (every row: no slowed row, no ramp in the work)."""
+    out, _ = sphere_run
+    saved = json.loads((out / "report.json").read_text())
+    feed = saved["work_feed"]
+    assert feed["commanded_feed_mm_s"] == 100.0 and feed["work_length_mm"] > 50_000
+    assert feed["work_share_within_2pct"] >= 0.98 and feed["work_share_within_1pct"] >= 0.98
+    assert saved["slowdowns"] == [] and saved["short_leads"] == []
+    assert saved["smoothed_runs"] and all(r["worst_ratio_after"] <= 1.0 for r in saved["smoothed_runs"])
+    assert saved["leads"]["lead_mm_used"] >= saved["leads"]["needed_mm"]
+    assert (out / "plots" / "feed.png").stat().st_size > 10000
+
+
+def test_short_leads_are_lengthened_and_said(tmp_path):
+    r = run_camtool("run", SAMPLES / "sphere.toml", "-o", tmp_path, "--set", "raster.step_over_mm=60",
+                    "--set", "raster.pitch_mm=8", "--set", "raster.lead_mm=5")
+    assert r.returncode == 0, r.stderr
+    assert "leads lengthened from 5 to" in r.stdout and "feed on work: 100.0%" in r.stdout
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["leads"]["lead_mm_set"] == 5.0 and report["leads"]["lead_mm_used"] > 5.0
+    assert report["short_leads"] == []
+
+
 def test_programs_pass_the_checker(sphere_run):
     out, _ = sphere_run
     for program in ("SPHERE.pgf", "SPHERE.JBI", "SPHERE.csv"):

@@ -66,6 +66,13 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     if "cartesian" in report:
         c = report["cartesian"]
         click.echo("cartesian: " + ", ".join(f"{k} {v}" for k, v in c.items() if not isinstance(v, (list, dict))))
+    feed = report.get("work_feed")
+    if feed and feed.get("work_length_mm"):
+        leads = report.get("leads", {})
+        sized = (f"; leads lengthened from {leads['lead_mm_set']:g} to {leads['lead_mm_used']:g} mm for the ramps"
+                 if leads.get("lead_mm_used", 0) > leads.get("lead_mm_set", 0) else "")
+        click.echo(f"feed on work: {100 * feed['work_share_within_1pct']:.1f}% of {feed['work_length_mm'] / 1000:.1f} m "
+                   f"within 1% of {feed['commanded_feed_mm_s']:g} mm/s, min {feed['min_work_feed_mm_s']:.1f} mm/s{sized}")
     slow = report.get("slowdowns", [])
     if slow:
         worst = min(s["speed_ratio"] for s in slow)
@@ -75,6 +82,7 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     short = report.get("short_leads", [])
     if short:
         click.echo(f"{len(short)} speed ramps do not fit their leads (need up to "
-                   f"{max(s['needed_mm'] for s in short):.1f} mm, raster.lead_mm); see short_leads in report.json")
+                   f"{max(s['needed_mm'] for s in short):.1f} mm; raster.lead_mm, raster.lead_max_mm); "
+                   f"see short_leads in report.json")
     for f in result.files:
         click.echo(f"wrote {f}")
