@@ -81,7 +81,8 @@ def _group(qs: np.ndarray, limits, dt_s: float):
     # the chain's curvature is uneven, e.g. a self-motion arc between two rows): the shorter one is kept
     v_min = float(bound.min())
     levels = v_min * 2.0 ** (np.floor(SPEED_LEVELS_PER_OCTAVE * np.log2(bound / v_min)) / SPEED_LEVELS_PER_OCTAVE)
-    for target in (np.full(len(bound), v_min), levels):
+    candidates = [np.full(len(bound), v_min)] + ([levels] if np.any(levels > v_min) else [])
+    for target in candidates:
         try:
             _, smp, _ = time_section(spline, target, limits, fill_s=dt_s)
         except RuntimeError:
