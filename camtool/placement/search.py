@@ -28,8 +28,7 @@ from ..errors import BadInput, PlanInfeasible
 from ..job import Job, Section
 from ..settings import JobSettings
 from ..vary import parse_range
-from ..stages import (path_for_job, plan_for_job, robot_for_job, surface_for_job, time_for_job,
-                      workpiece_for_job)
+from ..stages import path_for_job, robot_for_job, surface_for_job, time_for_job, workpiece_for_job
 from .kinematics import ClosedForm
 from .margins import reach_margins
 from .screen import AXES, UNITS, PathGeometry, ScreenResult, ScreenSettings, screen_batch
@@ -203,7 +202,7 @@ def verify_placement(job: Job, offset, settings: ScreenSettings) -> dict:
     part = part_for_checks(st, wp, surface) if part_for_checks is not None else wp
     out = {"offset": [float(v) for v in offset], "poses": len(path)}
     try:
-        jp = plan_for_job(st, path, robot, part)
+        path, jp = stages.plan_with_sized_leads(st, surface, path, robot, part)  # as the raster task plans
         tr = time_for_job(st, jp, path, robot)
     except PlanInfeasible as exc:
         out.update(ok=False, unreachable=len(exc.report.get("unreachable", [])), reason=str(exc), cost=math.inf,
