@@ -156,3 +156,19 @@ def test_rest_to_rest_line_is_near_ruckig_time_optimal():
     assert smp.q[-1, 4] == 1.0 and np.all(smp.qd[[0, -1]] == 0)
     phases, T, D = scurve(0.0, 2.0, 10.0, 20.0)  # dv J < A^2: jerk phases only
     assert T == pytest.approx(2 * np.sqrt(2.0 / 20.0)) and D == pytest.approx(T)  # mean speed 1
+
+
+def test_lead_lengths_skip_a_run_the_time_law_cannot_take():
+    """A run whose spline leaves the joint range has no lead figure (``time_trajectory`` names that run);
+    ``lead_needed_mm`` answers for the others instead of failing."""
+    from camtool.timing.runs import run_leads
+    jp, path = LEADS
+    q = jp.q.copy()
+    q[50:53, 3] = ROBOT.limits.upper[3]                    # three poses on j4's limit with a sharp bend:
+    q[51, 3] = ROBOT.limits.upper[3] - 1e-9                 # the cubic through them overshoots the limit
+    q[49, 3] = q[53, 3] = ROBOT.limits.upper[3] - 0.3
+    zone = np.array(jp.zone)
+    step = np.full(N - 1, 3.0)
+    assert run_leads(q[:N], step, zone[:N], ROBOT.limits, 100.0) == {}
+    need = lead_needed_mm(replace(jp, q=q), path, ROBOT, TimingSettings.make())
+    assert [r["run"] for r in need["per_run"]] == [1]

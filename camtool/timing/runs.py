@@ -212,13 +212,17 @@ def lead_bound_mm(limits, feed_mm_s: float, joint_rate_per_mm, share: float = MA
 
 def run_leads(q, step_mm, zone, limits, feed_mm_s: float, policy: str = "constant", scope: str = "row") -> dict:
     """Lead lengths (mm) of one run (``q`` its poses, ``step_mm`` TCP steps, ``zone`` zone codes) and the
-    lengths its ramps from / to rest need, planned as ``time_runs`` plans them; {} without work poses."""
+    lengths its ramps from / to rest need, planned as ``time_runs`` plans them; {} without work poses or
+    when the run cannot be timed."""
     w = np.flatnonzero(zone == WORK)
     if len(q) < 2 or not len(w):
         return {}
     spline = PathSpline(path_parameter(q, step_mm, limits, feed_mm_s), q)
     bound, _, _ = speed_bounds(*spline.piece_bounds(), limits)
-    plan, _, _ = time_section(spline, targets(bound, zone, feed_mm_s, policy, scope), limits)
+    try:
+        plan, _, _ = time_section(spline, targets(bound, zone, feed_mm_s, policy, scope), limits)
+    except RuntimeError:  # a run the time law cannot take: time_runs says so, with its rows
+        return {}
     s = spline.s
     return {"lead_in_mm": float(s[w[0]] - s[0]), "lead_out_mm": float(s[-1] - s[w[-1]]),
             "lead_in_needed_mm": float(plan.transitions[0]["D"]),
