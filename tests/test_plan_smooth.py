@@ -87,3 +87,17 @@ def test_smoothing_is_deterministic(sample_plan):
                                                                  robot).planner), free_spin=path.free_spin)
     again = smooth_runs(planned, path, robot, solver, st)
     assert np.array_equal(again.q, smoothed.q)
+
+
+def test_the_spline_through_smoothed_poses_must_stay_inside_the_joint_limits():
+    from camtool.plan.smooth import spline_within_limits
+    from camtool.robots import get_robot
+    robot = get_robot("seed8")
+    s = np.arange(9) * 5.0
+    q = np.zeros((9, 8))
+    q[:, 1] = np.linspace(0.0, 0.5, 9)
+    assert spline_within_limits(q, s, robot)
+    top = robot.limits.upper[5]
+    q[:, 5] = top - np.array([0.4, 0.2, 0.05, 0.0, 0.0, 0.0, 0.05, 0.2, 0.4])  # flat on the limit, bending
+    assert np.all(q[:, 5] <= top)                                            # every pose inside ...
+    assert not spline_within_limits(q, s, robot)                             # ... the spline overshoots

@@ -20,7 +20,8 @@ module solves the sparse least-squares problem::
 with D3 and D2 the third and second divided differences along the TCP's arc
 length, then puts every pose back on its target with CWLN, and repeats a few
 times. A run is replaced only if every pose converges, stays inside the joint
-limits and the run's worst ratio falls; otherwise it is kept as planned.
+limits (so does the cubic spline through the poses, as the timing interpolates
+the run) and the run's worst ratio falls; otherwise it is kept as planned.
 
 Hand-written on purpose: this is a null-space trajectory optimisation over one
 row (a sparse equality-constrained least-squares problem, solved with
@@ -36,6 +37,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.interpolate import CubicSpline
 
 from ..robots.model import Robot
 from ..toolpath import Path, row_segments, run_bounds
@@ -52,7 +54,8 @@ class SmoothSettings:
     accel_ratio: float = 0.85   # ... or of an acceleration limit
     regularisation: float = 1.0  # mu: weight of moving a pose (per rad, per planner.track_scale_mm of track)
     iterations: int = 8         # linearise - solve - put back on the path, this many times at most
-    limit_margin_rad: float = np.radians(1.0)  # kept off the joint limits
+    limit_margin_rad: float = np.radians(3.0)  # kept off the joint limits (the timing bounds its pieces
+                                                # with a pad of a few tenths of a degree near them)
     limit_margin_mm: float = 5.0
 
 
@@ -186,6 +189,16 @@ def smooth_poses(q0: np.ndarray, targets: np.ndarray, s_mm: np.ndarray, robot: R
     return best
 
 
+def spline_within_limits(q: np.ndarray, s_mm: np.ndarray, robot: Robot, per_piece: int = 16) -> bool:
+    """Whether the cubic spline through the run's poses (as the timing interpolates a run) stays inside the
+    joint limits: smoothed poses may lie close to a limit, and a spline bending there may overshoot it."""
+    if len(q) < 3:
+        return True
+    x = np.concatenate([np.linspace(a, b, per_piece, endpoint=False) for a, b in zip(s_mm[:-1], s_mm[1:])])
+    v = CubicSpline(s_mm, q, bc_type="not-a-knot")(x)
+    return bool(np.all(v >= robot.limits.lower) and np.all(v <= robot.limits.upper))
+
+
 def smooth_runs(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver,
                 st: SmoothSettings) -> JointPath:
     """``joint_path`` with every surface run that needs more than the set share of a limit at the feed smoothed.
@@ -215,7 +228,7 @@ def smooth_runs(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSol
             continue
         targets = base_inv @ poses
         q_new = smooth_poses(q_all[rows], targets, s_mm, robot, solver, st)
-        if q_new is None:
+        if q_new is None or not spline_within_limits(q_new, s_mm, robot):
             continue
         q_all[rows] = q_new
         for r, qk, Tk in zip(rows, q_new, targets):
