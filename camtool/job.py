@@ -84,7 +84,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "lead_mm": _nonneg("Lead-in / lead-out length beyond the boundary at each segment end (the shortest; see lead_auto).", 20.0),
         "lead_auto": Key("bool", True, "Lengthen the leads of every row to what the ramps to and from the feed need, so that the tool is at the feed at the first work point and until the last: after a first plan, the length each run's ramps need is computed from the joint speed, acceleration and jerk limits, the feed and the planned joint path; when it is longer than lead_mm, the path is rastered again with that lead (5 % longer, rounded up to whole mm, at most lead_max_mm) and planned again (docs/timing.md)."),
         "lead_max_mm": _pos("Longest lead that lead_auto may choose.", 100.0, " mm", 10_000),
-        "clearance_mm": _nonneg("Lift of lead and transition points along the surface normal (the leads ramp up to it).", 0.0),
+        "clearance_mm": _nonneg("Lift of lead and transition points along the surface normal (the leads rise to it as the cube of the distance from the work, leaving the surface without a kink).", 0.0),
         "self_motion_lift_mm": _nonneg("The self-motion zone between rows runs at least this far off the surface (a sine arc along the normal), so the transition never cuts into the part: on a convex part a chord between two surface points dips below the surface.", 5.0),
         "transition_points": Key("int", 5, "Poses in each self-motion zone between segments.", check=lambda x: 2 <= x <= 1000, expect="an integer in 2..1000"),
         "tool_x": Key("str", "fixed", "Tool x axis: a fixed world direction, or the travel direction.", choices=("fixed", "travel")),

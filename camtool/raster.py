@@ -20,8 +20,9 @@ so each run end is at most about half a pitch from the nearest point and no
 work point sits on a boundary edge.
 
 Around every segment: ``lead_in`` / ``lead_out`` poses continue along the row
-beyond the segment ends by ``lead_mm`` (the lift along the normal ramps from 0
-to ``clearance_mm``); between segments, ``transition_points`` ``self_motion``
+beyond the segment ends by ``lead_mm`` (the lift along the normal rises from 0
+to ``clearance_mm`` as the cube of the distance from the work, tangent to the
+surface at the work end); between segments, ``transition_points`` ``self_motion``
 poses (positions interpolated in (u, v) and lifted, orientation by slerp); an
 ``approach`` zone before the first pose and a ``depart`` zone after the last one
 back off along the normal by ``max(clearance_mm, APPROACH_MIN_MM)``.
@@ -318,8 +319,12 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     point = np.where(zone == _WORK, pos - n_lead + 1, 0).astype(np.int32)
     lift = np.zeros(len(seg))
     if n_lead:
-        lift = np.where(zone == _LEAD_IN, clear * (n_lead - pos) / n_lead,
-                        np.where(zone == _LEAD_OUT, clear * (pos - n_lead - c_s + 1) / n_lead, 0.0))
+        # share of the lead from the work end (0) to the lead's far end (1); the lift rises as its cube, so
+        # the tool path leaves the surface with no kink and no jump in curvature: a linear ramp's kink at
+        # the first and last work pose needs more than a wrist's jerk limit at the feed (the whole row slows)
+        away = np.where(zone == _LEAD_IN, (n_lead - pos) / n_lead,
+                        np.where(zone == _LEAD_OUT, (pos - n_lead - c_s + 1) / n_lead, 0.0))
+        lift = clear * away ** 3
 
     # geometry and orientation of the on-surface samples
     p = surface.point_mm(uv[:, 0], uv[:, 1])

@@ -158,7 +158,8 @@ def test_leads_continue_along_the_surface_and_lift(sphere):
     sel = np.flatnonzero(path.segment == i)
     lo = sel[path.zone[sel] == LEAD_OUT]
     work = sel[path.zone[sel] == WORK]
-    assert np.allclose(dist[lo], 8 * np.arange(1, 5) / 4, atol=1e-6)  # ramp to the clearance
+    # rise to the clearance as the cube of the distance from the work: tangent to the surface at the work
+    assert np.allclose(dist[lo], 8 * (np.arange(1, 5) / 4) ** 3, atol=1e-6)
     # along the row: the last lead-out is 20 mm of arc beyond the last work point, same elevation
     uv = sphere.uv_from_points(p[[work[-1], lo[-1]]])
     assert abs(uv[0, 1] - uv[1, 1]) < 1e-9
