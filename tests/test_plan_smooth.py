@@ -60,7 +60,9 @@ def test_kinked_rows_of_the_sample_are_smoothed_below_the_limits_at_the_feed(sam
         jerk, acc = run_ratios(smoothed.q[rows], _s_mm(path, rows, smoothed), robot, st.feed_mm_s)
         assert jerk.max() <= st.jerk_ratio and acc.max() <= st.accel_ratio, (a, b)
     for d in done:
-        for r in range(d["rows"][0], d["rows"][1] + 1):
+        first, last = d["path_index"]
+        assert np.all(path.segment[first:last + 1] == d["segment"])
+        for r in np.flatnonzero((smoothed.path_index >= first) & (smoothed.path_index <= last)):
             q = smoothed.q[r]
             T = base_inv @ path.poses_mm[smoothed.path_index[r]]
             Tq = robot.fk_tcp(q)
@@ -72,8 +74,9 @@ def test_kinked_rows_of_the_sample_are_smoothed_below_the_limits_at_the_feed(sam
 
 def test_rows_that_run_at_the_feed_are_left_as_planned(sample_plan):
     robot, path, planned, smoothed, st = sample_plan
-    changed = {tuple(d["rows"]) for d in smoothed.events["smoothed_runs"]}
-    untouched = [(a, b) for a, b in _runs(planned, path) if (a, b) not in changed]
+    changed = {tuple(d["path_index"]) for d in smoothed.events["smoothed_runs"]}
+    untouched = [(a, b) for a, b in _runs(planned, path)
+                 if (planned.path_index[a], planned.path_index[b]) not in changed]
     assert len(untouched) > 50
     for a, b in untouched:
         assert np.array_equal(planned.q[a:b + 1], smoothed.q[a:b + 1])

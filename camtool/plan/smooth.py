@@ -18,10 +18,12 @@ module solves the sparse least-squares problem::
             lo + margin <= q + dq <= hi - margin   (active set)
 
 with D3 and D2 the third and second divided differences along the TCP's arc
-length, then puts every pose back on its target with CWLN, and repeats a few
-times. A run is replaced only if every pose converges, stays inside the joint
-limits (so does the cubic spline through the poses, as the timing interpolates
-the run) and the run's worst ratio falls; otherwise it is kept as planned.
+length, then puts every pose back on its target by least-norm Newton steps
+(``CwlnSolver.project``: CWLN's clamping task would pull the joint back to its
+buffer's edge and bring the kink back), and repeats a few times. A run is replaced only if every pose converges, stays inside the joint
+limits (so does the cubic spline through the poses, as the timing
+interpolates the run) and the run's worst ratio falls; otherwise it is kept as
+planned.
 
 Hand-written on purpose: this is a null-space trajectory optimisation over one
 row (a sparse equality-constrained least-squares problem, solved with
@@ -76,9 +78,9 @@ def divided_difference(s: np.ndarray, order: int) -> sp.csr_matrix:
 
 def run_ratios(q: np.ndarray, s_mm: np.ndarray, robot: Robot, feed_mm_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Per joint, the largest |q'''| v^3 / jerk limit and |q''| v^2 / acceleration limit along one run."""
-    lim = robot.limits
-    jerk = np.abs(divided_difference(s_mm, 3) @ q) * feed_mm_s ** 3 / lim.jerk if len(q) > 3 else np.zeros((1, q.shape[1]))
-    acc = np.abs(divided_difference(s_mm, 2) @ q) * feed_mm_s ** 2 / lim.acceleration if len(q) > 2 else np.zeros((1, q.shape[1]))
+    lim, none = robot.limits, np.zeros((1, q.shape[1]))
+    jerk = np.abs(divided_difference(s_mm, 3) @ q) * feed_mm_s ** 3 / lim.jerk if len(q) > 3 else none
+    acc = np.abs(divided_difference(s_mm, 2) @ q) * feed_mm_s ** 2 / lim.acceleration if len(q) > 2 else none
     return jerk.max(axis=0), acc.max(axis=0)
 
 
@@ -203,8 +205,8 @@ def smooth_runs(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSol
                 st: SmoothSettings) -> JointPath:
     """``joint_path`` with every surface run that needs more than the set share of a limit at the feed smoothed.
 
-    The events get ``smoothed_runs``: per smoothed run its first and last row and the
-    worst limit ratio at the feed before and after (1 = the set share).
+    The events get ``smoothed_runs``: per smoothed run its segment, the Path indices of its
+    first and last pose and the worst limit ratio at the feed before and after (1 = the set share).
     """
     jp = joint_path
     seg = row_segments(jp.path_index, jp.zone, path.segment)
@@ -233,7 +235,8 @@ def smooth_runs(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSol
         q_all[rows] = q_new
         for r, qk, Tk in zip(rows, q_new, targets):
             _, _, pos_err[r], ori_err[r] = solver.task(qk, Tk)
-        done.append({"rows": [int(a), int(b)], "worst_ratio_before": round(before, 3),
+        done.append({"segment": int(path.segment[pidx[0]]), "path_index": [int(pidx[0]), int(pidx[-1])],
+                     "worst_ratio_before": round(before, 3),
                      "worst_ratio_after": round(_worst(q_new, s_mm, robot, st), 3)})
     if not done:
         return jp
