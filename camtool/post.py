@@ -115,15 +115,6 @@ def process_for_job(job, trajectory, path=None):
                        job_name=Path(str(job.path)).name, job_time=when, row_labels=labels)
 
 
-def _dedupe(items):
-    seen, out = set(), []
-    for x in items:
-        if x not in seen:
-            seen.add(x)
-            out.append(x)
-    return out
-
-
 def summary_lines(sim):
     from .simulate import summary_lines as lines
     return lines(sim)
@@ -300,7 +291,7 @@ def write_programs(trajectory, robot, job, outdir, path=None, report: dict | Non
                 if report is not None:
                     report[fmt] = figures
                 log.info("%s: %s", fmt, "; ".join(summary_lines(sim)))
-        findings = _dedupe(findings)
+        findings = list(dict.fromkeys(findings))  # each once, in order
         if findings:
             more = f" (and {len(findings) - MAX_LISTED} more)" if len(findings) > MAX_LISTED else ""
             raise PlanInfeasible(f"{len(findings)} program check finding(s), no program written: "

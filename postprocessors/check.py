@@ -30,12 +30,7 @@ SPEED_REL_TOL = 1e-3  # speeds may exceed the robot's limit by 0.1 % (rounding o
 
 def dedupe(findings) -> list[str]:
     """Findings in order, each once."""
-    seen, out = set(), []
-    for f in findings:
-        if f not in seen:
-            seen.add(f)
-            out.append(f)
-    return out
+    return list(dict.fromkeys(findings))
 
 
 def _edge(robot, i: int, v: float) -> str:

@@ -125,8 +125,8 @@ def test_free_spin_ignores_rotation_about_tool_z():
     assert kernel.solve(spun, q)[3]
 
 
-def test_project_puts_the_tool_on_the_target_with_the_least_change_and_no_clamp_pull():
-    """``project`` (used between and next to solved poses) is a least-norm correction: from a start inside
+def test_solve_without_clamp_puts_the_tool_on_the_target_with_the_least_change():
+    """``solve(clamp=False)`` (used between and next to solved poses) is a least-norm correction: from a start inside
     the track's clamping buffer it stays inside it, where ``solve``'s clamp task pulls the track out."""
     robot = get_robot("seed8")
     solver = CwlnSolver(robot, IkSettings())
@@ -135,7 +135,7 @@ def test_project_puts_the_tool_on_the_target_with_the_least_change_and_no_clamp_
     q[0] = robot.limits.lower[0] + 20.0  # 20 mm from the track's limit: inside the 50 mm buffer
     T = robot.fk_tcp(q)
     start = q + np.r_[0.5, 0.002 * rng.normal(size=7)]
-    projected = solver.project(T, start)
+    projected = solver.solve(T, start, clamp=False)
     solved = solver.solve(T, start)
     assert projected.converged and solved.converged
     Tq = robot.fk_tcp(projected.q)

@@ -102,6 +102,7 @@ class CwlnSolver:
         # prismatic one, so least-norm steps use the track instead of stretching the arm
         self.jscale = np.where(robot.prismatic, settings.track_scale_mm, 1.0)
         self.eye = np.eye(self.n)
+        self.unclamped = (np.ones(self.n), np.zeros(self.n))  # weights and clamp motion of clamp=False
 
     # -- kinematics -------------------------------------------------------
     def pose_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -157,8 +158,16 @@ class CwlnSolver:
     def converged(self, pos_err, ori_err) -> bool:
         return pos_err <= self.s.position_tol_mm and ori_err <= self.s.orientation_tol_rad
 
-    def solve(self, target: np.ndarray, q0: np.ndarray, max_iterations: int | None = None) -> IkResult:
-        """CWLN from q0 to the TCP pose ``target`` (4x4, mm, base frame)."""
+    def solve(self, target: np.ndarray, q0: np.ndarray, max_iterations: int | None = None,
+              clamp: bool = True) -> IkResult:
+        """CWLN from q0 to the TCP pose ``target`` (4x4, mm, base frame).
+
+        ``clamp=False``: plain damped least-norm steps (every weight 1, no clamp task), the
+        smallest joint change that puts the tool on the target. For a pose between or next
+        to poses already solved (densified and smoothed poses): the clamp task would pull a
+        joint that its neighbours hold inside the clamping buffer back to the buffer's edge,
+        a spike in the joint path.
+        """
         q = np.clip(np.array(q0, dtype=float), self.lo, self.hi)
         lam2 = self.s.damping ** 2
         iters = max_iterations or self.s.max_iterations
@@ -166,8 +175,11 @@ class CwlnSolver:
             e, J, pe, oe = self.task(q, target)
             if self.converged(pe, oe) or it == iters:
                 break
-            w, phi = self.clamp(q)
-            clamp_motion = (1.0 - w) * phi
+            if clamp:
+                w, phi = self.clamp(q)
+                clamp_motion = (1.0 - w) * phi
+            else:
+                w, clamp_motion = self.unclamped
             Js = J * self.jscale
             JW = Js * w
             A = JW @ Js.T
@@ -178,27 +190,6 @@ class CwlnSolver:
             if big > 1.0:
                 dq /= big
             q = np.clip(q + dq, self.lo, self.hi)
-        return IkResult(q, pe, oe, self.converged(pe, oe), it)
-
-    def project(self, target: np.ndarray, q0: np.ndarray, iterations: int = 20) -> IkResult:
-        """Least-norm Newton steps from q0 onto ``target``, without the clamping task.
-
-        For a pose between (or next to) poses already solved: the smallest joint change
-        (in the joint-space metric) that puts the tool on the target. CWLN's clamp task
-        would pull a joint that its neighbours hold inside the clamping buffer back to
-        the buffer's edge, a spike in the joint path. Joint limits are not enforced;
-        the caller checks them.
-        """
-        q = np.array(q0, dtype=float)
-        pe = oe = np.inf
-        for it in range(iterations + 1):
-            e, J, pe, oe = self.task(q, target)
-            if self.converged(pe, oe) or it == iterations:
-                break
-            Js = J * self.jscale
-            A = Js @ Js.T
-            A[np.diag_indices_from(A)] += 1e-12
-            q = q + self.jscale * (Js.T @ np.linalg.solve(A, e))
         return IkResult(q, pe, oe, self.converged(pe, oe), it)
 
     # -- gradient projection ---------------------------------------------

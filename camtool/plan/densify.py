@@ -39,7 +39,7 @@ def _split(solver: CwlnSolver, Ta, qa, Tb, qb, tol_mm: float, depth: int) -> lis
     T_mid = _midpose(Ta, Tb)
     if depth >= MAX_SPLITS or np.linalg.norm(solver.tcp_pose(q_mid)[:3, 3] - T_mid[:3, 3]) <= tol_mm:
         return []
-    res = solver.project(T_mid, q_mid)  # the least change from the joint midpoint: no spike in the joint path
+    res = solver.solve(T_mid, q_mid, clamp=False)  # the least change from the joint midpoint: no spike in the joint path
     if not res.converged or np.any(res.q < solver.lo) or np.any(res.q > solver.hi):
         return []
     return (_split(solver, Ta, qa, T_mid, res.q, tol_mm, depth + 1) + [(T_mid, res.q)]

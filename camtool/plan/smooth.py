@@ -19,7 +19,7 @@ module solves the sparse least-squares problem::
 
 with D3 and D2 the third and second divided differences along the TCP's arc
 length, then puts every pose back on its target by least-norm Newton steps
-(``CwlnSolver.project``: CWLN's clamping task would pull the joint back to its
+(``CwlnSolver.solve(..., clamp=False)``: CWLN's clamping task would pull the joint back to its
 buffer's edge and bring the kink back), and repeats a few times. A run is replaced only if every pose converges, stays inside the joint
 limits (so does the cubic spline through the poses, as the timing
 interpolates the run) and the run's worst ratio falls; otherwise it is kept as
@@ -97,14 +97,13 @@ def _task_matrix(J_rows: np.ndarray, n: int) -> sp.csr_matrix:
                          shape=(n * m, n * dof))
 
 
-def _kkt_step(q, e_rows, J_rows, s_mm, robot, st: SmoothSettings, lo, hi, scale, w3, w2):
+def _kkt_step(q, e_rows, J_rows, D3, D2, robot, st: SmoothSettings, lo, hi, scale, w3, w2):
     """One linearised smoothing step dq (n, dof) for the joint values q (n, dof), or None.
 
     ``w3`` (n - 3, dof) and ``w2`` (n - 2, dof) weigh each pose's jerk and acceleration
-    term. Joint limits by an active set."""
+    term; ``D3``, ``D2`` the divided differences along the run. Joint limits by an active set."""
     n, dof = q.shape
     lim = robot.limits
-    D3, D2 = divided_difference(s_mm, 3), divided_difference(s_mm, 2)
     blocks_H, g = [], []
     # variables in the planner's joint-space metric, joint-major: x[j * n + k] = dq[k, j] / scale[j]
     # (a track in mm next to angles in rad would make the system numerically singular)
@@ -172,13 +171,13 @@ def smooth_poses(q0: np.ndarray, targets: np.ndarray, s_mm: np.ndarray, robot: R
         w3 *= np.maximum(1.0, np.abs(D3 @ q) * st.feed_mm_s ** 3 / lim.jerk / st.jerk_ratio) ** 2
         w2 *= np.maximum(1.0, np.abs(D2 @ q) * st.feed_mm_s ** 2 / lim.acceleration / st.accel_ratio) ** 2
         tasks = [solver.task(qk, Tk) for qk, Tk in zip(q, targets)]
-        dq = _kkt_step(q, np.array([t[0] for t in tasks]), np.array([t[1] for t in tasks]), s_mm, robot, st,
+        dq = _kkt_step(q, np.array([t[0] for t in tasks]), np.array([t[1] for t in tasks]), D3, D2, robot, st,
                        lo, hi, scale, w3, w2)
         if dq is None:
             break
         q_new = np.empty_like(q)
         for k in range(n):
-            res = solver.project(targets[k], q[k] + dq[k])  # no clamping task: it would bring the kink back
+            res = solver.solve(targets[k], q[k] + dq[k], clamp=False)  # no clamping task: it would bring the kink back
             if not res.converged or np.any(res.q < robot.limits.lower) or np.any(res.q > robot.limits.upper):
                 return best
             q_new[k] = res.q
