@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.profiles import load_profile
+from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory, with_q
-from postprocessors.base import ProcessInfo
+from camtool.program.process import ProcessInfo
 from postprocessors.yaskawa_inform import InformPost, job_name, parse_jbi, vj_percent
 from test_post import rows_trajectory
 

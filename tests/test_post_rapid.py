@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.profiles import load_profile, parse_profile
+from camtool.profiles import parse_profile
+from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory
 from postprocessors.abb_rapid import RESERVED, RapidPost, fmt_t, parse_module, rapid_identifier
-from postprocessors.base import ProcessInfo
+from camtool.program.process import ProcessInfo
 from test_post import rows_trajectory
 
 POST = RapidPost()
@@ -28,7 +29,7 @@ def on_the_plan(q_read, dur, tr, robot, tol_deg=0.5e-4, tol_mm=0.5e-3):
     """Every target lies on the planned motion at the time the program reaches it: a waypoint,
     or a point of the trajectory's quintic pieces between two (a corner or a bowed chord needed
     it); to the written resolution plus what 1 ms of motion moves."""
-    from postprocessors.moves import hermite
+    from camtool.program.plan import hermite
 
     t = tr.t_s[0] + np.r_[0.0, np.cumsum(dur[1:])]
     k = np.clip(np.searchsorted(tr.t_s, t, side="right") - 1, 0, len(tr.t_s) - 2)
