@@ -10,9 +10,15 @@ from camtool.errors import BadInput
 from .dialect import COLUMN_RE
 
 
+def read_bytes(path: Path) -> bytes:
+    """The bytes of one CSV file (the reader's only file access)."""
+    return Path(path).read_bytes()
+
+
 def _read_text(path: Path) -> str:
     try:
-        return path.read_text(encoding="ascii")
+        # as text mode reads it: universal newlines
+        return read_bytes(path).decode("ascii").replace("\r\n", "\n").replace("\r", "\n")
     except (OSError, UnicodeDecodeError) as exc:
         raise BadInput(f"{path}: cannot read as ASCII CSV ({exc})") from None
 

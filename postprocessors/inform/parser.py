@@ -64,7 +64,7 @@ def parse_jbi(path: Path) -> JbiText:
     import hashlib
 
     try:
-        raw = Path(path).read_bytes()
+        raw = read_bytes(path)
     except OSError as exc:
         j = JbiText()
         j.problems.append(f"{path}: cannot read ({exc})")

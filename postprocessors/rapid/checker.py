@@ -13,7 +13,7 @@ from camtool.program.moves import JOINT
 from camtool.program.targets import target_joints
 
 from .dialect import BUILTIN_DATA, EAX, NOT_CONNECTED, RAX, ZONE_MM, rapid_identifier
-from .parser import _speed_ok, moves_to_arrays, program_modules, read_program
+from .parser import _speed_ok, moves_to_arrays, program_modules, read_bytes, read_program
 
 
 def check(path: Path, robot, profile) -> list[str]:
@@ -31,7 +31,7 @@ def check(path: Path, robot, profile) -> list[str]:
         modules = program_modules(path)
     except BadInput as exc:
         return [str(exc)]
-    if path.suffix.lower() == ".pgf" and not path.read_bytes().endswith(b"\n"):
+    if path.suffix.lower() == ".pgf" and not read_bytes(path).endswith(b"\n"):
         out.append(f"{path}: no newline at end of file")
     mapped = {a.axis for a in profile.axes}
     names = RAX + EAX

@@ -127,7 +127,7 @@ def parse_module(path: Path) -> ModuleText:
 
     path = Path(path)
     try:
-        raw = path.read_bytes()
+        raw = read_bytes(path)
     except OSError as exc:
         m = ModuleText()
         m.problems.append(f"{path}: cannot read ({exc})")
@@ -297,7 +297,7 @@ def read_pgf(path: Path) -> list[str]:
     import xml.etree.ElementTree as ET
 
     try:
-        root = ET.parse(path).getroot()
+        root = ET.fromstring(read_bytes(path))
     except (ET.ParseError, OSError) as exc:
         raise BadInput(f"{path}: not a readable program file ({exc})") from None
     if root.tag != "Program":
