@@ -60,8 +60,10 @@ def main() -> None:
                 length_m = s.get("work_length_mm", 0.0) / 1000.0
                 per_m = n / length_m if length_m else float("nan")
                 kinds = ", ".join(f"{k} {v}" for k, v in sorted(c.items()))
+                on_work = s.get("moves_on_work", 0)
                 print(f"{name:24s} {fmt:6s} motion instructions {n:5d} ({kinds}); work {length_m:.3f} m; "
-                      f"{per_m:.1f} per m; max deviation {s.get('max_deviation_mm')} mm")
+                      f"{per_m:.1f} per m ({on_work / length_m if length_m else float('nan'):.1f} per m on work); "
+                      f"max deviation {s.get('max_deviation_mm', float('nan')):.4f} mm")
 
 
 if __name__ == "__main__":

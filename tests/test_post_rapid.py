@@ -252,11 +252,11 @@ def test_rapidchecker_rejects_a_broken_module(tmp_path):
 
 
 def test_movec_is_read_and_simulated_on_its_circle(tmp_path):
-    """camtool does not write MoveC yet, but reads and simulates it: a MoveL turned into a
-    MoveC through a point just off the line checks clean and moves on the circle."""
+    """A MoveL turned into a MoveC through a point just off the line (a program written with
+    options.arcs = false) checks clean, is read back and moves on the circle."""
     from camtool.simulate import simulate
 
-    r, p = _setup("irb2400")
+    r, p = _setup("irb2400", arcs=False)
     files = POST.write(rows_trajectory(r, rows=1), r, p, tmp_path)
     lines = files[1].read_text().splitlines()
     k = next(i for i, ln in enumerate(lines) if ln.strip().startswith("MoveL") and i > 0

@@ -134,3 +134,34 @@ def read_back_check(plugin, path, robot, profile) -> list[str]:
 def check_file(plugin, path, robot, profile) -> list[str]:
     """Findings for one written file: the plugin's ``check`` (by default ``read_back_check``)."""
     return dedupe(plugin.check(Path(path), robot, profile))
+
+
+def arc_findings(prog, robot, q: np.ndarray, max_sweep_deg: float, min_chord_mm: float = 0.1) -> list[str]:
+    """Findings for the circular moves of a program read back (``ProgramMoves``) with target
+    joints ``q``: a circle point and target that define a circle with the move's start (not
+    on one line, at least ``min_chord_mm`` apart), and a sweep below the controller's limit
+    for one instruction (``max_sweep_deg``)."""
+    from .arcs import circle_through
+    from .targets import _target_poses
+
+    circ = np.flatnonzero(np.asarray(prog.kind) == "C")
+    if not len(circ):
+        return []
+    out = []
+    P, _R = _target_poses(prog, robot, q)
+    first = circ[circ == 0]
+    out += [f"{prog.where[k]}: a circular move cannot be the first move (it has no start)" for k in first]
+    circ = circ[circ > 0]
+    via = prog.via[circ, :3, 3]
+    c, rad, n, r0, sweep, ok = circle_through(P[circ - 1], via, P[circ])
+    for i, k in enumerate(circ[:MAX_PER_KIND * 5]):
+        d = min(np.linalg.norm(via[i] - P[k - 1]), np.linalg.norm(P[k] - via[i]), np.linalg.norm(P[k] - P[k - 1]))
+        if not np.isfinite(d) or d < min_chord_mm:
+            out.append(f"{prog.where[k]}: the start, circle point and target of a circular move must be at least "
+                       f"{min_chord_mm:g} mm apart ({d:.4f} mm)")
+        elif not ok[i]:
+            out.append(f"{prog.where[k]}: the start, circle point and target of a circular move lie on one line")
+        elif np.degrees(sweep[i]) >= max_sweep_deg:
+            out.append(f"{prog.where[k]}: a circular move of {np.degrees(sweep[i]):.1f} deg; the controller takes "
+                       f"less than {max_sweep_deg:g} deg per instruction")
+    return out

@@ -307,7 +307,9 @@ class MovePlan:
     row of the move's target when the target lies on the surface (from the row's first
     to its last work point), else -1; ``row_start`` / ``row_end`` the move that reaches
     a row's first / last work point; ``free`` the target lies off the surface (outside
-    every row: free motion, leads, retracts; a part may end there); ``deviation_mm`` the largest deviation of the skipped waypoints.
+    every row: free motion, leads, retracts; a part may end there); ``deviation_mm`` the
+    largest deviation of the skipped waypoints; kind C (``camtool.program.steps.FitArcs``)
+    a circular move through ``via_P`` (with ``via_R``, ``via_q``).
     """
 
     wp: np.ndarray
@@ -323,6 +325,9 @@ class MovePlan:
     R: np.ndarray          # (n, 3, 3) TCP rotation of each target, base frame
     q: np.ndarray          # (n, dof) joint values of each target
     rows: int = 0
+    via_P: np.ndarray | None = None  # (n, 3) circle point of each circular move (kind C), NaN elsewhere
+    via_R: np.ndarray | None = None  # (n, 3, 3) its TCP rotation
+    via_q: np.ndarray | None = None  # (n, dof) its joint values
 
     def __len__(self) -> int:
         return len(self.wp)
@@ -629,6 +634,20 @@ def plan_moves(trajectory, robot, process, *, linear: bool, levels_mm, min_level
     return MovePlan(wp=origin[idx], kind=kind_moves, t=t[idx], level=level, row=row, row_start=row_start,
                     row_end=row_end, free=~on_surface, deviation_mm=dev, P=P[idx], R=R[idx],
                     q=q[idx], rows=len(first))
+
+
+def move_lengths(plan: MovePlan) -> np.ndarray:
+    """(n,) TCP path length of each move (mm): its line, or for a circular move its arc; 0 for
+    the first (from wherever the robot is)."""
+    from .arcs import circle_through
+
+    length = np.r_[0.0, np.linalg.norm(np.diff(plan.P, axis=0), axis=1)]
+    circ = np.flatnonzero(np.asarray(plan.kind) == KIND_CIRCULAR)
+    circ = circ[circ > 0]
+    if len(circ):
+        c, rad, n, r0, sweep, ok = circle_through(plan.P[circ - 1], plan.via_P[circ], plan.P[circ])
+        length[circ] = np.where(ok, rad * sweep, length[circ])
+    return length
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -42,8 +42,25 @@ def interpolate(prog, robot, chain, q_t, P_t, R_t, dur, dt_s: float) -> Samples:
     T = np.cumsum(dur)
     total = float(T[-1])
     cart = prog.kind != "J"
+    # --- circular moves: their circle (start, circle point, target), length along the arc
+    circ_m = (prog.kind == "C") & np.r_[False, np.ones(M - 1, bool)]
+    arc = {}
+    if circ_m.any():
+        kc = np.flatnonzero(circ_m)
+        c, rad, n, r0, sweep, ok = circle_through(P_t[kc - 1], prog.via[kc, :3, 3], P_t[kc])
+        arc = {int(k): (c[i], n[i], r0[i], sweep[i]) for i, k in enumerate(kc) if ok[i]}
+
+    def on_move(k, s):
+        """TCP points at fractions ``s`` of Cartesian moves ``k`` (a line, or its arc)."""
+        pts = P_t[k - 1] + s[:, None] * (P_t[k] - P_t[k - 1])
+        for i in np.flatnonzero(np.isin(k, list(arc))) if arc else ():
+            c_, n_, r0_, sw_ = arc[int(k[i])]
+            pts[i] = arc_point(c_[None], n_[None], r0_[None], np.array([sw_]), s[i:i + 1])[0]
+        return pts
     # --- blend windows
     L = np.r_[0.0, np.linalg.norm(np.diff(P_t, axis=0), axis=1)]
+    for k, (c_, n_, r0_, sw_) in arc.items():
+        L[k] = float(np.linalg.norm(r0_) * sw_)  # a circular move's length is its arc's
     Lj = np.r_[0.0, _joint_travel(np.diff(q_t, axis=0), chain.prismatic)] if M > 1 else np.zeros(1)
     Leq = np.where(cart, L, np.maximum(L, Lj))
     r = np.array(prog.blend_mm, float)
@@ -105,15 +122,15 @@ def interpolate(prog, robot, chain, q_t, P_t, R_t, dur, dt_s: float) -> Samples:
                 need = jc & cart[kk]
                 if need.any():
                     k2 = kk[need]
-                    Pp = P_t[k2 - 1] + ss_[need, None] * (P_t[k2] - P_t[k2 - 1])
+                    Pp = on_move(k2, ss_[need])
                     Rp = _slerp(R_t[k2 - 1], R_t[k2], ss_[need])
                     qq[need] = _ik_batch(chain, Pp, Rp, qq[need], np.ones(robot.dof, bool))[0]
             q[pos[jc]] = w0[jc] * qa[jc] + w1[jc] * q_t[kb[jc]] + w2[jc] * qb[jc]
             cs[pos[jc]] = False
         if both_cart.any():
             bc = both_cart
-            Pa = P_t[kb[bc] - 1] + sa[bc, None] * (P_t[kb[bc]] - P_t[kb[bc] - 1])
-            Pb = P_t[kb[bc]] + sb[bc, None] * (P_t[kb[bc] + 1] - P_t[kb[bc]])
+            Pa = on_move(kb[bc], sa[bc])
+            Pb = on_move(kb[bc] + 1, sb[bc])
             Pbl = w0[bc] * Pa + w1[bc] * P_t[kb[bc]] + w2[bc] * Pb
             # orientation: the slerp of the move the sample's time falls in
             idx_c = np.searchsorted(np.flatnonzero(cart[m]), pos[bc])

@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 
 from camtool.errors import BadInput
-from camtool.program.check import check_motion, resolution_tol
+from camtool.program.check import arc_findings, check_motion, resolution_tol
 from camtool.program.durations import move_durations
 from camtool.program.moves import JOINT
 from camtool.program.targets import target_joints
 
-from .dialect import BUILTIN_DATA, EAX, NOT_CONNECTED, RAX, ZONE_MM, rapid_identifier
+from .dialect import ARC_LIMIT_DEG, BUILTIN_DATA, EAX, NOT_CONNECTED, RAX, ZONE_MM, rapid_identifier
 from .parser import _speed_ok, moves_to_arrays, program_modules, read_bytes, read_program
 
 
@@ -115,6 +115,7 @@ def check(path: Path, robot, profile) -> list[str]:
         if len(bad):
             return out + [f"{prog.where[k]}: no joint values reach this target in its configuration"
                           for k in bad[:20]]
+        out += arc_findings(prog, robot, q, ARC_LIMIT_DEG)
         return out + check_motion(q, dur, robot, prog.where, resolution_tol(robot, 1e-4, 1e-3) + 1e-6)
     dur, q = moves_to_arrays(moves, robot, profile)
     return out + check_motion(q, dur, robot, where, resolution_tol(robot, 1e-4, 1e-3))

@@ -102,6 +102,14 @@ def _angles(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
     return np.arctan2(s, c)
 
 
+# One MoveC covers less than 240 degrees of its circle, so a full circle takes at least two
+# (ABB, Technical reference manual RAPID Instructions, MoveC; e.g. the summary at
+# https://blog.csdn.net/weixin_46026089/article/details/118248669: "圆弧运动时的圆周角不能超过240°").
+# camtool writes at most half of that per MoveC, and keeps start, circle point and target at
+# least 0.1 mm apart (steps.FitArcs.min_chord_mm).
+MAX_ARC_DEG = 120.0
+ARC_LIMIT_DEG = 240.0
+
 OPTIONS = {
     "motion": (str, "joint", "Process moves: 'joint' (MoveAbsJ \\T) or 'cartesian' (MoveL with robtargets in "
                              "the work object; only for robots whose kinematics the controller knows)."),
@@ -114,6 +122,8 @@ OPTIONS = {
     "module_dir": (str, "HOME:", "Controller folder the main module loads split modules from."),
     "process_signal": (str, "", "Digital output switching the process (SetDO 1 before each row, 0 after "
                                 "it); empty: none, the header says so."),
+    "arcs": (bool, True, "With motion = 'cartesian': targets of a row on a circle (within post.path_tol_mm) "
+                         "become MoveC, at most 120 degrees each; false writes MoveL only."),
     "date": (str, "job", "Date in the header: 'job' (the job file's time, UTC: reruns are byte-identical), "
                          "'now', or a fixed 'yyyy/mm/dd hh:mm'."),
 }

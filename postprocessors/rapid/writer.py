@@ -10,12 +10,12 @@ import numpy as np
 from camtool import __version__
 from camtool.program.convention import controller_axes, controller_pose
 from camtool.program.kinematics import Kinematics
-from camtool.program.moves import JOINT
-from camtool.program.plan import KIND_LINEAR, plan_moves, profile_tool, split_parts
+from camtool.program.plan import KIND_CIRCULAR, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
+from camtool.program.steps import context_for, program_steps
 from camtool.program.process import ProcessInfo, program_date
 from camtool.transforms import matrix_from_xyz_rpy, quaternion_wxyz_from_matrix
 
-from .dialect import (BLEND_ZONES, EAX, RAX, T_RESOLUTION_S, V_RESOLUTION, ZONE_MM, _angles, _quat_column,
+from .dialect import (BLEND_ZONES, EAX, MAX_ARC_DEG, RAX, T_RESOLUTION_S, V_RESOLUTION, ZONE_MM, _angles, _quat_column,
                       fmt_column, fmt_num, rapid_identifier, validate_profile)
 
 
@@ -31,12 +31,13 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP the program declares
     cart = o["motion"] == "cartesian"
     lo, hi = BLEND_ZONES.index(o["zone"]), BLEND_ZONES.index(o["max_zone"])
-    plan = plan_moves(trajectory, robot, process, linear=cart,
-                      levels_mm=[ZONE_MM[z] for z in BLEND_ZONES[:hi + 1]], min_level_on_surface=lo)
+    levels = [ZONE_MM[z] for z in BLEND_ZONES[:hi + 1]]
+    plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=levels, min_level_on_surface=lo)
+    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if cart and o["arcs"] else None)
+    plan = steps.apply(plan, context_for(trajectory, robot, process, plan, levels, lo))
     n = len(plan)
     kind = np.array(plan.kind)
-    length = np.r_[0.0, np.linalg.norm(np.diff(plan.P, axis=0), axis=1)]
-    kind[(kind == KIND_LINEAR) & (length < 1e-3)] = JOINT  # a linear move that goes nowhere
+    length = move_lengths(plan)
     parts = split_parts(n, o["lines_per_module"], plan.free, "moves", f"{profile.source}: options.lines_per_module")
     level = plan.level.copy()
     for r in parts[:-1]:
@@ -53,7 +54,7 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     for i in range(1, n):
         planned += dt[i - 1]
         want = max(planned - written, T_RESOLUTION_S)
-        if kind[i] == KIND_LINEAR:
+        if kind[i] in (KIND_LINEAR, KIND_CIRCULAR):
             v = max(V_RESOLUTION, round(length[i] / want / V_RESOLUTION) * V_RESOLUTION)
             dur = length[i] / v
             v_ori = max(0.1, math.ceil(math.degrees(angle[i]) / dur * 10 - 1e-9) / 10)
@@ -71,19 +72,19 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
             for ax in RAX + EAX}
     rax_txt = [",".join(v) for v in zip(*(cols[a] for a in RAX))]
     eax_txt = [",".join(v) for v in zip(*(cols[a] for a in EAX))]
-    lin_idx = np.flatnonzero(kind == KIND_LINEAR)
+    lin_idx = np.flatnonzero((kind == KIND_LINEAR) | (kind == KIND_CIRCULAR))
     robt = {}
     if len(lin_idx):
-        P, Rw = controller_pose(profile, plan.P[lin_idx], plan.R[lin_idx])
-        Q = _quat_column(Rw)
-        rear, lower = Kinematics(robot).arm_configuration(plan.q[lin_idx])
-        cf = np.stack([np.floor(axes[a][lin_idx] / 90.0) for a in ("rax_1", "rax_4", "rax_6")], axis=1)
-        cfx = 4 * rear + 2 * lower + (axes["rax_5"][lin_idx] < 0)
-        px = [fmt_column(P[:, j], 3) for j in range(3)]
-        qx = [fmt_column(Q[:, j], 6) for j in range(4)]
-        for j, i in enumerate(lin_idx):
-            robt[i] = (f"[[{px[0][j]},{px[1][j]},{px[2][j]}],[{qx[0][j]},{qx[1][j]},{qx[2][j]},{qx[3][j]}],"
-                       f"[{int(cf[j, 0])},{int(cf[j, 1])},{int(cf[j, 2])},{int(cfx[j])}],[{eax_txt[i]}]]")
+        robt = dict(zip(lin_idx.tolist(), _robtargets(robot, profile, plan.P[lin_idx], plan.R[lin_idx],
+                                                      plan.q[lin_idx], [eax_txt[i] for i in lin_idx])))
+    circ_idx = np.flatnonzero(kind == KIND_CIRCULAR)
+    via = {}
+    if len(circ_idx):
+        via_axes = controller_axes(profile, robot, plan.via_q[circ_idx])
+        via_eax = [",".join(v) for v in zip(*((fmt_column(via_axes[a], 3 if units[a] == "mm" else 4)
+                                                if a in via_axes else ["9E9"] * len(circ_idx)) for a in EAX))]
+        via = dict(zip(circ_idx.tolist(), _robtargets(robot, profile, plan.via_P[circ_idx], plan.via_R[circ_idx],
+                                                      plan.via_q[circ_idx], via_eax)))
     moves = []
     for i in range(n):
         if i == 0:
@@ -91,6 +92,8 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
                          f"\\WObj:={wobj};")
         elif kind[i] == KIND_LINEAR:
             moves.append(f"MoveL {robt[i]}, {speed_txt[i]}, {zone_names[i]}, {tool} \\WObj:={wobj};")
+        elif kind[i] == KIND_CIRCULAR:
+            moves.append(f"MoveC {via[i]}, {robt[i]}, {speed_txt[i]}, {zone_names[i]}, {tool} \\WObj:={wobj};")
         else:
             moves.append(f"MoveAbsJ [[{rax_txt[i]}],[{eax_txt[i]}]], {o['speed']} \\T:={t_txt[i]}, "
                          f"{zone_names[i]}, {tool} \\WObj:={wobj};")
@@ -117,10 +120,11 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
         return out
 
     n_lin = int((kind == KIND_LINEAR).sum())
+    n_circ = int((kind == KIND_CIRCULAR).sum())
     stops = int((level < 0).sum())
     date = program_date(o["date"], process)
     header = [f"! Generated by camtool {__version__} for robot {robot.name}: {n} moves ({n_lin} MoveL, "
-              f"{n - n_lin} MoveAbsJ), {stops} exact stops, {plan.rows} rows, {trajectory.duration_s:.3f} s",
+              + (f"{n_circ} MoveC, " if n_circ else "") + f"{n - n_lin - n_circ} MoveAbsJ), {stops} exact stops, {plan.rows} rows, {trajectory.duration_s:.3f} s",
               f"! Job: {process.job_name or 'unknown'}; date {date} UTC (options.date = {o['date']}).",
               f"! Profile: {Path(profile.source).name}. Units: mm, deg, s; 9E9 = axis not connected.",
               f"! Moves merged and corners blended within {process.path_tol_mm:g} mm of the planned path "
@@ -151,6 +155,22 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
         p.write_bytes(("\n".join(lines) + "\n").encode("latin-1"))
         written.append(p)
     return written
+
+def _robtargets(robot, profile, P, R, q, eax_txt) -> list[str]:
+    """robtarget texts (position, quaternion, confdata, external axes) of TCP poses (base frame)
+    with joint values ``q``: the pose in the work object, cf1 / cf4 / cf6 from the axis
+    quadrants and cfx from the arm configuration."""
+    Pw, Rw = controller_pose(profile, P, R)
+    Q = _quat_column(Rw)
+    axes = controller_axes(profile, robot, q)
+    rear, lower = Kinematics(robot).arm_configuration(q)
+    cf = np.stack([np.floor(axes[a] / 90.0) for a in ("rax_1", "rax_4", "rax_6")], axis=1)
+    cfx = 4 * rear + 2 * lower + (axes["rax_5"] < 0)
+    px = [fmt_column(Pw[:, j], 3) for j in range(3)]
+    qx = [fmt_column(Q[:, j], 6) for j in range(4)]
+    return [f"[[{px[0][j]},{px[1][j]},{px[2][j]}],[{qx[0][j]},{qx[1][j]},{qx[2][j]},{qx[3][j]}],"
+            f"[{int(cf[j, 0])},{int(cf[j, 1])},{int(cf[j, 2])},{int(cfx[j])}],[{eax_txt[j]}]]" for j in range(len(P))]
+
 
 def _module(name, header, decl, proc, body) -> list[str]:
     return ([f"MODULE {name}"] + [f"  {h}" for h in header] + [f"  {d}" for d in decl]
