@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 
 from camtool.errors import BadInput
-from camtool.program.check import check_motion
+from camtool.program.check import arc_findings, check_motion
 from camtool.program.durations import move_durations
 from camtool.program.moves import JOINT
 from camtool.program.targets import target_joints
 
-from .dialect import GROUPS, group_axes, job_name
+from .dialect import ARC_LIMIT_DEG, GROUPS, group_axes, job_name
 from .parser import job_files, read_program
 
 
@@ -76,6 +76,7 @@ def check(path: Path, robot, profile) -> list[str]:
         if len(bad):
             return out + [f"{prog.where[k]}: no joint values reach this position" for k in bad[:20]]
         dur = move_durations(prog, robot, q)
+        out += arc_findings(prog, robot, q, ARC_LIMIT_DEG)
     else:
         q, dur = prog.q, prog.duration_s
     tol = np.zeros(robot.dof)

@@ -16,7 +16,14 @@ GROUPS = {"RB1": "C", "BS1": "BC", "ST1": "EC"}  # axis group -> position line p
 AXIS_RE = re.compile(r"^(RB1|BS1|ST1):([1-9][0-9]*)$")
 DATE_RE = re.compile(r"^\d{4}/\d{2}/\d{2} \d{2}:\d{2}$")
 POS_RE = re.compile(r"^(C|BC|EC)(\d{5})=(.*)$")
-MOVE_RE = re.compile(r"^(MOVJ|MOVL)((?: (?:C|BC|EC)\d{5})+) (?:VJ=(\d+\.\d{2})|V=(\d+(?:\.\d+)?)) PL=(\d+)$")
+MOVE_RE = re.compile(r"^(MOVJ|MOVL|MOVC)((?: (?:C|BC|EC)\d{5})+) (?:VJ=(\d+\.\d{2})|V=(\d+(?:\.\d+)?)) PL=(\d+)"
+                     r"( FPT)?$")
+# Circular moves (MOVC): an arc runs through three consecutive MOVC points; the move to the
+# first is a straight line, and FPT on an arc's last point starts the next arc there
+# (unverified: camtool's reading of the INFORM manuals' circular interpolation). One arc
+# covers less than ARC_LIMIT_DEG (unverified); camtool's checker holds every arc to it.
+ARC_LIMIT_DEG = 180.0
+CIRCLE_POINT = "c"  # the kind of a parsed MOVC before its arc is assembled
 CALL_RE = re.compile(r"^CALL JOB:([A-Za-z0-9_]+)$")
 DOUT_RE = re.compile(r"^DOUT OT#\((\d+)\) (ON|OFF)$")
 ROW_RE = re.compile(r"^'ROW (\d+)\b")

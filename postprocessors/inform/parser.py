@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -11,10 +11,10 @@ import numpy as np
 from camtool.errors import BadInput
 from camtool.program.convention import base_pose, controller_axes, model_joints
 from camtool.program.durations import move_durations
-from camtool.program.moves import JOINT, LINEAR, ProgramMoves, empty_moves
+from camtool.program.moves import CIRCULAR, JOINT, LINEAR, ProgramMoves, empty_moves
 from camtool.program.targets import target_joints
 
-from .dialect import (CALL_RE, DATE_RE, DOUT_RE, FLOAT_RE, GROUPS, INT64, INTS_RE, LONG_RE, MOVE_RE, PL_MM, POS_RE,
+from .dialect import (CIRCLE_POINT, CALL_RE, DATE_RE, DOUT_RE, FLOAT_RE, GROUPS, INT64, INTS_RE, LONG_RE, MOVE_RE, PL_MM, POS_RE,
                       ROW_END_RE, ROW_RE, group_axes, matrix_xyz_deg)
 
 
@@ -34,6 +34,7 @@ class JbiMove:
     pl: int
     kind: str = JOINT
     v: float = float("nan")
+    fpt: bool = False  # MOVC ... FPT: this point ends one arc and starts the next
 
 
 @dataclass
@@ -145,12 +146,15 @@ def _parse_jbi(path, raw: bytes) -> JbiText:
                 if pre in refs:
                     j.problems.append(f"{where}: {pre} given twice")
                 refs[pre] = int(tok[len(pre):])
-            kind = JOINT if m.group(1) == "MOVJ" else LINEAR
+            kind = {"MOVJ": JOINT, "MOVL": LINEAR, "MOVC": CIRCLE_POINT}[m.group(1)]
             if (kind == JOINT) != (m.group(3) is not None):
                 j.problems.append(f"{where}: {m.group(1)} takes {'VJ' if kind == JOINT else 'V'}=")
                 continue
+            if m.group(6) and kind != CIRCLE_POINT:
+                j.problems.append(f"{where}: FPT belongs to MOVC only")
+                continue
             mv = JbiMove(n, refs, float(m.group(3)) if m.group(3) else float("nan"), int(m.group(5)), kind,
-                         float(m.group(4)) if m.group(4) else float("nan"))
+                         float(m.group(4)) if m.group(4) else float("nan"), bool(m.group(6)))
             j.moves.append(mv)
             j.items.append(("move", mv))
         elif line.startswith("//NAME "):
@@ -254,13 +258,15 @@ def _parse_jbi(path, raw: bytes) -> JbiText:
                 j.problems.append(f"{p}:{mv.line}: group {g} needs a {need[g]} position on every move")
         if mv.kind == JOINT and not 0.01 <= mv.vj <= 100.0:
             j.problems.append(f"{p}:{mv.line}: VJ={mv.vj:.2f} outside 0.01..100.00")
-        if mv.kind == LINEAR and not mv.v > 0:
+        if mv.kind in (LINEAR, CIRCLE_POINT) and not mv.v > 0:
             j.problems.append(f"{p}:{mv.line}: V={mv.v} must be above 0")
-        if mv.kind == LINEAR and "C" in mv.refs and mv.refs["C"] < len(j.pos["C"]) \
+        if mv.kind in (LINEAR, CIRCLE_POINT) and "C" in mv.refs and mv.refs["C"] < len(j.pos["C"]) \
                 and j.pos["C"][mv.refs["C"]][3] != "rectan":
-            j.problems.append(f"{p}:{mv.line}: MOVL to a pulse position (camtool writes Cartesian ones)")
+            word = "MOVL" if mv.kind == LINEAR else "MOVC"
+            j.problems.append(f"{p}:{mv.line}: {word} to a pulse position (camtool writes Cartesian ones)")
         if not 0 <= mv.pl <= 8:
             j.problems.append(f"{p}:{mv.line}: PL={mv.pl} outside 0..8")
+    j.problems += arc_problems(p, j.moves)
     return j
 
 
@@ -275,9 +281,56 @@ def job_files(path: Path) -> list[tuple[Path, JbiText]]:
 
 
 
+def arc_problems(p, moves) -> list[str]:
+    """Problems of a job's MOVC sequence: every arc needs its three MOVC points (module doc
+    of ``postprocessors.inform``)."""
+    out, count, first = [], 0, None  # MOVC points of the open arc, the line it starts at
+    for mv in list(moves) + [None]:
+        if mv is not None and mv.kind == CIRCLE_POINT:
+            if count == 0:
+                first = mv.line
+            count += 1
+            if count == 3:  # the arc's last point; with FPT it is also the next arc's first
+                count = 1 if mv.fpt else 0
+                first = mv.line
+            continue
+        if count == 2 or (count == 1 and first is not None and _opened_by_fpt(moves, first)):
+            out.append(f"{p}:{first}: the arc that starts here has fewer than three MOVC points")
+        count, first = 0, None
+    return out
+
+
+def _opened_by_fpt(moves, line: int) -> bool:
+    return any(mv.line == line and mv.kind == CIRCLE_POINT and mv.fpt for mv in moves)
+
+
+def _arcs(moves: list, refs: list) -> tuple[list, list]:
+    """Moves with their MOVC points assembled into arcs: the first point of an arc is a linear
+    move (kind L), the circle point goes into the next move's ``via`` and the last point is a
+    circular move (kind C); an FPT point ends one arc and starts the next."""
+    out_m, out_r, state, via = [], [], "idle", None
+    for mv, rf in zip(moves, refs):
+        if mv.kind != CIRCLE_POINT:
+            out_m.append(mv)
+            out_r.append(rf)
+            state = "idle"
+            continue
+        if state == "idle":
+            out_m.append(replace(mv, kind=LINEAR))
+            out_r.append(rf)
+            state = "start"
+        elif state in ("start", "chain"):
+            via, state = rf, "via"
+        else:
+            out_m.append(replace(mv, kind=CIRCULAR))
+            out_r.append({**rf, "via": via})
+            state = "chain" if mv.fpt else "idle"
+    return out_m, out_r
+
+
 def _collect(path: Path, profile):
-    """Moves, their positions per prefix, file:line labels, parts and markers of a job and
-    the jobs it calls."""
+    """Moves (MOVC points assembled into arcs), their positions per prefix, file:line labels,
+    parts and markers of a job and the jobs it calls."""
     moves, posns, where, part, starts, ends, names = [], [], [], [], set(), set(), []
     files = job_files(Path(path))
     part_no = -1
@@ -304,6 +357,40 @@ def _collect(path: Path, profile):
                 ends.add(len(moves) - 1)
     return files, moves, posns, where, part, starts, ends, names
 
+
+def _assemble_arcs(moves, posns, where, part, starts, ends):
+    """``_arcs`` over the collected moves, with the markers and labels moved along."""
+    if not any(mv.kind == CIRCLE_POINT for mv in moves):
+        return moves, posns, where, part, starts, ends
+    keep = []  # the indices of the collected moves that remain moves
+    state = "idle"
+    for i, mv in enumerate(moves):
+        if mv.kind != CIRCLE_POINT:
+            keep.append(i)
+            state = "idle"
+        elif state == "idle":
+            keep.append(i)
+            state = "start"
+        elif state in ("start", "chain"):
+            state = "via"
+        else:
+            keep.append(i)
+            state = "chain" if mv.fpt else "idle"
+    new_index = {old: k for k, old in enumerate(keep)}
+    # a marker on a dropped circle point moves to the next kept move (start) / previous (end)
+    def forward(i):
+        while i not in new_index and i < len(moves):
+            i += 1
+        return new_index.get(i, len(keep) - 1)
+
+    def backward(i):
+        while i not in new_index and i > 0:
+            i -= 1
+        return new_index.get(i, 0)
+    m2, r2 = _arcs(moves, posns)
+    return (m2, r2, [where[i] for i in keep], [part[i] for i in keep], {forward(i) for i in starts},
+            {backward(i) for i in ends})
+
 def read_program(path: Path, robot, profile) -> ProgramMoves:
     """Every MOVJ / MOVL of a job and the jobs it calls, in run order, with the process
     markers (``'ROW`` / ``DOUT``) and the jobs as parts; Cartesian positions as TCP poses
@@ -321,6 +408,7 @@ def read_program(path: Path, robot, profile) -> ProgramMoves:
 
 def _read_program(path: Path, robot, profile) -> ProgramMoves:
     files, moves, posns, where, part, starts, ends, names = _collect(path, profile)
+    moves, posns, where, part, starts, ends = _assemble_arcs(moves, posns, where, part, starts, ends)
     for _jp, j in files:
         if j.bad_values:
             raise BadInput(j.bad_values[0])
@@ -371,6 +459,15 @@ def _read_program(path: Path, robot, profile) -> ProgramMoves:
                 rc = refs[k][4]
                 if rc:
                     kw["conf"][k, :] = [rc[0], rc[1], rc[2], rc[3] * 4 + rc[4] * 2 + rc[5]]
+        if pre == "C":  # the circle points of circular moves
+            for k in np.flatnonzero(kind == CIRCULAR):
+                vp = (posns[k].get("via") or {}).get("C")
+                if vp is None or vp[3] != "rectan" or len(vp[1]) < 6:
+                    raise BadInput(f"{where[k]}: the circle point of this arc is not a Cartesian C position")
+                V = np.eye(4)
+                V[:3, :3] = matrix_xyz_deg(np.array(vp[1][3:6], float)[None])[0]
+                V[:3, 3] = vp[1][:3]
+                kw["via"][k] = base_pose(np.eye(4), V)
     kw["q"] = model_joints(profile, robot, values)
     if M > 1:
         V = np.stack([values[a.axis] for a in order], axis=1)
@@ -378,7 +475,7 @@ def _read_program(path: Path, robot, profile) -> ProgramMoves:
         step = np.max(np.abs(np.diff(V, axis=0)) / vmax[None, :], axis=1)  # NaN next to a Cartesian target
         ok = (kind[1:] == JOINT) & (vj[1:] > 0) & np.isfinite(step)
         kw["duration_s"][1:][ok] = step[ok] * 100.0 / vj[1:][ok]
-    lin = kind == LINEAR
+    lin = (kind == LINEAR) | (kind == CIRCULAR)
     kw["speed_mm_s"][lin] = np.array([mv.v for mv in moves])[lin] if M else kw["speed_mm_s"][lin]
     kw["row_start"][sorted(starts)] = True
     kw["row_end"][sorted(ends)] = True
