@@ -18,6 +18,25 @@ DATE_RE = re.compile(r"^\d{4}/\d{2}/\d{2} \d{2}:\d{2}$")
 POS_RE = re.compile(r"^(C|BC|EC)(\d{5})=(.*)$")
 MOVE_RE = re.compile(r"^(MOVJ|MOVL|MOVC)((?: (?:C|BC|EC)\d{5})+) (?:VJ=(\d+\.\d{2})|V=(\d+(?:\.\d+)?)) PL=(\d+)"
                      r"( FPT)?$")
+# --- text in jobs: every comment and ///COMM camtool writes goes through comment_text ----------
+COMMENT_MAX = 32
+_COMMENT_KEEP = re.compile(r"[^A-Za-z0-9 _.,/+=()-]")
+_CODE_WORD_RE = re.compile(r"(?i)\b(MOVJ|MOVL|MOVC|SMOVJ|SMOVL|IMOV|CALL|JUMP|DOUT|END|NOP|PAUSE|TIMER)\b")
+CODE_IN_COMMENT_RE = re.compile(r"(?i)\b(S?MOV[JLC]|IMOV)\s+(B|E)?C\d|\bCALL\s+JOB|\bJUMP\s|\bDOUT\s+OT|^'?\s*END\s*$")
+
+
+def comment_text(raw, max_len: int = COMMENT_MAX) -> str:
+    """Text that is safe in an INFORM comment (``'...``) or ``///COMM``: one line of printable
+    ASCII (control characters become spaces, others ``_``), no instruction shapes (``:``,
+    ``#``; instruction words get a trailing ``_``), at most ``max_len`` characters."""
+    s = str(raw)[:max_len * 4]
+    s = "".join(" " if (c < " " or c == "\x7f") else c for c in s)
+    s = _COMMENT_KEEP.sub("_", s.encode("ascii", "replace").decode("ascii"))
+    s = _CODE_WORD_RE.sub(lambda m: m.group(1) + "_", s)
+    s = " ".join(s.split())
+    return s[:max_len]
+
+
 # Circular moves (MOVC): an arc runs through three consecutive MOVC points; the move to the
 # first is a straight line, and FPT on an arc's last point starts the next arc there
 # (unverified: camtool's reading of the INFORM manuals' circular interpolation). One arc

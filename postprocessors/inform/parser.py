@@ -14,7 +14,7 @@ from camtool.program.durations import move_durations
 from camtool.program.moves import CIRCULAR, JOINT, LINEAR, ProgramMoves, empty_moves
 from camtool.program.targets import target_joints
 
-from .dialect import (CIRCLE_POINT, CALL_RE, DATE_RE, DOUT_RE, FLOAT_RE, GROUPS, INT64, INTS_RE, LONG_RE, MOVE_RE, PL_MM, POS_RE,
+from .dialect import (CIRCLE_POINT, CALL_RE, CODE_IN_COMMENT_RE, DATE_RE, DOUT_RE, FLOAT_RE, GROUPS, INT64, INTS_RE, LONG_RE, MOVE_RE, PL_MM, POS_RE,
                       ROW_END_RE, ROW_RE, group_axes, matrix_xyz_deg)
 
 
@@ -199,6 +199,9 @@ def _parse_jbi(path, raw: bytes) -> JbiText:
             if line.startswith("///DATE ") and not DATE_RE.match(line[8:]):
                 j.problems.append(f"{where}: DATE must be yyyy/mm/dd hh:mm")
         elif line.startswith("'"):
+            if CODE_IN_COMMENT_RE.search(line[1:]):
+                j.problems.append(f"{where}: code in a comment (a name or text that could become an instruction): "
+                                  f"{line[:40]!r}")
             if section == "inst" and (m := ROW_RE.match(line)):
                 j.items.append(("row", n, line[1:]))
             elif section == "inst" and ROW_END_RE.match(line):

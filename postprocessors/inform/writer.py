@@ -14,7 +14,7 @@ from camtool.program.moves import JOINT
 from camtool.program.plan import KIND_LINEAR, plan_moves, profile_tool, split_parts
 from camtool.program.process import ProcessInfo, program_date
 
-from .dialect import (GROUPS, V_STEP, _ascii, _fmt_column, euler_xyz_deg, group_axes, job_name, to_pulses,
+from .dialect import (GROUPS, comment_text, V_STEP, _fmt_column, euler_xyz_deg, group_axes, job_name, to_pulses,
                       validate_profile)
 
 
@@ -110,14 +110,14 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     for i in np.flatnonzero(plan.row_start | plan.row_end):
         r = int(plan.row[i]) + 1
         if plan.row_start[i]:
-            label = f" {labels[r - 1].upper()}" if r - 1 < len(labels) else ""
+            label = f" {comment_text(labels[r - 1], 24).upper()}" if r - 1 < len(labels) else ""
             before[i] = [f"'ROW {r}/{plan.rows}{label}"[:33]] + ([f"DOUT OT#({out_no}) ON"] if out_no else [])
         if plan.row_end[i]:
             after[i] = ([f"DOUT OT#({out_no}) OFF"] if out_no else []) + [f"'END ROW {r}"]
     date = program_date(o["date"], process)
-    comm = _ascii(f"camtool {process.job_name or name}")[:32]
+    comm = comment_text(f"camtool {process.job_name or name}", 32)
     n_lin = int(lin.sum())
-    notes = [f"'camtool {__version__} {robot.name} {n} moves",
+    notes = [f"'camtool {__version__} {comment_text(robot.name, 64)} {n} moves",
              f"'{n_lin} MOVL {n - n_lin} MOVJ {int((pl == 0).sum())} STOPS",
              f"'PATH TOL {process.path_tol_mm:g} MM",
              (f"'PROCESS OUTPUT OT#({out_no})" if out_no else "'NO PROCESS OUTPUT CONFIGURED")]

@@ -59,6 +59,29 @@ PROC_RE = re.compile(r"^\s*PROC\s+(?P<name>\w+)\s*\(\s*\)\s*$")
 PERS_RE = re.compile(r"^\s*(?:TASK\s+)?(?:PERS|CONST|VAR)\s+(?P<type>\w+)\s+(?P<name>\w+)\s*:=(?P<value>.*);$")
 
 
+# --- text in programs: every comment camtool writes goes through comment_text ---------------
+COMMENT_MAX = 80
+_COMMENT_KEEP = re.compile(r"[^A-Za-z0-9 _.,:/+=#@()-]")
+_CODE_WORDS = r"PROC|ENDPROC|FUNC|ENDFUNC|TRAP|ENDTRAP|MODULE|ENDMODULE|RETURN|EXIT"
+_CODE_WORD_RE = re.compile(rf"(?i)\b({_CODE_WORDS})\b")
+CODE_IN_COMMENT_RE = re.compile(rf"(?i)\b({_CODE_WORDS})\b|\bMove\w*\s*\[|:=|%\"|\bSetDO\s+\w+\s*,\s*[01]\s*;")
+DIR_RE = re.compile(r"^[A-Za-z0-9_.:/-]{1,80}$")
+
+
+def comment_text(raw, max_len: int = COMMENT_MAX) -> str:
+    """Text that is safe inside a RAPID ``!`` comment: one line of printable ASCII (control
+    characters become spaces, other characters ``_``), no statement shapes (``;``, ``[``,
+    ``:=``, quotes; routine and module keywords get a trailing ``_``), at most ``max_len``
+    characters (longer text ends in ``...``)."""
+    s = str(raw)[:max_len * 4]
+    s = "".join(" " if (c < " " or c == "\x7f") else c for c in s)
+    s = s.replace(":=", "=")
+    s = _COMMENT_KEEP.sub("_", s.encode("ascii", "replace").decode("ascii"))
+    s = _CODE_WORD_RE.sub(lambda m: m.group(1) + "_", s)
+    s = " ".join(s.split())
+    return s if len(s) <= max_len else s[:max_len - 3].rstrip() + "..."
+
+
 def rapid_identifier(raw: str, max_len: int = 32) -> tuple[str, str]:
     """A legal RAPID identifier (<= 32 chars, leading letter, not reserved) and a note if changed."""
     return sanitise_name(raw, max_len=max_len, reserved=RESERVED | BUILTIN_DATA, what="RAPID identifier")
@@ -156,6 +179,9 @@ def validate_profile(profile, robot) -> None:
         if not set(RAX) <= mapped:
             raise BadInput(f"{profile.source}: options.motion = 'cartesian' needs robot joints on all of "
                            "rax_1..rax_6 (the controller's own kinematics); use 'joint'")
+    if not DIR_RE.match(o["module_dir"]):
+        raise BadInput(f"{profile.source}: options.module_dir: {o['module_dir'][:40]!r} is not a controller "
+                       "folder (letters, digits and _ . : / - only)")
     if o["process_signal"] and rapid_identifier(o["process_signal"])[0] != o["process_signal"]:
         raise BadInput(f"{profile.source}: options.process_signal: {o['process_signal']!r} is not a RAPID "
                        "identifier")

@@ -15,7 +15,7 @@ from camtool.program.durations import move_durations
 from camtool.program.moves import CIRCULAR, JOINT, LINEAR, ProgramMoves, empty_moves
 from camtool.program.targets import target_joints
 
-from .dialect import (CALL_RE, CONF_RE, EAX, LOAD_RE, MODULE_RE, MOVE_RE, MOVEC_RE, MOVEL_RE, PERS_RE, PROC_RE,
+from .dialect import (CALL_RE, CODE_IN_COMMENT_RE, CONF_RE, EAX, LOAD_RE, MODULE_RE, MOVE_RE, MOVEC_RE, MOVEL_RE, PERS_RE, PROC_RE,
                       RAX, ROW_END_RE, ROW_RE, SETDO_RE, SPEEDS, UNLOAD_RE, ZONE_MM)
 
 
@@ -164,6 +164,9 @@ def _parse_module(path: Path, text: str) -> ModuleText:
         if not s:
             continue
         if s.startswith("!"):
+            if CODE_IN_COMMENT_RE.search(s[1:]):
+                m.problems.append(f"{where}: code in a comment (a name or text that could become a statement): "
+                                  f"{s[:60]!r}")
             if depth and (rm := ROW_RE.match(s)):
                 m.items.append(("row", n, s.lstrip("! ").strip()))
             elif depth and (em := ROW_END_RE.match(s)):
