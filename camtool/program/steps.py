@@ -255,3 +255,13 @@ def context_for(trajectory, robot, process, plan: MovePlan, levels_mm, min_level
     return StepContext(waypoint_P=P, waypoint_R=R, path_tol_mm=float(process.path_tol_mm),
                        ori_tol_deg=float(process.ori_tol_deg), levels_mm=tuple(levels_mm),
                        min_level_on_surface=min_level_on_surface)
+
+
+def move_lengths_ok(plan: MovePlan) -> bool:
+    """True when every circular move of ``plan`` defines a circle (start, circle point and
+    target not on one line)."""
+    k = np.flatnonzero(plan.kind == KIND_CIRCULAR)
+    k = k[k > 0]
+    if not len(k):
+        return True
+    return bool(circle_through(plan.P[k - 1], plan.via_P[k], plan.P[k])[5].all())
