@@ -96,8 +96,9 @@ def test_process_output_switches_around_every_row(tmp_path):
 
 def test_sia20_cartesian_positions(tmp_path):
     """sia20 (motion = cartesian): MOVL to ///RECTAN positions with ///RCONF and the E axis as
-    Re, V in mm/s; the job reads back and checks clean."""
+    Re, V in mm/s; the job reads back and checks clean (options.arcs = false: MOVL only)."""
     r, p = _profile("sia20", tmp_path)
+    p = p.with_changes(options={"arcs": False})
     tr = rows_trajectory(r, rows=2)
     f = POST.write(tr, r, p, tmp_path)[0]
     text = f.read_bytes().decode()
@@ -194,7 +195,7 @@ def _movc(tmp_path, n_points=3, fpt=False):
     """A sia20 Cartesian job whose first run of MOVL lines on a row is turned into MOVC
     points (``n_points`` of them; with ``fpt``, FPT on the third)."""
     r = get_robot("sia20")
-    p = load_profile(None, "sia20", "inform", r)
+    p = load_profile(None, "sia20", "inform", r).with_changes(options={"arcs": False})
     files = InformPost().write(rows_trajectory(r, rows=1), r, p, tmp_path)
     lines = files[0].read_bytes().decode("ascii").split("\r\n")
     k = next(i for i, ln in enumerate(lines) if ln.startswith("MOVL") and lines[i + 1].startswith("MOVL")
@@ -223,3 +224,35 @@ def test_movc_is_read_checked_and_simulated(tmp_path):
 def test_an_arc_without_three_movc_points_is_a_finding(tmp_path, n, fpt):
     r, p, f, _k = _movc(tmp_path, n_points=n, fpt=fpt)
     assert any("fewer than three MOVC points" in x for x in InformPost().check(f, r, p))
+
+
+def test_sia20_rows_on_circles_become_movc_arcs(tmp_path):
+    """Rows on a circle: the MOVL to the row's start becomes the arc's first MOVC point, then
+    circle point and target (FPT where the next arc follows); the job checks clean, reads
+    back as circular moves and the simulation keeps it within the tolerance. (With position
+    levels of a few mm: the default PL=1 of 12.5 mm cuts the corner between two arcs by more
+    than the tolerance, and FitArcs gives such arcs up.)"""
+    from camtool.post import ResolvedPost, write_programs
+    from camtool.settings import PostSettings
+
+    r = get_robot("sia20")
+    p = load_profile(None, "sia20", "inform", r).with_changes(options={"pl_mm": [0.5, 1.0, 2.0, 5.0, 10.0,
+                                                                                 20.0, 50.0, 100.0]})
+    report = {}
+    files = write_programs(rows_trajectory(r, rows=2), r, PostSettings.make(formats=["inform"]),
+                           {"inform": ResolvedPost("inform", POST, p)}, tmp_path / "o", report=report)
+    text = files[0].read_bytes().decode("ascii")
+    movc = [ln for ln in text.split("\r\n") if ln.startswith("MOVC")]
+    assert len(movc) >= 3 and "ARCS" in text
+    assert POST.check(files[0], r, p) == []
+    prog = POST.read_program(files[0], r, p)
+    assert (prog.kind == "C").sum() >= 1 and np.isfinite(prog.via[prog.kind == "C"]).all()
+    assert report["inform"]["max_deviation_mm"] <= 0.1 and report["inform"]["moves"] == len(prog)
+
+
+def test_default_position_levels_give_up_arcs_they_cannot_blend(tmp_path):
+    r = get_robot("sia20")
+    p = load_profile(None, "sia20", "inform", r)
+    text = POST.write(rows_trajectory(r, rows=2), r, p, tmp_path)[0].read_bytes().decode("ascii")
+    assert POST.check(tmp_path / "CAMTOOL.JBI", r, p) == []
+    assert "MOVL" in text

@@ -120,8 +120,15 @@ def _blend_deviation(P_a, P_k, P_b, r: float) -> float:
     A, B = at(P_a[::-1], cut), at(P_b, cut)
     u = np.linspace(0, 1, 21)[:, None]
     curve = (1 - u) ** 2 * A + 2 * u * (1 - u) * P_k + u ** 2 * B
-    both = np.vstack([P_a, P_b])
-    return float(np.max(np.min(np.linalg.norm(curve[:, None] - both[None], axis=2), axis=1)))
+    return float(np.max(np.minimum(_to_polyline(curve, P_a), _to_polyline(curve, P_b))))
+
+
+def _to_polyline(X: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """(K,) distance of each point of X (K, 3) from the polyline ``path`` (S, 3)."""
+    a, d = path[:-1], np.diff(path, axis=0)
+    dd = np.maximum(np.einsum("si,si->s", d, d), 1e-18)
+    s = np.clip(np.einsum("ksi,si->ks", X[:, None] - a[None], d) / dd, 0.0, 1.0)
+    return np.min(np.linalg.norm(X[:, None] - (a[None] + s[..., None] * d[None]), axis=2), axis=1)
 
 
 def _length(path) -> float:
@@ -139,6 +146,7 @@ class FitArcs(MoveStep):
 
     max_sweep_deg: float
     min_chord_mm: float = 0.1
+    start_linear: bool = False  # an arc starts only where a linear (or circular) move arrives
 
     def apply(self, plan: MovePlan, ctx: StepContext) -> MovePlan:
         n = len(plan)
@@ -153,11 +161,13 @@ class FitArcs(MoveStep):
         # a move k may join an arc when it is linear, inside one row, and no row starts at it
         joinable = (kind == KIND_LINEAR) & (plan.row >= 0) & ~plan.row_start
         joinable &= np.r_[False, plan.row[1:] == plan.row[:-1]]
-        keep = np.ones(n, bool)
         arcs = []  # (a, m, b): start target, circle point, end target
         a = 0
         while a < n - 1:
             best = None
+            if self.start_linear and (a == 0 or kind[a] == KIND_JOINT):
+                a += 1
+                continue
             b = a + MIN_ARC_MOVES
             while b < n and joinable[a + 1:b + 1].all():
                 if plan.level[a + 1:b].min(initial=0) < 0 or plan.row_end[a + 1:b].any():
@@ -182,10 +192,30 @@ class FitArcs(MoveStep):
                 a += 1
                 continue
             arcs.append(best)
-            keep[best[0] + 1:best[2]] = False
             a = best[2]
-        if not arcs:
-            return plan
+        # an arc whose corner cannot be blended within the tolerance at the smallest level the
+        # surface allows is given up (its linear moves stay), until every corner fits
+        for _round in range(len(arcs) + 1):
+            if not arcs:
+                return plan
+            new = self._with_arcs(plan, arcs)
+            level, bad = self._corner_levels(new, ctx)
+            if not bad:
+                return replace(new, level=level)
+            ends = np.flatnonzero(new.kind == KIND_CIRCULAR)
+            drop = {int(k) for k in bad if new.kind[k] == KIND_CIRCULAR} | \
+                {int(k) + 1 for k in bad if k + 1 < len(new) and new.kind[k + 1] == KIND_CIRCULAR}
+            arcs = [arc for arc, e in zip(arcs, ends) if int(e) not in drop]
+        return plan
+
+    def _with_arcs(self, plan: MovePlan, arcs: list) -> MovePlan:
+        """The move list with each arc (start, circle point, end target) as one circular move."""
+        n = len(plan)
+        kind = np.array(plan.kind)
+        P, R = plan.P, plan.R
+        keep = np.ones(n, bool)
+        for a, _m, b in arcs:
+            keep[a + 1:b] = False
         via_P = np.full((n, 3), np.nan)
         via_R = np.full((n, 3, 3), np.nan)
         via_q = np.full((n, plan.q.shape[1]), np.nan)
@@ -193,15 +223,13 @@ class FitArcs(MoveStep):
             kind[b] = KIND_CIRCULAR
             via_P[b], via_R[b], via_q[b] = P[m], R[m], plan.q[m]
         idx = np.flatnonzero(keep)
-        level = plan.level.copy()
-        new = replace(plan, wp=plan.wp[idx], kind=kind[idx], t=plan.t[idx], level=level[idx], row=plan.row[idx],
-                      row_start=plan.row_start[idx], row_end=plan.row_end[idx], free=plan.free[idx],
-                      deviation_mm=plan.deviation_mm[idx], P=P[idx], R=R[idx], q=plan.q[idx],
-                      via_P=via_P[idx], via_R=via_R[idx], via_q=via_q[idx])
-        return replace(new, level=self._corner_levels(new, ctx))
+        return replace(plan, wp=plan.wp[idx], kind=kind[idx], t=plan.t[idx], level=plan.level[idx],
+                       row=plan.row[idx], row_start=plan.row_start[idx], row_end=plan.row_end[idx],
+                       free=plan.free[idx], deviation_mm=plan.deviation_mm[idx], P=P[idx], R=R[idx], q=plan.q[idx],
+                       via_P=via_P[idx], via_R=via_R[idx], via_q=via_q[idx])
 
     @staticmethod
-    def _path(plan: MovePlan, k: int, samples: int = 41) -> np.ndarray:
+    def _path(plan: MovePlan, k: int, samples: int = 201) -> np.ndarray:
         """Dense TCP points of move k (from target k-1 to k): its line or its arc."""
         s = np.linspace(0, 1, samples)
         if plan.kind[k] == KIND_CIRCULAR:
@@ -211,14 +239,15 @@ class FitArcs(MoveStep):
                                  np.repeat(sweep, samples), s)
         return plan.P[k - 1] + s[:, None] * (plan.P[k] - plan.P[k - 1])
 
-    def _corner_levels(self, plan: MovePlan, ctx: StepContext) -> np.ndarray:
+    def _corner_levels(self, plan: MovePlan, ctx: StepContext) -> tuple[np.ndarray, list]:
         """Blend levels at the corners beside circular moves: the largest level (not above the
         one planned) whose rounding stays within BLEND_SHARE of the tolerance, at least the
-        smallest level allowed on the surface."""
+        smallest level allowed on the surface; and the corners where even that one cuts more."""
         level = plan.level.copy()
         levels = np.asarray(ctx.levels_mm, float)
+        bad: list = []
         if not len(levels):
-            return level
+            return level, bad
         budget = BLEND_SHARE * ctx.path_tol_mm
         circ = plan.kind == KIND_CIRCULAR
         corners = np.flatnonzero((circ | np.r_[circ[1:], False]) & (level >= 0))
@@ -231,16 +260,19 @@ class FitArcs(MoveStep):
             floor = ctx.min_level_on_surface if plan.row[k] >= 0 else 0
             while lv > floor and _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget:
                 lv -= 1
+            if _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget:
+                bad.append(int(k))
             level[k] = lv
-        return level
+        return level, bad
 
 
-def program_steps(*, arcs_max_sweep_deg: float | None) -> CompoundStep:
+def program_steps(*, arcs_max_sweep_deg: float | None, arc_start_linear: bool = False) -> CompoundStep:
     """The steps a writer runs on ``plan_moves``' move list, in order: null linear moves
-    become joint moves, then (with ``arcs_max_sweep_deg``) circles become circular moves."""
+    become joint moves, then (with ``arcs_max_sweep_deg``) circles become circular moves
+    (``arc_start_linear``: only where a linear move arrives, as INFORM's first MOVC point)."""
     steps: tuple = (JoinNullLinear(),)
     if arcs_max_sweep_deg is not None:
-        steps += (FitArcs(max_sweep_deg=arcs_max_sweep_deg),)
+        steps += (FitArcs(max_sweep_deg=arcs_max_sweep_deg, start_linear=arc_start_linear),)
     return CompoundStep(steps)
 
 

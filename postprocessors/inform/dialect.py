@@ -42,6 +42,7 @@ def comment_text(raw, max_len: int = COMMENT_MAX) -> str:
 # (unverified: camtool's reading of the INFORM manuals' circular interpolation). One arc
 # covers less than ARC_LIMIT_DEG (unverified); camtool's checker holds every arc to it.
 ARC_LIMIT_DEG = 180.0
+MAX_ARC_DEG = 120.0  # camtool writes at most this much of a circle per arc
 CIRCLE_POINT = "c"  # the kind of a parsed MOVC before its arc is assembled
 CALL_RE = re.compile(r"^CALL JOB:([A-Za-z0-9_]+)$")
 DOUT_RE = re.compile(r"^DOUT OT#\((\d+)\) (ON|OFF)$")
@@ -118,6 +119,8 @@ OPTIONS = {
     "process_output": (int, 0, "Universal output OT#(n) switching the process (ON before each row, OFF "
                                "after it); 0: none, the job says so."),
     "rconf_fields": (int, 8, "Number of ///RCONF values (6 on NX100, 8 as public generators write)."),
+    "arcs": (bool, True, "With motion = 'cartesian': positions of a row on a circle (within post.path_tol_mm) "
+                         "become MOVC arcs, at most 120 degrees each; false writes MOVL only."),
     "date": (str, "job", "///DATE: 'job' (the job file's time, UTC: reruns are byte-identical), 'now', "
                          "or a fixed 'yyyy/mm/dd hh:mm'."),
     "job_name_length": (int, 8, "Longest job name; 8 is safe, newer controllers take 32."),

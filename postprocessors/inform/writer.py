@@ -11,11 +11,12 @@ from camtool import __version__
 from camtool.program.convention import controller_axes, controller_pose_base
 from camtool.program.kinematics import Kinematics
 from camtool.program.moves import JOINT
-from camtool.program.plan import KIND_LINEAR, plan_moves, profile_tool, split_parts
+from camtool.program.plan import KIND_CIRCULAR, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
+from camtool.program.steps import context_for, program_steps
 from camtool.program.process import ProcessInfo, program_date
 
-from .dialect import (GROUPS, comment_text, V_STEP, _fmt_column, euler_xyz_deg, group_axes, job_name, to_pulses,
-                      validate_profile)
+from .dialect import (comment_text, euler_xyz_deg, _fmt_column, group_axes, GROUPS, job_name, MAX_ARC_DEG,
+                      to_pulses, V_STEP, validate_profile)
 
 
 def _rconf(kin: Kinematics, axes: dict, groups, q: np.ndarray, n_fields: int) -> list[str]:
@@ -41,18 +42,18 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP the program declares
     cart = o["motion"] == "cartesian"
     radii = [float(v) for v in o["pl_mm"]][:o["max_pl"]]
-    plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=radii,
-                      min_level_on_surface=max(1, o["pl"]) - 1)
+    lo = max(1, o["pl"]) - 1
+    plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=radii, min_level_on_surface=lo)
+    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if cart and o["arcs"] else None, arc_start_linear=True)
+    plan = steps.apply(plan, context_for(trajectory, robot, process, plan, radii, lo))
     n = len(plan)
     kind = np.array(plan.kind)
-    length = np.r_[0.0, np.linalg.norm(np.diff(plan.P, axis=0), axis=1)]
-    kind[(kind == KIND_LINEAR) & (length < 1e-3)] = JOINT
+    length = move_lengths(plan)
     parts = split_parts(n, o["lines_per_job"], plan.free, "positions", f"{profile.source}: options.lines_per_job")
     pl = plan.level + 1  # level -1 (exact stop) -> PL=0
     for r in parts[:-1]:
         pl[r.stop - 1] = 0  # CALL JOB ends the motion: the job before ends with a stop
     groups = group_axes(profile)
-    pulses = to_pulses(profile, robot, plan.q)
     axes = controller_axes(profile, robot, plan.q)
     order = [a for ax in groups.values() for a in ax]
     vmax = np.array([a.max_speed for a in order])
@@ -68,7 +69,7 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     for i in range(1, n):
         planned += dt[i - 1]
         want = max(planned - written, 1e-4)
-        if kind[i] == KIND_LINEAR:
+        if kind[i] in (KIND_LINEAR, KIND_CIRCULAR):
             v = max(V_STEP, round(length[i] / want / V_STEP) * V_STEP)
             speed[i] = f"V={v:.1f}"
             written += length[i] / v
@@ -81,27 +82,18 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
             vj = min(cap, max(0.01, round(100 * g / want, 2)))
             speed[i] = f"VJ={vj:.2f}"
             written += 100 * g / vj
-    # --- positions
+    # --- positions: pulses for joint moves, ///RECTAN for Cartesian ones (a circular move's
+    # circle point gets a position of its own, before its target's)
+    pos_txt, rconf = _positions(robot, profile, groups, plan.P, plan.R, plan.q, kind != JOINT, o["rconf_fields"])
+    circ = np.flatnonzero(kind == KIND_CIRCULAR)
+    via_txt, via_rconf = {}, [None] * n
+    if len(circ):
+        vt, vr = _positions(robot, profile, groups, plan.via_P[circ], plan.via_R[circ], plan.via_q[circ],
+                            np.ones(len(circ), bool), o["rconf_fields"])
+        via_txt = {pre: dict(zip(circ.tolist(), vt[pre])) for pre in vt}
+        for j, k in enumerate(circ):
+            via_rconf[k] = vr[j]
     lin = kind == KIND_LINEAR
-    pos_txt: dict[str, list[str]] = {}
-    for g, pre in GROUPS.items():
-        if g in pulses:
-            pos_txt[pre] = [",".join(map(str, row)) for row in pulses[g].tolist()]
-    rconf = [None] * n
-    if lin.any():
-        li = np.flatnonzero(lin)
-        P, R = controller_pose_base(profile, plan.P[li], plan.R[li])
-        ang = euler_xyz_deg(R)
-        rb = groups["RB1"]
-        extra = [axes[rb[6].axis][li]] if len(rb) == 7 else []
-        cols = [P[:, 0], P[:, 1], P[:, 2], ang[:, 0], ang[:, 1], ang[:, 2], *extra]
-        dec = [3, 3, 3, 4, 4, 4, 4]
-        txt = [_fmt_column(c, d) for c, d in zip(cols, dec)]
-        rc = _rconf(Kinematics(robot), {a: v[li] for a, v in axes.items()}, groups, plan.q[li],
-                    o["rconf_fields"])
-        for j, i in enumerate(li):
-            pos_txt["C"][i] = ",".join(t[j] for t in txt)
-            rconf[i] = rc[j]
     # --- instructions
     out_no = o["process_output"]
     labels = list(process.row_labels)
@@ -117,15 +109,17 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     date = program_date(o["date"], process)
     comm = comment_text(f"camtool {process.job_name or name}", 32)
     n_lin = int(lin.sum())
+    n_circ = int(len(circ))
     notes = [f"'camtool {__version__} {comment_text(robot.name, 64)} {n} moves",
+             f"'{n_lin} MOVL {n_circ} ARCS {n - n_lin - n_circ} MOVJ {int((pl == 0).sum())} STOPS" if n_circ else
              f"'{n_lin} MOVL {n - n_lin} MOVJ {int((pl == 0).sum())} STOPS",
              f"'PATH TOL {process.path_tol_mm:g} MM",
              (f"'PROCESS OUTPUT OT#({out_no})" if out_no else "'NO PROCESS OUTPUT CONFIGURED")]
     header = dict(tool=profile.tool["number"], date=date, group=",".join(groups), comm=comm,
-                  attr="SC,RW,RJ" if n_lin else "SC,RW", notes=notes)
+                  attr="SC,RW,RJ" if n_lin + n_circ else "SC,RW", notes=notes)
     files: dict[str, list[str]] = {}
     job = dict(kind=kind, pos_txt=pos_txt, rconf=rconf, speed=speed, pl=pl, before=before, after=after,
-               rconf_fields=o["rconf_fields"])
+               rconf_fields=o["rconf_fields"], via_txt=via_txt, via_rconf=via_rconf)
     if len(parts) == 1:
         files[name] = _job(name, parts[0], header, job)
     else:
@@ -146,14 +140,63 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
         written_files.append(p)
     return written_files
 
+def _positions(robot, profile, groups, P, R, q, cart, rconf_fields: int) -> tuple[dict, list]:
+    """Position texts per prefix (C, BC, EC) and ///RCONF values of targets: pulses for every
+    group, the C position of a Cartesian target (``cart``) as its TCP pose in the base frame
+    (mm, Rx Ry Rz deg, the 7th axis), with its RCONF."""
+    pulses = to_pulses(profile, robot, q)
+    axes = controller_axes(profile, robot, q)
+    pos_txt: dict[str, list[str]] = {}
+    for g, pre in GROUPS.items():
+        if g in pulses:
+            pos_txt[pre] = [",".join(map(str, row)) for row in pulses[g].tolist()]
+    rconf = [None] * len(q)
+    if np.any(cart):
+        li = np.flatnonzero(cart)
+        Pb, Rb = controller_pose_base(profile, P[li], R[li])
+        ang = euler_xyz_deg(Rb)
+        rb = groups["RB1"]
+        extra = [axes[rb[6].axis][li]] if len(rb) == 7 else []
+        cols = [Pb[:, 0], Pb[:, 1], Pb[:, 2], ang[:, 0], ang[:, 1], ang[:, 2], *extra]
+        dec = [3, 3, 3, 4, 4, 4, 4]
+        txt = [_fmt_column(c, d) for c, d in zip(cols, dec)]
+        rc = _rconf(Kinematics(robot), {a: v[li] for a, v in axes.items()}, groups, q[li], rconf_fields)
+        for j, i in enumerate(li):
+            pos_txt["C"][i] = ",".join(t[j] for t in txt)
+            rconf[i] = rc[j]
+    return pos_txt, rconf
+
+
+def _instructions(r: range, job) -> list[dict]:
+    """The instructions of the moves ``r``: one per move, two for a circular move (its circle
+    point, then its target); the linear move to an arc's first point is its first MOVC, and
+    an arc followed by another ends with FPT."""
+    kind, pos_txt, n = job["kind"], job["pos_txt"], len(job["kind"])
+    out = []
+    for k in r:
+        nxt = kind[k + 1] if k + 1 < n else ""
+        common = dict(speed=job["speed"][k], pl=job["pl"][k], move=k)
+        if kind[k] == KIND_CIRCULAR:
+            out.append(dict(word="MOVC", pos={pre: job["via_txt"][pre][k] for pre in pos_txt}, rect=True,
+                            rconf=job["via_rconf"][k], fpt=False, **common))
+            out.append(dict(word="MOVC", pos={pre: pos_txt[pre][k] for pre in pos_txt}, rect=True,
+                            rconf=job["rconf"][k], fpt=nxt == KIND_CIRCULAR, **common))
+            continue
+        word = "MOVJ" if kind[k] == JOINT else ("MOVC" if nxt == KIND_CIRCULAR else "MOVL")
+        out.append(dict(word=word, pos={pre: pos_txt[pre][k] for pre in pos_txt}, rect=kind[k] != JOINT,
+                        rconf=job["rconf"][k], fpt=False, **common))
+    return out
+
+
 def _job(name, r: range, header, job) -> list[str]:
     lines = ["/JOB", f"//NAME {name}", "//POS"]
-    pos_txt, kind, rconf = job["pos_txt"], job["kind"], job["rconf"]
-    counts = [len(r) if pre in pos_txt else 0 for pre in GROUPS.values()]
+    pos_txt = job["pos_txt"]
+    ins = _instructions(r, job)
+    counts = [len(ins) if pre in pos_txt else 0 for pre in GROUPS.values()]
     lines += [f"///NPOS {counts[0]},{counts[1]},{counts[2]},0,0,0", f"///TOOL {header['tool']}"]
     state = None
-    for i, k in enumerate(r):
-        want = ("rectan", rconf[k]) if kind[k] == KIND_LINEAR else ("pulse", None)
+    for i, it in enumerate(ins):
+        want = ("rectan", it["rconf"]) if it["rect"] else ("pulse", None)
         if want != state:
             if want[0] == "pulse":
                 lines += ["///POSTYPE PULSE", "///PULSE"]
@@ -162,21 +205,25 @@ def _job(name, r: range, header, job) -> list[str]:
                     lines += ["///POSTYPE BASE", "///RECTAN"]
                 lines.append(f"///RCONF {want[1]}")
             state = want
-        lines.append(f"C{i:05d}={pos_txt['C'][k]}")
+        lines.append(f"C{i:05d}={it['pos']['C']}")
     for pre in ("BC", "EC"):
         if pre in pos_txt:
             if state is None or state[0] != "pulse":
                 lines += ["///POSTYPE PULSE", "///PULSE"]
                 state = ("pulse", None)
-            lines += [f"{pre}{i:05d}={pos_txt[pre][k]}" for i, k in enumerate(r)]
+            lines += [f"{pre}{i:05d}={it['pos'][pre]}" for i, it in enumerate(ins)]
     lines += ["//INST", f"///DATE {header['date']}", f"///COMM {header['comm']}", f"///ATTR {header['attr']}",
               f"///GROUP1 {header['group']}", "NOP"] + header["notes"]
-    for i, k in enumerate(r):
-        lines += job["before"].get(k, [])
+    for i, it in enumerate(ins):
+        k = it["move"]
+        first = i == 0 or ins[i - 1]["move"] != k
+        last = i + 1 == len(ins) or ins[i + 1]["move"] != k
+        if first:
+            lines += job["before"].get(k, [])
         refs = " ".join(f"{pre}{i:05d}" for pre in pos_txt)
-        word = "MOVL" if kind[k] == KIND_LINEAR else "MOVJ"
-        lines.append(f"{word} {refs} {job['speed'][k]} PL={job['pl'][k]}")
-        lines += job["after"].get(k, [])
+        lines.append(f"{it['word']} {refs} {it['speed']} PL={it['pl']}" + (" FPT" if it["fpt"] else ""))
+        if last:
+            lines += job["after"].get(k, [])
     return lines + ["END"]
 
 # --- reading ---------------------------------------------------------------------------
