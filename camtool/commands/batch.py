@@ -46,6 +46,10 @@ def command(paths, outdir: Path, workers, executor: str, scheduler, overrides, t
     discover_jobs(paths)
     if scheduler and executor != "dask":
         raise click.UsageError("--scheduler works only with --executor dask")
+    if executor == "dask":
+        from ..batch.executors import get_executor
+
+        get_executor("dask", workers or os.cpu_count() or 1, scheduler)  # BadInput before anything runs
     safe_io.check_outdir(outdir)  # not / or home, no link or special file below it, no foreign files
     with safe_io.locked(outdir), sigterm_as_interrupt():  # one batch per folder; SIGTERM kills the jobs too
         _batch(paths, outdir, workers, executor, scheduler, overrides, timeout, force, as_json)
@@ -56,14 +60,8 @@ def _batch(paths, outdir: Path, workers, executor: str, scheduler, overrides, ti
     from ..batch import prepare_batch, run_batch, summary_dict, write_summary
     from ..batch.summary import live_progress, summary_table
 
-    if scheduler and executor != "dask":
-        raise click.UsageError("--scheduler works only with --executor dask")
     t0 = time.perf_counter()
     workers = workers or os.cpu_count() or 1
-    if executor == "dask":
-        from ..batch.executors import get_executor
-
-        get_executor("dask", workers, scheduler)  # BadInput before anything runs when Dask is missing
     specs, decided = prepare_batch(paths, outdir, overrides, timeout, force)
     with live_progress(len(specs) + len(decided), progress_enabled()) as (on_start, on_done):
         for r in decided:
