@@ -425,3 +425,20 @@ def test_watch_output_folders_are_safe_names(tmp_path):
 
     names = output_names([tmp_path / "..\n.stl", tmp_path / "a.toml"])
     assert all("/" not in n and "\n" not in n and not n.startswith(".") for n in names.values())
+
+
+# ---------------------------------------------------------------- 13. degenerate inputs
+
+@pytest.mark.parametrize("points", [3, 20])
+def test_too_few_points_for_a_surface_is_one_line(tmp_path, cli, points):
+    cloud = tmp_path / "scan.xyz"
+    cloud.write_text("".join(f"{30.0 * (i % 5)} {30.0 * (i // 5)} {0.01 * i}\n" for i in range(points)))
+    (tmp_path / "job.toml").write_text("[workpiece]\nfile = 'scan.xyz'\n")
+    r = cli("fit", tmp_path / "job.toml", "-o", tmp_path / "out")
+    assert r.exit_code == 2, r.stderr
+    assert f"too few points for a surface: {points}, need at least 100" in r.stderr
+
+
+def test_a_pitch_longer_than_the_part_is_one_line(tmp_path, cli):
+    r = cli("raster", SPHERE, "-o", tmp_path / "out", "--set", "raster.pitch_mm=5000")
+    assert r.exit_code == 2 and "raster.pitch_mm: 5000 mm is longer than the part" in r.stderr, r.stderr
