@@ -432,7 +432,7 @@ def test_watch_output_folders_are_safe_names(tmp_path):
 @pytest.mark.parametrize("points", [3, 20])
 def test_too_few_points_for_a_surface_is_one_line(tmp_path, cli, points):
     cloud = tmp_path / "scan.xyz"
-    cloud.write_text("".join(f"{30.0 * (i % 5)} {30.0 * (i // 5)} {0.01 * i}\n" for i in range(points)))
+    cloud.write_text("".join(f"{30.0 * (i % 5)} {30.0 * (i // 5) + 7.0 * (i % 2)} {0.01 * i}\n" for i in range(points)))
     (tmp_path / "job.toml").write_text("[workpiece]\nfile = 'scan.xyz'\n")
     r = cli("fit", tmp_path / "job.toml", "-o", tmp_path / "out")
     assert r.exit_code == 2, r.stderr
