@@ -16,6 +16,7 @@ import numpy as np
 
 from .toolpath import ZONE_CODE, ZONES, Path
 from .trajectory import JointPath, Trajectory
+from . import safe_io
 
 WORK = ZONE_CODE["work"]
 
@@ -179,7 +180,7 @@ def plot_joints(trajectories: dict[str, Trajectory], robot, outdir: FsPath, dt_s
                 top.set_visible(False)
         fig.tight_layout()
         f = outdir / f"joint_{key}.png"
-        fig.savefig(f, dpi=90)
+        safe_io.save_figure(fig, f, dpi=90)
         plt.close(fig)
         files.append(f)
     return files
@@ -204,6 +205,6 @@ def plot_unreachable(path: Path, unreachable: list[dict], file: FsPath) -> FsPat
     ax2.set_xlabel("y [mm]"); ax2.set_ylabel("z [mm]"); ax2.set_aspect("equal")
     ax2.set_title("unreachable poses (red), seen along x")
     fig.tight_layout()
-    fig.savefig(file, dpi=90)
+    safe_io.save_figure(fig, file, dpi=90)
     plt.close(fig)
     return file

@@ -426,3 +426,21 @@ def opened_input(path, kind: str):
         yield proc if os.path.exists(proc) else str(path)
     finally:
         os.close(fd)
+
+
+def save_figure(fig, file, **savefig_kw) -> Path:
+    """``fig.savefig`` through ``write_file``: rendered in memory, then created O_EXCL|O_NOFOLLOW and
+    renamed into place (a planted link at the PNG's name is refused, never written through)."""
+    import io
+
+    file = Path(file)
+    file.parent.mkdir(parents=True, exist_ok=True)
+    buf = io.BytesIO()
+    fig.savefig(buf, format=savefig_kw.pop("format", file.suffix.lstrip(".") or "png"), **savefig_kw)
+    return write_file(file.parent, file.name, buf.getvalue())
+
+
+def comment_text(text) -> str:
+    """User text (a file name) for a one-line comment of a file camtool writes: every character that is
+    not printable (newline, carriage return, escape, ...) escaped, so it cannot end the comment."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
