@@ -134,7 +134,7 @@ def read_input_text(path, kind: str, errors: str = "strict") -> str:
     try:
         return data.decode("utf-8", errors=errors)
     except UnicodeDecodeError as exc:
-        raise BadInput(f"{path}: the {kind} file is not UTF-8 text (byte {exc.start})") from None
+        raise BadInput(f"{path}: cannot read the {kind} file: not UTF-8 text (byte {exc.start})") from None
 
 
 def snippet(text, limit: int = 60) -> str:
@@ -444,3 +444,15 @@ def comment_text(text) -> str:
     """User text (a file name) for a one-line comment of a file camtool writes: every character that is
     not printable (newline, carriage return, escape, ...) escaped, so it cannot end the comment."""
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
+def read_program_bytes(path) -> bytes:
+    """A program file for the controller readers and ``camtool check`` (and the files it follows: a .pgf's
+    modules, ``Load \\Dynamic``, ``CALL JOB:``): ``read_input_bytes`` of kind program, its BadInput given as
+    the OSError those readers report as a finding; a missing file raises the OS's own error, as before."""
+    if not os.path.lexists(path):
+        return Path(path).read_bytes()
+    try:
+        return read_input_bytes(path, "program")
+    except BadInput as exc:
+        raise OSError(str(exc)) from None

@@ -442,3 +442,39 @@ def test_too_few_points_for_a_surface_is_one_line(tmp_path, cli, points):
 def test_a_pitch_longer_than_the_part_is_one_line(tmp_path, cli):
     r = cli("raster", SPHERE, "-o", tmp_path / "out", "--set", "raster.pitch_mm=5000")
     assert r.exit_code == 2 and "raster.pitch_mm: 5000 mm is longer than the part" in r.stderr, r.stderr
+
+
+# ---------------------------------------------------------------- 4. hangs: files camtool check follows, profiles
+
+def _check_ends_quickly(tmp_path, program, robot="irb2400"):
+    r = camtool("check", program, "--robot", robot, timeout=60)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "FIFO" in r.stdout + r.stderr and "Traceback" not in r.stdout + r.stderr
+    return r
+
+
+def test_check_of_a_pgf_naming_a_fifo_module_ends(tmp_path):
+    _fifo(tmp_path, "MAIN.mod")
+    (tmp_path / "P.pgf").write_text('<?xml version="1.0"?>\n<Program>\n  <Module>MAIN.mod</Module>\n</Program>\n')
+    _check_ends_quickly(tmp_path, tmp_path / "P.pgf")
+
+
+def test_check_of_a_load_dynamic_naming_a_fifo_ends(tmp_path):
+    _fifo(tmp_path, "PART.mod")
+    (tmp_path / "MAIN.mod").write_text('MODULE MAIN\n  PROC main()\n    Load \\Dynamic, "HOME:/PART.mod";\n'
+                                       '  ENDPROC\nENDMODULE\n')
+    _check_ends_quickly(tmp_path, tmp_path / "MAIN.mod")
+
+
+def test_check_of_a_call_job_naming_a_fifo_ends(tmp_path):
+    _fifo(tmp_path, "PART.JBI")
+    (tmp_path / "MAIN.JBI").write_text("/JOB\n//NAME MAIN\n//POS\n///NPOS 0,0,0,0,0,0\n//INST\n///DATE 2024/01/01 00:00\n"
+                                       "///ATTR SC,RW\n///GROUP1 RB1\nNOP\nCALL JOB:PART\nEND\n".replace("\n", "\r\n"), newline="")
+    _check_ends_quickly(tmp_path, tmp_path / "MAIN.JBI", robot="sia20")
+
+
+def test_a_fifo_or_dev_zero_profile_is_refused_at_once(tmp_path):
+    for prof in (_fifo(tmp_path, "prof.toml"), Path("/dev/zero")):
+        r = camtool("run", SPHERE, "-o", tmp_path / "out", "--set", 'post.formats=["rapid"]',
+                    "--set", f"post.profiles={{rapid = '{prof}'}}", timeout=60)
+        assert r.returncode == 2 and ("FIFO" in r.stderr or "device" in r.stderr), r.stderr
