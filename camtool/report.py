@@ -8,8 +8,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
-import tempfile
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -76,16 +74,8 @@ def write_json_atomic(obj: dict, file: FsPath) -> None:
     """
     file = FsPath(file)
     file.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=file.parent, prefix=".tmp-", suffix=".json")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(_strict(obj), f, indent=2, allow_nan=False)
-            f.write("\n")
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, file)
-    except BaseException:
-        FsPath(tmp).unlink(missing_ok=True)
-        raise
+    text = json.dumps(_strict(obj), indent=2, allow_nan=False) + "\n"
+    safe_io.write_file(file.parent, file.name, text)  # O_EXCL|O_NOFOLLOW in a private folder, then renamed
 
 
 def _strict(x):
