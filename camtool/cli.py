@@ -17,9 +17,14 @@ from .errors import CamtoolError
 DEBUG_KEY = "camtool.debug"  # ctx.meta key set by the group's --debug option
 
 
+MAX_MESSAGE = 2000  # characters of an error line; a 5 MB name is not echoed whole
+
+
 def one_line(text: str) -> str:
-    """A message as one line: line breaks (e.g. from a file name) are shown as \\n."""
-    return str(text).replace("\r", "\\r").replace("\n", "\\n")
+    """A message as one line: line breaks and other control characters (e.g. from a file name) escaped,
+    at most MAX_MESSAGE characters."""
+    text = "".join(c if c.isprintable() or c == " " else repr(c)[1:-1] for c in str(text)[:MAX_MESSAGE + 1])
+    return text[:MAX_MESSAGE] + ("... (cut)" if len(text) > MAX_MESSAGE else "")
 
 
 class CamtoolGroup(click.Group):
@@ -57,7 +62,14 @@ class CamtoolGroup(click.Group):
         except KeyboardInterrupt:
             click.echo("camtool: interrupted", err=True)
             ctx.exit(130)
-        except Exception as exc:  # an internal error: one line, traceback with --debug
+        except Exception as exc:
+            from .safe_io import disk_error
+
+            err = disk_error(exc) if isinstance(exc, OSError) else None
+            if err is not None:  # full disk, quota, permission, read-only: the user's to fix
+                click.echo(f"camtool: error: {one_line(err)}", err=True)
+                ctx.exit(2)
+            # an internal error: one line, traceback with --debug
             if ctx.meta.get(DEBUG_KEY):
                 traceback.print_exc()
             first = one_line(str(exc).splitlines()[0]) if str(exc) else ""

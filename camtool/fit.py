@@ -27,6 +27,7 @@ from .settings import FitSettings
 from .surface import FitStats, PlaneSurface, SpherePatch
 
 MIN_POINTS = {"plane": 3, "sphere": 4}
+MIN_SURFACE_POINTS = 100  # fewer points than this describe no part's surface (a 20-point grid, a 3-point cloud)
 SUBSAMPLE = 1000          # points used to score every hypothesis (rank only; top K rescored on all)
 TOP_K = 16                # hypotheses rescored on all points
 BATCH = 256               # hypotheses scored per numpy batch
@@ -220,6 +221,9 @@ def fit_surface(workpiece, settings: FitSettings) -> PlaneSurface | SpherePatch:
     fit = _choose(plane, sphere, extent)
     if fit is None:
         raise BadInput(f"{source}: every RANSAC sample was degenerate; check the points")
+    if len(P) < MIN_SURFACE_POINTS:  # a plane through 3 points is no scan of a part: refuse, do not guess
+        raise BadInput(f"{source}: too few points for a surface: {len(P)}, need at least {MIN_SURFACE_POINTS}; "
+                       "give a denser scan or mesh")
     ratio = fit.n_inliers / len(P)
     if ratio < min_inlier_ratio:
         tried = " or ".join(m.model for m in (plane, sphere) if m is not None)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -224,7 +225,17 @@ class Job:
 
 
 def _describe(value) -> str:
-    return repr(value) if not isinstance(value, dict) else "a table"
+    if isinstance(value, dict):
+        return "a table"
+    text = repr(value)  # a bounded quote: a 5 MB value is not echoed whole
+    return text if len(text) <= 80 else f"{text[:80]}... ({len(text)} characters)"
+
+
+MAX_STRING_CHARS = 4096  # any string of a job (names, file names): more is a mistake or an attack
+# program names whose file would be one of camtool's own (points.csv, report.json, plots/, stage files)
+OWN_FILE_STEMS = {"points": "points.csv", "report": "report.json and report.html", "plots": "the plots/ folder",
+                  "summary": "summary.json", "path": "path.npz", "joint_path": "joint_path.npz",
+                  "trajectory": "trajectory.npz", "surface": "surface.json"}
 
 
 def _coerce(key: Key, value, where: str):
@@ -245,6 +256,8 @@ def _coerce(key: Key, value, where: str):
     elif k == "str":
         if not isinstance(value, str):
             fail("a string")
+        if len(value) > MAX_STRING_CHARS:
+            raise BadInput(f"{where}: a string of {len(value)} characters; at most {MAX_STRING_CHARS} are accepted")
         if key.choices and value not in key.choices:
             fail("one of " + ", ".join(repr(c) for c in key.choices))
     elif k == "bool":
@@ -261,6 +274,8 @@ def _coerce(key: Key, value, where: str):
     elif k == "strs":
         if not (isinstance(value, list) and all(isinstance(x, str) for x in value)):
             fail("a list of strings")
+        if len(value) > MAX_STRING_CHARS or any(len(x) > MAX_STRING_CHARS for x in value):
+            raise BadInput(f"{where}: a list too long or with a string over {MAX_STRING_CHARS} characters")
     elif k == "table":
         if not isinstance(value, dict):
             fail("a table")
@@ -283,7 +298,7 @@ def parse_override(text: str) -> tuple[str, str, Any]:
     section, key = path.strip().split(".", 1)
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
+    except (tomllib.TOMLDecodeError, RecursionError):
         value = raw  # a bare word such as plane or ruckig
     return section, key, value
 
@@ -325,19 +340,13 @@ def _copy(v):
 
 def load_job(path: str | Path, overrides: list[str] = ()) -> Job:
     """Read and validate a job file; raises BadInput naming the file and key."""
+    from .safe_io import load_toml, read_input_text
+
     p = Path(path)
     if p.is_dir():
         raise BadInput(f"{p}: is a directory, expected a job file (.toml)")
-    try:
-        text = p.read_text()
-    except FileNotFoundError:
-        raise BadInput(f"{p}: job file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise BadInput(f"{p}: cannot read job file ({exc})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise BadInput(f"{p}: TOML syntax error: {exc}") from None
+    # one checked read (regular file, size cap, never blocks on a FIFO); deep nesting is one line too
+    data = load_toml(p, "job", read_input_text(p, "job"))
     job = Job(p, validate(data, str(p), overrides))
     _check_cross(job)
     return job
@@ -358,6 +367,10 @@ def _check_cross(job: Job) -> None:
         if fmt not in job.post.formats:
             raise BadInput(f"{job.path}: post.profiles: {fmt!r} is not one of post.formats "
                            f"({', '.join(job.post.formats)}){_closest(fmt, job.post.formats)}")
+    stem = re.sub(r"[^a-z0-9_]", "_", job.post.program_name.strip().lower())
+    if stem in OWN_FILE_STEMS:
+        raise BadInput(f"{job.path}: post.program_name = {job.post.program_name!r}: its program would clash with "
+                       f"camtool's own {OWN_FILE_STEMS[stem]}; choose another name")
     if not job.workpiece.file:
         raise BadInput(f"{job.path}: workpiece.file: expected the workpiece file name, found nothing")
 

@@ -17,6 +17,12 @@ reason), report.html and plots, and no program. A run that fails before it
 has a report (bad input) leaves the folder as it was. Leftover staging folders
 of killed runs (their process is gone) are removed by the next run into the
 same folder. Only files camtool listed in its manifest are ever removed.
+
+Hostile cells (docs/security.md): the folder is checked first (``safe_io.check_outdir``: not ``/``
+or the home folder, no symlink or special file anywhere below it, no foreign files) and locked for
+the run (``safe_io.locked``); every file is placed, and every stale one removed, through
+``safe_io`` (dir descriptors and O_NOFOLLOW): a manifest naming ``../x`` or ``/x`` removes nothing,
+and a folder or link where a file goes is one clear line (exit 2) before anything changes.
 """
 from __future__ import annotations
 
@@ -27,10 +33,11 @@ import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
+from . import safe_io
 from .errors import BadInput
 
 STAGING_PREFIX = ".camtool-run-"
-LEFTOVER_PREFIXES = (STAGING_PREFIX, ".camtool-post-")
+LEFTOVER_PREFIXES = (STAGING_PREFIX, ".camtool-post-", ".camtool-write-")
 MANIFEST = ".camtool-manifest.json"
 REPORT = "report.json"
 TEXT_WITH_PATHS = ("report.json", "report.html")  # files that name other files of the run
@@ -50,7 +57,7 @@ def remove_leftovers(outdir: Path) -> list[Path]:
     """Remove staging folders of killed camtool runs in ``outdir``; returns what was removed."""
     removed = []
     for d in Path(outdir).glob(".camtool-*"):
-        if not d.is_dir() or not d.name.startswith(LEFTOVER_PREFIXES):
+        if d.is_symlink() or not d.is_dir() or not d.name.startswith(LEFTOVER_PREFIXES):
             continue
         pid_text = d.name.split("-")[2] if d.name.startswith(STAGING_PREFIX) else ""
         if pid_text.isdigit() and _alive(int(pid_text)) and int(pid_text) != os.getpid():
@@ -62,50 +69,71 @@ def remove_leftovers(outdir: Path) -> list[Path]:
 
 def _manifest(outdir: Path) -> list[str]:
     try:
-        data = json.loads((outdir / MANIFEST).read_text())
+        data = json.loads(safe_io.read_input_bytes(outdir / MANIFEST, "manifest", follow=False))
         return [str(x) for x in data.get("files", [])]
-    except (OSError, ValueError, AttributeError):
+    except (BadInput, ValueError, AttributeError, TypeError):
         return []
+
+
+def forget_previous(outdir: Path) -> None:
+    """Remove the files the previous run placed (its manifest's, report.json first) and the manifest:
+    a rerun that is killed or fails then never leaves the old report or plots looking current."""
+    outdir = Path(outdir)
+    if not outdir.is_dir():
+        return
+    safe_io.remove_file(outdir, REPORT)
+    for old in _manifest(outdir):
+        safe_io.remove_file(outdir, old)
+    safe_io.remove_file(outdir, MANIFEST)
 
 
 @contextmanager
 def staged_output(outdir: Path):
     """A fresh staging folder inside ``outdir`` (created if needed); removed on exit whatever happens."""
     outdir = Path(outdir)
-    try:
-        outdir.mkdir(parents=True, exist_ok=True)
-        remove_leftovers(outdir)
-        stage = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=outdir))
-    except OSError as exc:
-        raise BadInput(f"{outdir}: cannot write into the output folder ({exc.strerror or exc})") from None
-    try:
-        yield stage
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+    safe_io.check_outdir(outdir)
+    with safe_io.locked(outdir):
+        try:
+            remove_leftovers(outdir)
+            stage = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=outdir))
+        except OSError as exc:
+            raise BadInput(f"{outdir}: cannot write into the output folder ({exc.strerror or exc})") from None
+        try:
+            yield stage
+        except OSError as exc:  # e.g. a full disk while staging: one line, the placed outputs untouched
+            err = safe_io.disk_error(exc)
+            if err is None:
+                raise
+            raise err from None
+        finally:
+            shutil.rmtree(stage, ignore_errors=True)
 
 
 def place(stage: Path, outdir: Path) -> list[Path]:
     """Move every file of ``stage`` into ``outdir`` (see the module doc); returns the placed files."""
     stage, outdir = Path(stage), Path(outdir)
-    new = sorted(str(p.relative_to(stage)) for p in stage.rglob("*") if p.is_file())
+    new = sorted(str(p.relative_to(stage)) for p in stage.rglob("*") if p.is_file() and not p.is_symlink())
+    for name in new:  # before anything changes: a folder, link or special file where a file goes
+        safe_io.check_target(outdir, name)
     for name in TEXT_WITH_PATHS:  # the run named its files by their staging path
         f = stage / name
         if f.is_file():
             f.write_text(f.read_text().replace(str(stage), str(outdir)))
-    (outdir / REPORT).unlink(missing_ok=True)
-    for old in _manifest(outdir):
-        if old not in new and old != MANIFEST:
-            (outdir / old).unlink(missing_ok=True)
-    manifest = outdir / MANIFEST  # written before the files: a killed placing is cleaned up by the next run
-    tmp = manifest.with_suffix(".tmp")
-    tmp.write_text(json.dumps({"files": new}, indent=1) + "\n")
-    os.replace(tmp, manifest)
-    placed = []
-    for name in [n for n in new if n != REPORT] + ([REPORT] if REPORT in new else []):
-        target = outdir / name
-        target.parent.mkdir(parents=True, exist_ok=True)
-        os.replace(stage / name, target)
-        placed.append(target)
+    try:
+        safe_io.remove_file(outdir, REPORT)
+        for old in _manifest(outdir):
+            if old not in new and old != MANIFEST:
+                safe_io.remove_file(outdir, old)  # only regular files inside outdir: ../x and /x are left alone
+        # written before the files: a killed placing is cleaned up by the next run
+        safe_io.write_file(outdir, MANIFEST, json.dumps({"files": new}, indent=1) + "\n")
+        placed = []
+        for name in [n for n in new if n != REPORT] + ([REPORT] if REPORT in new else []):
+            placed.append(safe_io.place_file(stage / name, outdir, name))
+    except OSError as exc:
+        err = safe_io.disk_error(exc)
+        if err is None:
+            raise
+        raise err from None
     return placed
 
 

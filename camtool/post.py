@@ -245,16 +245,16 @@ def _forget_stale_programs(outdir: Path, final: list[Path]) -> None:
 
     manifest = outdir / PROGRAMS_MANIFEST
     names = sorted(f.name for f in final)
+    from . import safe_io
+
     try:
-        before = json.loads(manifest.read_text()).get("programs", [])
-    except (OSError, ValueError, AttributeError):
+        before = json.loads(safe_io.read_input_bytes(manifest, "manifest", follow=False)).get("programs", [])
+    except (BadInput, ValueError, AttributeError):
         before = []
     for name in set(before) - set(names):
-        if "/" not in name and name not in ("", ".", ".."):
-            (outdir / name).unlink(missing_ok=True)
-    tmp = outdir / (PROGRAMS_MANIFEST + ".tmp")
-    tmp.write_text(json.dumps({"programs": names}, indent=1) + "\n")
-    os.replace(tmp, manifest)
+        if isinstance(name, str) and "/" not in name and name not in ("", ".", ".."):
+            safe_io.remove_file(outdir, name)  # a regular file inside outdir only, never through a link
+    safe_io.write_file(outdir, PROGRAMS_MANIFEST, json.dumps({"programs": names}, indent=1) + "\n")
 
 
 def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dict, outdir, *,
@@ -330,11 +330,11 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
             more = f" (and {len(findings) - MAX_LISTED} more)" if len(findings) > MAX_LISTED else ""
             raise PlanInfeasible(f"{len(findings)} program check finding(s), no program written: "
                                  + " | ".join(findings[:MAX_LISTED]) + more, {"findings": findings})
-        final = []
-        for f in written:
-            target = outdir / f.name
-            os.replace(f, target)
-            final.append(target)
+        from . import safe_io
+
+        for f in written:  # a folder, link or special file where a program goes: one line, before any change
+            safe_io.check_target(outdir, f.name)
+        final = [safe_io.place_file(f, outdir, f.name) for f in written]
         _forget_stale_programs(outdir, final)
         return final
     finally:

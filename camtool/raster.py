@@ -273,6 +273,9 @@ def raster_path(surface, settings: RasterSettings) -> Path:
                        f"({t_hi - t_lo:.1f} mm across the rows)")
     rows_t = _row_offsets(t_lo, t_hi, step)
     s_lo, s_hi = float(e0[:, 0].min()), float(e0[:, 0].max())
+    if pitch > s_hi - s_lo:  # chart s is mm at the largest metric scale: an upper bound of any row's length
+        raise BadInput(f"raster.pitch_mm: {pitch:g} mm is longer than the part ({s_hi - s_lo:.1f} mm along the "
+                       "rows); use a pitch of a few mm")
     estimate = len(rows_t) * ((s_hi - s_lo) / (g_lo * pitch) + 2 * (lead / pitch + 1) + m)
     if estimate > MAX_POSES:
         raise BadInput(f"raster: step_over_mm={step:g} and pitch_mm={pitch:g} would give about "

@@ -39,6 +39,7 @@ from .errors import BadInput, PlanInfeasible
 from .robots.ik_common import rz_batch, wrap_pi
 from .robots.ik_srs import track_shift
 from .toolpath import WORK, Path
+from . import safe_io
 
 NO_IK, OUTSIDE_LIMITS, REACHABLE = 0, 1, 2
 CODE_NAMES = {NO_IK: "no IK solution", OUTSIDE_LIMITS: "outside joint limits", REACHABLE: "reachable"}
@@ -428,7 +429,7 @@ def plot_redundancy_map_png(rmap: RedundancyMap, file) -> FsPath:
     axes[0].set_ylabel(rmap.y_label)
     fig.suptitle(f"{rmap.robot}: redundancy map (grey: no IK, red: outside joint limits)", fontsize=11)
     fig.tight_layout()
-    fig.savefig(file, dpi=90)
+    safe_io.save_figure(fig, file, dpi=90)
     plt.close(fig)
     return file
 

@@ -8,14 +8,13 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
-import tempfile
 from pathlib import Path as FsPath
 
 import numpy as np
 
 from .toolpath import ZONE_CODE, ZONES, Path
 from .trajectory import JointPath, Trajectory
+from . import safe_io
 
 WORK = ZONE_CODE["work"]
 
@@ -75,16 +74,8 @@ def write_json_atomic(obj: dict, file: FsPath) -> None:
     """
     file = FsPath(file)
     file.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=file.parent, prefix=".tmp-", suffix=".json")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(_strict(obj), f, indent=2, allow_nan=False)
-            f.write("\n")
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, file)
-    except BaseException:
-        FsPath(tmp).unlink(missing_ok=True)
-        raise
+    text = json.dumps(_strict(obj), indent=2, allow_nan=False) + "\n"
+    safe_io.write_file(file.parent, file.name, text)  # O_EXCL|O_NOFOLLOW in a private folder, then renamed
 
 
 def _strict(x):
@@ -179,7 +170,7 @@ def plot_joints(trajectories: dict[str, Trajectory], robot, outdir: FsPath, dt_s
                 top.set_visible(False)
         fig.tight_layout()
         f = outdir / f"joint_{key}.png"
-        fig.savefig(f, dpi=90)
+        safe_io.save_figure(fig, f, dpi=90)
         plt.close(fig)
         files.append(f)
     return files
@@ -204,6 +195,6 @@ def plot_unreachable(path: Path, unreachable: list[dict], file: FsPath) -> FsPat
     ax2.set_xlabel("y [mm]"); ax2.set_ylabel("z [mm]"); ax2.set_aspect("equal")
     ax2.set_title("unreachable poses (red), seen along x")
     fig.tight_layout()
-    fig.savefig(file, dpi=90)
+    safe_io.save_figure(fig, file, dpi=90)
     plt.close(fig)
     return file

@@ -16,7 +16,6 @@ map, joint x time); and the redundancy map (``camtool.redundancy_map``).
 from __future__ import annotations
 
 import html
-import os
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -84,10 +83,9 @@ def write_html_page(file, title: str, sections: list[tuple[str, str, str]]) -> F
             f'<script type="text/javascript">{get_plotlyjs()}</script>\n</head>\n<body>\n'
             f'<h1>{html.escape(title)}</h1>\n{body}\n</body>\n</html>\n')
     file.parent.mkdir(parents=True, exist_ok=True)
-    tmp = file.with_name(f".tmp-{file.name}")
-    tmp.write_text(page, encoding="utf-8")
-    os.replace(tmp, file)          # never half-written
-    return file
+    from . import safe_io  # never half-written, never through a planted link
+
+    return safe_io.write_file(file.parent, file.name, page)
 
 
 def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,

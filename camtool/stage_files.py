@@ -17,13 +17,14 @@ docs/stage-files.md.
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
-import os
 import zipfile
 from pathlib import Path as FsPath
 
 import numpy as np
 
+from . import safe_io
 from .errors import BadInput
 from .files import output_file
 from .timing import TimedTrajectory
@@ -84,18 +85,20 @@ def save_stage(box, file: str | FsPath) -> FsPath:
     if kind == "Path":
         header["zones"] = list(ZONES)
     file = output_file(file)
-    part = file.with_name(file.name + ".part")  # written aside, then moved: never a half-written stage file
-    with open(part, "wb") as fh:
-        np.savez_compressed(fh, header=np.array(json.dumps(header, allow_nan=True)), **arrays)
-    os.replace(part, file)
-    return file
+    buf = io.BytesIO()
+    np.savez_compressed(buf, header=np.array(json.dumps(header, allow_nan=True)), **arrays)
+    # created O_EXCL|O_NOFOLLOW in a private folder, then renamed: never half-written, never through a link
+    return safe_io.write_file(file.parent, file.name, buf.getvalue())
 
 
 def load_stage(file: str | FsPath, expect: tuple[str, ...] = ()):
     """Read a stage box saved by ``save_stage``; BadInput naming the file when it is not one (of ``expect``)."""
     file = FsPath(file)
+    if not file.exists():
+        raise BadInput(f"{file}: stage file not found")
+    data = io.BytesIO(safe_io.read_input_bytes(file, "stage"))  # a regular file under the cap: no FIFO hang
     try:
-        with np.load(file, allow_pickle=False) as d:
+        with np.load(data, allow_pickle=False) as d:
             header = json.loads(str(d["header"]))
             arrays = {k: d[k] for k in d.files if k != "header"}
     except FileNotFoundError:

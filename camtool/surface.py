@@ -24,6 +24,7 @@ from matplotlib.path import Path as MplPath
 
 from .errors import BadInput
 from .files import output_file
+from . import safe_io
 
 
 @dataclass(frozen=True)
@@ -244,7 +245,7 @@ SURFACE_FORMAT, SURFACE_VERSION = "camtool-surface", 1
 def save_surface(surface: Surface, path: str | FsPath) -> None:
     """Write a surface as JSON (``format`` and ``version`` keys, then the surface's fields)."""
     d = {"format": SURFACE_FORMAT, "version": SURFACE_VERSION, **surface.to_dict()}
-    output_file(path).write_text(json.dumps(d, indent=1) + "\n")
+    safe_io.write_file(output_file(path).parent, FsPath(path).name, json.dumps(d, indent=1) + "\n")
 
 
 def load_surface(path: str | FsPath) -> Surface:

@@ -268,17 +268,32 @@ def _mesh_from_trimesh(obj, path: Path) -> _Raw:
     return _Raw(np.asarray(obj.vertices, dtype=float), None, np.asarray(obj.faces, dtype=np.int64), "vertex")
 
 
+def _read_checked(path: Path) -> bytes:
+    """The workpiece's bytes through ``safe_io``: a regular file under the workpiece cap, never a FIFO or device."""
+    from .safe_io import read_input_bytes
+
+    return read_input_bytes(path, "workpiece")
+
+
 def _trimesh_load(path: Path, file_type: str):
     """trimesh's reader without its processing: processing would drop NaN triangles unseen;
     load_workpiece checks the values first and merges vertices afterwards."""
     import trimesh
 
-    return trimesh.load(str(path), file_type=file_type, process=False)
+    from .safe_io import opened_input
+
+    if file_type == "gltf":  # a .gltf names its buffers beside it: trimesh needs the real path
+        from .safe_io import check_input
+
+        check_input(path, "workpiece")
+        return trimesh.load(str(path), file_type=file_type, process=False)
+    with opened_input(path, "workpiece") as name:  # the checked file itself (regular, capped), opened once
+        return trimesh.load(name, file_type=file_type, process=False)
 
 
 @register_loader(".stl")
 def _load_stl(path: Path) -> _Raw:
-    data = path.read_bytes()
+    data = _read_checked(path)
     binary_count = _binary_stl_count(path, data)
     if binary_count is None:  # ASCII: trimesh reads it when the length does not fit binary
         facets, text_vertices = _check_ascii_stl(path, data)
@@ -359,7 +374,7 @@ def _is_float(tok: str) -> bool:
 def _load_obj(path: Path) -> _Raw:
     """OBJ has no counts; its ``v`` lines must each be x y z [w] or x y z r g b [a] numbers
     (trimesh reshapes a short line into a wrong table instead of failing)."""
-    text = path.read_bytes().decode("utf-8", errors="replace")
+    text = _read_checked(path).decode("utf-8", errors="replace")
     v_lines = []
     for no, line in enumerate(text.splitlines(), 1):
         tokens = line.split()
@@ -383,7 +398,7 @@ def _load_obj(path: Path) -> _Raw:
 @register_loader(".off")
 def _load_off(path: Path) -> _Raw:
     """OFF states its vertex and face counts; trimesh reads fewer faces from a cut file unseen."""
-    text = path.read_bytes().decode("utf-8", errors="replace")
+    text = _read_checked(path).decode("utf-8", errors="replace")
     lines = [ln.split("#", 1)[0].strip() for ln in text.splitlines()]
     lines = [ln for ln in lines if ln]
     head = lines[0].split() if lines else []
@@ -637,7 +652,7 @@ def _load_ply(path: Path) -> _Raw:
     (open3d's RPly zero-fills after a token it cannot parse and prints to the terminal)."""
     import trimesh
 
-    data = path.read_bytes()
+    data = _read_checked(path)
     fmt, elements, body_at, header_lines = _ply_header(path, data)
     vertex = next((e for e in elements if e.name == "vertex"), None)
     if vertex is None:
@@ -757,7 +772,7 @@ def _pcd_layout(path: Path, h: dict) -> tuple[list[str], list[int], int, str]:
 def _load_pcd(path: Path) -> _Raw:
     import open3d as o3d
 
-    data = path.read_bytes()
+    data = _read_checked(path)
     h = _pcd_header(path, data)
     fields, counts, n, kind = _pcd_layout(path, h)
     body = data[h["_body_at"]:]
@@ -781,8 +796,10 @@ def _load_pcd(path: Path) -> _Raw:
         if unpacked != n * h["_point_bytes"] or len(body) < 8 + packed:
             raise BadInput(f"{path}: compressed PCD is truncated or corrupt (the header says {n} points); "
                            "export it again")
-    with _open3d_quiet():
-        pc = o3d.io.read_point_cloud(str(path), format="pcd", remove_nan_points=False,
+    from .safe_io import opened_input
+
+    with _open3d_quiet(), opened_input(path, "workpiece") as name:
+        pc = o3d.io.read_point_cloud(name, format="pcd", remove_nan_points=False,
                                      remove_infinite_points=False)
     pts = np.asarray(pc.points, dtype=float)
     if len(pts) != n:
@@ -806,7 +823,7 @@ def _ascii_pcd_lines(body: bytes, header_lines: int) -> np.ndarray:
 def _load_text_cloud(path: Path) -> _Raw:
     """Columns x y z [nx ny nz], separated by spaces, commas or semicolons; one header line
     allowed; a first line holding only a whole number is the point count (PTS) and is checked."""
-    text = path.read_text(errors="replace")
+    text = _read_checked(path).decode("utf-8", errors="replace")
     numbered = [(no, ln) for no, ln in enumerate(text.replace(",", " ").replace(";", " ").splitlines(), 1)
                 if ln.strip() and not ln.lstrip().startswith(("#", "//"))]
     if numbered and not any(_is_float(t) for t in numbered[0][1].split()):
@@ -869,7 +886,9 @@ def load_workpiece(path: Path, units: str = "mm", sample_points: int = 100000,
                        f"use one of {' '.join(supported_extensions())}")
     if not path.exists():
         raise BadInput(f"{path}: workpiece file not found; check the name and the folder")
-    if path.stat().st_size == 0:
+    from .safe_io import check_input
+
+    if check_input(path, "workpiece").st_size == 0:  # regular file under the cap (O_NONBLOCK open, fstat)
         raise BadInput(f"{path}: the file is empty; export the workpiece again")
     with _library_output_to_log():
         try:

@@ -10,24 +10,20 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import os
-import tempfile
 from pathlib import Path
 
-from .. import __version__
+from .. import __version__, safe_io
+from ..errors import BadInput
 
 MANIFEST = ".camtool-cache.json"
 
 
-def _file_digest(path: Path) -> str:
-    h = hashlib.sha256()
-    try:
-        with open(path, "rb") as f:
-            for chunk in iter(lambda: f.read(1 << 20), b""):
-                h.update(chunk)
-    except OSError:
+def _file_digest(path: Path, kind: str = "text") -> str:
+    """SHA-256 of a file read with ``safe_io`` (regular files only, size-capped; a FIFO or device is
+    BadInput, never a hang); "missing" when it does not exist (the job's own checks name it)."""
+    if not Path(path).exists():
         return "missing"
-    return h.hexdigest()
+    return hashlib.sha256(safe_io.read_input_bytes(path, kind)).hexdigest()
 
 
 def input_files(job) -> dict[str, Path]:
@@ -62,7 +58,7 @@ def code_digest() -> str:
 def fingerprint(job, overrides: tuple[str, ...] | list[str]) -> str:
     """SHA-256 hex digest of everything that decides a job's outputs."""
     parts = {"camtool": __version__, "code": code_digest(), "overrides": list(overrides),
-             "files": {role: _file_digest(p) for role, p in input_files(job).items()}}
+             "files": {role: _file_digest(p, role.split(".")[0]) for role, p in input_files(job).items()}}
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
 
@@ -73,8 +69,8 @@ def manifest_path(outdir: Path) -> Path:
 def read_manifest(outdir: Path) -> dict | None:
     """The stored manifest of a job folder, or None when absent or unreadable."""
     try:
-        data = json.loads(manifest_path(outdir).read_text())
-    except (OSError, ValueError):
+        data = json.loads(safe_io.read_input_bytes(manifest_path(outdir), "manifest", follow=False))
+    except (BadInput, ValueError):
         return None
     return data if isinstance(data, dict) else None
 
@@ -88,29 +84,30 @@ def up_to_date(outdir: Path, fp: str) -> dict | None:
     files = m.get("files")
     if not isinstance(files, list) or not files:
         return None
-    if not all((Path(outdir) / f).is_file() for f in files):
+    try:
+        if not all(isinstance(f, str) and safe_io.check_target(outdir, f) is None and (Path(outdir) / f).is_file()
+                   for f in files):
+            return None
+    except BadInput:  # a name leaving the folder, or a link or folder where a listed file was
         return None
     return m
 
 
 def write_manifest(outdir: Path, data: dict) -> None:
     """Write the manifest atomically (temporary file + rename)."""
-    outdir = Path(outdir)
-    fd, tmp = tempfile.mkstemp(dir=outdir, prefix=".tmp-", suffix=".json")
-    with os.fdopen(fd, "w") as f:
-        json.dump(data, f, indent=2, sort_keys=True)
-        f.write("\n")
-    os.replace(tmp, manifest_path(outdir))
+    safe_io.write_file(outdir, MANIFEST, json.dumps(data, indent=2, sort_keys=True) + "\n")
 
 
 def forget(outdir: Path) -> None:
-    """Before a rerun: drop the manifest and the outputs it lists, so a failed
-    rerun never leaves an old program looking current."""
+    """Before a rerun: drop the manifest, the outputs it lists and everything the last run placed
+    (report.html and plots too, ``output.forget_previous``), so a failed or killed rerun never leaves
+    an old program, report or plot looking current. Only regular files inside ``outdir`` go."""
+    from ..output import forget_previous
+
     outdir = Path(outdir)
     m = read_manifest(outdir)
-    manifest_path(outdir).unlink(missing_ok=True)
+    safe_io.remove_file(outdir, MANIFEST)
     for f in (m or {}).get("files", []) if isinstance((m or {}).get("files"), list) else []:
-        p = (outdir / f).resolve()
-        if p.is_relative_to(outdir.resolve()):
-            p.unlink(missing_ok=True)
-    (outdir / "report.json").unlink(missing_ok=True)
+        if isinstance(f, str):
+            safe_io.remove_file(outdir, f)
+    forget_previous(outdir)

@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from .. import __version__
+from .. import safe_io
 from ..errors import BadInput
 from . import cache
 
@@ -89,13 +90,15 @@ def discover_jobs(paths) -> list[Path]:
 
 
 def job_names(jobs: list[Path]) -> dict[Path, str]:
-    """Output folder name per job: the file stem, or ``stem-<8 hex of the path's
-    SHA-1>`` when several jobs share a stem (stable whatever else is in the batch)."""
+    """Output folder name per job: the file stem made a safe name (``safe_io.safe_name``: ``...toml``
+    gives ``job``, never ``..``), or ``name-<8 hex of the path's SHA-1>`` when several jobs share a
+    name (stable whatever else is in the batch)."""
+    base = {j: safe_io.safe_name(j.stem) for j in jobs}
     stems: dict[str, int] = {}
-    for j in jobs:
-        stems[j.stem] = stems.get(j.stem, 0) + 1
-    return {j: j.stem if stems[j.stem] == 1 else f"{j.stem}-{hashlib.sha1(str(j).encode()).hexdigest()[:8]}"
-            for j in jobs}
+    for n in base.values():
+        stems[n] = stems.get(n, 0) + 1
+    return {j: n if stems[n] == 1 else f"{n}-{hashlib.sha1(str(j).encode()).hexdigest()[:8]}"
+            for j, n in base.items()}
 
 
 def check_overrides(overrides) -> None:
@@ -140,7 +143,7 @@ def prepare_job(job: Path, folder: Path, name: str, overrides: tuple = (), timeo
         if before_load is not None:
             before_load()
         loaded = load_job(job, list(overrides))
-        fp = cache.fingerprint(loaded, overrides)
+        fp = cache.fingerprint(loaded, overrides)  # every input read with safe_io: no FIFO or device blocks it
     except BadInput as exc:
         return _decided(base, "bad_input", 2, str(exc), t0, str(exc))
     except Exception as exc:  # an internal error loading one job never stops the others
@@ -151,6 +154,12 @@ def prepare_job(job: Path, folder: Path, name: str, overrides: tuple = (), timeo
                          reason="inputs unchanged since the last successful run",
                          wall_time_s=round(time.perf_counter() - t0, 4), points=m.get("points"),
                          cycle_time_s=m.get("cycle_time_s"), files=list(m["files"]))
+    if timeout_s is not None:  # the timeout covers the whole job: loading and hashing included
+        spent = time.perf_counter() - t0
+        if spent >= timeout_s:
+            return _decided(base, "timeout", TIMEOUT_EXIT, f"still preparing after the {timeout_s:g} s timeout "
+                            "(loading and hashing the inputs)", t0, "timeout while hashing the inputs")
+        timeout_s = timeout_s - spent
     return JobSpec(**base, overrides=overrides, timeout_s=timeout_s, fingerprint=fp)
 
 
@@ -162,10 +171,10 @@ def _one_line(exc: BaseException) -> str:
 def _decided(base: dict, status: str, code: int, reason: str, t0: float, log: str) -> JobResult:
     folder = Path(base["outdir"])
     try:
-        folder.mkdir(parents=True, exist_ok=True)
+        safe_io.make_folder(folder.parent, folder.name)
         cache.forget(folder)
-        (folder / LOG_NAME).write_text(f"# camtool {__version__} batch: {base['job']}\n{log.rstrip()}\n")
-    except OSError:
+        safe_io.write_file(folder, LOG_NAME, f"# camtool {__version__} batch: {base['job']}\n{log.rstrip()}\n")
+    except (OSError, BadInput):
         pass
     return JobResult(**base, status=status, exit_code=code, reason=reason,
                      wall_time_s=round(time.perf_counter() - t0, 4))
@@ -232,12 +241,12 @@ def run_one(spec: JobSpec) -> JobResult:
     base = dict(job=spec.job, name=spec.name, outdir=spec.outdir)
     log_file = folder / LOG_NAME
     try:
-        folder.mkdir(parents=True, exist_ok=True)
+        safe_io.make_folder(folder.parent, folder.name)  # a symlink there is refused, never followed
         cache.forget(folder)
         cmd = job_command(spec)
-        with open(log_file, "w") as log:
-            log.write(f"# camtool {__version__} batch job {spec.name}: {spec.job}\n# command: "
-                      + " ".join(cmd) + "\n")
+        with safe_io.new_file(folder, LOG_NAME) as log:
+            log.write((f"# camtool {__version__} batch job {spec.name}: {spec.job}\n# command: "
+                       + " ".join(cmd) + "\n").encode())
             log.flush()
             proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=log, stdin=subprocess.DEVNULL,
                                     env=job_env(), start_new_session=True)
@@ -255,7 +264,7 @@ def run_one(spec: JobSpec) -> JobResult:
                     _live.discard(proc)
         wall = round(time.perf_counter() - t0, 3)
         rc = proc.returncode
-        text = log_file.read_text(errors="replace")
+        text = safe_io.read_input_bytes(log_file, "text", follow=False).decode(errors="replace")
         if timed_out:
             result = JobResult(**base, status="timeout", exit_code=TIMEOUT_EXIT, wall_time_s=wall,
                                reason=f"still running after the {spec.timeout_s:g} s timeout; killed")
@@ -267,22 +276,25 @@ def run_one(spec: JobSpec) -> JobResult:
                                reason=reason_from_log(text, rc))
             if result.status == "infeasible":
                 result.points = _report_points(folder)
-        with open(log_file, "a") as log:
+        with safe_io.new_file(folder, LOG_NAME, append=True) as log:
             if rc != 0 and out and not timed_out:
-                log.write(out.decode(errors="replace"))
-            log.write(f"# {result.status}: exit code {result.exit_code} after {wall:.2f} s\n")
+                log.write(out)
+            log.write(f"# {result.status}: exit code {result.exit_code} after {wall:.2f} s\n".encode())
         if result.status == "ok":
             cache.write_manifest(folder, {"fingerprint": spec.fingerprint, "status": "ok",
                                           "camtool": __version__, "job": spec.job,
                                           "overrides": list(spec.overrides), "files": result.files,
                                           "points": result.points, "cycle_time_s": result.cycle_time_s})
         return result
+    except BadInput as exc:  # e.g. a symlink planted in the job's folder: refused, this job only
+        return JobResult(**base, status="bad_input", exit_code=2, reason=str(exc),
+                         wall_time_s=round(time.perf_counter() - t0, 3))
     except Exception as exc:  # the batch machinery itself failed for this job only
         tb = traceback.format_exc()
         try:
-            with open(log_file, "a") as log:
-                log.write(tb)
-        except OSError:
+            with safe_io.new_file(folder, LOG_NAME, append=True) as log:
+                log.write(tb.encode())
+        except (OSError, BadInput):
             pass
         return JobResult(**base, status="failed", exit_code=1, reason=f"batch: {_one_line(exc)}",
                          wall_time_s=round(time.perf_counter() - t0, 3))
@@ -299,6 +311,6 @@ def _ok_result(base: dict, out: bytes, folder: Path, wall: float) -> JobResult:
 
 def _report_points(folder: Path) -> int | None:
     try:
-        return json.loads((folder / "report.json").read_text()).get("points_total")
-    except (OSError, ValueError, AttributeError):
+        return json.loads(safe_io.read_input_bytes(folder / "report.json", "manifest", follow=False)).get("points_total")
+    except (BadInput, ValueError, AttributeError):
         return None

@@ -1,12 +1,10 @@
 """The batch summary: OUTDIR/summary.json, the exit code, the table and progress."""
 from __future__ import annotations
 
-import os
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
-from .. import __version__
+from .. import __version__, safe_io
 from ..console import to_json
 
 STATUSES = ("ok", "cached", "failed", "infeasible", "bad_input", "unavailable", "timeout")
@@ -39,12 +37,7 @@ def write_summary(summary: dict, outdir) -> Path:
     """Write OUTDIR/summary.json atomically; returns its path."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=outdir, prefix=".tmp-", suffix=".json")
-    with os.fdopen(fd, "w") as f:
-        f.write(to_json(summary) + "\n")
-    file = outdir / "summary.json"
-    os.replace(tmp, file)
-    return file
+    return safe_io.write_file(outdir, "summary.json", to_json(summary) + "\n")
 
 
 def summary_table(summary: dict):

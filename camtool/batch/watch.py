@@ -20,7 +20,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .. import __version__
+from .. import __version__, safe_io
 from ..errors import BadInput
 from .executors import run_batch
 from .runner import JobResult, JobSpec, prepare_job
@@ -77,7 +77,7 @@ def output_names(files) -> dict[Path, str]:
     """Output folder per file: the stem of a job file (as ``camtool batch``), the full
     name of a workpiece file (part.stl and part.ply never share a folder); a name
     that still clashes gets ``-<8 hex of the path's SHA-1>``."""
-    base = {f: f.stem if kind_of(f) == "job" else f.name for f in files}
+    base = {f: safe_io.safe_name(f.stem if kind_of(f) == "job" else f.name) for f in files}
     count: dict[str, int] = {}
     for name in base.values():
         count[name] = count.get(name, 0) + 1
@@ -116,6 +116,7 @@ class Watcher:
                            else f"{indir}: not a folder; give the folder to watch")
         if outdir.exists() and not outdir.is_dir():
             raise BadInput(f"{outdir}: exists and is not a folder; give an output folder")
+        safe_io.check_outdir(outdir)
         overrides = tuple(overrides)
         # the template with the overrides, its workpiece stood in for by a placeholder
         tpl = load_job(template, [*overrides, f"workpiece.file={json.dumps(TEMPLATE_PLACEHOLDER)}"])
@@ -211,8 +212,8 @@ class Watcher:
 def _read_entries(file: Path) -> list[dict]:
     """The job entries of an existing summary.json ([] when absent or unreadable)."""
     try:
-        data = json.loads(file.read_text())
-    except (OSError, ValueError):
+        data = json.loads(safe_io.read_input_bytes(file, "manifest", follow=False))
+    except (BadInput, ValueError):
         return []
     jobs = data.get("jobs") if isinstance(data, dict) else None
     return [e for e in jobs if isinstance(e, dict) and isinstance(e.get("outdir"), str)] if isinstance(jobs, list) else []
@@ -237,10 +238,15 @@ def write_derived_job(template_data: dict, workpiece: Path, file: Path, template
 
     data = {k: dict(v) for k, v in template_data.items()}
     data["workpiece"]["file"] = str(Path(workpiece).resolve())
-    text = (f"# Written by `camtool watch`: template {template} (with its --set overrides)\n"
-            f"# for the workpiece {Path(workpiece).name}.\n" + tomli_w.dumps(data))
+    # file names quoted with repr: a newline (or any control character) in a name cannot end the comment
+    text = (f"# Written by `camtool watch`: template {str(template)!r} (with its --set overrides)\n"
+            f"# for the workpiece {Path(workpiece).name!r}.\n" + tomli_w.dumps(data))
     file = Path(file)
-    file.parent.mkdir(parents=True, exist_ok=True)
-    if not file.is_file() or file.read_text() != text:
-        file.write_text(text)
+    safe_io.make_folder(file.parent.parent, file.parent.name)
+    try:
+        same = safe_io.read_input_text(file, "job") == text
+    except BadInput:
+        same = False
+    if not same:
+        safe_io.write_file(file.parent, file.name, text)
     return file

@@ -8,6 +8,7 @@ import click
 
 from ..console import echo_json, progress_enabled
 from ..errors import BadInput, PlanInfeasible
+from .. import safe_io
 from ..job import load_job
 
 DEFAULT_VARY = ("L1=300:600", "L3=300:500")
@@ -83,6 +84,7 @@ def command(job_file: Path, vary: tuple[str, ...], particles: int, iters: int, e
     variables = [parse_vary(v) for v in (vary or DEFAULT_VARY)]
     job = load_job(job_file, list(overrides))
     outdir = outdir or Path("out") / f"{job_file.stem}_design"
+    safe_io.check_outdir(outdir)  # not / or home, no links, no foreign files
     settings = MopsoSettings(particles=particles, explore_iters=explore_iters, optimise_iters=iters)
     t0 = time.perf_counter()
     live = progress_enabled() and not as_json

@@ -9,6 +9,7 @@ import click
 
 from ..console import echo_json, progress_enabled
 from ..errors import BadInput, PlanInfeasible
+from .. import safe_io
 from ..job import load_job
 
 
@@ -96,6 +97,7 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
     variables = [parse_vary(v) for v in (vary or DEFAULT_VARY)]
     job = load_job(job_file, list(overrides))
     outdir = outdir or Path("out") / f"{job_file.stem}_place"
+    safe_io.check_outdir(outdir)  # not / or home, no links, no foreign files
     t0 = time.perf_counter()
     live = progress_enabled() and not as_json
 

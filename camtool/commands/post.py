@@ -28,12 +28,17 @@ def command(job_file: Path, from_file: Path | None, path_file: Path | None, outd
     The trajectory passes the independent limit check first and every program
     is read back and checked before it is placed, as in `camtool run`.
     """
+    from .. import safe_io
+
     job = load_job(job_file, list(overrides))
     robot = robot_for_job(job)
+    safe_io.check_outdir(outdir)  # not / or home, no link or special file below it, no foreign files
     preflight(robot, job, outdir)
     settings = JobSettings.from_job(job, robot)
     path, trajectory = trajectory_of(job, settings, robot, from_file, path_file)
-    files = post_checked(trajectory, robot, job, outdir, path=path)
+    with safe_io.locked(outdir):
+        safe_io.check_outdir(outdir)  # again under the lock: nothing planted since
+        files = post_checked(trajectory, robot, job, outdir, path=path)
     if as_json:
         echo_json({"job": str(job_file), "programs": [str(f) for f in files]})
         return

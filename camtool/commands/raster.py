@@ -13,6 +13,7 @@ from ..stage_files import save_stage
 from ..stages import path_for_job, surface_for_job, workpiece_for_job
 from ..surface import load_surface
 from ..toolpath import ZONES
+from .. import safe_io
 
 PATH_FILE = "path.npz"
 
@@ -124,5 +125,5 @@ def plot_raster(surface, path, file: Path, title: str = "") -> None:
     ax2.set_title("(u, v) domain")
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(output_file(file), dpi=110)
+    safe_io.save_figure(fig, output_file(file), dpi=110)
     plt.close(fig)

@@ -6,6 +6,7 @@ from pathlib import Path
 import click
 
 from ..console import echo_json
+from .options import INTERVAL, TIMEOUT, WORKERS, sigterm_as_interrupt
 
 
 @click.command("watch")
@@ -16,14 +17,14 @@ from ..console import echo_json
               help="Job file run for each new workpiece file, with workpiece.file set to it.")
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
               help="Override a job-file key in the template and in every job file (repeatable).")
-@click.option("-j", "--jobs", "workers", type=click.IntRange(min=1), default=None,
+@click.option("-j", "--jobs", "workers", type=WORKERS, default=None,
               help="Jobs run at once (default: the number of CPUs).")
-@click.option("--interval", type=click.FloatRange(min=0, min_open=True), default=2.0, show_default=True,
+@click.option("--interval", type=INTERVAL, default=2.0, show_default=True,
               metavar="S", help="Seconds between polls; a file is run once unchanged over one interval.")
 @click.option("--once", is_flag=True, help="Run what is in INDIR now (once stable) and exit, e.g. from cron.")
 @click.option("--max-jobs", type=click.IntRange(min=1), default=None, metavar="N",
               help="Exit after N files were handled.")
-@click.option("--timeout", type=click.FloatRange(min=0, min_open=True), default=None, metavar="S",
+@click.option("--timeout", type=TIMEOUT, default=None, metavar="S",
               help="Kill a job still running after S seconds and mark it timeout.")
 @click.option("--json", "as_json", is_flag=True, help="Print summary.json to stdout at the end instead of text.")
 def command(indir: Path, outdir: Path, template: Path, overrides, workers, interval: float, once: bool,
@@ -42,10 +43,16 @@ def command(indir: Path, outdir: Path, template: Path, overrides, workers, inter
     with --once or --max-jobs: 0 every job ok or cached, 3 any job failed;
     2 bad input (INDIR missing, bad template, bad --set) before anything runs.
     """
-    from ..batch.summary import STATUSES, batch_exit_code
+    from .. import safe_io
     from ..batch.watch import Watcher
 
     watcher = Watcher.create(indir, outdir, template, overrides, timeout, workers or os.cpu_count() or 1)
+    with safe_io.locked(watcher.outdir), sigterm_as_interrupt():  # one watcher per folder; SIGTERM kills the jobs
+        _watch(watcher, interval, once, max_jobs, as_json)
+
+
+def _watch(watcher, interval: float, once: bool, max_jobs, as_json: bool) -> None:
+    from ..batch.summary import STATUSES, batch_exit_code
     lock = threading.Lock()
 
     def on_done(r) -> None:

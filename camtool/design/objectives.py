@@ -29,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -47,6 +46,7 @@ from ..settings import PlannerSettings, home_q
 from ..stages import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
 from ..toolpath import Path
 from ..vary import parse_range
+from .. import safe_io
 
 CACHE_VERSION = 1
 
@@ -265,9 +265,8 @@ class DesignProblem:
             return
         self.cache_file.parent.mkdir(parents=True, exist_ok=True)
         entries = {",".join(repr(x) for x in k): ev.as_dict() for k, ev in sorted(self.cache.items())}
-        tmp = self.cache_file.with_suffix(".tmp")
-        tmp.write_text(json.dumps({"fingerprint": self.fingerprint(), "entries": entries}, indent=1))
-        os.replace(tmp, self.cache_file)
+        safe_io.write_file(self.cache_file.parent, self.cache_file.name,
+                           json.dumps({"fingerprint": self.fingerprint(), "entries": entries}, indent=1))
 
     def key(self, x) -> tuple:
         """The cache key of a design: values rounded to the resolution (mm)."""

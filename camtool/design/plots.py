@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import safe_io
+
 
 def _plt():
     import matplotlib
@@ -81,7 +83,7 @@ def _save(plt, fig, file) -> Path:
 
     fig.tight_layout()
     file = output_file(file)
-    fig.savefig(file, dpi=110)
+    safe_io.save_figure(fig, file, dpi=110)
     plt.close(fig)
     return file
 

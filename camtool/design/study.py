@@ -20,6 +20,7 @@ import numpy as np
 
 from .mopso import MopsoSettings, run_mopso
 from .objectives import DesignProblem, Evaluation
+from .. import safe_io
 
 
 @dataclass
@@ -124,9 +125,9 @@ def write_chosen_job(problem: DesignProblem, x, file: FsPath) -> FsPath:
     data["robot"]["params"] = params
     file = FsPath(file)
     file.parent.mkdir(parents=True, exist_ok=True)
-    header = (f"# Written by `camtool design`: {job.path.name} with the chosen arm "
+    header = (f"# Written by `camtool design`: {safe_io.comment_text(job.path.name)} with the chosen arm "
               + ", ".join(f"{n} = {params[n]:g} mm" for n in problem.names) + "\n")
-    file.write_text(header + tomli_w.dumps(data))
+    safe_io.write_file(file.parent, file.name, header + tomli_w.dumps(data))
     return file
 
 
@@ -143,5 +144,5 @@ def write_chosen_robot(problem: DesignProblem, x, file: FsPath) -> FsPath | None
     data["params"] = {**problem.params, **{n: round(float(v), 6) for n, v in zip(problem.names, x)}}
     file = FsPath(file)
     file.parent.mkdir(parents=True, exist_ok=True)
-    file.write_text(tomli_w.dumps(data))
+    safe_io.write_file(file.parent, file.name, tomli_w.dumps(data))
     return file

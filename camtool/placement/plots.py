@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import safe_io
+
 
 def _plt():
     import matplotlib
@@ -116,6 +118,6 @@ def plot_feasible_region(study, file: Path) -> Path:
     ax.grid(alpha=0.25)
     fig.tight_layout()
     file = output_file(file)
-    fig.savefig(file, dpi=110)
+    safe_io.save_figure(fig, file, dpi=110)
     plt.close(fig)
     return file

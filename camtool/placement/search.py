@@ -32,6 +32,7 @@ from ..stages import path_for_job, robot_for_job, surface_for_job, time_for_job,
 from .kinematics import ClosedForm
 from .margins import reach_margins
 from .screen import AXES, UNITS, PathGeometry, ScreenResult, ScreenSettings, screen_batch
+from .. import safe_io
 
 DEFAULT_VARY = ("x=-300:300", "y=-300:300", "z=-300:300")
 DEFAULT_STEP = {"x": 25.0, "y": 25.0, "z": 25.0, "yaw": 5.0}
@@ -135,10 +136,10 @@ def write_placed_job(job: Job, offset, file: FsPath, overrides=None, note: str =
         post["profiles"] = {k: str(job.resolve(v).resolve()) for k, v in post["profiles"].items()}
     file = FsPath(file)
     file.parent.mkdir(parents=True, exist_ok=True)
-    header = (f"# Written by `camtool place`: {job.path.name} with the workpiece at cell.workpiece_xyz_mm = "
+    header = (f"# Written by `camtool place`: {safe_io.comment_text(job.path.name)} with the workpiece at cell.workpiece_xyz_mm = "
               f"{[round(v, 3) for v in xyz]}, cell.workpiece_rpy_deg = {[round(v, 3) for v in rpy]}"
               f" (moved by {format_offset(offset)}){note}\n")
-    file.write_text(header + tomli_w.dumps(data))
+    safe_io.write_file(file.parent, file.name, header + tomli_w.dumps(data))
     return file
 
 

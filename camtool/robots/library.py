@@ -96,7 +96,9 @@ def robot_toml_data(spec: str, base_dir: Path | None = None) -> dict | None:
     if path.suffix.lower() != ".toml":
         return None
     try:
-        data = tomllib.loads(path.read_text())
+        from ..safe_io import read_input_text  # regular file under the cap: never a FIFO hang
+
+        data = tomllib.loads(read_input_text(path, "robot"))
     except FileNotFoundError:
         raise BadInput(f"{path}: robot file not found") from None
     except IsADirectoryError:

@@ -68,7 +68,9 @@ def _limit(joint: ET.Element, key: str, where: str) -> float:
 def check_urdf(path: Path) -> None:
     """BadInput for a URDF camtool cannot use, before Pinocchio reads it (see module doc)."""
     try:
-        root = ET.parse(path).getroot()
+        from ..safe_io import read_input_bytes  # regular file under the cap: never a FIFO hang
+
+        root = ET.fromstring(read_input_bytes(path, "robot"))
     except ET.ParseError as exc:
         raise BadInput(f"{path}: not a URDF: XML error ({exc})") from None
     except (OSError, UnicodeDecodeError) as exc:

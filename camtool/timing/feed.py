@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..toolpath import ZONE_CODE
+from .. import safe_io
 
 FEED_TOLERANCES = (0.01, 0.02)   # shares of the commanded feed reported (within +-1 %, +-2 %)
 FK_BLOCK = 50000                 # configurations per vectorised FK batch (bounded temporaries)
@@ -183,6 +184,6 @@ def plot_feed(profile: FeedProfile, feed_mm_s: float, png_path, title: str = "")
         ax.set_title(title)
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
-    fig.savefig(png_path)
+    safe_io.save_figure(fig, png_path)
     plt.close(fig)
     return png_path

@@ -12,7 +12,9 @@ from .dialect import COLUMN_RE
 
 def read_bytes(path: Path) -> bytes:
     """The bytes of one CSV file (the reader's only file access)."""
-    return Path(path).read_bytes()
+    from camtool.safe_io import read_program_bytes  # regular files under the cap: a FIFO never blocks
+
+    return read_program_bytes(path)
 
 
 def _read_text(path: Path) -> str:

@@ -20,7 +20,9 @@ from .dialect import (CIRCLE_POINT, CALL_RE, CODE_IN_COMMENT_RE, DATE_RE, DOUT_R
 
 def read_bytes(path: Path) -> bytes:
     """The bytes of one job file (the reader's only file access)."""
-    return Path(path).read_bytes()
+    from camtool.safe_io import read_program_bytes  # regular files under the cap: a FIFO never blocks
+
+    return read_program_bytes(path)
 
 
 @dataclass

@@ -21,7 +21,9 @@ from .dialect import (CALL_RE, CODE_IN_COMMENT_RE, CONF_RE, EAX, LOAD_RE, MODULE
 
 def read_bytes(path: Path) -> bytes:
     """The bytes of one program file (the readers' only file access)."""
-    return Path(path).read_bytes()
+    from camtool.safe_io import read_program_bytes  # regular files under the cap: a FIFO never blocks
+
+    return read_program_bytes(path)
 
 
 @dataclass

@@ -1,0 +1,458 @@
+"""Safe file access for a shared cell: inputs opened once and checked once; outputs that no planted
+symlink, special file or manifest can turn against the machine. See docs/security.md.
+
+Inputs (``read_input_bytes``, ``read_input_text``): opened with ``O_NONBLOCK`` (a FIFO never blocks the
+open), checked with ``fstat`` on that same descriptor (regular files only: no FIFO, device or socket)
+and read up to a size cap per kind (``INPUT_CAPS_MB``, overridable with ``CAMTOOL_MAX_<KIND>_MB``).
+
+Outputs: every path camtool creates, replaces or removes is reached from the output folder's own
+descriptor, one component at a time, with ``O_NOFOLLOW``: a symlink or special file anywhere under
+``-o`` is refused with one line, never followed. New files are created with ``O_EXCL | O_NOFOLLOW``
+inside a private ``mkdtemp`` folder and renamed into place (one file system, atomic). Names come
+from camtool or from its own manifests and are checked to stay inside ``-o`` (no ``..``, no
+absolute path). ``locked`` serialises camtool processes writing into one folder with ``fcntl.flock``.
+
+The standard library and the OS give every primitive; this module only composes them (no library
+does this composition for a whole output tree).
+"""
+from __future__ import annotations
+
+import errno
+import fcntl
+import json
+import os
+import stat
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+from .errors import BadInput
+
+# size caps per input kind, in MB (CAMTOOL_MAX_<KIND>_MB overrides one)
+INPUT_CAPS_MB = {"job": 4, "profile": 4, "robot": 64, "workpiece": 2048, "program": 256, "stage": 2048,
+                 "manifest": 16, "text": 64}
+LOCK_NAME = ".camtool-lock"
+MANIFESTS = (".camtool-manifest.json", ".camtool-programs.json", ".camtool-cache.json")
+# files camtool places at fixed names: an existing one in a folder camtool has never written into is foreign
+OWN_NAMES = ("report.json", "report.html", "points.csv", "summary.json", "plots")
+MAX_SCAN_ENTRIES = 200_000
+DISK_ERRNOS = {errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota is exceeded",
+               errno.EACCES: "permission denied", errno.EPERM: "permission denied",
+               errno.EROFS: "the file system is read-only"}
+_DIR_FLAGS = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
+
+
+# ---------------------------------------------------------------- inputs
+
+def size_cap_bytes(kind: str) -> int:
+    """The size cap of an input kind in bytes (CAMTOOL_MAX_<KIND>_MB overrides the default)."""
+    env = f"CAMTOOL_MAX_{kind.upper()}_MB"
+    raw = os.environ.get(env)
+    mb = INPUT_CAPS_MB.get(kind, INPUT_CAPS_MB["text"])
+    if raw:
+        try:
+            mb = float(raw)
+        except ValueError:
+            raise BadInput(f"{env}={snippet(raw)}: expected a size in MB") from None
+        if not (0 < mb < 1 << 30):
+            raise BadInput(f"{env}={snippet(raw)}: expected a size in MB above 0")
+    return int(mb * 1024 * 1024)
+
+
+def _what(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    if stat.S_ISLNK(mode):
+        return "a symlink"
+    return "not a regular file"
+
+
+def _open_input(path: Path, kind: str, follow: bool = True) -> tuple[int, os.stat_result]:
+    flags = os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC | (0 if follow else os.O_NOFOLLOW)
+    try:
+        fd = os.open(path, flags)
+    except FileNotFoundError:
+        raise BadInput(f"{path}: {kind} file not found") from None
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise BadInput(f"{path}: is a symlink; camtool does not follow links in its output folder") from None
+        raise BadInput(f"{path}: cannot read the {kind} file ({exc.strerror or exc})") from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        raise BadInput(f"{path}: is {_what(st.st_mode)}, not a regular file; give the {kind} as a file")
+    cap = size_cap_bytes(kind)
+    if st.st_size > cap:
+        os.close(fd)
+        raise BadInput(f"{path}: {st.st_size / 2**20:.1f} MB is over the {cap / 2**20:g} MB cap for a {kind} file "
+                       f"(CAMTOOL_MAX_{kind.upper()}_MB raises it)")
+    return fd, st
+
+
+def check_input(path, kind: str) -> os.stat_result:
+    """The stat of ``path`` after the checks of ``read_input_bytes`` (regular file, size cap), without reading."""
+    fd, st = _open_input(Path(path), kind)
+    os.close(fd)
+    return st
+
+
+def read_input_bytes(path, kind: str, follow: bool = True) -> bytes:
+    """The bytes of a regular input file of ``kind`` (job, profile, robot, workpiece, program, ...).
+
+    BadInput (one line) for a missing file, a folder, a FIFO, a device or a socket, a file over the cap
+    of its kind, or one that grows past it while read. Never blocks on a special file.
+    """
+    path = Path(path)
+    fd, _st = _open_input(path, kind, follow)
+    cap = size_cap_bytes(kind)
+    try:
+        chunks, total = [], 0
+        while True:
+            chunk = os.read(fd, 1 << 20)
+            if not chunk:
+                break
+            total += len(chunk)
+            if total > cap:
+                raise BadInput(f"{path}: grew past the {cap / 2**20:g} MB cap for a {kind} file while read")
+            chunks.append(chunk)
+    except OSError as exc:
+        raise BadInput(f"{path}: cannot read the {kind} file ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
+    return b"".join(chunks)
+
+
+def read_input_text(path, kind: str, errors: str = "strict") -> str:
+    """``read_input_bytes`` decoded as UTF-8; BadInput when it is not UTF-8 (with ``errors="strict"``)."""
+    data = read_input_bytes(path, kind)
+    try:
+        return data.decode("utf-8", errors=errors)
+    except UnicodeDecodeError as exc:
+        raise BadInput(f"{path}: cannot read the {kind} file: not UTF-8 text (byte {exc.start})") from None
+
+
+def snippet(text, limit: int = 60) -> str:
+    """A bounded, escaped quote of user text for an error line: repr-escaped, at most ``limit`` characters."""
+    text = str(text)
+    short = text[:limit]
+    more = f"... ({len(text) - limit} more characters)" if len(text) > limit else ""
+    return repr(short) + more
+
+
+# ---------------------------------------------------------------- the output folder
+
+def _refuse_special(path: Path, mode: int) -> None:
+    raise BadInput(f"{path}: is {_what(mode)} inside the output folder; camtool never follows links or writes "
+                   "through special files it did not make: remove it or choose another -o")
+
+
+def check_outdir(outdir) -> Path:
+    """Refuse an output folder camtool must not write into; returns it (absolute, not resolved).
+
+    Refused: ``/``, the home folder, a path that is a symlink or not a folder, a folder holding a symlink
+    or a special file anywhere below it, and a folder holding foreign files: one of camtool's fixed
+    output names (``OWN_NAMES``) that no camtool manifest or lock file vouches for.
+    """
+    out = Path(os.path.abspath(outdir))
+    real = Path(os.path.realpath(out))
+    homes = {Path(os.path.realpath(Path.home()))} if Path.home() != Path("/") else set()
+    if real == Path("/") or real in homes:
+        raise BadInput(f"{outdir}: refusing to write into {'the root folder' if real == Path('/') else 'the home folder'}; "
+                       "give camtool an output folder of its own")
+    try:
+        st = os.lstat(out)
+    except FileNotFoundError:
+        return out
+    if stat.S_ISLNK(st.st_mode):
+        raise BadInput(f"{outdir}: is a symlink; give the output folder itself")
+    if not stat.S_ISDIR(st.st_mode):
+        raise BadInput(f"{outdir}: exists and is not a folder; give an output folder")
+    seen = 0
+    for root, dirs, files in os.walk(out, followlinks=False):
+        for name in dirs + files:
+            seen += 1
+            p = Path(root) / name
+            try:
+                mode = os.lstat(p).st_mode
+            except FileNotFoundError:
+                continue
+            if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+                _refuse_special(p, mode)
+        if seen > MAX_SCAN_ENTRIES:
+            raise BadInput(f"{outdir}: holds more than {MAX_SCAN_ENTRIES} entries; give camtool an output folder of its own")
+    names = set(os.listdir(out))
+    if names & set(OWN_NAMES) and not names & {LOCK_NAME, *MANIFESTS} and not _camtool_summary(out / "summary.json"):
+        foreign = sorted(names & set(OWN_NAMES))
+        raise BadInput(f"{outdir}: holds {', '.join(foreign)} that camtool did not write (no camtool manifest "
+                       "there); give camtool an output folder of its own")
+    return out
+
+
+def _camtool_summary(file: Path) -> bool:
+    try:
+        data = json.loads(read_input_bytes(file, "manifest", follow=False))
+    except (BadInput, ValueError):
+        return False
+    return isinstance(data, dict) and "camtool" in data and "jobs" in data
+
+
+@contextmanager
+def locked(outdir):
+    """Hold the output folder's lock (``OUTDIR/.camtool-lock``, fcntl) for the block.
+
+    A second camtool process writing into the same folder is refused with one line (exit 2) instead
+    of mixing its files with the first one's. The lock file stays (it marks the folder as camtool's).
+    """
+    out = Path(outdir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        fd = os.open(out / LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            _refuse_special(out / LOCK_NAME, stat.S_IFLNK)
+        raise BadInput(f"{outdir}: cannot write into the output folder ({exc.strerror or exc})") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            _refuse_special(out / LOCK_NAME, os.fstat(fd).st_mode)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise BadInput(f"{outdir}: another camtool process is writing into this output folder; wait for it "
+                           "to finish or choose another -o") from None
+        yield out
+    finally:
+        os.close(fd)  # closing releases the lock
+
+
+def _parts(rel) -> list[str]:
+    """The components of a path relative to the output folder; BadInput when it could leave it."""
+    text = str(rel)
+    parts = text.split("/")
+    if not text or text.startswith("/") or "\0" in text or any(p in ("", ".", "..") for p in parts):
+        raise BadInput(f"{snippet(text)}: not a file name inside the output folder")
+    return parts
+
+
+def _open_dir(outdir, parts: list[str], create: bool) -> int:
+    """A descriptor of ``outdir/parts...``, walked with O_NOFOLLOW (created with ``create``)."""
+    fd = os.open(outdir, _DIR_FLAGS)
+    try:
+        for i, name in enumerate(parts):
+            if create:
+                try:
+                    os.mkdir(name, 0o755, dir_fd=fd)
+                except FileExistsError:
+                    pass
+            try:
+                nfd = os.open(name, _DIR_FLAGS, dir_fd=fd)
+            except OSError as exc:
+                if exc.errno in (errno.ELOOP, errno.ENOTDIR):
+                    mode = os.lstat(name, dir_fd=fd).st_mode
+                    _refuse_special(Path(outdir, *parts[:i + 1]), mode)
+                raise
+            os.close(fd)
+            fd = nfd
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _target_mode(dfd: int, name: str) -> int | None:
+    try:
+        return os.lstat(name, dir_fd=dfd).st_mode
+    except FileNotFoundError:
+        return None
+
+
+def check_target(outdir, rel) -> None:
+    """BadInput when ``outdir/rel`` could not be replaced by a file: a folder, symlink or special file on the way."""
+    parts = _parts(rel)
+    try:
+        dfd = _open_dir(outdir, parts[:-1], create=False)
+    except FileNotFoundError:
+        return
+    try:
+        mode = _target_mode(dfd, parts[-1])
+    finally:
+        os.close(dfd)
+    if mode is not None and stat.S_ISDIR(mode):
+        raise BadInput(f"{Path(outdir, rel)}: is a folder where camtool places a file; remove or rename it")
+    if mode is not None and not stat.S_ISREG(mode):
+        _refuse_special(Path(outdir, rel), mode)
+
+
+def place_file(src, outdir, rel) -> Path:
+    """Rename ``src`` (a file camtool wrote, on the same file system) to ``outdir/rel``; returns the target.
+
+    Folders on the way are created; a symlink or special file on the way or at the target, or a folder
+    at the target, is refused (BadInput), never followed or replaced.
+    """
+    parts = _parts(rel)
+    check_target(outdir, rel)
+    dfd = _open_dir(outdir, parts[:-1], create=True)
+    try:
+        os.rename(src, parts[-1], dst_dir_fd=dfd)
+    finally:
+        os.close(dfd)
+    return Path(outdir, rel)
+
+
+def remove_file(outdir, rel) -> bool:
+    """Remove the regular file ``outdir/rel``; True when removed. A name that would leave the folder,
+    or a symlink, folder or special file there, is left alone (False): only camtool's own files go."""
+    try:
+        parts = _parts(rel)
+        dfd = _open_dir(outdir, parts[:-1], create=False)
+    except (BadInput, OSError):
+        return False
+    try:
+        mode = _target_mode(dfd, parts[-1])
+        if mode is None or not stat.S_ISREG(mode):
+            return False
+        os.unlink(parts[-1], dir_fd=dfd)
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(dfd)
+
+
+def make_folder(outdir, rel) -> Path:
+    """``outdir/rel`` created folder by folder with O_NOFOLLOW (a symlink on the way is refused);
+    ``outdir`` itself (the user's -o) is created when missing."""
+    Path(outdir).mkdir(parents=True, exist_ok=True)
+    os.close(_open_dir(outdir, _parts(rel), create=True))
+    return Path(outdir, rel)
+
+
+def write_file(folder, name: str, data: bytes | str, mode: int = 0o644) -> Path:
+    """Write ``folder/name`` atomically: created with O_EXCL|O_NOFOLLOW in a private mkdtemp folder
+    inside ``folder``, then renamed into place (``place_file``). Never half-written, never through a link."""
+    folder = Path(folder)
+    check_target(folder, name)
+    tmpdir = tempfile.mkdtemp(prefix=".camtool-write-", dir=folder)
+    try:
+        tmp = os.path.join(tmpdir, "file")
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, mode)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode("utf-8") if isinstance(data, str) else data)
+        os.chmod(tmp, mode)
+        return place_file(tmp, folder, name)
+    finally:
+        try:
+            os.unlink(os.path.join(tmpdir, "file"))
+        except FileNotFoundError:
+            pass
+        os.rmdir(tmpdir)
+
+
+def new_file(folder, name: str, append: bool = False):
+    """A binary file object for ``folder/name`` (e.g. a log written while a job runs).
+
+    The old file, if any, is removed (only a regular file; a symlink or special file there is refused)
+    and a new one is created with O_EXCL|O_NOFOLLOW; with ``append`` an existing regular file is opened
+    for appending (O_NOFOLLOW, and checked regular with fstat) instead.
+    """
+    folder = Path(folder)
+    check_target(folder, name)
+    dfd = os.open(folder, _DIR_FLAGS)
+    try:
+        if append:
+            fd = os.open(name, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC,
+                         0o644, dir_fd=dfd)
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                os.close(fd)
+                _refuse_special(folder / name, os.fstat(fd).st_mode)
+        else:
+            try:
+                os.unlink(name, dir_fd=dfd)
+            except FileNotFoundError:
+                pass
+            fd = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644,
+                         dir_fd=dfd)
+    finally:
+        os.close(dfd)
+    return os.fdopen(fd, "ab" if append else "wb")
+
+
+def disk_error(exc: OSError) -> BadInput | None:
+    """The one-line BadInput for an OS error the user can fix (full disk, quota, permission, read-only), else None."""
+    why = DISK_ERRNOS.get(exc.errno)
+    if why is None:
+        return None
+    where = exc.filename or "the output folder"
+    return BadInput(f"{where}: cannot write: {why}; the previous outputs are left as they were")
+
+
+def safe_name(text: str, fallback: str = "job", limit: int = 100) -> str:
+    """A file or folder name made from user text (a job file's stem, a workpiece's name): letters, digits,
+    ``_``, ``-`` and ``.`` kept, anything else ``_``; no leading dot (so never ``.`` or ``..``); at most
+    ``limit`` characters; ``fallback`` when nothing is left."""
+    import re
+
+    name = re.sub(r"[^\w.-]", "_", str(text))[:limit].lstrip(".").rstrip(". ")
+    return name or fallback
+
+
+def load_toml(path, kind: str, text: str | None = None) -> dict:
+    """A TOML file read with ``read_input_text`` (or ``text``) and parsed; BadInput (one line, with a
+    bounded quote) for a syntax error and for nesting too deep for the parser (RecursionError)."""
+    import tomllib
+
+    text = read_input_text(path, kind) if text is None else text
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise BadInput(f"{path}: TOML syntax error: {str(exc)[:200]}") from None  # tomllib quotes no user text
+    except RecursionError:
+        raise BadInput(f"{path}: the TOML is nested too deeply to read; a {kind} file is a few flat tables") from None
+
+
+@contextmanager
+def opened_input(path, kind: str):
+    """A name for a library that can only open files by name (trimesh, open3d), bound to one descriptor
+    opened and checked like ``read_input_bytes``: ``/proc/self/fd/N`` on Linux, so the library reads the
+    very file that was checked (a FIFO swapped in afterwards is never opened); the path elsewhere."""
+    fd, _st = _open_input(Path(path), kind)
+    try:
+        proc = f"/proc/self/fd/{fd}"
+        yield proc if os.path.exists(proc) else str(path)
+    finally:
+        os.close(fd)
+
+
+def save_figure(fig, file, **savefig_kw) -> Path:
+    """``fig.savefig`` through ``write_file``: rendered in memory, then created O_EXCL|O_NOFOLLOW and
+    renamed into place (a planted link at the PNG's name is refused, never written through)."""
+    import io
+
+    file = Path(file)
+    file.parent.mkdir(parents=True, exist_ok=True)
+    buf = io.BytesIO()
+    fig.savefig(buf, format=savefig_kw.pop("format", file.suffix.lstrip(".") or "png"), **savefig_kw)
+    return write_file(file.parent, file.name, buf.getvalue())
+
+
+def comment_text(text) -> str:
+    """User text (a file name) for a one-line comment of a file camtool writes: every character that is
+    not printable (newline, carriage return, escape, ...) escaped, so it cannot end the comment."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
+def read_program_bytes(path) -> bytes:
+    """A program file for the controller readers and ``camtool check`` (and the files it follows: a .pgf's
+    modules, ``Load \\Dynamic``, ``CALL JOB:``): ``read_input_bytes`` of kind program, its BadInput given as
+    the OSError those readers report as a finding; a missing file raises the OS's own error, as before."""
+    if not os.path.lexists(path):
+        return Path(path).read_bytes()
+    try:
+        return read_input_bytes(path, "program")
+    except BadInput as exc:
+        raise OSError(str(exc)) from None
