@@ -41,6 +41,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from .quintic import MARGIN, limit_ratio, piece_peaks
+from .scurve_fit import first_fit_compiled, fits_compiled
 
 FILL_S = 0.010          # longest sample interval inside an S-curve
 MIN_GAP_S = 1e-3        # samples closer than this to a kept one are dropped (poses are always kept)
@@ -54,6 +55,7 @@ J_GRID = 2.0 ** np.arange(4.0, -9.0, -1.0)     # path jerks tried, relative to t
 A_GRID = 4.0 ** np.arange(2.0, -3.0, -1.0)     # path accelerations tried, relative likewise
 REFINE_STEPS = 4        # bisection steps refining the best grid J, then A
 SPEED_TOL = 1e-3        # a plateau lowered to fit its S-curves: relative precision of its speed
+_FRACTIONS: dict = {}   # instants of an S-curve as shares of its duration, per sample count
 
 
 # ----------------------------------------------------------------------------- the geometric path
@@ -238,12 +240,41 @@ class _Budget:
         ok = p1max > 0
         self.a_ref = float(np.min(self.a_lim[ok] / p1max[ok])) if ok.any() else 1.0
         self.j_ref = float(np.min(self.j_lim[ok] / p1max[ok])) if ok.any() else 1.0
+        self._c = None  # contiguous copies for the compiled test, made on first use
 
     def fits(self, v0: float, v1: float, A: np.ndarray, J: np.ndarray, s_start: np.ndarray,
              samples: int = SCURVE_SAMPLES) -> np.ndarray:
         """Per candidate (A[c], J[c], start position s_start[c]): True if the S-curve v0 -> v1 keeps
         every joint within the shares of its limits, by the triangle inequality on the piece maxima
-        at the actual path speed and acceleration of ``samples`` instants (phase ends included)."""
+        at the actual path speed and acceleration of ``samples`` instants (phase ends included).
+
+        Compiled (``scurve_fit.py``); ``fits_numpy`` is the same test in numpy, the reference."""
+        A, J, s_start = (np.ascontiguousarray(np.atleast_1d(np.asarray(x, float))) for x in (A, J, s_start))
+        self._compiled()
+        return fits_compiled(v0, v1, A, J, s_start, self._fractions(samples), *self._c)
+
+    def first_fit(self, v0: float, v1: float, A: np.ndarray, J: np.ndarray, s_start: np.ndarray,
+                  samples: int = SCURVE_SAMPLES) -> int:
+        """The index of the first candidate (in their order) that ``fits``, or -1; later ones are not tested."""
+        A, J, s_start = (np.ascontiguousarray(np.atleast_1d(np.asarray(x, float))) for x in (A, J, s_start))
+        self._compiled()
+        return first_fit_compiled(v0, v1, A, J, s_start, self._fractions(samples), *self._c)
+
+    @staticmethod
+    def _fractions(samples: int) -> np.ndarray:
+        frac = _FRACTIONS.get(samples)
+        if frac is None:
+            frac = _FRACTIONS.setdefault(samples, np.linspace(1e-9, 1.0 - 1e-9, samples))
+        return frac
+
+    def _compiled(self) -> None:
+        if self._c is None:
+            self._c = tuple(np.ascontiguousarray(x, float) for x in (
+                self.s, self.p1, self.p2, self.p3, self.a_lim, self.j_lim, self.v_lim * (1 + 1e-9)))
+
+    def fits_numpy(self, v0: float, v1: float, A: np.ndarray, J: np.ndarray, s_start: np.ndarray,
+                   samples: int = SCURVE_SAMPLES) -> np.ndarray:
+        """``fits`` in numpy (the reference the compiled test is checked against)."""
         A, J, s_start = (np.atleast_1d(np.asarray(x, float)) for x in (A, J, s_start))
         dv = abs(v1 - v0)
         sign = 1.0 if v1 > v0 else -1.0
@@ -298,12 +329,13 @@ def _scurve_at(budget: _Budget, v0: float, v1: float, s_edge: float, before: boo
 
     AA, JJ = np.meshgrid(budget.a_ref * A_GRID, budget.j_ref * J_GRID, indexing="ij")
     AA, JJ = AA.ravel(), JJ.ravel()
-    ok = budget.fits(v0, v1, AA, JJ, start(AA, JJ))
-    if not ok.any():
+    # the shortest candidate that fits (ties: the first): candidates tested shortest first, up to the first fit
+    order = np.argsort(dist(AA, JJ), kind="stable")
+    AA, JJ = AA[order], JJ[order]
+    c = budget.first_fit(v0, v1, AA, JJ, start(AA, JJ))
+    if c < 0:
         out.update(D=np.inf, T=np.inf)
         return out
-    d = np.where(ok, dist(AA, JJ), np.inf)
-    c = int(np.argmin(d))
     A, J = float(AA[c]), float(JJ[c])
     for which in ("J", "A"):  # bisection upwards: the grid is a factor 2 (J) or 4 (A) apart
         lo = A if which == "A" else J
