@@ -334,7 +334,7 @@ class DhKernel:
 
 
 def warm_up() -> None:
-    """Compile (and cache) the kernels on a tiny problem; used by the set-up script."""
+    """Compile (and cache) the kernels (CWLN, the S-curve test) on a tiny problem; used by the set-up script."""
     from ..robots import get_robot
 
     robot = get_robot("seed8")
@@ -342,3 +342,8 @@ def warm_up() -> None:
     T = robot.fk_tcp(np.full(robot.dof, 0.3))
     k.run(T[None], np.full(robot.dof, 0.25))
     k.self_motion(T, np.full(robot.dof, 0.3), np.zeros(robot.dof), iterations=2)
+    from ..timing.pathlaw import PathSpline, _Budget  # the time law's compiled S-curve test too
+
+    budget = _Budget(PathSpline(np.array([0.0, 1.0]), np.zeros((2, robot.dof)) + [[0.0], [0.1]]), robot.limits)
+    budget.fits(0.0, 1.0, [1.0], [1.0], [0.0])
+    budget.first_fit(0.0, 1.0, [1.0], [1.0], [0.0])
