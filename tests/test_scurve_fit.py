@@ -2,7 +2,7 @@
 import numpy as np
 
 from camtool.robots import get_robot
-from camtool.timing.pathlaw import A_GRID, J_GRID, PathSpline, _Budget
+from camtool.timing.pathlaw import A_GRID, J_GRID, REFINE_STEPS, PathSpline, _Budget
 
 
 def _cases(n_cases=60, seed=0):
@@ -28,14 +28,47 @@ def test_compiled_fits_agree_with_numpy():
     assert 0.05 < share < 0.95  # both answers occur
 
 
-def test_first_fit_in_length_order_is_the_shortest_fitting_candidate():
-    for budget, v0, v1, A, J, start in _cases(seed=1):
-        length = np.where(abs(v1 - v0) * J <= A * A, 2 * np.sqrt(abs(v1 - v0) / J),
-                          abs(v1 - v0) / A + A / J)
-        ok = budget.fits_numpy(v0, v1, A, J, start)
-        order = np.argsort(length, kind="stable")
-        c = budget.first_fit(v0, v1, A[order], J[order], start[order])
-        if not ok.any():
-            assert c == -1
-        else:
-            assert order[c] == int(np.argmin(np.where(ok, length, np.inf)))
+def _search_numpy(budget, v0, v1, s_edge, before):
+    """The search as it was written in numpy (the reference): the grid, the shortest fit, the bisection."""
+    dv, vbar = abs(v1 - v0), 0.5 * (v0 + v1)
+
+    def dist(A, J):
+        A, J = np.asarray(A, float), np.asarray(J, float)
+        return vbar * np.where(dv * J <= A * A, 2 * np.sqrt(dv / J), dv / A + A / J)
+
+    def start(A, J):
+        return (s_edge - dist(A, J)) if before else np.full(np.shape(A), s_edge)
+
+    AA, JJ = np.meshgrid(budget.a_ref * A_GRID, budget.j_ref * J_GRID, indexing="ij")
+    AA, JJ = AA.ravel(), JJ.ravel()
+    ok = budget.fits_numpy(v0, v1, AA, JJ, start(AA, JJ))
+    if not ok.any():
+        return False, 0.0, 0.0
+    c = int(np.argmin(np.where(ok, dist(AA, JJ), np.inf)))
+    A, J = float(AA[c]), float(JJ[c])
+    for which in ("J", "A"):
+        lo = A if which == "A" else J
+        hi = lo * (4.0 if which == "A" else 2.0)
+        for _ in range(REFINE_STEPS):
+            mid = 0.5 * (lo + hi)
+            a_, j_ = (mid, J) if which == "A" else (A, mid)
+            if dist(a_, j_) < dist(A, J) and budget.fits_numpy(v0, v1, [a_], [j_], start([a_], [j_]))[0]:
+                lo, A, J = mid, a_, j_
+            else:
+                hi = mid
+    return True, A, J
+
+
+def test_compiled_search_finds_what_the_numpy_search_finds():
+    found = 0
+    for k, (budget, v0, v1, _, _, start) in enumerate(_cases(seed=1)):
+        before = bool(k % 2)
+        edge = float(start[0])
+        want = _search_numpy(budget, v0, v1, edge, before)
+        got = budget.search(v0, v1, edge, before, budget.a_ref * A_GRID, budget.j_ref * J_GRID, REFINE_STEPS)
+        assert got == want
+        found += want[0]
+        if k < 5:  # far above every speed limit: nothing fits
+            none = budget.search(v0, 1e6, edge, before, budget.a_ref * A_GRID, budget.j_ref * J_GRID, REFINE_STEPS)
+            assert none == _search_numpy(budget, v0, 1e6, edge, before) == (False, 0.0, 0.0)
+    assert found > 0

@@ -346,4 +346,4 @@ def warm_up() -> None:
 
     budget = _Budget(PathSpline(np.array([0.0, 1.0]), np.zeros((2, robot.dof)) + [[0.0], [0.1]]), robot.limits)
     budget.fits(0.0, 1.0, [1.0], [1.0], [0.0])
-    budget.first_fit(0.0, 1.0, [1.0], [1.0], [0.0])
+    budget.search(0.0, 1.0, 0.5, True, np.array([1.0]), np.array([1.0]), 1)

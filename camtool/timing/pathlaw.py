@@ -41,7 +41,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from .quintic import MARGIN, limit_ratio, piece_peaks
-from .scurve_fit import first_fit_compiled, fits_compiled
+from .scurve_fit import fits_compiled, search_compiled
 
 FILL_S = 0.010          # longest sample interval inside an S-curve
 MIN_GAP_S = 1e-3        # samples closer than this to a kept one are dropped (poses are always kept)
@@ -253,12 +253,12 @@ class _Budget:
         self._compiled()
         return fits_compiled(v0, v1, A, J, s_start, self._fractions(samples), *self._c)
 
-    def first_fit(self, v0: float, v1: float, A: np.ndarray, J: np.ndarray, s_start: np.ndarray,
-                  samples: int = SCURVE_SAMPLES) -> int:
-        """The index of the first candidate (in their order) that ``fits``, or -1; later ones are not tested."""
-        A, J, s_start = (np.ascontiguousarray(np.atleast_1d(np.asarray(x, float))) for x in (A, J, s_start))
+    def search(self, v0: float, v1: float, s_edge: float, before: bool, a_grid: np.ndarray, j_grid: np.ndarray,
+               refine_steps: int, samples: int = SCURVE_SAMPLES) -> tuple[bool, float, float]:
+        """(found, A, J) of ``_scurve_at``'s search, compiled (``scurve_fit.search_compiled``)."""
         self._compiled()
-        return first_fit_compiled(v0, v1, A, J, s_start, self._fractions(samples), *self._c)
+        return search_compiled(v0, v1, s_edge, before, np.ascontiguousarray(a_grid, float),
+                               np.ascontiguousarray(j_grid, float), refine_steps, self._fractions(samples), *self._c)
 
     @staticmethod
     def _fractions(samples: int) -> np.ndarray:
@@ -312,42 +312,16 @@ def _scurve_at(budget: _Budget, v0: float, v1: float, s_edge: float, before: boo
 
     Path accelerations and jerks on a grid (relative to the section's reference
     values) are bounded at the S-curve's own instants and positions
-    (``_Budget.fits``); the fastest that fits is refined by bisection on J, then A.
-    ``derate`` scales the result. D = inf when none fits.
+    (``_Budget.fits``); the fastest that fits is refined by bisection on J, then A
+    (compiled, ``_Budget.search``). ``derate`` scales the result. D = inf when none fits.
     """
     out = {"v0": v0, "v1": v1, "A": 0.0, "J": 0.0, "D": 0.0, "T": 0.0, "phases": []}
     if v0 == v1:
         return out
-    dv, vbar = abs(v1 - v0), 0.5 * (v0 + v1)
-
-    def dist(A, J):
-        A, J = np.asarray(A, float), np.asarray(J, float)
-        return vbar * np.where(dv * J <= A * A, 2 * np.sqrt(dv / J), dv / A + A / J)
-
-    def start(A, J):
-        return (s_edge - dist(A, J)) if before else np.full(np.shape(A), s_edge)
-
-    AA, JJ = np.meshgrid(budget.a_ref * A_GRID, budget.j_ref * J_GRID, indexing="ij")
-    AA, JJ = AA.ravel(), JJ.ravel()
-    # the shortest candidate that fits (ties: the first): candidates tested shortest first, up to the first fit
-    order = np.argsort(dist(AA, JJ), kind="stable")
-    AA, JJ = AA[order], JJ[order]
-    c = budget.first_fit(v0, v1, AA, JJ, start(AA, JJ))
-    if c < 0:
+    found, A, J = budget.search(v0, v1, s_edge, before, budget.a_ref * A_GRID, budget.j_ref * J_GRID, REFINE_STEPS)
+    if not found:
         out.update(D=np.inf, T=np.inf)
         return out
-    A, J = float(AA[c]), float(JJ[c])
-    for which in ("J", "A"):  # bisection upwards: the grid is a factor 2 (J) or 4 (A) apart
-        lo = A if which == "A" else J
-        hi = lo * (4.0 if which == "A" else 2.0)
-        for _ in range(REFINE_STEPS):
-            mid = 0.5 * (lo + hi)
-            a_, j_ = (mid, J) if which == "A" else (A, mid)
-            if dist(a_, j_) < dist(A, J) and budget.fits(v0, v1, [a_], [j_], start([a_], [j_]))[0]:
-                lo = mid
-                A, J = a_, j_
-            else:
-                hi = mid
     A, J = derate * A, derate * J
     phases, T, D = scurve(v0, v1, A, J)
     out.update(A=A, J=J, D=D, T=T, phases=phases)
