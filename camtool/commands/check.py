@@ -4,7 +4,6 @@ from pathlib import Path
 import click
 
 from ..console import echo_json
-from ..robots import get_robot
 
 
 def _simulation(program: Path, robot, profile, fmt: str, against: Path | None, job, path_tol: float | None):
@@ -78,6 +77,8 @@ def command(program: Path, robot_name: str | None, profile_file: Path | None, fm
     """
     from postprocessors.base import get_plugin
     from postprocessors.check import check_program, check_summary, format_of, profile_for_check
+
+    from ..robots import get_robot
 
     from ..errors import BadInput
 

@@ -5,10 +5,6 @@ import click
 
 from ..console import echo_json
 from ..job import load_job
-from ..post import preflight
-from ..settings import JobSettings
-from ..stages import post_checked, robot_for_job
-from .resume import trajectory_of
 
 
 @click.command("post")
@@ -28,6 +24,11 @@ def command(job_file: Path, from_file: Path | None, path_file: Path | None, outd
     The trajectory passes the independent limit check first and every program
     is read back and checked before it is placed, as in `camtool run`.
     """
+    from ..post import preflight
+    from ..settings import JobSettings
+    from ..stages import post_checked, robot_for_job
+    from .resume import trajectory_of
+
     job = load_job(job_file, list(overrides))
     robot = robot_for_job(job)
     preflight(robot, job, outdir)
