@@ -35,6 +35,8 @@ All quantities: path parameter s, joint values in native units, times in s.
 """
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -550,6 +552,35 @@ def check_section(samples: SectionSamples, limits, share: float = CHECK_SHARE) -
                      n_grid=CHECK_GRID)
     r = limit_ratio(pk, limits.velocity, limits.acceleration, limits.jerk, share)
     return np.where(pk.position_break.any(axis=1), np.inf, r)
+
+
+RUN_MEMO_SIZE = 2048    # run time laws kept for a second, identical request (lead sizing, then timing)
+_RUN_MEMO: OrderedDict = OrderedDict()
+
+
+def time_run_section(spline: PathSpline, target: np.ndarray, limits, fill_s: float = FILL_S):
+    """``time_section`` of a surface run, each run planned once per process: lead sizing
+    (``runs.run_leads``) and the timing of the same joint path (``runs.time_runs``) ask for the very same
+    sections, so the second request gets the first's (plan, samples, derate), arrays read-only. Keyed on
+    the exact bytes of the knots, poses, targets, limits and ``fill_s``; at most ``RUN_MEMO_SIZE`` kept."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in (spline.s, spline.q, target, limits.lower, limits.upper, limits.velocity, limits.acceleration,
+              limits.jerk, np.array([fill_s], float)):
+        a = np.ascontiguousarray(a, float)
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    key = h.digest()
+    hit = _RUN_MEMO.get(key)
+    if hit is not None:
+        _RUN_MEMO.move_to_end(key)
+        return hit
+    plan, smp, derate = time_section(spline, target, limits, fill_s)
+    for arr in (smp.t_s, smp.q, smp.qd, smp.qdd, smp.knot):
+        arr.setflags(write=False)
+    _RUN_MEMO[key] = (plan, smp, derate)
+    while len(_RUN_MEMO) > RUN_MEMO_SIZE:
+        _RUN_MEMO.popitem(last=False)
+    return plan, smp, derate
 
 
 def time_section(spline: PathSpline, target: np.ndarray, limits, fill_s: float = FILL_S):
