@@ -309,7 +309,6 @@ def test_self_motion_matches_the_reference_solver():
 
 
 def test_batched_tcp_jacobians_are_pinocchios():
-
     robot = get_robot("seed8")
     kernel = DhKernel(robot, IkSettings(), False, np.full(robot.dof, np.inf))
     rng = np.random.default_rng(3)
