@@ -3,11 +3,14 @@
 Prints points per second for:
 - camtool's full seed strategy (plan_path: start search, CWLN, jump checks, GP,
   connectors) on the seed job's path;
-- camtool's compiled CWLN hot loop alone (warm-started along the same poses);
+- camtool's compiled CWLN hot loop alone (warm-started along the same poses, up to
+  the first pose it cannot take without a jump);
 - anchor 1: a plain damped-least-squares loop on Pinocchio, warm-started;
 - anchor 2: roboticstoolbox-python's C++ ``ik_LM``, warm-started (benchmark-only
   extra; skipped with a note when not installed).
-All solve the same poses to about the same tolerance; the accuracy each reached
+Every timed call is warmed up first, outside the timed region (numba compiles or
+loads a kernel on its first call with given argument types; the anchors build
+their models). All solve the same poses to about the same tolerance; the accuracy each reached
 is measured by one FK (Pinocchio) and printed too. With ``--dense`` it also
 plans the dense variant (2 mm x 2 mm) in a child process and prints its peak RSS.
 
@@ -123,17 +126,23 @@ def main():
     n = len(path)
     print(f"seed sphere job: {n} poses ({int(path.is_work.sum())} work), robot {robot.name}, one core\n")
 
+    # warm-up outside every timed region: numba compiles (or loads from its cache) each kernel for the
+    # argument types it is first called with, so each is called once on these very arrays first
+    plan_path(path, robot, PlannerSettings.make(**job.planner))
     jp, t_seed = timed(lambda: plan_path(path, robot, PlannerSettings.make(**job.planner)))
     q0 = jp.q[0]
     kernel = DhKernel(robot, IkSettings(), False, np.full(robot.dof, np.inf))
+    kernel.run(targets[:2].copy(), q0)
     (stop, q_k, _pe, _oe), t_kernel = timed(kernel.run, targets, q0)
     rows = [("camtool seed strategy (plan_path)", n, t_seed, accuracy(robot, jp.q[jp.path_index >= 0][::50], targets[::50])),
             ("camtool CWLN kernel (hot loop only)", stop, t_kernel, accuracy(robot, q_k[:stop:50], targets[:stop:50]))]
     m = 2000  # the Python anchors are slow: time them on the first poses
+    plain_dls(robot, targets[:5], q0)  # warm-up
     q_p, t_plain = timed(plain_dls, robot, targets[:m], q0)
     rows.append(("anchor: plain DLS loop on Pinocchio", m, t_plain, accuracy(robot, q_p[::20], targets[:m:20])))
     try:
         for tol in (1e-6, 1e-10):
+            rtb_ik_lm(robot, targets[:5], q0, tol)  # warm-up (the robot model, the C++ extension)
             q_r, t_rtb = timed(rtb_ik_lm, robot, targets[:m], q0, tol)
             rows.append((f"anchor: roboticstoolbox ik_LM tol {tol:g}", m, t_rtb,
                          accuracy(robot, q_r[::20], targets[:m:20])))
@@ -144,8 +153,10 @@ def main():
         print(f"{name:<42}{count:>8}{t:>10.3f}{count / t:>12,.0f}{pe:>12.2e}{oe:>13.2e}")
     base = {name: count / t for name, count, t, _ in rows}
     seed_rate = base["camtool seed strategy (plan_path)"]
+    kernel_rate = base["camtool CWLN kernel (hot loop only)"]
     for name in list(base)[2:]:
-        print(f"seed strategy / {name.split(': ')[1]}: {seed_rate / base[name]:.1f}x")
+        print(f"seed strategy / {name.split(': ')[1]}: {seed_rate / base[name]:.1f}x; "
+              f"CWLN kernel / {name.split(': ')[1]}: {kernel_rate / base[name]:.1f}x")
     if "--dense" in sys.argv:
         subprocess.run([sys.executable, __file__, "--dense-child"], check=True)
 

@@ -10,7 +10,6 @@ import traceback
 
 import click
 
-from . import __version__
 from .commands import batch, check, design, fit, fk, place, plan, post, posts, raster, robots, run, timing, watch
 from .errors import CamtoolError
 
@@ -18,6 +17,14 @@ DEBUG_KEY = "camtool.debug"  # ctx.meta key set by the group's --debug option
 
 
 MAX_MESSAGE = 2000  # characters of an error line; a 5 MB name is not echoed whole
+
+
+def _print_version(ctx: click.Context) -> None:
+    """``--version``, as click's version_option prints it; the version is read only when asked for."""
+    from . import __version__
+
+    click.echo(f"camtool, version {__version__}")
+    ctx.exit()
 
 
 def one_line(text: str) -> str:
@@ -79,7 +86,8 @@ class CamtoolGroup(click.Group):
 
 
 @click.group(cls=CamtoolGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
-@click.version_option(__version__, "--version", prog_name="camtool")
+@click.option("--version", is_flag=True, expose_value=False, is_eager=True, help="Show the version and exit.",
+              callback=lambda ctx, _param, value: _print_version(ctx) if value else None)
 @click.option("--debug", is_flag=True, help="Show the Python traceback of an error.")
 @click.option("--no-plugins", is_flag=True,
               help="Load no third-party post-processor, only the built-ins (also for batch children; "

@@ -166,9 +166,7 @@ def redundancy_map(path: Path, robot, joint_path=None, settings: RedundancySetti
     reach = code == REACHABLE
     margin = np.where(reach, np.clip(best_m, 0.0, None), np.nan)
     manip = np.full(code.shape, np.nan)
-    for iy, ix in zip(*np.nonzero(reach)):
-        J = robot.jacobian(best_q[iy, ix], tcp=True)
-        manip[iy, ix] = np.sqrt(max(float(np.linalg.det(J @ J.T)), 0.0))
+    manip[reach] = _manipulability(robot, best_q[reach])
     mmax = float(np.nanmax(manip)) if reach.any() else 0.0
     if mmax > 0:
         manip = manip / mmax
@@ -181,6 +179,22 @@ def redundancy_map(path: Path, robot, joint_path=None, settings: RedundancySetti
     if kind == "track":
         notes = (f"best of {st.track_arm_angles} arm angles per cell",)
     return RedundancyMap(robot.name, kind, x, y, code, margin, manip, planned, mmax, notes)
+
+
+def _manipulability(robot, qs: np.ndarray) -> np.ndarray:
+    """sqrt(det(J J^T)) of the TCP Jacobian at each row of ``qs``: compiled and batched for DH robots
+    (``DhKernel.jacobians``, checked against Pinocchio when built), else one ``robot.jacobian`` per row."""
+    if not len(qs):
+        return np.zeros(0)
+    from .plan.cwln import IkSettings
+    from .plan.kernel import DhKernel
+
+    kernel = DhKernel.build(robot, IkSettings(), False, np.full(robot.dof, np.inf))
+    if kernel is not None:
+        J = kernel.jacobians(qs)
+    else:
+        J = np.array([robot.jacobian(q, tcp=True) for q in qs])
+    return np.sqrt(np.maximum(np.linalg.det(J @ np.swapaxes(J, 1, 2)), 0.0))
 
 
 # ----------------------------------------------------------------------------- sweeps

@@ -67,6 +67,14 @@ def plan_metrics(path: Path, jp: JointPath, robot, method: str, jump_threshold_d
     }
 
 
+def stage_seconds(seconds: dict) -> dict:
+    """report.json's ``stage_seconds``: wall seconds per stage of the run in the order they ran (ms), and
+    their ``total``."""
+    out = {str(k): round(float(v), 3) for k, v in seconds.items()}
+    out["total"] = round(float(sum(seconds.values())), 3)
+    return out
+
+
 def write_json_atomic(obj: dict, file: FsPath) -> None:
     """Write JSON through a temporary file and a rename: never half-written, no temporary file left.
 

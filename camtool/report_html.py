@@ -117,14 +117,32 @@ def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None,
 # ----------------------------------------------------------------------------- helpers
 
 def fig_html(fig, div_id: str) -> str:
-    """A figure as a div with a fixed id (plotly.js comes once, in the page head)."""
-    return fig.to_html(include_plotlyjs=False, full_html=False, div_id=div_id, config=PLOTLY_CONFIG)
+    """A figure (plotly Figure, or a figure dict from ``_with_traces``) as a div with a fixed id (plotly.js
+    comes once, in the page head). A dict is not validated again: its layout was, its traces are plain data."""
+    import plotly.io as pio
+
+    return pio.to_html(fig, include_plotlyjs=False, full_html=False, div_id=div_id, config=PLOTLY_CONFIG,
+                       validate=not isinstance(fig, dict))
+
+
+def _trace(kind: str, **props) -> dict:
+    """A plotly trace as a plain dict (``type`` = ``kind``): plotly's validators walk every value of a list
+    one by one in Python (seconds for a 20k-point scene), so the traces' data skip them."""
+    return {"type": kind, **props}
+
+
+def _with_traces(fig, traces: list) -> dict:
+    """The figure dict of a plotly Figure's layout (validated; small) and plain-dict ``traces``."""
+    return {"data": list(traces), "layout": fig.to_plotly_json()["layout"]}
 
 
 def _list(a, decimals: int) -> list:
     """Rounded values as a JSON-friendly list, NaN / inf as None (plotly leaves a gap)."""
     a = np.round(np.asarray(a, dtype=float), decimals)
-    return [v if np.isfinite(v) else None for v in a.tolist()]
+    out = a.tolist()
+    for i in np.flatnonzero(~np.isfinite(a)).tolist():
+        out[i] = None
+    return out
 
 
 def _xyz(p: np.ndarray) -> dict:
@@ -146,11 +164,10 @@ def _world(robot, p_base: np.ndarray) -> np.ndarray:
 
 
 def tcp_positions(robot, q: np.ndarray) -> np.ndarray:
-    """(N, 3) TCP positions (world frame, mm) at joint rows q."""
-    out = np.empty((len(q), 3))
-    for k, qk in enumerate(q):
-        out[k] = robot.fk_tcp(qk)[:3, 3]
-    return _world(robot, out)
+    """(N, 3) TCP positions (world frame, mm) at joint rows q (vectorised FK, ``timing.feed``)."""
+    from .timing.feed import tcp_positions_world
+
+    return tcp_positions_world(robot, np.asarray(q, float).reshape(-1, robot.dof))
 
 
 def joint_origins(robot, q) -> np.ndarray:
@@ -269,7 +286,7 @@ def _row_points(robot, path, joint_path, rows: np.ndarray) -> np.ndarray:
 
 def _marker(go, name, p, symbol, color, size=4):
     keep = subsample(len(p), MAX_MARKERS)
-    return go.Scatter3d(mode="markers", name=f"{name} ({len(p)})", **_xyz(p[keep]),
+    return _trace("scatter3d", mode="markers", name=f"{name} ({len(p)})", **_xyz(p[keep]),
                         marker={"symbol": symbol, "color": color, "size": size}, hoverinfo="name+x+y+z")
 
 
@@ -281,20 +298,20 @@ def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, fai
         n = workpiece.n_points
         keep = np.sort(np.random.default_rng(0).choice(n, MAX_WORKPIECE_POINTS, replace=False)) \
             if n > MAX_WORKPIECE_POINTS else np.arange(n)
-        traces.append(go.Scatter3d(mode="markers", name=f"workpiece ({len(keep)} of {n} points)",
+        traces.append(_trace("scatter3d", mode="markers", name=f"workpiece ({len(keep)} of {n} points)",
                                    **_xyz(workpiece.points_mm[keep]), hoverinfo="skip",
                                    marker={"size": 1.2, "color": "#b0b0b0", "opacity": 0.5}))
     if surface is not None:
         lines = _boundary_lines(surface)
         if lines is not None:
-            traces.append(go.Scatter3d(mode="lines", name="fitted surface boundary", **_xyz(lines),
+            traces.append(_trace("scatter3d", mode="lines", name="fitted surface boundary", **_xyz(lines),
                                        line={"color": "#444444", "width": 3}, hoverinfo="skip"))
     if path is not None and len(path):
         traces += _path_traces(go, path, feed)
     traces += _event_traces(go, report, robot, path, joint_path, failing_indices)
     robot_trace, steps = _robot_traces(go, robot, path, joint_path)
     traces.append(robot_trace)
-    fig = go.Figure(traces)
+    fig = go.Figure()
     fig.update_layout(height=780, margin={"l": 0, "r": 0, "t": 30, "b": 0},
                       legend={"itemsizing": "constant", "x": 0.0, "y": 1.0, "bgcolor": "rgba(255,255,255,0.7)"},
                       scene={"aspectmode": "data", "xaxis_title": "x [mm]", "yaxis_title": "y [mm]",
@@ -302,13 +319,13 @@ def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, fai
     if steps:
         fig.update_layout(sliders=[{"active": 0, "currentvalue": {"prefix": "robot at "}, "pad": {"t": 10},
                                     "steps": [dict(s, args=[s["args"][0], [len(traces) - 1]]) for s in steps]}])
-    return fig
+    return _with_traces(fig, traces)
 
 
 def _path_traces(go, path, feed) -> list:
     p = path.poses_mm[:, :3, 3]
     shown = subsample(len(path), MAX_PATH_POINTS)
-    traces = [go.Scatter3d(mode="lines", name="path order", **_xyz(p[shown]), hoverinfo="skip",
+    traces = [_trace("scatter3d", mode="lines", name="path order", **_xyz(p[shown]), hoverinfo="skip",
                            line={"color": "#cccccc", "width": 1}, visible="legendonly")]
     zone = path.zone[shown]
     v_path = None
@@ -323,17 +340,17 @@ def _path_traces(go, path, feed) -> list:
             continue
         if code == WORK and v_path is not None and np.isfinite(v_path[sel]).any():
             v_path[sel] = np.where(np.isfinite(v_path[sel]), v_path[sel], np.nanmedian(v_path[sel]))
-            traces.append(go.Scatter3d(
+            traces.append(_trace("scatter3d", 
                 mode="markers", name=f"work: TCP feed ({int(np.count_nonzero(path.zone == code))} poses)",
                 **_xyz(p[sel]), marker={"size": 2, "color": _list(v_path[sel], 1), "colorscale": "Turbo",
                                         "colorbar": {"title": {"text": "feed [mm/s]"}, "x": 1.0, "len": 0.6}},
-                customdata=[int(i) for i in sel],
+                customdata=sel.tolist(),
                 hovertemplate="pose %{customdata}<br>feed %{marker.color} mm/s<extra>work</extra>"))
         else:
-            traces.append(go.Scatter3d(
+            traces.append(_trace("scatter3d", 
                 mode="markers", name=f"{name} ({int(np.count_nonzero(path.zone == code))} poses)", **_xyz(p[sel]),
                 marker={"size": 2 if code == WORK else 1.6, "color": ZONE_COLORS.get(name, "#333333")},
-                customdata=[int(i) for i in sel], hovertemplate=f"pose %{{customdata}}<extra>{name}</extra>"))
+                customdata=sel.tolist(), hovertemplate=f"pose %{{customdata}}<extra>{name}</extra>"))
     return traces
 
 
@@ -369,7 +386,7 @@ def _robot_traces(go, robot, path, joint_path):
     ok = np.flatnonzero(joint_path.reached) if joint_path is not None else np.zeros(0, int)
     if not len(ok):
         q0 = np.clip(np.zeros(robot.dof), robot.limits.lower, robot.limits.upper)
-        return go.Scatter3d(mode="lines+markers", name="robot (zero joint values; no plan)",
+        return _trace("scatter3d", mode="lines+markers", name="robot (zero joint values; no plan)",
                             **_xyz(joint_origins(robot, q0)), line=line, marker=marker), []
     rows = ok[subsample(len(ok), ROBOT_FRAMES)]   # reached rows only
     steps = []
@@ -382,7 +399,7 @@ def _robot_traces(go, robot, path, joint_path):
         label = f"pose {i} ({zone})" if i >= 0 else f"row {int(k)} ({zone})"
         steps.append({"method": "restyle", "label": label,
                       "args": [{"x": [pts["x"]], "y": [pts["y"]], "z": [pts["z"]]}]})
-    return go.Scatter3d(mode="lines+markers", name="robot (slider below)", **first, line=line, marker=marker,
+    return _trace("scatter3d", mode="lines+markers", name="robot (slider below)", **first, line=line, marker=marker,
                         hoverinfo="skip"), steps
 
 
@@ -401,18 +418,18 @@ def _feed_figure(feed, report):
         pick = np.arange(n)
     s, v, zone = s[pick], v[pick], zone[pick]
     work_v = np.where(zone == WORK, v, np.nan)
-    traces = [go.Scattergl(x=_list(s, 1), y=_list(v, 1), mode="lines", name="all zones",
+    traces = [_trace("scattergl", x=_list(s, 1), y=_list(v, 1), mode="lines", name="all zones",
                            line={"color": "#bbbbbb", "width": 1}),
-              go.Scattergl(x=_list(s, 1), y=_list(work_v, 1), mode="lines", name="work",
+              _trace("scattergl", x=_list(s, 1), y=_list(work_v, 1), mode="lines", name="work",
                            line={"color": "#1f77b4", "width": 2}, connectgaps=False)]
-    fig = go.Figure(traces)
+    fig = go.Figure()
     target = report.get("tcp_speed_mm_s")
     if isinstance(target, (int, float)):
         fig.add_hline(y=float(target), line={"color": "#d62728", "dash": "dot"},
                       annotation_text=f"tcp_speed_mm_s = {target:g}")
     fig.update_layout(height=360, margin={"l": 60, "r": 20, "t": 30, "b": 50},
                       xaxis_title="TCP path length [mm]", yaxis_title="TCP feed [mm/s]")
-    return fig
+    return _with_traces(fig, traces)
 
 
 def _joint_use_figure(robot, trajectory):
@@ -425,20 +442,21 @@ def _joint_use_figure(robot, trajectory):
     share = ((q - mid) / np.where(half > 0, half, 1.0)).T                # (dof, T): -1 lower, +1 upper limit
     names = [f"{n} [{'mm' if p else 'deg'}]" for n, p in zip(robot.joint_names, robot.prismatic)]
     work = (np.asarray(trajectory.zone)[cols] == WORK).astype(float)
-    fig = go.Figure([
-        go.Heatmap(x=_list(trajectory.t_s[cols], 3), y=names, z=[_list(r, 3) for r in share], zmin=-1, zmax=1,
+    traces = [
+        _trace("heatmap", x=_list(trajectory.t_s[cols], 3), y=names, z=[_list(r, 3) for r in share], zmin=-1, zmax=1,
                    colorscale="RdBu", reversescale=True,
                    colorbar={"title": {"text": "share of limit"}, "tickvals": [-1, -0.5, 0, 0.5, 1],
                              "ticktext": ["lower", "-0.5", "mid", "0.5", "upper"]},
                    hovertemplate="%{y}<br>t %{x} s<br>%{z}<extra></extra>"),
-        go.Heatmap(x=_list(trajectory.t_s[cols], 3), y=["work zone"], z=[_list(work, 0)], zmin=0, zmax=1,
+        _trace("heatmap", x=_list(trajectory.t_s[cols], 3), y=["work zone"], z=[_list(work, 0)], zmin=0, zmax=1,
                    colorscale=[[0, "#ffffff"], [1, "#1f77b4"]], showscale=False, yaxis="y2",
                    hovertemplate="t %{x} s<extra>work</extra>"),
-    ])
+    ]
+    fig = go.Figure()
     fig.update_layout(height=120 + 28 * robot.dof, margin={"l": 90, "r": 20, "t": 20, "b": 50},
                       xaxis_title="time [s]", yaxis={"domain": [0.0, 0.86], "autorange": "reversed"},
                       yaxis2={"domain": [0.9, 1.0], "showticklabels": True})
-    return fig
+    return _with_traces(fig, traces)
 
 
 # ----------------------------------------------------------------------------- redundancy map
@@ -458,25 +476,25 @@ def _redundancy_figure(rmap):
     else:
         xs = rmap.x.astype(float)
     traces = [
-        go.Heatmap(x=x, y=y, z=[_list(r, 0) for r in bad], zmin=0, zmax=1, showscale=False, name="unreachable",
+        _trace("heatmap", x=x, y=y, z=[_list(r, 0) for r in bad], zmin=0, zmax=1, showscale=False, name="unreachable",
                    colorscale=[[0, "#555555"], [0.5, "#555555"], [0.5, "#f4b6b6"], [1, "#f4b6b6"]],
                    hovertemplate="pose %{x}<br>%{y}<br>%{z}<extra>0 no IK, 1 outside limits</extra>"),
-        go.Heatmap(x=x, y=y, z=[_list(r, 3) for r in rmap.margin], zmin=0, zmax=0.5, colorscale="Viridis",
+        _trace("heatmap", x=x, y=y, z=[_list(r, 3) for r in rmap.margin], zmin=0, zmax=0.5, colorscale="Viridis",
                    name="joint-limit margin", colorbar={"title": {"text": "margin"}},
                    hovertemplate="pose %{x}<br>%{y}<br>margin %{z}<extra></extra>"),
-        go.Heatmap(x=x, y=y, z=[_list(r, 3) for r in rmap.manipulability], zmin=0, zmax=1,
+        _trace("heatmap", x=x, y=y, z=[_list(r, 3) for r in rmap.manipulability], zmin=0, zmax=1,
                    colorscale="Viridis", name="manipulability", visible=False,
                    colorbar={"title": {"text": "manip."}},
                    hovertemplate="pose %{x}<br>%{y}<br>manipulability %{z}<extra></extra>"),
     ]
     if np.isfinite(planned).any():
-        traces.append(go.Scatter(x=_list(xs, 0), y=_list(planned, 2), mode="lines+markers", name="planned",
+        traces.append(_trace("scatter", x=_list(xs, 0), y=_list(planned, 2), mode="lines+markers", name="planned",
                                  line={"color": "#000000", "width": 1.5}, marker={"size": 3},
                                  connectgaps=False))
     n = len(traces)
     vis_margin = [True, True, False] + [True] * (n - 3)
     vis_manip = [True, False, True] + [True] * (n - 3)
-    fig = go.Figure(traces)
+    fig = go.Figure()
     fig.update_layout(
         height=480, margin={"l": 70, "r": 20, "t": 50, "b": 50},
         xaxis_title="path index (work poses)", yaxis_title=rmap.y_label,
@@ -486,7 +504,7 @@ def _redundancy_figure(rmap):
                                    "args": [{"visible": vis_margin}]},
                                   {"label": "manipulability", "method": "restyle",
                                    "args": [{"visible": vis_manip}]}]}])
-    return fig
+    return _with_traces(fig, traces)
 
 
 # ----------------------------------------------------------------------------- page text

@@ -10,6 +10,8 @@ imports no task, so the import graph stays acyclic.
 from __future__ import annotations
 
 import math
+import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
@@ -32,7 +34,8 @@ from .plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
 from .plan.strategy import ik_settings
 from .post import thin_waypoints, write_job_programs
 from .raster import raster_path
-from .report import plan_metrics, plot_joints, plot_unreachable, write_json_atomic, write_points_csv
+from .report import (plan_metrics, plot_joints, plot_unreachable, stage_seconds, write_json_atomic,
+                     write_points_csv)
 from .report_html import write_run_html
 from .robots import get_robot
 from .settings import FitSettings, JobSettings, PlannerSettings, RasterSettings, TimingSettings, WorkpieceSettings
@@ -62,19 +65,47 @@ class StageLog:
     """Records finished stages while a run goes on and tells ``on_stage(name, value)`` of each.
 
     The log is the runner's notebook; the stage boxes it records are immutable.
-    ``result()`` freezes it into a RunResult.
+    ``result()`` freezes it into a RunResult. ``seconds``: wall seconds per stage
+    (report.json's ``stage_seconds``), ``cpu_seconds`` this process's CPU seconds
+    (``stage_cpu_seconds``; on a shared machine the steadier figure): the time since
+    the previous mark goes to the stage ``done`` records, or to the one a ``clock``
+    block measures.
     """
 
     on_stage: Callable | None = None
     stages: list[str] = field(default_factory=list)
     outputs: dict = field(default_factory=dict)
+    seconds: dict = field(default_factory=dict)
+    cpu_seconds: dict = field(default_factory=dict)
+    _mark: tuple = field(default_factory=lambda: (time.perf_counter(), time.process_time()), repr=False)
+
+    def lap(self, name: str) -> None:
+        """Add the wall (and this process's CPU) time since the previous mark to stage ``name``; mark now."""
+        now = (time.perf_counter(), time.process_time())
+        self.seconds[name] = self.seconds.get(name, 0.0) + (now[0] - self._mark[0])
+        self.cpu_seconds[name] = self.cpu_seconds.get(name, 0.0) + (now[1] - self._mark[1])
+        self._mark = now
+
+    def _restart(self) -> None:
+        self._mark = (time.perf_counter(), time.process_time())
+
+    @contextmanager
+    def clock(self, name: str):
+        """Time the block as (part of) stage ``name``; what came before it goes to no stage."""
+        self._restart()
+        try:
+            yield
+        finally:
+            self.lap(name)
 
     def done(self, name: str, value):
         """Record a finished stage's output and pass the value on."""
+        self.lap(name)
         self.outputs[name] = value
         self.stages.append(name)
         if self.on_stage is not None:
             self.on_stage(name, value)
+        self._restart()  # the listener's time is no stage's
         return value
 
     def result(self, files=()) -> RunResult:
@@ -370,13 +401,19 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
                extra_files=()) -> RunResult:
     """Write the plots, points.csv and report.json of a successful run; the RunResult lists every file."""
     outdir = Path(outdir)
+    log.lap("report")
     plots = plot_joints(trajectories, robot, outdir / "plots")
     write_points_csv(path, joint_path, robot, outdir / "points.csv")
+    log.lap("plots")
     report["programs"] = [str(f) for f in programs]
     report["plots"] = [str(f) for f in plots]
+    report["stage_seconds"], report["stage_cpu_seconds"] = stage_seconds(log.seconds), stage_seconds(log.cpu_seconds)
     write_json_atomic(report, outdir / "report.json")
     log.outputs["report"] = report
     html = write_run_html(outdir, report=report, robot=robot, workpiece=log.outputs.get("workpiece"),
                           surface=log.outputs.get("fit"), path=path, joint_path=joint_path,
                           trajectory=next(iter(trajectories.values())))
+    log.lap("report_html")
+    report["stage_seconds"], report["stage_cpu_seconds"] = stage_seconds(log.seconds), stage_seconds(log.cpu_seconds)
+    write_json_atomic(report, outdir / "report.json")  # again, with the page's own time (11 kB)
     return log.result([*programs, outdir / "report.json", *extra_files, outdir / "points.csv", *plots, *html])

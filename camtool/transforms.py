@@ -8,12 +8,13 @@ Conventions, written down once:
   degrees, as in URDF.
 """
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 
 def matrix_from_xyz_rpy(xyz_mm, rpy_deg) -> np.ndarray:
     """4x4 pose from a translation in mm and fixed-axis roll/pitch/yaw in degrees."""
     T = np.eye(4)
+    from scipy.spatial.transform import Rotation  # here: scipy.spatial costs ~0.3 s of start-up
+
     T[:3, :3] = Rotation.from_euler("xyz", rpy_deg, degrees=True).as_matrix()
     T[:3, 3] = xyz_mm
     return T
@@ -21,6 +22,8 @@ def matrix_from_xyz_rpy(xyz_mm, rpy_deg) -> np.ndarray:
 
 def quaternion_wxyz_from_matrix(R: np.ndarray) -> np.ndarray:
     """Unit quaternion (w, x, y, z) of a 3x3 rotation, with w >= 0."""
+    from scipy.spatial.transform import Rotation
+
     x, y, z, w = Rotation.from_matrix(R[:3, :3]).as_quat()
     q = np.array([w, x, y, z])
     return -q if q[0] < 0 else q

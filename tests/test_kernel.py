@@ -306,3 +306,14 @@ def test_self_motion_matches_the_reference_solver():
     assert np.allclose(qk, r.q, atol=1e-6 * np.where(robot.prismatic, 100, 1).max())
     scale = np.where(robot.prismatic, 500.0, 1.0)
     assert np.linalg.norm((qk - q_ref) / scale) < np.linalg.norm((q - q_ref) / scale)
+
+
+def test_batched_tcp_jacobians_are_pinocchios():
+    robot = get_robot("seed8")
+    kernel = DhKernel(robot, IkSettings(), False, np.full(robot.dof, np.inf))
+    rng = np.random.default_rng(3)
+    qs = robot.limits.lower + (robot.limits.upper - robot.limits.lower) * rng.random((20, robot.dof))
+    J = kernel.jacobians(qs)
+    assert J.shape == (20, 6, robot.dof)
+    for q, Jk in zip(qs, J):
+        assert np.allclose(Jk, robot.jacobian(q, tcp=True), atol=1e-8)

@@ -72,3 +72,23 @@ def test_rows_densified_next_to_the_self_motion_zone_belong_to_it():
         while jp.path_index[after] < 0:
             after += 1
         assert jp.zone[prev_path_row[r]] in SURFACE_CODES and jp.zone[after] in SURFACE_CODES, r
+
+
+def test_stage_log_times_each_stage_once():
+    import time
+
+    from camtool.stages import StageLog
+
+    seen = []
+    log = StageLog(on_stage=lambda name, value: (seen.append(name), time.sleep(0.05)))
+    time.sleep(0.02)
+    log.done("a", 1)                       # 0.02 s, not the listener's 0.05 s
+    with log.clock("b"):
+        time.sleep(0.03)
+    log.done("b", 2)                       # b: the block, plus ~0 until done
+    x = sum(range(200_000))                # CPU work goes to c
+    log.done("c", x)
+    assert seen == ["a", "b", "c"] and list(log.seconds) == ["a", "b", "c"]
+    assert 0.02 <= log.seconds["a"] < 0.045
+    assert 0.03 <= log.seconds["b"] < 0.055
+    assert log.cpu_seconds["c"] > 0 and log.cpu_seconds["b"] < 0.02   # sleeping is no CPU

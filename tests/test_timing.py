@@ -125,3 +125,23 @@ def test_bad_joint_path():
         time_trajectory(replace(JP, q=q), PATH, ROBOT, TimingSettings.make())
     with pytest.raises(BadInput, match="shape"):
         time_trajectory(replace(JP, q=JP.q[:, :7]), PATH, ROBOT, TimingSettings.make())
+
+
+def test_each_run_is_timed_once_lead_sizing_then_timing():
+    from camtool.timing import lead_needed_mm
+    from camtool.timing import pathlaw
+
+    settings = TimingSettings.make(method="quintic", tcp_speed_mm_s=90.0)
+    pathlaw._RUN_MEMO.clear()
+    fresh = time_trajectory(JP, PATH, ROBOT, settings)        # every run planned now
+    pathlaw._RUN_MEMO.clear()
+    need = lead_needed_mm(JP, PATH, ROBOT, settings)          # plans the runs ...
+    planned = len(pathlaw._RUN_MEMO)
+    assert planned == len(need["per_run"]) > 0
+    again = time_trajectory(JP, PATH, ROBOT, settings)        # ... and timing takes their laws
+    assert len(pathlaw._RUN_MEMO) == planned
+    for f in ("t_s", "q", "qd", "qdd", "zone", "path_index"):
+        assert np.array_equal(getattr(fresh, f), getattr(again, f))
+    _, smp, _ = next(iter(pathlaw._RUN_MEMO.values()))
+    with pytest.raises(ValueError):                           # kept laws cannot be changed by a caller
+        smp.q[0, 0] = 1.0

@@ -4,7 +4,6 @@ from pathlib import Path
 import click
 
 from ..console import echo_json
-from ..robots import get_robot
 
 
 def _simulation(program: Path, robot, profile, fmt: str, against: Path | None, job, path_tol: float | None):
@@ -87,6 +86,7 @@ def command(program: Path, robot_name: str | None, profile_file: Path | None, fm
     Exit 0 when clean, 2 with one line per finding otherwise (with --json: the
     JSON object, and the same exit code).
     """
+    from ..robots import get_robot
     from ..errors import BadInput
     from ..program.check_program import check_program, check_summary, format_of, profile_for_check
     from ..program.registry import get_plugin

@@ -5,18 +5,15 @@ import click
 import numpy as np
 
 from ..console import echo_json
-from ..fit import fit_surface
 from ..job import load_job
-from ..settings import FitSettings
-from ..stages import surface_for_job, workpiece_for_job
-from ..surface import PlaneSurface, save_surface
-from ..workpiece import load_workpiece
 
 SURFACE_FILE = "surface.json"
 
 
 def surface_summary(surface) -> dict:
     """The JSON summary of a fitted surface (parameters, statistics, boundary)."""
+    from ..surface import PlaneSurface
+
     d = {"model": surface.model}
     if isinstance(surface, PlaneSurface):
         d.update(normal=surface.normal, offset_mm=surface.offset_mm)
@@ -56,6 +53,12 @@ def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, m
     PLY without faces, PCD, XYZ, CSV, TXT. Prints the parameters in mm, the
     inlier ratio, RMS and largest residual of the inliers, and the boundary.
     """
+    from ..fit import fit_surface
+    from ..settings import FitSettings
+    from ..stages import surface_for_job, workpiece_for_job
+    from ..surface import PlaneSurface, save_surface
+    from ..workpiece import load_workpiece
+
     if input_file.suffix.lower() == ".toml":
         job = load_job(input_file, list(overrides))
         wp = workpiece_for_job(job)

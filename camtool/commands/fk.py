@@ -4,8 +4,6 @@ import numpy as np
 
 from ..console import echo_json
 from ..errors import BadInput
-from ..robots import get_robot
-from ..transforms import quaternion_wxyz_from_matrix
 
 
 @click.command("fk", context_settings={"ignore_unknown_options": True})
@@ -19,6 +17,9 @@ def command(robot: str, q: tuple[str, ...], deg: bool, as_json: bool) -> None:
     Prints the position in mm and the orientation as a unit quaternion w, x, y, z
     in the robot base frame.
     """
+    from ..robots import get_robot
+    from ..transforms import quaternion_wxyz_from_matrix
+
     r = get_robot(robot)
     try:
         values = np.array([float(x) for x in q])

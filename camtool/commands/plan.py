@@ -6,9 +6,6 @@ import numpy as np
 
 from ..console import echo_json
 from ..job import load_job
-from ..settings import JobSettings
-from ..stage_files import save_stage
-from ..stages import robot_for_job
 from .resume import JOINT_PATH_FILE, joint_path_of
 
 
@@ -29,6 +26,10 @@ def command(job_file: Path, from_file: Path | None, outdir: Path, overrides: tup
     `camtool time JOB --from OUTDIR/joint_path.npz`. Exit 3 when poses are out
     of reach.
     """
+    from ..settings import JobSettings
+    from ..stage_files import save_stage
+    from ..stages import robot_for_job
+
     job = load_job(job_file, list(overrides))
     robot = robot_for_job(job)
     settings = JobSettings.from_job(job, robot)

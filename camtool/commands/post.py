@@ -5,10 +5,6 @@ import click
 
 from ..console import echo_json
 from ..job import load_job
-from ..post import preflight
-from ..settings import JobSettings
-from ..stages import post_checked, robot_for_job
-from .resume import trajectory_of
 
 
 @click.command("post")
@@ -29,6 +25,10 @@ def command(job_file: Path, from_file: Path | None, path_file: Path | None, outd
     is read back and checked before it is placed, as in `camtool run`.
     """
     from .. import safe_io
+    from ..post import preflight
+    from ..settings import JobSettings
+    from ..stages import post_checked, robot_for_job
+    from .resume import trajectory_of
 
     job = load_job(job_file, list(overrides))
     robot = robot_for_job(job)

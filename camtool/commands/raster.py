@@ -6,13 +6,7 @@ import numpy as np
 
 from ..console import echo_json
 from ..errors import BadInput
-from ..files import output_file
 from ..job import load_job
-from ..raster import raster_summary
-from ..stage_files import save_stage
-from ..stages import path_for_job, surface_for_job, workpiece_for_job
-from ..surface import load_surface
-from ..toolpath import ZONES
 from .. import safe_io
 
 PATH_FILE = "path.npz"
@@ -44,6 +38,11 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
     surface within half the diagonal of a pitch x step-over cell, plus 2 % of
     the step-over, of a work point).
     """
+    from ..raster import raster_summary
+    from ..stage_files import save_stage
+    from ..stages import path_for_job, surface_for_job, workpiece_for_job
+    from ..surface import load_surface
+
     for f, ext in ((plot_file, ".png"), (save_file, ".npz")):
         if f is not None and f.suffix.lower() != ext:
             raise BadInput(f"{f}: expected a {ext} file name")
@@ -83,6 +82,9 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
 
 def plot_raster(surface, path, file: Path, title: str = "") -> None:
     """PNG of the path in 3D over the surface (zones coloured) beside the (u, v) map."""
+    from ..files import output_file
+    from ..toolpath import ZONES
+
     import matplotlib
 
     matplotlib.use("Agg")

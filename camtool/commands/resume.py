@@ -12,10 +12,6 @@ from pathlib import Path
 import click
 
 from ..errors import BadInput
-from ..stage_files import load_stage
-from ..stages import (part_for_checks, path_for_job, plan_with_sized_leads, surface_for_job, time_for_job,
-                      workpiece_for_job)
-from ..surface import load_surface
 
 SURFACE_FILE, PATH_FILE, JOINT_PATH_FILE, TRAJECTORY_FILE = "surface.json", "path.npz", "joint_path.npz", \
     "trajectory.npz"
@@ -23,6 +19,8 @@ SURFACE_FILE, PATH_FILE, JOINT_PATH_FILE, TRAJECTORY_FILE = "surface.json", "pat
 
 def workpiece(job):
     """The job's placed workpiece; its warnings go to stderr."""
+    from ..stages import workpiece_for_job
+
     wp = workpiece_for_job(job)
     for w in wp.warnings:
         click.echo(f"camtool: warning: {w}", err=True)
@@ -31,11 +29,17 @@ def workpiece(job):
 
 def surface_of(job, from_file: Path | None):
     """The fitted surface: from ``from_file`` (surface.json) or fitted now."""
+    from ..stages import surface_for_job
+    from ..surface import load_surface
+
     return load_surface(from_file) if from_file is not None else surface_for_job(job, workpiece(job))
 
 
 def path_of(job, from_file: Path | None):
     """The tool Path: from ``from_file`` (path.npz) or rastered now."""
+    from ..stage_files import load_stage
+    from ..stages import path_for_job
+
     if from_file is not None:
         return load_stage(from_file, expect=("Path",))
     return path_for_job(job, surface_of(job, None))
@@ -55,6 +59,9 @@ def sibling(from_file: Path | None, given: Path | None, name: str, what: str) ->
 
 def joint_path_of(job, settings, robot, from_file: Path | None, path_file: Path | None):
     """(Path, JointPath): from saved files, or planned now (with home moves when the job has a home)."""
+    from ..stage_files import load_stage
+    from ..stages import part_for_checks, path_for_job, plan_with_sized_leads, surface_for_job
+
     path_file = sibling(from_file, path_file, PATH_FILE, "path")
     if from_file is not None:
         return load_stage(path_file, expect=("Path",)), load_stage(from_file, expect=("JointPath",))
@@ -66,6 +73,9 @@ def joint_path_of(job, settings, robot, from_file: Path | None, path_file: Path 
 
 def trajectory_of(job, settings, robot, from_file: Path | None, path_file: Path | None = None):
     """(Path, timed trajectory): from saved files (the Path beside the trajectory), or planned and timed now."""
+    from ..stage_files import load_stage
+    from ..stages import time_for_job
+
     if from_file is not None:
         path = load_stage(sibling(from_file, path_file, PATH_FILE, "path"), expect=("Path",))
         return path, load_stage(from_file, expect=("TimedTrajectory", "Trajectory"))

@@ -2,7 +2,6 @@
 import click
 
 from ..console import echo_json
-from ..robots import BUILTIN_ROBOTS, get_robot
 
 
 @click.command("robots")
@@ -12,6 +11,8 @@ def command(as_json: bool) -> None:
 
     Limits are in degrees (revolute) or mm (prismatic), speeds per second.
     """
+    from ..robots import BUILTIN_ROBOTS, get_robot
+
     robots = [get_robot(n).describe() for n in BUILTIN_ROBOTS]
     if as_json:
         echo_json(robots)

@@ -5,7 +5,6 @@ import click
 
 from ..console import StageProgress, echo_json
 from ..job import load_job
-from ..pipeline import run_job
 
 
 @click.command("run")
@@ -36,6 +35,8 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     and every program passed `camtool check`. Exit 3 when the plan cannot be
     done (report.json and plots/unreachable.png say where and why).
     """
+    from ..pipeline import run_job
+
     job = load_job(job_file, list(overrides) + (["task.allow_partial=true"] if allow_partial else []))
     outdir = outdir or Path("out") / job_file.stem
     # scripts read --json: no progress with it unless asked for (--progress, as batch jobs do for their log)

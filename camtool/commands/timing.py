@@ -5,9 +5,6 @@ import click
 
 from ..console import echo_json
 from ..job import load_job
-from ..settings import JobSettings
-from ..stage_files import save_stage
-from ..stages import robot_for_job, time_for_job
 from .resume import TRAJECTORY_FILE, joint_path_of
 
 
@@ -28,6 +25,10 @@ def command(job_file: Path, from_file: Path | None, path_file: Path | None, outd
 
     Writes OUTDIR/trajectory.npz for `camtool post JOB --from OUTDIR/trajectory.npz`.
     """
+    from ..settings import JobSettings
+    from ..stage_files import save_stage
+    from ..stages import robot_for_job, time_for_job
+
     job = load_job(job_file, list(overrides))
     robot = robot_for_job(job)
     settings = JobSettings.from_job(job, robot)

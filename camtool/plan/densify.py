@@ -16,34 +16,70 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from ..robots.model import Robot
 from ..toolpath import SURFACE_CODES, ZONE_CODE, Path
 from ..trajectory import JointPath
+from ..timing.feed import tcp_positions_world
 from .cwln import CwlnSolver
 
 MAX_SPLITS = 4  # a step is halved at most this many times (16 pieces)
 
 
-def _midpose(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = 0.5 * (Ta[:3, 3] + Tb[:3, 3])
-    T[:3, :3] = Slerp([0.0, 1.0], Rotation.from_matrix([Ta[:3, :3], Tb[:3, :3]]))(0.5).as_matrix()
+def _midposes(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
+    """(m, 4, 4) midposes of m pose pairs: position midway, orientation slerped halfway.
+
+    One batched scipy Rotation call for all pairs; per pair it is exactly
+    ``Slerp([0, 1], [Ra, Rb])(0.5)`` (scipy's Slerp is ``Ra * exp(0.5 log(Ra^-1 Rb))``).
+    """
+    T = np.broadcast_to(np.eye(4), (len(Ta), 4, 4)).copy()
+    T[:, :3, 3] = 0.5 * (Ta[:, :3, 3] + Tb[:, :3, 3])
+    ra, rb = Rotation.from_matrix(Ta[:, :3, :3]), Rotation.from_matrix(Tb[:, :3, :3])
+    T[:, :3, :3] = (ra * Rotation.from_rotvec(0.5 * (ra.inv() * rb).as_rotvec())).as_matrix()
     return T
 
 
-def _split(solver: CwlnSolver, Ta, qa, Tb, qb, tol_mm: float, depth: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Inserted (pose, q) pairs strictly between a and b (base frame), in order."""
-    q_mid = 0.5 * (qa + qb)
-    T_mid = _midpose(Ta, Tb)
-    if depth >= MAX_SPLITS or np.linalg.norm(solver.tcp_pose(q_mid)[:3, 3] - T_mid[:3, 3]) <= tol_mm:
-        return []
-    res = solver.solve(T_mid, q_mid, clamp=False)  # the least change from the joint midpoint: no spike in the joint path
-    if not res.converged or np.any(res.q < solver.lo) or np.any(res.q > solver.hi):
-        return []
-    return (_split(solver, Ta, qa, T_mid, res.q, tol_mm, depth + 1) + [(T_mid, res.q)]
-            + _split(solver, T_mid, res.q, Tb, qb, tol_mm, depth + 1))
+def _split_steps(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray, qb: np.ndarray,
+                 tol_mm: float) -> dict[int, np.ndarray]:
+    """{step: inserted q (k, dof) in order} for the steps (Ta[i], qa[i]) -> (Tb[i], qb[i]) (base frame).
+
+    Level by level (all intervals of one depth at once): the joint midpoints' TCP by one
+    vectorised FK, the midposes by one batched slerp; only the intervals that bow more than
+    ``tol_mm`` are solved (CWLN without the clamp task, warm-started from the joint
+    midpoint) and halved again, up to ``MAX_SPLITS`` times.
+    """
+    base = np.asarray(robot.base_T_mm, float)
+    step = np.arange(len(Ta))
+    key = np.full(len(Ta), 0.5)     # where the midpoint lies in its step (0..1): the order of the inserts
+    half = 0.25
+    found: dict[int, list] = {}
+    for depth in range(MAX_SPLITS):
+        if not len(step):
+            break
+        q_mid = 0.5 * (qa + qb)
+        T_mid = _midposes(Ta, Tb)
+        tcp_base = (tcp_positions_world(robot, q_mid) - base[:3, 3]) @ base[:3, :3]  # = base^-1 world
+        far = np.flatnonzero(np.linalg.norm(tcp_base - T_mid[:, :3, 3], axis=1) > tol_mm)
+        keep, q_new = [], []
+        for i in far:
+            res = solver.solve(T_mid[i], q_mid[i], clamp=False)  # the least change from the joint midpoint
+            if not res.converged or np.any(res.q < solver.lo) or np.any(res.q > solver.hi):
+                continue
+            found.setdefault(int(step[i]), []).append((key[i], res.q))
+            keep.append(i)
+            q_new.append(res.q)
+        if not keep:
+            break
+        keep = np.array(keep)
+        q_new = np.array(q_new)
+        # each kept interval becomes its two halves
+        step = np.concatenate([step[keep], step[keep]])
+        key = np.concatenate([key[keep] - half, key[keep] + half])
+        Ta, Tb = np.concatenate([Ta[keep], T_mid[keep]]), np.concatenate([T_mid[keep], Tb[keep]])
+        qa, qb = np.concatenate([qa[keep], q_new]), np.concatenate([q_new, qb[keep]])
+        half *= 0.5
+    return {s: np.array([q for _, q in sorted(v, key=lambda e: e[0])]) for s, v in found.items()}
 
 
 def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver, tol_mm: float) -> JointPath:
@@ -58,26 +94,20 @@ def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSo
     on = np.isin(jp.zone, SURFACE_CODES + (ZONE_CODE["self_motion"],)) & (jp.path_index >= 0)
     neighbours = np.diff(jp.path_index) == 1  # consecutive poses of the Path (not a lifted connector)
     steps = np.flatnonzero(on[:-1] & on[1:] & neighbours)
-    inserts = {}
-    for r in steps:
-        Ta = base_inv @ path.poses_mm[jp.path_index[r]]
-        Tb = base_inv @ path.poses_mm[jp.path_index[r + 1]]
-        extra = _split(solver, Ta, jp.q[r], Tb, jp.q[r + 1], tol_mm, 0)
-        if extra:
-            inserts[int(r)] = np.array([q for _, q in extra])
+    poses = base_inv @ path.poses_mm[jp.path_index[np.r_[steps, steps + 1]]] if len(steps) else np.zeros((0, 4, 4))
+    q = np.asarray(jp.q, float)
+    split = _split_steps(solver, robot, poses[:len(steps)], q[steps], poses[len(steps):], q[steps + 1], tol_mm)
+    inserts = {int(steps[i]): v for i, v in sorted(split.items())}
     events = {**jp.events, "densified_steps": {"steps": len(inserts),
                                                "rows": int(sum(len(v) for v in inserts.values())),
                                                "chord_tol_mm": tol_mm}}
     if not inserts:
         return replace(jp, events=events)
-    src, new = [], []
-    for r in range(len(jp.q)):
-        src.append(r)
-        new.append(False)
-        for _ in inserts.get(r, ()):
-            src.append(r)
-            new.append(True)
-    src, new = np.array(src), np.array(new)
+    count = np.zeros(len(jp.q), int)
+    count[list(inserts)] = [len(v) for v in inserts.values()]
+    src = np.repeat(np.arange(len(jp.q)), 1 + count)  # each row, then its step's inserted rows
+    new = np.ones(len(src), bool)
+    new[np.cumsum(1 + count) - 1 - count] = False
     q = jp.q[src].copy()
     q[new] = np.concatenate([inserts[r] for r in sorted(inserts)])
 

@@ -80,6 +80,17 @@ def fk_jacobian(q, dh, modified, tail, T, J):
 
 
 @nb.njit(cache=True)
+def tcp_jacobians(qs, dh, modified, tail, out):
+    """``fk_jacobian``'s Jacobian (6 x n) at every row of ``qs`` (m, n) into ``out`` (m, 6, n)."""
+    T = np.empty((4, 4))
+    J = np.empty((6, qs.shape[1]))
+    for k in range(qs.shape[0]):
+        fk_jacobian(qs[k], dh, modified, tail, T, J)
+        out[k] = J
+    return out
+
+
+@nb.njit(cache=True)
 def _log3(R, w):
     """Rotation vector (rad) of a rotation matrix; robust near 0 and pi."""
     v0 = R[2, 1] - R[1, 2]; v1 = R[0, 2] - R[2, 0]; v2 = R[1, 0] - R[0, 1]
@@ -300,6 +311,11 @@ class DhKernel:
             if not (np.allclose(T, robot.fk_tcp(q), atol=1e-6) and np.allclose(J, robot.jacobian(q, tcp=True), atol=1e-6)):
                 raise RuntimeError(f"compiled kinematics of {robot.name} disagree with Pinocchio")
 
+    def jacobians(self, qs: np.ndarray) -> np.ndarray:
+        """(m, 6, n) TCP Jacobians in the base frame (``Robot.jacobian(q, tcp=True)``) of the rows of ``qs``."""
+        qs = np.ascontiguousarray(qs, float).reshape(-1, len(self.lo))
+        return tcp_jacobians(qs, self.dh, self.modified, self.tail, np.empty((len(qs), 6, qs.shape[1])))
+
     def run(self, targets: np.ndarray, q_start: np.ndarray):
         """CWLN over targets from q_start; returns (stop index, q, pos_err, ori_err)."""
         m, n = len(targets), len(q_start)
@@ -334,7 +350,7 @@ class DhKernel:
 
 
 def warm_up() -> None:
-    """Compile (and cache) the kernels on a tiny problem; used by the set-up script."""
+    """Compile (and cache) the kernels (CWLN, the S-curve test) on a tiny problem; used by the set-up script."""
     from ..robots import get_robot
 
     robot = get_robot("seed8")
@@ -342,3 +358,9 @@ def warm_up() -> None:
     T = robot.fk_tcp(np.full(robot.dof, 0.3))
     k.run(T[None], np.full(robot.dof, 0.25))
     k.self_motion(T, np.full(robot.dof, 0.3), np.zeros(robot.dof), iterations=2)
+    k.jacobians(np.full((2, robot.dof), 0.3))
+    from ..timing.pathlaw import PathSpline, _Budget  # the time law's compiled S-curve test too
+
+    budget = _Budget(PathSpline(np.array([0.0, 1.0]), np.zeros((2, robot.dof)) + [[0.0], [0.1]]), robot.limits)
+    budget.fits(0.0, 1.0, [1.0], [1.0], [0.0])
+    budget.search(0.0, 1.0, 0.5, True, np.array([1.0]), np.array([1.0]), 1)

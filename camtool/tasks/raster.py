@@ -13,8 +13,8 @@ from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
 from ..timing import plot_feed_png, samples_for
 from ..stages import (RunResult, StageLog, finish_run, motion_check, part_for_checks, path_for_job, plan_and_time,
-                      plan_and_time_sized, post_checked, report_failure, report_unreachable, run_report,
-                      surface_for_job, workpiece_for_job)
+                      plan_with_sized_leads, post_checked, report_failure, report_unreachable, run_report,
+                      surface_for_job, time_for_job, workpiece_for_job)
 
 
 def partial_plan_path(path, exc: PlanInfeasible):
@@ -42,7 +42,10 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     partial = None
     try:
         try:
-            path, joint_path, trajectory = plan_and_time_sized(settings, surface, path, robot, workpiece=part)
+            with log.clock("plan"):
+                path, joint_path = plan_with_sized_leads(settings, surface, path, robot, workpiece=part)
+            with log.clock("time"):
+                trajectory = time_for_job(settings, joint_path, path, robot)
             if joint_path.events.get("leads", {}).get("lead_mm_used", settings.raster.lead_mm) != settings.raster.lead_mm:
                 log.done("raster", path)  # rastered again with the leads the ramps need
         except PlanInfeasible as exc:

@@ -156,8 +156,25 @@ def feed_statistics(profile: FeedProfile, feed_mm_s: float) -> dict:
     return out
 
 
+PLOT_BINS = 3000  # feed PNG: more intervals than this are drawn as the min and max of this many bins
+
+
+def _envelope(x: np.ndarray, v: np.ndarray, bins: int = PLOT_BINS) -> tuple[np.ndarray, np.ndarray]:
+    """(x, v) for display: as given up to ``2 * bins`` points, else per bin of consecutive intervals its
+    lowest and highest feed at the bin's middle (slowdowns and spikes stay visible; NaN where a bin
+    has none, so gaps stay gaps)."""
+    if len(v) <= 2 * bins:
+        return x, v
+    edges = np.linspace(0, len(v), bins + 1).astype(int)
+    lo = np.fmin.reduceat(v, edges[:-1])
+    hi = np.fmax.reduceat(v, edges[:-1])
+    mid = 0.5 * (x[edges[:-1]] + x[edges[1:] - 1])
+    return np.repeat(mid, 2), np.column_stack([lo, hi]).ravel()
+
+
 def plot_feed(profile: FeedProfile, feed_mm_s: float, png_path, title: str = "") -> "Path":
-    """PNG of TCP feed against TCP path length; work intervals highlighted, commanded feed dashed."""
+    """PNG of TCP feed against TCP path length; work intervals highlighted, commanded feed dashed
+    (long profiles drawn as a min / max envelope, ``_envelope``)."""
     from pathlib import Path
 
     import matplotlib
@@ -169,16 +186,18 @@ def plot_feed(profile: FeedProfile, feed_mm_s: float, png_path, title: str = "")
     png_path.parent.mkdir(parents=True, exist_ok=True)
     x = 0.5 * (profile.s_mm[:-1] + profile.s_mm[1:]) / 1000.0
     v = profile.feed_mm_s
-    fig, ax = plt.subplots(figsize=(12, 4), dpi=110)
-    ax.plot(x, v, color="#bbbbbb", lw=0.6, label="all zones")
     vw = np.where(profile.work, v, np.nan)
-    ax.plot(x, vw, color="#1f77b4", lw=1.0, label="work")
+    top = np.nanmax(v) if np.isfinite(v).any() else feed_mm_s
+    x_all, v_all = _envelope(x, v)
+    x_work, v_work = _envelope(x, vw)
+    fig, ax = plt.subplots(figsize=(12, 4), dpi=110)
+    ax.plot(x_all, v_all, color="#bbbbbb", lw=0.6, label="all zones")
+    ax.plot(x_work, v_work, color="#1f77b4", lw=1.0, label="work")
     ax.axhline(feed_mm_s, color="#d62728", ls="--", lw=0.8, label=f"commanded {feed_mm_s:g} mm/s")
     for tol in FEED_TOLERANCES:
         ax.axhspan(feed_mm_s * (1 - tol), feed_mm_s * (1 + tol), color="#2ca02c", alpha=0.08)
     ax.set_xlabel("TCP path length [m]")
     ax.set_ylabel("TCP feed [mm/s]")
-    top = np.nanmax(v) if np.isfinite(v).any() else feed_mm_s
     ax.set_ylim(0, max(1.2 * feed_mm_s, min(float(top) * 1.05, 3 * feed_mm_s)))
     if title:
         ax.set_title(title)

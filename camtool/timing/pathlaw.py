@@ -35,12 +35,15 @@ All quantities: path parameter s, joint values in native units, times in s.
 """
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
 from .quintic import MARGIN, limit_ratio, piece_peaks
+from .scurve_fit import fits_compiled, search_compiled
 
 FILL_S = 0.010          # longest sample interval inside an S-curve
 MIN_GAP_S = 1e-3        # samples closer than this to a kept one are dropped (poses are always kept)
@@ -54,6 +57,7 @@ J_GRID = 2.0 ** np.arange(4.0, -9.0, -1.0)     # path jerks tried, relative to t
 A_GRID = 4.0 ** np.arange(2.0, -3.0, -1.0)     # path accelerations tried, relative likewise
 REFINE_STEPS = 4        # bisection steps refining the best grid J, then A
 SPEED_TOL = 1e-3        # a plateau lowered to fit its S-curves: relative precision of its speed
+_FRACTIONS: dict = {}   # instants of an S-curve as shares of its duration, per sample count
 
 
 # ----------------------------------------------------------------------------- the geometric path
@@ -238,12 +242,41 @@ class _Budget:
         ok = p1max > 0
         self.a_ref = float(np.min(self.a_lim[ok] / p1max[ok])) if ok.any() else 1.0
         self.j_ref = float(np.min(self.j_lim[ok] / p1max[ok])) if ok.any() else 1.0
+        self._c = None  # contiguous copies for the compiled test, made on first use
 
     def fits(self, v0: float, v1: float, A: np.ndarray, J: np.ndarray, s_start: np.ndarray,
              samples: int = SCURVE_SAMPLES) -> np.ndarray:
         """Per candidate (A[c], J[c], start position s_start[c]): True if the S-curve v0 -> v1 keeps
         every joint within the shares of its limits, by the triangle inequality on the piece maxima
-        at the actual path speed and acceleration of ``samples`` instants (phase ends included)."""
+        at the actual path speed and acceleration of ``samples`` instants (phase ends included).
+
+        Compiled (``scurve_fit.py``); ``fits_numpy`` is the same test in numpy, the reference."""
+        A, J, s_start = (np.ascontiguousarray(np.atleast_1d(np.asarray(x, float))) for x in (A, J, s_start))
+        self._compiled()
+        return fits_compiled(v0, v1, A, J, s_start, self._fractions(samples), *self._c)
+
+    def search(self, v0: float, v1: float, s_edge: float, before: bool, a_grid: np.ndarray, j_grid: np.ndarray,
+               refine_steps: int, samples: int = SCURVE_SAMPLES) -> tuple[bool, float, float]:
+        """(found, A, J) of ``_scurve_at``'s search, compiled (``scurve_fit.search_compiled``)."""
+        self._compiled()
+        return search_compiled(v0, v1, s_edge, before, np.ascontiguousarray(a_grid, float),
+                               np.ascontiguousarray(j_grid, float), refine_steps, self._fractions(samples), *self._c)
+
+    @staticmethod
+    def _fractions(samples: int) -> np.ndarray:
+        frac = _FRACTIONS.get(samples)
+        if frac is None:
+            frac = _FRACTIONS.setdefault(samples, np.linspace(1e-9, 1.0 - 1e-9, samples))
+        return frac
+
+    def _compiled(self) -> None:
+        if self._c is None:
+            self._c = tuple(np.ascontiguousarray(x, float) for x in (
+                self.s, self.p1, self.p2, self.p3, self.a_lim, self.j_lim, self.v_lim * (1 + 1e-9)))
+
+    def fits_numpy(self, v0: float, v1: float, A: np.ndarray, J: np.ndarray, s_start: np.ndarray,
+                   samples: int = SCURVE_SAMPLES) -> np.ndarray:
+        """``fits`` in numpy (the reference the compiled test is checked against)."""
         A, J, s_start = (np.atleast_1d(np.asarray(x, float)) for x in (A, J, s_start))
         dv = abs(v1 - v0)
         sign = 1.0 if v1 > v0 else -1.0
@@ -281,41 +314,16 @@ def _scurve_at(budget: _Budget, v0: float, v1: float, s_edge: float, before: boo
 
     Path accelerations and jerks on a grid (relative to the section's reference
     values) are bounded at the S-curve's own instants and positions
-    (``_Budget.fits``); the fastest that fits is refined by bisection on J, then A.
-    ``derate`` scales the result. D = inf when none fits.
+    (``_Budget.fits``); the fastest that fits is refined by bisection on J, then A
+    (compiled, ``_Budget.search``). ``derate`` scales the result. D = inf when none fits.
     """
     out = {"v0": v0, "v1": v1, "A": 0.0, "J": 0.0, "D": 0.0, "T": 0.0, "phases": []}
     if v0 == v1:
         return out
-    dv, vbar = abs(v1 - v0), 0.5 * (v0 + v1)
-
-    def dist(A, J):
-        A, J = np.asarray(A, float), np.asarray(J, float)
-        return vbar * np.where(dv * J <= A * A, 2 * np.sqrt(dv / J), dv / A + A / J)
-
-    def start(A, J):
-        return (s_edge - dist(A, J)) if before else np.full(np.shape(A), s_edge)
-
-    AA, JJ = np.meshgrid(budget.a_ref * A_GRID, budget.j_ref * J_GRID, indexing="ij")
-    AA, JJ = AA.ravel(), JJ.ravel()
-    ok = budget.fits(v0, v1, AA, JJ, start(AA, JJ))
-    if not ok.any():
+    found, A, J = budget.search(v0, v1, s_edge, before, budget.a_ref * A_GRID, budget.j_ref * J_GRID, REFINE_STEPS)
+    if not found:
         out.update(D=np.inf, T=np.inf)
         return out
-    d = np.where(ok, dist(AA, JJ), np.inf)
-    c = int(np.argmin(d))
-    A, J = float(AA[c]), float(JJ[c])
-    for which in ("J", "A"):  # bisection upwards: the grid is a factor 2 (J) or 4 (A) apart
-        lo = A if which == "A" else J
-        hi = lo * (4.0 if which == "A" else 2.0)
-        for _ in range(REFINE_STEPS):
-            mid = 0.5 * (lo + hi)
-            a_, j_ = (mid, J) if which == "A" else (A, mid)
-            if dist(a_, j_) < dist(A, J) and budget.fits(v0, v1, [a_], [j_], start([a_], [j_]))[0]:
-                lo = mid
-                A, J = a_, j_
-            else:
-                hi = mid
     A, J = derate * A, derate * J
     phases, T, D = scurve(v0, v1, A, J)
     out.update(A=A, J=J, D=D, T=T, phases=phases)
@@ -544,6 +552,35 @@ def check_section(samples: SectionSamples, limits, share: float = CHECK_SHARE) -
                      n_grid=CHECK_GRID)
     r = limit_ratio(pk, limits.velocity, limits.acceleration, limits.jerk, share)
     return np.where(pk.position_break.any(axis=1), np.inf, r)
+
+
+RUN_MEMO_SIZE = 2048    # run time laws kept for a second, identical request (lead sizing, then timing)
+_RUN_MEMO: OrderedDict = OrderedDict()
+
+
+def time_run_section(spline: PathSpline, target: np.ndarray, limits, fill_s: float = FILL_S):
+    """``time_section`` of a surface run, each run planned once per process: lead sizing
+    (``runs.run_leads``) and the timing of the same joint path (``runs.time_runs``) ask for the very same
+    sections, so the second request gets the first's (plan, samples, derate), arrays read-only. Keyed on
+    the exact bytes of the knots, poses, targets, limits and ``fill_s``; at most ``RUN_MEMO_SIZE`` kept."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in (spline.s, spline.q, target, limits.lower, limits.upper, limits.velocity, limits.acceleration,
+              limits.jerk, np.array([fill_s], float)):
+        a = np.ascontiguousarray(a, float)
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    key = h.digest()
+    hit = _RUN_MEMO.get(key)
+    if hit is not None:
+        _RUN_MEMO.move_to_end(key)
+        return hit
+    plan, smp, derate = time_section(spline, target, limits, fill_s)
+    for arr in (smp.t_s, smp.q, smp.qd, smp.qdd, smp.knot):
+        arr.setflags(write=False)
+    _RUN_MEMO[key] = (plan, smp, derate)
+    while len(_RUN_MEMO) > RUN_MEMO_SIZE:
+        _RUN_MEMO.popitem(last=False)
+    return plan, smp, derate
 
 
 def time_section(spline: PathSpline, target: np.ndarray, limits, fill_s: float = FILL_S):

@@ -19,7 +19,7 @@ needs). ``run_leads`` gives that length for one run (``assemble.lead_needed_mm``
 for a whole joint path); ``lead_bound_mm`` a conservative bound from the joint
 rates alone.
 
-Every run is planned, sampled and checked by ``pathlaw.time_section``; the
+Every run is planned, sampled and checked by ``pathlaw.time_section`` (once: ``time_run_section``); the
 result is the waypoint times, through-states and the samples inside pieces
 (S-curves only: at constant feed the Hermite pieces between poses are exact).
 """
@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import CamtoolError
 from ..toolpath import ZONE_CODE
-from .pathlaw import PathSpline, SectionPlan, scurve, speed_bounds, time_section, transition_limits
+from .pathlaw import PathSpline, SectionPlan, scurve, speed_bounds, time_run_section, transition_limits
 from .quintic import MARGIN
 
 FEED_POLICIES = ("constant", "max")
@@ -121,7 +121,7 @@ def time_runs(q, step_mm, first, last, run_id, zone, limits, feed_mm_s: float, p
         z = zone[a:b + 1]
         tgt = targets(bound, z, feed_mm_s, policy, scope)
         try:
-            plan, smp, _ = time_section(spline, tgt, limits)
+            plan, smp, _ = time_run_section(spline, tgt, limits)
         except RuntimeError as exc:
             raise CamtoolError(f"timing: run of surface rows {a}..{b}: {exc}") from None
         knot_t = smp.t_s[smp.knot >= 0]
@@ -220,7 +220,7 @@ def run_leads(q, step_mm, zone, limits, feed_mm_s: float, policy: str = "constan
     spline = PathSpline(path_parameter(q, step_mm, limits, feed_mm_s), q)
     bound, _, _ = speed_bounds(*spline.piece_bounds(), limits)
     try:
-        plan, _, _ = time_section(spline, targets(bound, zone, feed_mm_s, policy, scope), limits)
+        plan, _, _ = time_run_section(spline, targets(bound, zone, feed_mm_s, policy, scope), limits)
     except RuntimeError:  # a run the time law cannot take: time_runs says so, with its rows
         return {}
     s = spline.s
