@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job
+from ..process.outputs import process_outputs
 from ..placement.partial import partial_path, partial_summary, reachable_stretches
 from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
@@ -83,6 +84,9 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     report["programs_simulated"] = simulated
     report["limits_ok"] = True  # post_checked passed the independent check
     report["status"] = "ok"
+    process, process_files = process_outputs(job, settings, trajectory, robot, surface, outdir)
+    if process is not None:
+        report["process_map"] = process
     trajectories = {settings.planner.method: trajectory}
     if compare:
         other = "general" if settings.planner.method == "seed" else "seed"
@@ -92,4 +96,4 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
             report["compare"] = run_report(path, jp2, tr2, robot, job, other)
         except PlanInfeasible as exc:
             report["compare"] = {"method": other, "status": "infeasible", "reason": str(exc)}
-    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir, extra_files=(feed_png,))
+    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir, extra_files=(feed_png, *process_files))
