@@ -67,7 +67,8 @@ def test_inspect_counts_passes():
     assert pm.values[int(np.argmin(np.abs(pm.grid.v + 15.0))), iu] == 1
 
 
-def test_sphere_direct_sums_conserve_volume():
+@pytest.mark.parametrize("method", ["auto", "direct"])
+def test_sphere_maps_conserve_volume(method):
     R = 600.0
     frame = np.eye(3)
     outer = np.radians(np.array([[-20, -10], [20, -10], [20, 30], [-20, 30]], float))
@@ -77,8 +78,24 @@ def test_sphere_direct_sums_conserve_volume():
     v = np.full_like(u, math.radians(10.0))
     tcp = sph.point_mm(u, v)
     t = np.arange(len(u)) * 0.004
-    pm = process_map(s, sph, t, tcp)
-    assert pm.method == "direct"
+    pm = process_map(s, sph, t, tcp, method=method)
+    assert pm.method == ("row-convolution" if method == "auto" else "direct")
     volume = float(np.sum(pm.values * pm.grid.area_mm2))
     per_mm = s.preston_coefficient_per_pa * s.force_n * 1e-3 * 1e12
     assert volume == pytest.approx(per_mm * pm.contact_length_mm, rel=1e-6)
+
+
+def test_sphere_row_convolution_matches_direct_sums():
+    R = 500.0
+    outer = np.radians(np.array([[-20, -10], [20, -10], [20, 50], [-20, 50]], float))
+    sph = SpherePatch(np.zeros(3), R, np.eye(3), Boundary(outer))
+    s = ProcessSettings.make(kind="polish", diameter_mm=40, profile="flat")
+    u = np.linspace(-0.3, 0.3, 3000)
+    lifted = np.full((5, 3), 2000.0)  # off the part between the passes
+    tcp = np.vstack([sph.point_mm(u, np.full_like(u, math.radians(5.0))), lifted,
+                     sph.point_mm(u, np.full_like(u, math.radians(40.0)))])
+    t = np.arange(len(tcp)) * 0.004
+    a = process_map(s, sph, t, tcp).values
+    b = process_map(s, sph, t, tcp, method="direct").values
+    on = b > 0.05 * b.max()
+    assert np.sqrt(np.mean((a[on] - b[on]) ** 2)) / b[on].mean() < 0.02
