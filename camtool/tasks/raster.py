@@ -9,6 +9,8 @@ from pathlib import Path
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job
 from ..process.outputs import process_outputs
+from ..process.stepover import auto_step_over
+from ..raster import raster_path
 from ..placement.partial import partial_path, partial_summary, reachable_stretches
 from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
@@ -38,7 +40,8 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     outdir = Path(outdir)
     wp = log.done("workpiece", workpiece_for_job(job))
     surface = log.done("fit", surface_for_job(job, wp))
-    path = log.done("raster", path_for_job(job, surface))
+    settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
+    path = log.done("raster", path_for_job(job, surface) if step_choice is None else raster_path(surface, settings.raster))
     part = part_for_checks(settings, wp, surface)
     partial = None
     try:
@@ -84,7 +87,8 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     report["programs_simulated"] = simulated
     report["limits_ok"] = True  # post_checked passed the independent check
     report["status"] = "ok"
-    process, process_files = process_outputs(job, settings, trajectory, robot, surface, outdir)
+    process, process_files = process_outputs(job, settings, trajectory, robot, surface, outdir,
+                                             extra=None if step_choice is None else {"step_over_auto": step_choice})
     if process is not None:
         report["process_map"] = process
     trajectories = {settings.planner.method: trajectory}
