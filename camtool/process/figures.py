@@ -62,6 +62,8 @@ def map_figures(pmap: ProcessMap, band: float = 0.05) -> dict:
     scale = abs(mean) if mean else 1.0
 
     def within(b):
+        if mean <= 0:
+            return 0.0  # nothing was done: no share is uniform
         return round(_weighted((np.abs(dev) <= b * scale).astype(float), w), 5)
 
     uncovered = (v <= 0.0) if pmap.kind == "inspect" else (v <= UNCOVERED_SHARE_OF_MEAN * scale)
