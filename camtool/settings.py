@@ -194,6 +194,7 @@ class TimingSettings(_FromSection):
     zones: str
     feed: str = "constant"
     slow_scope: str = "row"
+    feed_factor: tuple[float, ...] | None = None  # per Path pose, <= 1: a cap on the feed (camtool.process.dwell)
 
     @classmethod
     def from_section(cls, sec):

@@ -181,3 +181,31 @@ def plan_dwell(surface, path, process: ProcessSettings, feed_mm_s: float, target
 
 def _as_map(grid, values, process):
     return ProcessMap(grid, values, process.kind, "", "", "", 0.0, 0.0, 0)
+
+
+def retime_for_target(job, settings, surface, path, joint_path, robot):
+    """(trajectory, plan) with ``process.target_removal_file``: the dwell plan of ``path`` and the joint path timed
+    again with its feed factors as caps (``timing.feed = "max"``: the speed follows them within the joint
+    limits; the timing's own 4 ms check and the motion check run on the result as on any other), or
+    (None, None) without a target."""
+    from dataclasses import replace
+
+    from ..timing import time_trajectory
+
+    process = settings.process
+    if process is None or not process.enabled or not process.target_removal_file:
+        return None, None
+    plan = plan_dwell(surface, path, process, settings.timing.tcp_speed_mm_s,
+                      target_file=job.resolve(process.target_removal_file))
+    timing = replace(settings.timing, feed="max", feed_factor=tuple(float(x) for x in plan.feed_factor))
+    return time_trajectory(joint_path, path, robot, timing), plan
+
+
+def run_residual(plan: DwellPlan, values: np.ndarray, radius_mm: float) -> dict:
+    """The residual of a run's map (on the plan's grid) against the target: RMS over the clear aperture."""
+    grid = plan.before.grid
+    aperture = grid.material & (edge_distance_mm(plan.before) >= radius_mm)
+    t_mean = float(np.mean(plan.target[aperture])) if aperture.any() else float("nan")
+    rms = _rms(values - plan.target, aperture)
+    return {"residual_rms_run_um": round(rms, 6),
+            "residual_rms_run_pct": round(100 * rms / t_mean, 3) if t_mean > 0 else None}

@@ -285,7 +285,7 @@ def process_map(settings: ProcessSettings, surface, t_s, tcp_mm, method: str = "
 
 
 def trajectory_map(settings: ProcessSettings, surface, trajectory, robot, dt_s: float,
-                   method: str = "auto") -> ProcessMap:
+                   method: str = "auto", grid: MapGrid | None = None) -> ProcessMap:
     """The map of a timed trajectory as the controller runs it (resampled at ``dt_s``)."""
     t_s, tcp = tcp_track(trajectory, robot, dt_s)
-    return process_map(settings, surface, t_s, tcp, method)
+    return process_map(settings, surface, t_s, tcp, method, grid=grid)

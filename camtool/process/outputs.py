@@ -19,14 +19,18 @@ MAP_FILE = "process_map.npz"
 PNG_FILE = "plots/process_map.png"
 
 
-def process_outputs(job, settings, trajectory, robot, surface, outdir, extra: dict | None = None
+def process_outputs(job, settings, trajectory, robot, surface, outdir, extra: dict | None = None, dwell=None
                     ) -> tuple[dict | None, list[Path]]:
-    """(figures, files) of the job's process map, or (None, []) without a process or a surface."""
+    """(figures, files) of the job's process map, or (None, []) without a process or a surface.
+
+    ``dwell``: the ``DwellPlan`` the trajectory was timed with (a target removal map); its figures and the
+    run's residual against the target go under ``target``."""
     process = settings.process
     if process is None or not process.enabled or surface is None:
         return None, []
     start, cpu = time.perf_counter(), time.process_time()
-    pmap = trajectory_map(process, surface, trajectory, robot, settings.check.dt_s)
+    grid = None if dwell is None else dwell.before.grid
+    pmap = trajectory_map(process, surface, trajectory, robot, settings.check.dt_s, grid=grid)
     figures = map_figures(pmap, process.uniformity_band)
     outdir = Path(outdir)
     files = [save_map_npz(pmap, outdir / MAP_FILE),
@@ -40,6 +44,10 @@ def process_outputs(job, settings, trajectory, robot, surface, outdir, extra: di
         and figures["uniformity_within_band"] >= process.uniformity_target)
     if extra:
         figures.update(extra)
+    if dwell is not None:
+        from .dwell import run_residual
+
+        figures["target"] = {**dwell.figures, **run_residual(dwell, pmap.values, 0.5 * process.diameter_mm)}
     figures["seconds"] = round(time.perf_counter() - start, 3)
     figures["cpu_seconds"] = round(time.process_time() - cpu, 3)  # the share of the run, whatever else runs
     return figures, files

@@ -9,6 +9,7 @@ from pathlib import Path
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job
 from ..process.outputs import process_outputs
+from ..process.dwell import retime_for_target
 from ..process.stepover import auto_step_over
 from ..raster import raster_path
 from ..placement.partial import partial_path, partial_summary, reachable_stretches
@@ -64,6 +65,8 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
             raise PlanInfeasible(f"{exc}; {shift['message']}", report=exc.report) from None
         raise
     log.done("plan", joint_path)
+    retimed, dwell = retime_for_target(job, settings, surface, path, joint_path, robot)  # a target removal map
+    trajectory = trajectory if retimed is None else retimed
     log.done("time", trajectory)
     try:
         motion = log.done("check", motion_check(settings, trajectory, robot, wp, path, surface))
@@ -88,7 +91,8 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     report["limits_ok"] = True  # post_checked passed the independent check
     report["status"] = "ok"
     process, process_files = process_outputs(job, settings, trajectory, robot, surface, outdir,
-                                             extra=None if step_choice is None else {"step_over_auto": step_choice})
+                                             extra=None if step_choice is None else {"step_over_auto": step_choice},
+                                             dwell=dwell)
     if process is not None:
         report["process_map"] = process
     trajectories = {settings.planner.method: trajectory}
