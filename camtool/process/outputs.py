@@ -37,6 +37,7 @@ def process_outputs(job, settings, trajectory, robot, surface, outdir, extra: di
              plot_map_png(pmap, figures, outdir / PNG_FILE, title=f"{job.path.name}: {pmap.quantity}")]
     figures["file"] = str(files[0])
     figures["png"] = str(files[1])
+    figures["footprint"] = {"profile": process.profile, "diameter_mm": process.diameter_mm}
     figures["uniformity_target"] = process.uniformity_target
     figures["uniformity_band_pct"] = round(100 * process.uniformity_band, 6)
     figures["meets_uniformity_target"] = bool(
