@@ -111,9 +111,18 @@ def _rms(x, mask):
     return float(np.sqrt(np.mean(x[mask] ** 2))) if mask.any() else float("nan")
 
 
-def plan_dwell(surface, path, process: ProcessSettings, feed_mm_s: float, target_file=None,
-               target: np.ndarray | None = None, grid: MapGrid | None = None) -> DwellPlan:
-    """Feed factors along the rows of ``path`` that make its map meet the target (see the module doc)."""
+def check_target_inputs(job, process: ProcessSettings | None, surface) -> None:
+    """Before any planning: BadInput when ``process.target_removal_file`` cannot be met on this job (the file,
+    the surface, a removal that follows dwell)."""
+    if process is None or not process.enabled or not process.target_removal_file:
+        return
+    _check_model(surface, process)
+    fp = Footprint.from_settings(process)
+    load_target(job.resolve(process.target_removal_file),
+                map_grid(surface, process.grid_mm, fp.radius_mm + 2 * process.grid_mm))
+
+
+def _check_model(surface, process: ProcessSettings) -> None:
     if surface.model != "plane":
         raise BadInput("process.target_removal_file: dwell-time figuring is implemented for plane surfaces; "
                        f"this surface is a {surface.model}")
@@ -122,6 +131,12 @@ def plan_dwell(surface, path, process: ProcessSettings, feed_mm_s: float, target
                        "distance slid, not the dwell, so no feed meets a target; give the abrasive's speed")
     if process.kind == "inspect":
         raise BadInput("process.target_removal_file: an inspection removes nothing")
+
+
+def plan_dwell(surface, path, process: ProcessSettings, feed_mm_s: float, target_file=None,
+               target: np.ndarray | None = None, grid: MapGrid | None = None) -> DwellPlan:
+    """Feed factors along the rows of ``path`` that make its map meet the target (see the module doc)."""
+    _check_model(surface, process)
     fp = Footprint.from_settings(process)
     if grid is None:
         grid = map_grid(surface, process.grid_mm, fp.radius_mm + 2 * process.grid_mm)

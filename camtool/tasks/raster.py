@@ -9,7 +9,7 @@ from pathlib import Path
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job
 from ..process.outputs import process_outputs
-from ..process.dwell import retime_for_target
+from ..process.dwell import check_target_inputs, retime_for_target
 from ..process.stepover import auto_step_over
 from ..raster import raster_path
 from ..placement.partial import partial_path, partial_summary, reachable_stretches
@@ -41,6 +41,7 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     outdir = Path(outdir)
     wp = log.done("workpiece", workpiece_for_job(job))
     surface = log.done("fit", surface_for_job(job, wp))
+    check_target_inputs(job, settings.process, surface)  # a target removal map it cannot meet: before planning
     settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
     path = log.done("raster", path_for_job(job, surface) if step_choice is None else raster_path(surface, settings.raster))
     part = part_for_checks(settings, wp, surface)
