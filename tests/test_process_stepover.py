@@ -25,7 +25,7 @@ def test_auto_step_over_meets_the_target_on_a_large_plate():
     chosen, record = choose_step_over(surface, raster, process, 100.0)
     assert record["met"] and record["predicted_share_within_band"] >= 0.95
     assert chosen.step_over_mm == record["step_over_mm"] and not chosen.step_over_auto
-    assert record["limited_by"] in ("ripple", "edges")
+    assert record["limited_by"] in ("ripple", "edges") and 0 <= record["candidates"][0]["interior_share_within_band"] <= 1
     # the prediction of the chosen raster is what the record says
     _, pmap = predicted_map(surface, chosen, process, 100.0)
     assert pmap.values.max() > 0

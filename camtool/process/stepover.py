@@ -15,11 +15,12 @@ worked area within ``uniformity_band_pct`` of the mean) is taken:
    surface is evaluated until one meets the target.
 
 The record says what limits the choice: ``ripple`` (the first candidate met the
-target, the rows' overlap decides), ``edges`` (the roll-off at the material's
-edges needed a smaller step-over than the ripple alone) or, when no candidate
-met the target, ``edges`` again with the best candidate taken (its share is
-reported). On a sphere patch the surface's curvature is part of the predicted
-map. Reach is not part of the choice: the chosen raster is planned like any other.
+target, the rows' overlap decides), ``curvature`` (on a sphere, the first
+candidate already fails away from the edges: the rows' spacing and the
+footprint change over the patch) or ``edges`` (the roll-off at the material's
+edges needed a smaller step-over than the ripple alone); when no candidate
+met the target, the best one is taken and a note gives its share. On a
+sphere patch the surface's curvature is part of the predicted map. Reach is not part of the choice: the chosen raster is planned like any other.
 """
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ import numpy as np
 
 from ..settings import ProcessSettings, RasterSettings
 from ..toolpath import SURFACE_CODES
-from .figures import map_figures
+from .figures import edge_distance_mm, map_figures
 from .footprint import Footprint
 from .integrate import process_map
 
@@ -94,6 +95,19 @@ def predicted_map(surface, raster: RasterSettings, process: ProcessSettings, fee
     return path, process_map(process, surface, t, tcp)
 
 
+def _interior_share(pmap, fp: Footprint, band: float, kind: str) -> float:
+    """Share within the band of the mean, over the cells at least a footprint radius from the material's edge."""
+    g = pmap.grid
+    inner = g.material & (edge_distance_mm(pmap) >= fp.radius_mm)
+    if not inner.any():
+        return 0.0
+    v, w = pmap.values[inner], g.area_mm2[inner]
+    if kind == "inspect":
+        return float(np.sum(w[v > 0]) / np.sum(w))
+    mean = float(np.sum(v * w) / np.sum(w))
+    return 0.0 if mean <= 0 else round(float(np.sum(w[np.abs(v - mean) <= band * mean]) / np.sum(w)), 5)
+
+
 def choose_step_over(surface, raster: RasterSettings, process: ProcessSettings, feed_mm_s: float
                      ) -> tuple[RasterSettings, dict]:
     """(raster settings with the chosen step_over_mm, the record for report.json) for ``step_over_mm = "auto"``."""
@@ -121,6 +135,7 @@ def choose_step_over(surface, raster: RasterSettings, process: ProcessSettings, 
         fig = map_figures(pmap, band)
         share = fig["uniformity_within_band"] if process.kind != "inspect" else 1.0 - fig["uncovered_share"]
         tried.append({"step_over_mm": candidate.step_over_mm, "share_within_band": share,
+                      "interior_share_within_band": _interior_share(pmap, fp, band, process.kind),
                       "edge_rolloff_width_mm": fig["edge_rolloff_width_mm"], "rms_pct": fig["rms_pct"]})
         if best is None or share > best[1]:
             best = (candidate, share)
@@ -132,12 +147,18 @@ def choose_step_over(surface, raster: RasterSettings, process: ProcessSettings, 
                        'gives a raster of this surface')
     chosen, share = best
     met = share >= target
-    limit = "ripple" if met and chosen.step_over_mm == tried[0]["step_over_mm"] else "edges"
+    first = tried[0]
+    if met and chosen.step_over_mm == first["step_over_mm"]:
+        limit = "ripple"
+    elif first["interior_share_within_band"] < target:
+        limit = "curvature" if surface.model == "sphere" else "ripple"  # away from the edges it already fails
+    else:
+        limit = "edges"
     record = {"step_over_mm": chosen.step_over_mm, "predicted_share_within_band": share, "target": target,
               "band_pct": round(100 * band, 6), "met": met, "limited_by": limit,
               "ripple_bound_mm": round(bound, 2), "surface": surface.model, "candidates": tried}
     if not met:
-        record["note"] = (f"no step-over met the target: the roll-off at the edges keeps {100 * (1 - share):.1f} % "
+        record["note"] = (f"no step-over met the target ({limit}): the best keeps {100 * (1 - share):.1f} % "
                           f"of the area outside +-{100 * band:g} %; the best candidate is used")
     return chosen, record
 
