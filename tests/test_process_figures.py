@@ -39,7 +39,9 @@ def test_files(tmp_path):
     npz = save_map_npz(pm, tmp_path / "process_map.npz")
     d = np.load(npz)
     assert d["values"].shape == (len(d["v"]), len(d["u"])) and str(d["units"]) == "um"
-    assert np.array_equal(d["values"], pm.values)
+    assert np.array_equal(d["values"], pm.values) and str(d["uv_unit"]) == "mm"
+    again = save_map_npz(pm, tmp_path / "again.npz")
+    assert again.read_bytes() == npz.read_bytes()  # the same map, the same bytes
     png = plot_map_png(pm, f, tmp_path / "plots" / "process_map.png")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not list(tmp_path.glob(".tmp-*")) and not list((tmp_path / "plots").glob(".tmp-*"))

@@ -14,9 +14,11 @@ weighted by cell area:
 """
 from __future__ import annotations
 
+import io
 import math
 import os
 import tempfile
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -110,13 +112,17 @@ def save_map_npz(pmap: ProcessMap, file) -> Path:
     """``process_map.npz``: u, v (cell centres, uv unit), values (nv, nu), material, area_mm2 and the units."""
     g = pmap.grid
 
+    arrays = {"u": g.u, "v": g.v, "values": pmap.values, "material": g.material, "area_mm2": g.area_mm2,
+              "units": pmap.units, "quantity": pmap.quantity, "kind": pmap.kind, "uv_unit": g.uv_unit(),
+              "cell_mm": g.cell_mm, "surface_model": g.surface.model}
+
     def write(tmp):
-        with open(tmp, "wb") as f:
-            np.savez(f, u=np.asarray(g.u), v=np.asarray(g.v), values=np.asarray(pmap.values),
-                     material=np.asarray(g.material), area_mm2=np.asarray(g.area_mm2),
-                     units=np.array(pmap.units), quantity=np.array(pmap.quantity), kind=np.array(pmap.kind),
-                     uv_unit=np.array(g.uv_unit()), cell_mm=np.array(g.cell_mm),
-                     surface_model=np.array(g.surface.model))
+        # np.savez's layout (one .npy per name in a zip) with a fixed time stamp: the same map, the same bytes
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as z:
+            for name, value in arrays.items():
+                buf = io.BytesIO()
+                np.lib.format.write_array(buf, np.asarray(value), allow_pickle=False)
+                z.writestr(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), buf.getvalue())
 
     return _atomic(Path(file), write)
 
