@@ -1,7 +1,7 @@
 """Job files (TOML): schema, defaults and validation with precise messages.
 
 A job has the sections ``workpiece``, ``fit``, ``raster``, ``robot``, ``cell``,
-``tool``, ``planner``, ``timing``, ``task`` and ``post``. Every key has a default
+``tool``, ``planner``, ``timing``, ``check``, ``task``, ``process`` and ``post``. Every key has a default
 (``SCHEMA``); docs/job-file.md is generated from it (``python -m
 camtool.job --markdown``) and a test keeps the two in step.
 
