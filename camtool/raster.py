@@ -251,16 +251,6 @@ def _direction(v) -> np.ndarray:
 # ----------------------------------------------------------------------------- entry
 
 
-def resolve_auto_step_over(surface, settings: RasterSettings, process=None, feed_mm_s: float = 100.0):
-    """``step_over_mm = "auto"`` resolved for ``process`` (``camtool.process.stepover``); BadInput without one."""
-    if process is None:
-        raise BadInput('raster.step_over_mm = "auto" is chosen from the [process] footprint by `camtool run` '
-                       '(docs/process.md); here give a number of mm')
-    from .process.stepover import choose_step_over
-
-    return choose_step_over(surface, settings, process, feed_mm_s)[0]
-
-
 def raster_path(surface, settings: RasterSettings) -> Path:
     """Raster ``surface`` into a Path: boustrophedon rows of work points with zones.
 
@@ -269,8 +259,9 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     patch. Poses are in the surface's (world) frame; tool z = -normal.
     """
     _check_boundary(surface)
-    if settings.step_over_auto:  # chosen from the process map first (camtool.process.stepover.auto_step_over)
-        settings = resolve_auto_step_over(surface, settings)
+    if settings.step_over_auto:  # `camtool run` chooses it first (camtool.process.stepover.auto_step_over)
+        raise BadInput('raster.step_over_mm = "auto" is chosen from the [process] footprint by `camtool run` '
+                       '(docs/process.md); here give a number of mm')
     w = _direction(settings.tool_x_world)
     step, pitch, lead, clear = settings.step_over_mm, settings.pitch_mm, settings.lead_mm, settings.clearance_mm
     m = settings.transition_points
