@@ -262,9 +262,13 @@ def _verdict_rows(report: dict) -> list[tuple[str, str]]:
                                                      f"{at.get('zone', '?')} at {at.get('t_s', 0):.1f} s); TCP "
                                                      f"{mc.get('tcp_min_clearance_mm', float('nan')):.1f} mm; deepest "
                                                      f"{mc.get('max_penetration_mm', float('nan')):.3f} mm behind the surface"))
-    cell = {k: v for k, v in mc.items() if k.startswith("cell") and k.endswith("_mm") and v is not None}
-    rows.append(("Closest approach to the cell", ", ".join(f"{k}: {v:.1f} mm" for k, v in cell.items())
-                 if cell else "no cell obstacles in the check"))
+    pairs = [p for p in mc.get("cell_pairs") or () if isinstance(p, dict) and p.get("min_distance_mm") is not None]
+    if pairs:  # the collision world's pairs (obstacles, floor, links)
+        best = min(pairs, key=lambda p: p["min_distance_mm"])
+        rows.append(("Closest approach to the cell", f"{best['min_distance_mm']:.1f} mm ({best.get('a', '?')} x "
+                                                     f"{best.get('b', '?')}, {len(pairs)} pairs checked)"))
+    else:
+        rows.append(("Closest approach to the cell", "no cell obstacles in the check"))
     pm = report.get("process_map") or {}
     if pm.get("mean") is not None:
         rows.append(("Process uniformity", f"{100 * pm['uniformity_within_5pct']:.1f} % of the worked area within ±5 % "

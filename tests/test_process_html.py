@@ -32,4 +32,7 @@ def test_verdict_rows_say_what_failed():
     bad = dict(_verdict_rows({"status": "unsafe", "reason": "the motion check failed",
                               "motion_check": {"min_clearance_mm": 1.0, "findings": ["wrist 1 mm from the part"]}}))
     assert "unsafe" in bad["Status"] and "wrist 1 mm" in bad["Where it failed"]
-    assert "Closest approach to the part" in bad
+    assert "Closest approach to the part" in bad and bad["Closest approach to the cell"].startswith("no cell")
+    cell = dict(_verdict_rows({"status": "ok", "motion_check": {"cell_pairs": [
+        {"a": "forearm", "b": "table", "min_distance_mm": 42.0}, {"a": "tool", "b": "floor", "min_distance_mm": 80.0}]}}))
+    assert cell["Closest approach to the cell"].startswith("42.0 mm (forearm x table")
