@@ -1,7 +1,7 @@
 """Job files (TOML): schema, defaults and validation with precise messages.
 
 A job has the sections ``workpiece``, ``fit``, ``raster``, ``robot``, ``cell``,
-``tool``, ``planner``, ``timing``, ``task`` and ``post``. Every key has a default
+``tool``, ``planner``, ``timing``, ``check``, ``task``, ``process`` and ``post``. Every key has a default
 (``SCHEMA``); docs/job-file.md is generated from it (``python -m
 camtool.job --markdown``) and a test keeps the two in step.
 
@@ -42,6 +42,7 @@ class Key:
     choices: tuple = ()
     check: Callable[[Any], bool] | None = None
     expect: str = ""  # wording of the check for error messages
+    auto: bool = False  # the string "auto" is accepted too (a value camtool chooses)
 
 
 def _pos(doc, default, unit="", most=None):
@@ -79,7 +80,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "simplify_mm": _nonneg("Boundary polygons are simplified to this tolerance.", 0.5),
     },
     "raster": {
-        "step_over_mm": Key("float", 10.0, "Distance between rows, measured on the surface (geodesic on a sphere).", check=lambda x: 0.1 <= x <= 10_000, expect="a number in 0.1..10000 mm"),
+        "step_over_mm": Key("float", 10.0, "Distance between rows, measured on the surface (geodesic on a sphere); \"auto\" = the largest step-over whose predicted process map meets process.uniformity_target for the [process] footprint (docs/process.md).", check=lambda x: 0.1 <= x <= 10_000, expect="a number in 0.1..10000 mm", auto=True),
         "pitch_mm": Key("float", 5.0, "Spacing of points along a row, measured on the surface.", check=lambda x: 0.1 <= x <= 10_000, expect="a number in 0.1..10000 mm"),
         "angle_deg": Key("float", 0.0, "Row direction in the (u, v) domain, from the u axis.", check=lambda x: -360 <= x <= 360, expect="an angle within -360..360 deg"),
         "lead_mm": _nonneg("Lead-in / lead-out length beyond the boundary at each segment end (the shortest; see lead_auto).", 20.0),
@@ -180,6 +181,25 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "arc_points": Key("int", 628, "cartesian: interpolation points of the arc (seed 001: 628).", check=lambda x: 2 <= x <= 200_000, expect="an integer in 2..200000"),
         "path_tol_mm": Key("float", 0.01, "cartesian: largest distance of the timed TCP from its line or arc, checked between points too; moves get more points until it holds.", check=lambda x: 1e-4 <= x <= 100, expect="a number in 0.0001..100 mm"),
     },
+    "process": {
+        "kind": Key("str", "none", "What the tool does to the part, mapped over the worked surface (process_map.npz, report.json process_map; docs/process.md): polish and grind = removal depth by Preston's law, paint = film thickness, inspect = coverage count; none = no map.", choices=("none", "polish", "grind", "paint", "inspect")),
+        "diameter_mm": _nonneg("Tool footprint diameter on the surface; 0 = the tool's size, 2 x check.tool_radius_mm.", 0.0),
+        "profile": Key("str", "flat", "Radial shape of the footprint's pressure (polish, grind) or deposition (paint): flat, parabolic (1 - r^2/a^2), gaussian (sigma = gaussian_sigma_mm, cut at the diameter) or table (profile_radius_mm / profile_value, a measured radial table, linear between entries, 0 beyond the last).", choices=("flat", "parabolic", "gaussian", "table")),
+        "gaussian_sigma_mm": _nonneg("profile = gaussian: standard deviation; 0 = diameter / 6.", 0.0),
+        "profile_radius_mm": Key("floats", [], "profile = table: radii of the measured profile, increasing from 0.", check=lambda x: all(b > a for a, b in zip(x, x[1:])) and all(r >= 0 for r in x), expect="increasing radii >= 0"),
+        "profile_value": Key("floats", [], "profile = table: relative pressure or deposition at each radius (any scale, >= 0; normalised so the footprint carries force_n or deposition_mm3_s).", check=lambda x: all(v >= 0 for v in x), expect="values >= 0"),
+        "force_n": _pos("polish, grind: normal force of the tool on the part (spread over the footprint by the profile).", 15.0, " N", 100_000),
+        "preston_coefficient_per_pa": _pos("polish, grind: Preston coefficient k_p in depth rate = k_p * pressure * relative speed (1/Pa = m^2/N); default: mr-sim's orbital-sander example.", 1.362e-9, " 1/Pa", 1.0),
+        "relative_speed_m_s": _nonneg("polish, grind: speed of the abrasive over the part (belt, disc or orbit speed); 0 = the tool's own traverse speed (TCP speed).", 0.0, 1000),
+        "deposition_mm3_s": _pos("paint: film volume the gun lays down per second (solids), spread over the footprint by the profile.", 1500.0, " mm^3/s", 1e9),
+        "contact_tol_mm": _pos("The tool acts where its TCP is within this distance of the surface (along the normal): contact for polish and grind, the stand-off window for paint and inspect. Leads and transitions within it count.", 0.5, " mm", 1000),
+        "grid_mm": _nonneg("Cell size of the map on the surface; 0 = diameter / 25.", 0.0, 1000),
+        "uniformity_target": Key("float", 0.95, "Share of the worked area that raster.step_over_mm = \"auto\" must bring within uniformity_band_pct of the mean.", check=lambda x: 0 < x <= 1, expect="a number in (0, 1]"),
+        "uniformity_band_pct": _pos("Band round the mean for uniformity_target.", 5.0, " %", 100),
+        "target_removal_file": Key("str", "", "A target removal map (.npz with u, v and values_um on the surface's (u, v) grid, or the process_map.npz of a run): the feed along the rows is modulated (dwell time) so the map meets it, within the joint limits (docs/process.md); empty = constant feed."),
+        "dwell_iterations": Key("int", 12, "target_removal_file: iterations of the dwell-time solve.", check=lambda x: 1 <= x <= 200, expect="an integer in 1..200"),
+        "feed_factor_min": Key("float", 0.25, "target_removal_file: lowest feed, as a share of timing.tcp_speed_mm_s (the longest dwell).", check=lambda x: 0.01 <= x <= 1, expect="a number in 0.01..1"),
+    },
     "post": {
         "formats": Key("strs", ["rapid", "inform", "csv"], "Post-processor plugins to run (see `camtool posts`); at least one, each once.", check=lambda x: 0 < len(x) == len(set(x)), expect="a non-empty list of distinct format names"),
         "program_name": Key("str", "CAMTOOL", "Program / job name (sanitised per controller).", check=lambda x: bool(x.strip()), expect="a non-empty name"),
@@ -246,6 +266,8 @@ def _coerce(key: Key, value, where: str):
         return not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x)
 
     k = key.kind
+    if key.auto and value == "auto":
+        return value
     if k == "float":
         if not number(value):
             fail(key.expect or "a number")

@@ -259,6 +259,9 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     patch. Poses are in the surface's (world) frame; tool z = -normal.
     """
     _check_boundary(surface)
+    if settings.step_over_auto:  # `camtool run` chooses it first (camtool.process.stepover.auto_step_over)
+        raise BadInput('raster.step_over_mm = "auto" is chosen from the [process] footprint by `camtool run` '
+                       '(docs/process.md); here give a number of mm')
     w = _direction(settings.tool_x_world)
     step, pitch, lead, clear = settings.step_over_mm, settings.pitch_mm, settings.lead_mm, settings.clearance_mm
     m = settings.transition_points

@@ -32,6 +32,7 @@ MAX_HEAT_COLUMNS = 1_500
 ZONE_COLORS = {"work": "#1f77b4", "self_motion": "#ff7f0e", "lead_in": "#2ca02c", "lead_out": "#9467bd",
                "approach": "#8c564b", "depart": "#e377c2", "retract": "#d62728"}
 PLOTLY_CONFIG = {"displaylogo": False, "responsive": True}
+PROCESS_DIV = "camtool-process-map"  # only when the job has a [process]
 DIV = {"scene": "camtool-scene", "feed": "camtool-feed", "joint_use": "camtool-joint-use",
        "redundancy": "camtool-redundancy"}
 FAILING_NAME = "unreachable or failing poses"
@@ -47,7 +48,10 @@ def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None
     """
     file = FsPath(file)
     feed = _feed(robot, trajectory) if trajectory is not None else None
-    sections = [_summary_section(report, robot, surface, path, failing_indices)]
+    sections = [_verdict_section(report), _summary_section(report, robot, surface, path, failing_indices)]
+    process = _process_section(report, surface)
+    if process is not None:
+        sections.append(process)
     scene = _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices)
     sections.append(("Workpiece, path and robot", _SCENE_NOTE, fig_html(scene, DIV["scene"])))
     if trajectory is not None:
@@ -247,7 +251,76 @@ def _summary_section(report, robot, surface, path, failing_indices):
         extra.append(("failing_poses", str(len(failing_indices))))
     body = "".join(f'<div class="kv"><span class="k">{html.escape(k)}</span> '
                    f'<span class="v">{html.escape(v)}</span></div>' for k, v in rows + extra)
-    return ("Summary (report.json)", "", f'<div class="summary">{body}</div>')
+    return ("Summary (report.json)", "", f'<details><summary>Every key of report.json ({len(rows)}) and the '
+            f'surface</summary><div class="summary">{body}</div></details>')
+
+
+# ----------------------------------------------------------------------------- verdict and process map
+
+def _verdict_rows(report: dict) -> list[tuple[str, str]]:
+    """The figures a process engineer asks first, as (label, text); missing ones are left out."""
+    rows = []
+    status = report.get("status") or "unknown"
+    rows.append(("Status", status + ("" if status == "ok" else f": {report.get('reason', '')}")))
+    if report.get("cycle_time_s") is not None:
+        work = report.get("work_time_s")
+        rows.append(("Cycle time", f"{report['cycle_time_s']:.1f} s" + (f" ({work:.1f} s on work)" if work else "")))
+    feed = report.get("work_feed") or {}
+    if feed.get("work_share_within_1pct") is not None:
+        rows.append(("Feed held", f"{100 * feed['work_share_within_1pct']:.1f} % of {feed.get('work_length_mm', 0) / 1000:.1f} m "
+                                  f"within 1 % of {feed.get('commanded_feed_mm_s', 0):g} mm/s "
+                                  f"(min {feed.get('min_work_feed_mm_s', 0):.1f} mm/s)"))
+    mc = report.get("motion_check") or {}
+    if mc.get("min_clearance_mm") is not None:
+        at = mc.get("min_clearance_at") or {}
+        rows.append(("Closest approach to the part", f"{mc['min_clearance_mm']:.1f} mm off work ({at.get('body', '?')}, "
+                                                     f"{at.get('zone', '?')} at {at.get('t_s', 0):.1f} s); TCP "
+                                                     f"{mc.get('tcp_min_clearance_mm', float('nan')):.1f} mm; deepest "
+                                                     f"{mc.get('max_penetration_mm', float('nan')):.3f} mm behind the surface"))
+    pairs = [p for p in mc.get("cell_pairs") or () if isinstance(p, dict) and p.get("min_distance_mm") is not None]
+    if pairs:  # the collision world's pairs (obstacles, floor, links)
+        best = min(pairs, key=lambda p: p["min_distance_mm"])
+        rows.append(("Closest approach to the cell", f"{best['min_distance_mm']:.1f} mm ({best.get('a', '?')} x "
+                                                     f"{best.get('b', '?')}, {len(pairs)} pairs checked)"))
+    else:
+        rows.append(("Closest approach to the cell", "no cell obstacles in the check"))
+    pm = report.get("process_map") or {}
+    if pm.get("mean") is not None:
+        rows.append(("Process uniformity", f"{100 * pm['uniformity_within_5pct']:.1f} % of the worked area within ±5 % "
+                                           f"of the mean {pm['mean']:.4g} {pm.get('units', '')} (target "
+                                           f"{100 * pm.get('uniformity_target', 0.95):.0f} %: "
+                                           f"{'met' if pm.get('meets_uniformity_target') else 'not met'}); "
+                                           f"uncovered {pm.get('uncovered_area_mm2', 0):.0f} mm²"))
+    failed = []
+    if status != "ok":
+        if report.get("unreachable_count"):
+            failed.append(f"{report['unreachable_count']} unreachable poses (marked in the scene)")
+        findings = mc.get("findings") or []
+        if findings:
+            failed.append(f"{len(findings)} motion-check finding(s); first: {findings[0]}")
+        if not failed and report.get("reason"):
+            failed.append(str(report["reason"]))
+    if failed:
+        rows.append(("Where it failed", "; ".join(failed)))
+    return rows
+
+
+def _verdict_section(report: dict):
+    """The page's opening: the verdict and the first figures (``_verdict_rows``)."""
+    rows = _verdict_rows(report)
+    body = "".join(f'<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>' for k, v in rows)
+    return ("Verdict", "", f'<table class="verdict">{body}</table>')
+
+
+def _process_section(report: dict, surface):
+    """The process map on the 3-D surface (``camtool.process.html``), or None without one."""
+    from .process.html import process_heat_map_figure, process_note
+
+    figures = report.get("process_map")
+    fig = process_heat_map_figure(figures, surface) if figures else None
+    if fig is None:
+        return None
+    return (f"Process map: {figures.get('quantity', '')}", process_note(figures), fig_html(fig, PROCESS_DIV))
 
 
 # ----------------------------------------------------------------------------- 3-D scene
@@ -514,7 +587,9 @@ _CSS = ("body{font-family:system-ui,sans-serif;margin:1.2em;color:#222}h1{font-s
         "div.summary{column-width:24em;column-gap:2em;font-size:0.85em}"
         "div.kv{break-inside:avoid;display:flex;justify-content:space-between;border-bottom:1px dotted #e4e4e4}"
         "span.k{color:#555;padding-right:1em}span.v{font-family:monospace;text-align:right;overflow-wrap:anywhere}"
-        "p.note{font-size:0.9em;color:#444;max-width:70em}")
+        "p.note{font-size:0.9em;color:#444;max-width:70em}"
+        "table.verdict{border-collapse:collapse}table.verdict th{text-align:left;padding:0.2em 1.5em 0.2em 0;"
+        "color:#555;font-weight:normal}table.verdict td{padding:0.2em 0}")
 _SCENE_NOTE = ('<p class="note">World frame, mm. Workpiece points decimated for display; the path coloured by zone, '
                'work poses by TCP feed when the run was timed. Markers: reverse planned (diamond), retract '
                '(square), singular (x), not reached (open circle), unreachable or failing (red cross). '

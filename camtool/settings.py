@@ -101,10 +101,12 @@ class RasterSettings(_FromSection):
     lead_rad: float
     tilt_rad: float
     free_spin: bool
+    step_over_auto: bool = False  # step_over_mm = "auto": chosen from the process map (camtool.process.stepover)
 
     @classmethod
     def from_section(cls, sec):
-        return cls(step_over_mm=float(sec["step_over_mm"]), pitch_mm=float(sec["pitch_mm"]),
+        auto = sec["step_over_mm"] == "auto"
+        return cls(step_over_mm=0.0 if auto else float(sec["step_over_mm"]), step_over_auto=auto, pitch_mm=float(sec["pitch_mm"]),
                    angle_rad=math.radians(sec["angle_deg"]), lead_mm=float(sec["lead_mm"]),
                    lead_auto=bool(sec["lead_auto"]), lead_max_mm=float(sec["lead_max_mm"]),
                    clearance_mm=float(sec["clearance_mm"]), self_motion_lift_mm=float(sec["self_motion_lift_mm"]),
@@ -192,6 +194,7 @@ class TimingSettings(_FromSection):
     zones: str
     feed: str = "constant"
     slow_scope: str = "row"
+    feed_factor: tuple[float, ...] | None = None  # per Path pose, <= 1: a cap on the feed (camtool.process.dwell)
 
     @classmethod
     def from_section(cls, sec):
@@ -241,6 +244,63 @@ class CheckSettings(_FromSection):
             "tool_contact_exempt_mm")})
 
 
+@dataclass(frozen=True)
+class ProcessSettings(_FromSection):
+    """The process model (``[process]``): what the tool does to the part; lengths in mm, SI otherwise.
+
+    ``diameter_mm`` and ``gaussian_sigma_mm`` are resolved here (0 = from the
+    tool / the diameter); ``profile_table`` is ((r_mm, value), ...).
+    """
+
+    SECTION: ClassVar[str] = "process"
+    kind: str
+    diameter_mm: float
+    profile: str
+    gaussian_sigma_mm: float
+    profile_table: tuple[tuple[float, float], ...]
+    force_n: float
+    preston_coefficient_per_pa: float
+    relative_speed_m_s: float
+    deposition_mm3_s: float
+    contact_tol_mm: float
+    grid_mm: float
+    uniformity_target: float
+    uniformity_band: float
+    target_removal_file: str
+    dwell_iterations: int
+    feed_factor_min: float
+
+    @property
+    def enabled(self) -> bool:
+        return self.kind != "none"
+
+    @classmethod
+    def from_section(cls, sec, tool_radius_mm: float = 25.0):
+        d = float(sec["diameter_mm"]) or 2.0 * float(tool_radius_mm)
+        r, v = list(sec["profile_radius_mm"]), list(sec["profile_value"])
+        if sec["profile"] == "table" and (len(r) < 2 or len(r) != len(v) or not any(v)):
+            raise BadInput("process.profile_radius_mm / profile_value: profile = 'table' needs at least 2 radii "
+                           f"and as many values, not all 0 (found {len(r)} radii, {len(v)} values)")
+        if sec["profile"] == "table" and r[-1] > d / 2:
+            raise BadInput(f"process.profile_radius_mm: the table reaches {r[-1]:g} mm, beyond the footprint's "
+                           f"radius {d / 2:g} mm (process.diameter_mm)")
+        return cls(kind=sec["kind"], diameter_mm=d, profile=sec["profile"],
+                   gaussian_sigma_mm=float(sec["gaussian_sigma_mm"]) or d / 6.0,
+                   profile_table=tuple(zip(map(float, r), map(float, v))), force_n=float(sec["force_n"]),
+                   preston_coefficient_per_pa=float(sec["preston_coefficient_per_pa"]),
+                   relative_speed_m_s=float(sec["relative_speed_m_s"]), deposition_mm3_s=float(sec["deposition_mm3_s"]),
+                   contact_tol_mm=float(sec["contact_tol_mm"]), grid_mm=float(sec["grid_mm"]) or d / 25.0,
+                   uniformity_target=float(sec["uniformity_target"]),
+                   uniformity_band=float(sec["uniformity_band_pct"]) / 100.0,
+                   target_removal_file=sec["target_removal_file"], dwell_iterations=int(sec["dwell_iterations"]),
+                   feed_factor_min=float(sec["feed_factor_min"]))
+
+    @classmethod
+    def make(cls, tool_radius_mm: float = 25.0, **job_keys):
+        """Settings from [process] keys (job-file units); the tool's radius for the default diameter."""
+        return cls.from_section(_section(cls.SECTION, job_keys), tool_radius_mm)
+
+
 def home_q(job: Job, robot) -> np.ndarray | None:
     """``robot.home_deg`` in native joint units (rad / mm), or None when the job gives none."""
     values = job.robot.home_deg
@@ -262,6 +322,7 @@ class JobSettings:
     timing: TimingSettings
     post: PostSettings
     check: CheckSettings
+    process: ProcessSettings | None = None
 
     @classmethod
     def from_job(cls, job: Job, robot=None) -> "JobSettings":
@@ -271,4 +332,5 @@ class JobSettings:
                    raster=RasterSettings.from_section(job.raster),
                    planner=PlannerSettings.from_section(job.planner, q_home),
                    timing=TimingSettings.from_section(job.timing), post=PostSettings.from_section(job.post),
-                   check=CheckSettings.from_section(job.check))
+                   check=CheckSettings.from_section(job.check),
+                   process=ProcessSettings.from_section(job.process, job.check.tool_radius_mm))

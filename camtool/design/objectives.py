@@ -122,6 +122,9 @@ def job_with(job: Job, **changes) -> Job:
 
 def coarse_job(job: Job, factor: float) -> Job:
     """The job with step-over and pitch multiplied by ``factor``."""
+    if job.raster.step_over_mm == "auto":  # chosen from the process map by `camtool run` only
+        raise BadInput(f'{job.path}: raster.step_over_mm = "auto" is chosen by `camtool run`; a design needs a '
+                       "number of mm")
     return job_with(job, raster={"step_over_mm": job.raster.step_over_mm * factor,
                                  "pitch_mm": job.raster.pitch_mm * factor})
 

@@ -8,6 +8,10 @@ from pathlib import Path
 
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job
+from ..process.outputs import process_outputs
+from ..process.dwell import check_target_inputs, retime_for_target
+from ..process.stepover import auto_step_over
+from ..raster import raster_path
 from ..placement.partial import partial_path, partial_summary, reachable_stretches
 from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
@@ -37,7 +41,9 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     outdir = Path(outdir)
     wp = log.done("workpiece", workpiece_for_job(job))
     surface = log.done("fit", surface_for_job(job, wp))
-    path = log.done("raster", path_for_job(job, surface))
+    check_target_inputs(job, settings.process, surface)  # a target removal map it cannot meet: before planning
+    settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
+    path = log.done("raster", path_for_job(job, surface) if step_choice is None else raster_path(surface, settings.raster))
     part = part_for_checks(settings, wp, surface)
     partial = None
     try:
@@ -63,6 +69,8 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
             raise PlanInfeasible(f"{exc}; {shift['message']}", report=exc.report) from None
         raise
     log.done("plan", joint_path)
+    retimed, dwell = retime_for_target(job, settings, surface, path, joint_path, robot)  # a target removal map
+    trajectory = trajectory if retimed is None else retimed
     log.done("time", trajectory)
     try:
         motion = log.done("check", motion_check(settings, trajectory, robot, wp, path, surface))
@@ -86,6 +94,11 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     report["programs_simulated"] = simulated
     report["limits_ok"] = True  # post_checked passed the independent check
     report["status"] = "ok"
+    process, process_files = process_outputs(job, settings, trajectory, robot, surface, outdir,
+                                             extra=None if step_choice is None else {"step_over_auto": step_choice},
+                                             dwell=dwell)
+    if process is not None:
+        report["process_map"] = process
     trajectories = {settings.planner.method: trajectory}
     if compare:
         other = "general" if settings.planner.method == "seed" else "seed"
@@ -95,4 +108,4 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
             report["compare"] = run_report(path, jp2, tr2, robot, job, other)
         except PlanInfeasible as exc:
             report["compare"] = {"method": other, "status": "infeasible", "reason": str(exc)}
-    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir, extra_files=(feed_png,))
+    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir, extra_files=(feed_png, *process_files))

@@ -133,7 +133,7 @@ def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedT
     zone = np.asarray(joint_path.zone)
     layout = run_layout(joint_path, path)
     surface = time_surface(joint_path, path, robot, layout, settings.method, settings.tcp_speed_mm_s,
-                           settings.feed, settings.slow_scope)
+                           settings.feed, settings.slow_scope, settings.feed_factor)
     pieces = timeline_pieces(joint_path, robot, layout, surface, settings.zones)
     placed = place(pieces)
     s = placed.samples

@@ -188,7 +188,7 @@ PIECE_INTERPOLATIONS = {"quintic": _quintic_pieces, "ruckig": _ruckig_pieces}  #
 
 
 def time_surface(joint_path, path, robot, layout: RunLayout, method: str, tcp_speed_mm_s: float,
-                 feed: str = "constant", slow_scope: str = "row") -> SurfaceTiming:
+                 feed: str = "constant", slow_scope: str = "row", feed_factor=None) -> SurfaceTiming:
     """Time every run: splines through the poses, constant-feed time law with ramps at the run ends
     (``runs.py``, ``pathlaw.py``); then the pieces' interpolation by ``method`` (the law's own
     samples, or ruckig state-to-state moves between its through-states, ``ruckig_through.py``)."""
@@ -199,7 +199,12 @@ def time_surface(joint_path, path, robot, layout: RunLayout, method: str, tcp_sp
     run_id = np.cumsum(first) - 1
     step_mm = np.linalg.norm(np.diff(pos[sidx], axis=0), axis=1)
     zone = np.asarray(joint_path.zone)[sidx]
-    law = time_runs(q[sidx], step_mm, first, last, run_id, zone, robot.limits, tcp_speed_mm_s, feed, slow_scope)
+    factor = None
+    if feed_factor is not None:  # per Path pose (camtool.process.dwell); inserted rows are not capped
+        pidx = np.asarray(joint_path.path_index)[sidx]
+        factor = np.where(pidx >= 0, np.asarray(feed_factor, float)[np.maximum(pidx, 0)], 1.0)
+    law = time_runs(q[sidx], step_mm, first, last, run_id, zone, robot.limits, tcp_speed_mm_s, feed, slow_scope,
+                    factor)
     pieces = np.nonzero(~last[:-1])[0] if len(sidx) > 1 else np.zeros(0, int)
     interpolation = PIECE_INTERPOLATIONS[method](robot.limits, q[sidx], law, pieces)
     return SurfaceTiming(sidx, run_id, q[sidx], law.qd, law.qdd, pieces, interpolation, law)

@@ -97,11 +97,12 @@ def targets(bound: np.ndarray, zone: np.ndarray, feed_mm_s: float, policy: str, 
 
 
 def time_runs(q, step_mm, first, last, run_id, zone, limits, feed_mm_s: float, policy: str = "constant",
-              scope: str = "row") -> RunsTiming:
+              scope: str = "row", feed_factor=None) -> RunsTiming:
     """Time every run (see the module doc); arrays over the surface waypoints of all runs.
 
     ``q`` (n, dof), ``step_mm`` (n-1,) TCP distance per piece, ``first``/``last`` run-end
-    flags, ``run_id`` (n,), ``zone`` (n,) zone codes.
+    flags, ``run_id`` (n,), ``zone`` (n,) zone codes; ``feed_factor`` (n,) or None: each piece's
+    speed is capped at the feed times the lower factor of its two ends (dwell-time figuring).
     """
     n, dof = q.shape
     h = np.ones(max(n - 1, 0))
@@ -118,6 +119,8 @@ def time_runs(q, step_mm, first, last, run_id, zone, limits, feed_mm_s: float, p
         s = path_parameter(q[a:b + 1], step_mm[a:b], limits, feed_mm_s)
         spline = PathSpline(s, q[a:b + 1])
         bound, joint, kind = speed_bounds(*spline.piece_bounds(), limits)
+        if feed_factor is not None:
+            bound = np.minimum(bound, feed_mm_s * np.minimum(feed_factor[a:b], feed_factor[a + 1:b + 1]))
         z = zone[a:b + 1]
         tgt = targets(bound, z, feed_mm_s, policy, scope)
         try:

@@ -1,0 +1,156 @@
+"""The figures of a process map (report.json ``process_map``), its PNG and its npz file.
+
+All figures are taken over the worked area (the grid cells on material),
+weighted by cell area:
+
+- ``mean``, ``pv`` (max - min), ``rms`` (RMS deviation from the mean) and ``rms_pct`` of the mean;
+- ``uniformity_within_5pct`` / ``_10pct``: the share of the worked area within +-5 % / +-10 % of the mean;
+- ``edge_rolloff_width_mm``: how far in from the material's edge the map stays short of the mean by more
+  than the band (``process.uniformity_band_pct``): the cells are binned by their distance from the edge
+  (one cell per bin) and the width is where the first bin from the edge whose mean is within the band
+  starts (0 = the edge itself is within it);
+- ``uncovered_area_mm2`` / ``uncovered_share``: worked area the tool never reached (below 1 % of the mean;
+  for inspect, count 0).
+"""
+from __future__ import annotations
+
+import io
+import math
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+from scipy.ndimage import distance_transform_edt
+
+from ..files import output_file
+from .integrate import ProcessMap
+
+UNCOVERED_SHARE_OF_MEAN = 0.01
+
+
+def _weighted(values, weights):
+    return float(np.sum(values * weights) / np.sum(weights))
+
+
+def edge_distance_mm(pmap: ProcessMap) -> np.ndarray:
+    """(nv, nu) distance of each cell from the nearest off-material cell (mm, approximate on a sphere)."""
+    g = pmap.grid
+    if g.surface.model == "sphere":
+        R = float(g.surface.radius_mm)
+        v_mid = float(np.mean(g.v[np.any(g.material, axis=1)])) if g.material.any() else 0.0
+        sampling = (R * g.dv, R * math.cos(v_mid) * g.du)
+    else:
+        sampling = (g.dv, g.du)
+    padded = np.pad(g.material, 1, constant_values=False)
+    return distance_transform_edt(padded, sampling=sampling)[1:-1, 1:-1]
+
+
+def map_figures(pmap: ProcessMap, band: float = 0.05) -> dict:
+    """The figures of ``pmap`` (see the module doc); values rounded for report.json."""
+    g = pmap.grid
+    worked = g.material
+    out = {"kind": pmap.kind, "quantity": pmap.quantity, "units": pmap.units, "method": pmap.method,
+           "grid_mm": g.cell_mm, "cells": int(worked.sum()), "worked_area_mm2": round(float(g.area_mm2[worked].sum()), 1),
+           "contact_time_s": round(pmap.contact_time_s, 3), "contact_length_mm": round(pmap.contact_length_mm, 1),
+           "samples": pmap.samples}
+    if not worked.any():
+        return {**out, "mean": None}
+    v, w = pmap.values[worked], g.area_mm2[worked]
+    mean = _weighted(v, w)
+    dev = v - mean
+    rms = math.sqrt(_weighted(dev ** 2, w))
+    scale = abs(mean) if mean else 1.0
+
+    def within(b):
+        if mean <= 0:
+            return 0.0  # nothing was done: no share is uniform
+        return round(_weighted((np.abs(dev) <= b * scale).astype(float), w), 5)
+
+    uncovered = (v <= 0.0) if pmap.kind == "inspect" else (v <= UNCOVERED_SHARE_OF_MEAN * scale)
+    dist = edge_distance_mm(pmap)[worked]
+    width = 0.0
+    if mean > 0:
+        bins = np.maximum(np.floor(dist / g.cell_mm - 0.5), 0).astype(int)  # cell centre to edge
+        for b in range(int(bins.max()) + 1):
+            sel = bins == b
+            if not sel.any():
+                continue
+            if _weighted(v[sel], w[sel]) >= (1.0 - band) * mean:
+                width = float(b * g.cell_mm)
+                break
+        else:
+            width = float(dist.max())
+    sig = 6
+    return {**out, "mean": round(mean, sig), "pv": round(float(v.max() - v.min()), sig), "rms": round(rms, sig),
+            "rms_pct": round(100.0 * rms / scale, 3), "min": round(float(v.min()), sig),
+            "max": round(float(v.max()), sig),
+            "uniformity_within_5pct": within(0.05), "uniformity_within_10pct": within(0.10),
+            "uniformity_within_band": within(band),
+            "edge_rolloff_width_mm": round(width, 2),
+            "uncovered_area_mm2": round(float(w[uncovered].sum()), 1),
+            "uncovered_share": round(float(w[uncovered].sum() / w.sum()), 5)}
+
+
+def _atomic(file: Path, write) -> Path:
+    """Write through a temporary file in the same folder and a rename (never half-written), mode 0644."""
+    file = output_file(file)
+    fd, tmp = tempfile.mkstemp(dir=file.parent, prefix=".tmp-", suffix=file.suffix)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, file)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return file
+
+
+def save_map_npz(pmap: ProcessMap, file) -> Path:
+    """``process_map.npz``: u, v (cell centres, uv unit), values (nv, nu), material, area_mm2 and the units."""
+    g = pmap.grid
+
+    arrays = {"u": g.u, "v": g.v, "values": pmap.values, "material": g.material, "area_mm2": g.area_mm2,
+              "units": pmap.units, "quantity": pmap.quantity, "kind": pmap.kind, "uv_unit": g.uv_unit(),
+              "cell_mm": g.cell_mm, "surface_model": g.surface.model}
+
+    def write(tmp):
+        # np.savez's layout (one .npy per name in a zip) with a fixed time stamp: the same map, the same bytes
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as z:
+            for name, value in arrays.items():
+                buf = io.BytesIO()
+                np.lib.format.write_array(buf, np.asarray(value), allow_pickle=False)
+                z.writestr(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), buf.getvalue())
+
+    return _atomic(Path(file), write)
+
+
+def plot_map_png(pmap: ProcessMap, figures: dict, file, title: str = "") -> Path:
+    """A heat map of the worked area in (u, v) (mm, or deg on a sphere), with the headline figures."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    g = pmap.grid
+    sphere = g.surface.model == "sphere"
+    u = np.degrees(g.u) if sphere else np.asarray(g.u)
+    v = np.degrees(g.v) if sphere else np.asarray(g.v)
+    shown = np.ma.masked_where(~g.material, pmap.values)
+    fig, ax = plt.subplots(figsize=(8, 6))
+    mesh = ax.pcolormesh(u, v, shown, shading="nearest", cmap="viridis")
+    fig.colorbar(mesh, ax=ax, label=f"{pmap.quantity} [{pmap.units}]")
+    unit = "deg" if sphere else "mm"
+    ax.set_xlabel(f"u [{unit}]")
+    ax.set_ylabel(f"v [{unit}]")
+    ax.set_aspect("auto" if sphere else "equal")
+    if figures.get("mean") is not None:
+        ax.set_title(f"{title}\nmean {figures['mean']:.4g} {pmap.units}, RMS {figures['rms_pct']:.2f} %, "
+                     f"within 5 %: {100 * figures['uniformity_within_5pct']:.1f} % of the area, "
+                     f"uncovered {figures['uncovered_area_mm2']:.0f} mm²", fontsize=9)
+    fig.tight_layout()
+    _atomic(Path(file), lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
+    plt.close(fig)
+    return Path(file)

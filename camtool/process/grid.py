@@ -1,0 +1,91 @@
+"""The map's grid over a surface's (u, v) domain.
+
+A regular grid in (u, v): on a plane u and v are mm and the cells are
+``cell_mm`` squares; on a sphere patch u (azimuth) and v (elevation) are rad,
+the v step is ``cell_mm / R`` and the u step ``cell_mm / (R cos v)`` at the
+elevation nearest the equator, so no cell is wider than ``cell_mm``. The grid
+covers the material boundary's bounds plus ``pad_mm`` on every side (the
+footprint of a tool at the edge); ``material`` marks the cells whose centre
+lies on material (inside the outer polygon, outside the holes): the worked
+area every figure is taken over. ``area_mm2`` is each cell's area on the surface.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..toolpath import freeze_arrays
+
+MAX_CELLS = 4_000_000  # a finer grid is refused: coarsen process.grid_mm
+
+
+@dataclass(frozen=True)
+class MapGrid:
+    """Cell centres ``u`` (nu,) and ``v`` (nv,) in the surface's uv unit; arrays are (nv, nu)."""
+
+    surface: object
+    u: np.ndarray
+    v: np.ndarray
+    cell_mm: float
+    material: np.ndarray   # (nv, nu) bool
+    area_mm2: np.ndarray   # (nv, nu)
+
+    def __post_init__(self):
+        freeze_arrays(self)
+
+    @property
+    def du(self) -> float:
+        return float(self.u[1] - self.u[0]) if len(self.u) > 1 else 1.0
+
+    @property
+    def dv(self) -> float:
+        return float(self.v[1] - self.v[0]) if len(self.v) > 1 else 1.0
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return len(self.v), len(self.u)
+
+    def points_mm(self) -> np.ndarray:
+        """(nv, nu, 3) cell centres on the surface (world frame)."""
+        U, V = np.meshgrid(self.u, self.v)
+        return self.surface.point_mm(U, V)
+
+    def index_of(self, uv: np.ndarray) -> np.ndarray:
+        """(N, 2) fractional (i_u, i_v) cell coordinates of uv rows (0 = the first centre)."""
+        uv = np.atleast_2d(uv)
+        return np.stack([(uv[:, 0] - self.u[0]) / self.du, (uv[:, 1] - self.v[0]) / self.dv], axis=-1)
+
+    def uv_unit(self) -> str:
+        return getattr(self.surface, "uv_unit", "mm")
+
+
+def map_grid(surface, cell_mm: float, pad_mm: float) -> MapGrid:
+    """The grid of ``surface`` at ``cell_mm`` (see the module doc); ValueError when it would be too fine."""
+    lo, hi = surface.boundary.bounds()
+    if surface.model == "sphere":
+        R = float(surface.radius_mm)
+        v_near = 0.0 if lo[1] <= 0.0 <= hi[1] else min(abs(lo[1]), abs(hi[1]))
+        dv = cell_mm / R
+        du = cell_mm / (R * math.cos(v_near))
+        pad_v = pad_mm / R
+        pad_u = pad_mm / (R * max(math.cos(max(abs(lo[1]), abs(hi[1])) + pad_v), 0.05))
+    else:
+        du = dv = cell_mm
+        pad_u = pad_v = pad_mm
+    nu = int(math.ceil((hi[0] - lo[0] + 2 * pad_u) / du)) + 1
+    nv = int(math.ceil((hi[1] - lo[1] + 2 * pad_v) / dv)) + 1
+    if nu * nv > MAX_CELLS:
+        raise ValueError(f"the process map would have {nu * nv:.3g} cells (limit {MAX_CELLS:.0e}); "
+                         f"use a coarser process.grid_mm than {cell_mm:g} mm")
+    cu, cv = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
+    u = cu + (np.arange(nu) - 0.5 * (nu - 1)) * du
+    v = cv + (np.arange(nv) - 0.5 * (nv - 1)) * dv
+    U, V = np.meshgrid(u, v)
+    material = surface.boundary.contains(np.column_stack([U.ravel(), V.ravel()])).reshape(U.shape)
+    if surface.model == "sphere":
+        area = (surface.radius_mm ** 2) * np.cos(V) * du * dv
+    else:
+        area = np.full(U.shape, du * dv)
+    return MapGrid(surface, u, v, float(cell_mm), material, area)

@@ -1,0 +1,66 @@
+"""The process map in report.html: a heat map on the 3-D surface, read back from ``process_map.npz``.
+
+The grid is decimated to at most ``MAX_SIDE`` cells a side for display and
+rounded (0.1 mm, 4 significant digits), so the page stays small and the same
+map gives the same bytes; cells off material are left out (NaN).
+"""
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+import numpy as np
+
+MAX_SIDE = 160
+NOTE = ('<p class="note">{quantity} [{units}] over the worked surface, integrated over the program as the '
+        'controller runs it (4 ms samples; leads, corners and dwell count). Mean {mean}, RMS {rms_pct} % of the '
+        'mean, {within5} % of the worked area within ±5 % ({within10} % within ±10 %), edge roll-off '
+        '{rolloff} mm, uncovered {uncovered} mm². The same map: process_map.npz and plots/process_map.png '
+        '(docs/process.md).</p>')
+
+
+def _load(file) -> dict | None:
+    try:
+        with np.load(Path(file), allow_pickle=False) as d:
+            return {k: d[k] for k in d.files}
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def process_heat_map_figure(figures: dict, surface):
+    """A plotly figure of the map on the 3-D surface, or None when the map's file or surface is missing."""
+    import plotly.graph_objects as go
+
+    data = _load(figures.get("file", "")) if figures else None
+    if data is None or surface is None:
+        return None
+    u, v, values, material = data["u"], data["v"], data["values"], data["material"]
+    su = max(1, int(np.ceil(len(u) / MAX_SIDE)))
+    sv = max(1, int(np.ceil(len(v) / MAX_SIDE)))
+    u, v, values, material = u[::su], v[::sv], values[::sv, ::su], material[::sv, ::su]
+    U, V = np.meshgrid(u, v)
+    P = np.round(surface.point_mm(U, V), 1)
+    shown = np.where(material, values, np.nan)
+    shown = np.vectorize(lambda x: float(f"{x:.4g}") if np.isfinite(x) else np.nan)(shown)
+    units = str(data["units"])
+    fig = go.Figure(go.Surface(x=np.where(material, P[..., 0], np.nan), y=np.where(material, P[..., 1], np.nan),
+                               z=np.where(material, P[..., 2], np.nan), surfacecolor=shown,
+                               colorscale="Viridis", colorbar={"title": f"{data['quantity']} [{units}]"},
+                               hovertemplate=f"%{{surfacecolor:.4g}} {units}<extra></extra>"))
+    fig.update_layout(scene={"aspectmode": "data", "xaxis_title": "x [mm]", "yaxis_title": "y [mm]",
+                             "zaxis_title": "z [mm]"}, height=600, margin={"l": 0, "r": 0, "t": 30, "b": 0})
+    return fig
+
+
+def process_note(figures: dict) -> str:
+    """The section's note: what the map is and its headline figures."""
+    def g(key, scale=1.0, fmt="{:.3g}"):
+        x = figures.get(key)
+        return "n/a" if x is None else fmt.format(x * scale)
+
+    return NOTE.format(quantity=html.escape(str(figures.get("quantity", ""))).capitalize(),
+                       units=html.escape(str(figures.get("units", ""))),
+                       mean=g("mean", fmt="{:.4g}") + " " + html.escape(str(figures.get("units", ""))),
+                       rms_pct=g("rms_pct"), within5=g("uniformity_within_5pct", 100, "{:.1f}"),
+                       within10=g("uniformity_within_10pct", 100, "{:.1f}"), rolloff=g("edge_rolloff_width_mm"),
+                       uncovered=g("uncovered_area_mm2", fmt="{:.0f}"))
