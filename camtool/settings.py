@@ -258,6 +258,7 @@ class JobSettings:
     timing: TimingSettings
     post: PostSettings
     check: CheckSettings
+    cell: "CellSettings | None" = None   # obstacles, floor, clearance (camtool.collision); None = an empty cell
 
     @classmethod
     def from_job(cls, job: Job, robot=None) -> "JobSettings":
@@ -267,4 +268,11 @@ class JobSettings:
                    raster=RasterSettings.from_section(job.raster),
                    planner=PlannerSettings.from_section(job.planner, q_home),
                    timing=TimingSettings.from_section(job.timing), post=PostSettings.from_section(job.post),
-                   check=CheckSettings.from_section(job.check))
+                   check=CheckSettings.from_section(job.check), cell=_cell_settings(job))
+
+
+def _cell_settings(job: Job):
+    """The job's collision cell (``camtool.collision.CellSettings``)."""
+    from .collision import CellSettings
+
+    return CellSettings.from_job(job)
