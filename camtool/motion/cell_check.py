@@ -111,7 +111,7 @@ class CellPass:
         return d, (self.res.getNearestPoint1().copy(), self.res.getNearestPoint2().copy())
 
     def _at_fraction(self, pair, s: float):
-        fkb = self.fk(self.q_at(s)[None, :], frames=True)
+        fkb = self.fk(self.q_at(np.array([s], float)), frames=True)
         return self._distance(pair, fkb.joint_R[0], fkb.joint_origins[0])
 
     def run(self, C: np.ndarray) -> list[_PairState]:
