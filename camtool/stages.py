@@ -114,7 +114,7 @@ def path_for_job(job: Job, surface):
 
 
 def free_move_checker(workpiece, robot, contact_xyz_mm=None, radius_mm: float = FREE_MOVE_RADIUS_MM, path=None,
-                      clearance_mm: float = 0.0, world=None):
+                      clearance_mm: float = 0.0, world=None, tip_exempt_mm: float = 0.0):
     """Validity check of a free move: link capsules against the placed workpiece, the tool contact exempt.
 
     A mesh gives ``CapsuleChecker`` (signed distance if watertight; with the
@@ -129,13 +129,15 @@ def free_move_checker(workpiece, robot, contact_xyz_mm=None, radius_mm: float = 
         if path is not None and path.is_work.any():
             work = path.poses_mm[path.is_work]
             outward = (work[:, :3, 3], -work[:, :3, 2])
-        return with_world(CapsuleChecker(robot, mesh, radius_mm, clearance_mm, exempt=exempt, outward=outward), world)
-    return with_world(CloudChecker(robot, workpiece.points_mm, radius_mm, clearance_mm, exempt=exempt), world)
+        return with_world(CapsuleChecker(robot, mesh, radius_mm, clearance_mm, exempt=exempt, outward=outward,
+                                         tip_exempt_mm=tip_exempt_mm), world)
+    return with_world(CloudChecker(robot, workpiece.points_mm, radius_mm, clearance_mm, exempt=exempt,
+                                   tip_exempt_mm=tip_exempt_mm), world)
 
 
 def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_path, every: bool = False,
                     link_radius_mm: float | None = None, clearance_mm: float = 0.0, solver: CwlnSolver | None = None,
-                    world=None):
+                    world=None, tip_exempt_mm: float = 0.0):
     """Every reconfiguring connector between runs made a lift - reconfigure - descend (``plan/connectors.py``).
 
     The reconfiguration at the lift height is checked against the placed
@@ -150,7 +152,8 @@ def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_pat
     # the bodies the motion check measures (raster jobs), or small ones that leave room for a short hop
     radius = link_radius_mm if link_radius_mm is not None else min(CONNECTOR_RADIUS_MM, 0.5 * settings.lift_mm)
     valid = with_world(None, world) if workpiece is None else free_move_checker(
-        workpiece, robot, radius_mm=radius, path=path, clearance_mm=clearance_mm, world=world)
+        workpiece, robot, radius_mm=radius, path=path, clearance_mm=clearance_mm, world=world,
+        tip_exempt_mm=tip_exempt_mm)
     solver = solver or CwlnSolver(robot, ik_settings(settings), free_spin=path.free_spin)
     return lift_reconfigurations(joint_path, path, robot, lift, solver, valid, touch_points=every)
 
@@ -196,7 +199,8 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
     world = collision_world(settings, robot)
     joint_path = lift_connectors(planner, workpiece, path, robot, joint_path,
                                  link_radius_mm=settings.check.link_radius_mm,
-                                 clearance_mm=settings.check.clearance_mm, solver=solver, world=world)
+                                 clearance_mm=settings.check.clearance_mm, solver=solver, world=world,
+                                 tip_exempt_mm=settings.check.tool_contact_exempt_mm)
     joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
     if workpiece is not None:
         joint_path = add_home_moves(planner, workpiece, path, robot, joint_path, world=world)
