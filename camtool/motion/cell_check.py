@@ -23,6 +23,7 @@ two samples.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +33,6 @@ from ..collision.shapes import BASE, WORLD
 MIN_SLACK_MM = 1.0
 SLACK_FRACTION = 0.1
 MAX_BISECTIONS = 12
-FK_CHUNK = 20_000
 
 
 @dataclass
@@ -46,40 +46,52 @@ class _PairState:
     fails: list = None
 
 
-def motion_bounds(world, q: np.ndarray) -> np.ndarray:
-    """(S, B) cumulated motion bound (mm) of each body along the sampled joint-linear motion."""
+def motion_rates(world) -> np.ndarray:
+    """(dof, B) R_jb: the most a point of body b moves per unit of joint j (mm per rad, mm per mm)."""
+    from ..collision.shapes import joint_offsets
+
     robot = world.robot
     dof = robot.dof
     prism = np.asarray(robot.prismatic, bool)
     lo, hi = np.asarray(robot.limits.lower, float), np.asarray(robot.limits.upper, float)
-    from ..collision.shapes import joint_offsets
-
     off = np.array([np.linalg.norm(o) for o in joint_offsets(robot)])
     stroke = np.where(prism, np.maximum(np.abs(lo), np.abs(hi)), 0.0)
-    B = len(world.bodies)
-    Rjb = np.zeros((dof, B))
+    Rjb = np.zeros((dof, len(world.bodies)))
     for b, body in enumerate(world.bodies):
         if body.parent <= BASE:
             continue
         f = body.parent - 1            # the joint (0-based) whose frame carries the body
         ext = body.extent_mm
         for j in range(f + 1):
-            if prism[j]:
-                Rjb[j, b] = 1.0
-            else:
-                Rjb[j, b] = off[j:f].sum() + stroke[j + 1:f + 1].sum() + ext
-    dq = np.abs(np.diff(q, axis=0))
-    step = dq @ Rjb
-    return np.vstack([np.zeros((1, B)), np.cumsum(step, axis=0)])
+            Rjb[j, b] = 1.0 if prism[j] else off[j:f].sum() + stroke[j + 1:f + 1].sum() + ext
+    return Rjb
+
+
+def motion_bounds(world, q: np.ndarray) -> np.ndarray:
+    """(S, B) cumulated motion bound (mm) of each body along the joint-linear motion through the rows of q."""
+    step = np.abs(np.diff(q, axis=0)) @ motion_rates(world)
+    return np.vstack([np.zeros((1, len(world.bodies))), np.cumsum(step, axis=0)])
+
+
+def sampled_motion_bounds(world, q_waypoints: np.ndarray, seg: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """(S, B) the same at the samples (waypoint interval ``seg``, fraction ``frac``), from the waypoints alone."""
+    W = motion_bounds(world, q_waypoints)
+    nxt = np.minimum(seg + 1, len(W) - 1)
+    return W[seg] + frac[:, None] * (W[nxt] - W[seg])
 
 
 class CellPass:
-    """Runs the pairs of a CollisionWorld over the samples (module docstring)."""
+    """Runs the pairs of a CollisionWorld over the samples, chunk by chunk (module docstring).
 
-    def __init__(self, world, fk, q_at, n_samples: int, clearance_mm: float):
+    ``feed(start, fkb)`` takes the check's FK of samples start.. (with joint
+    frames); ``states()`` the per-pair figures once every sample was fed.
+    """
+
+    def __init__(self, world, fk, q_at, C: np.ndarray, clearance_mm: float):
         import coal
 
-        self.world, self.fk, self.q_at, self.S = world, fk, q_at, n_samples
+        self.world, self.fk, self.q_at, self.C = world, fk, q_at, C
+        self.S = len(C)
         self.thr = float(clearance_mm)
         self.geo = world.geometry
         self.req = coal.DistanceRequest()
@@ -91,59 +103,70 @@ class CellPass:
                 self.static_T[i] = self._tf(b.local_T_mm)
             elif b.parent == BASE:
                 self.static_T[i] = self._tf(np.asarray(world.robot.base_T_mm, float) @ b.local_T_mm)
+        self.moving = sorted({i for p in world.pairs for i in (p.a, p.b)} - set(self.static_T))
+        self.pair_C = [C[:, p.a] + C[:, p.b] for p in world.pairs]
+        self._states = [_PairState(fails=[]) for _ in world.pairs]
+        self._next = [0] * len(world.pairs)
+        self.seconds = 0.0
 
     def _tf(self, T):
         return self._coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
 
-    def _pose(self, i, R, p):
-        if i in self.static_T:
-            return self.static_T[i]
-        b = self.world.bodies[i]
-        f = b.parent - 1
-        Rb = R[f] @ b.local_T_mm[:3, :3]
-        pb = p[f] + R[f] @ b.local_T_mm[:3, 3]
-        return self._coal.Transform3s(Rb, pb)
+    def _body_poses(self, R, P) -> dict:
+        """World rotation and position of every moving body for a batch of joint frames."""
+        out = {}
+        for i in self.moving:
+            b = self.world.bodies[i]
+            f = b.parent - 1
+            Rf = R[:, f]
+            out[i] = (np.ascontiguousarray(Rf @ b.local_T_mm[:3, :3]), P[:, f] + Rf @ b.local_T_mm[:3, 3])
+        return out
 
-    def _distance(self, pair, R, p):
+    def _distance(self, pair, poses, j):
+        tf = []
+        for i in (pair.a, pair.b):
+            t = self.static_T.get(i)
+            if t is None:
+                Rb, pb = poses[i]
+                t = self._coal.Transform3s(Rb[j], pb[j])
+            tf.append(t)
         self.res.clear()
-        d = self._coal.distance(self.geo[pair.a], self._pose(pair.a, R, p), self.geo[pair.b],
-                                self._pose(pair.b, R, p), self.req, self.res)
+        d = self._coal.distance(self.geo[pair.a], tf[0], self.geo[pair.b], tf[1], self.req, self.res)
         return d, (self.res.getNearestPoint1().copy(), self.res.getNearestPoint2().copy())
 
     def _at_fraction(self, pair, s: float):
         fkb = self.fk(self.q_at(np.array([s], float)), frames=True)
-        return self._distance(pair, fkb.joint_R[0], fkb.joint_origins[0])
+        return self._distance(pair, self._body_poses(fkb.joint_R, fkb.joint_origins), 0)
 
-    def run(self, C: np.ndarray) -> list[_PairState]:
-        pairs = self.world.pairs
-        states = [_PairState(fails=[]) for _ in pairs]
-        Cp = [C[:, p.a] + C[:, p.b] for p in pairs]
-        S = self.S
-        nxt = [0] * len(pairs)
-        for c0 in range(0, S, FK_CHUNK):
-            c1 = min(c0 + FK_CHUNK, S)
-            fkb = self.fk(self.q_at(np.arange(c0, c1, dtype=float)), frames=True)
-            R, P = fkb.joint_R, fkb.joint_origins
-            for n, pair in enumerate(pairs):
-                st, cp = states[n], Cp[n]
-                j = nxt[n]
-                while j < c1:
-                    d, pts = self._distance(pair, R[j - c0], P[j - c0])
-                    st.evaluations += 1
-                    if st.k >= 0 and j > st.k:
-                        lb_prev = st.d - (cp[j - 1] - cp[st.k])
-                        m = cp[j] - cp[j - 1]
-                        if lb_prev >= self.thr and d >= self.thr and (lb_prev + d - m) / 2.0 < self.thr:
-                            self._bisect(pair, st, j - 1, j, lb_prev, d, m)
-                    self._offer(st, j, d, pts)
-                    st.k, st.d = j, d
-                    target = max(self.thr, st.best - max(MIN_SLACK_MM, SLACK_FRACTION * max(st.best, 0.0)))
-                    jj = int(np.searchsorted(cp, cp[j] + d - target, side="right"))
-                    j = max(jj, j + 1) if d >= target else j + 1
-                    if jj >= S and d >= target:
-                        j = S
-                nxt[n] = j
-        return states
+    def feed(self, c0: int, fkb) -> None:
+        """Advance every pair through the samples c0 .. c0 + len(fkb.tcp) - 1."""
+        clock = time.perf_counter()
+        c1 = c0 + len(fkb.tcp)
+        poses = self._body_poses(fkb.joint_R, fkb.joint_origins)
+        S, thr = self.S, self.thr
+        for n, pair in enumerate(self.world.pairs):
+            st, cp = self._states[n], self.pair_C[n]
+            j = self._next[n]
+            while j < c1:
+                d, pts = self._distance(pair, poses, j - c0)
+                st.evaluations += 1
+                if st.k >= 0 and j > st.k:
+                    lb_prev = st.d - (cp[j - 1] - cp[st.k])
+                    m = cp[j] - cp[j - 1]
+                    if lb_prev >= thr and d >= thr and (lb_prev + d - m) / 2.0 < thr:
+                        self._bisect(pair, st, j - 1, j, lb_prev, d, m)
+                self._offer(st, j, d, pts)
+                st.k, st.d = j, d
+                target = max(thr, st.best - max(MIN_SLACK_MM, SLACK_FRACTION * max(st.best, 0.0)))
+                if d >= target:
+                    j = max(int(cp.searchsorted(cp[j] + d - target, side="right")), j + 1)
+                else:
+                    j += 1
+            self._next[n] = j
+        self.seconds += time.perf_counter() - clock
+
+    def states(self) -> list[_PairState]:
+        return self._states
 
     def _offer(self, st, s, d, pts):
         if d < st.best:

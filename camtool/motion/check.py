@@ -281,12 +281,15 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
 
     U_body, U_tcp = np.inf, np.inf
     nonwork_codes = np.array(NON_WORK)
+    cell = _cell_pass_start(world, fk, q, samples) if world is not None and world.pairs else None
 
     for start in range(0, S, int(s.chunk_samples)):
         sl = slice(start, min(start + int(s.chunk_samples), S))
         n = sl.stop - sl.start
         qc = samples.q(q, sl)
-        fkb = fk(qc)
+        fkb = fk(qc, frames=cell is not None)
+        if cell is not None:
+            cell.feed(sl.start, fkb)
         zc = samples.zone[sl]
         work = zc == WORK
         nonwork = np.isin(zc, nonwork_codes)
@@ -341,8 +344,8 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
     place = _Placer(samples, zone, pidx, index_label)
     findings: list[str] = []
     cell_pairs, cell_figures, cell_ok = (), None, True
-    if world is not None and world.pairs:
-        cell_pairs, cell_figures, cell_lines = _cell_pass(world, fk, q, samples, place, s)
+    if cell is not None:
+        cell_pairs, cell_figures, cell_lines = _cell_pass_end(cell, samples, place, s)
         findings += cell_lines
         cell_ok = not cell_lines
     findings += _finding_lines(fails["penetration"], place, s, "penetration")
@@ -375,9 +378,9 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
         cell_pairs=cell_pairs, cell=cell_figures)
 
 
-def _cell_pass(world, fk, q, samples, place, s):
-    """The cell pass (``cell_check``): per-pair figures, the world's figures, finding lines."""
-    from .cell_check import CellPass, motion_bounds
+def _cell_pass_start(world, fk, q, samples):
+    """The cell pass (``cell_check``) over these samples: motion bounds from the waypoints, chunks fed later."""
+    from .cell_check import CellPass, sampled_motion_bounds
 
     clock = time.perf_counter()
     S = len(samples)
@@ -390,9 +393,16 @@ def _cell_pass(world, fk, q, samples, place, s):
         qb = samples.q(q, np.minimum(k + 1, S - 1))
         return qa + f * (qb - qa)
 
-    C = motion_bounds(world, q_at(np.arange(S, dtype=float)))
-    cp = CellPass(world, fk, q_at, S, world.clearance_mm)
-    states = cp.run(C)
+    cp = CellPass(world, fk, q_at, sampled_motion_bounds(world, q, samples.seg, samples.frac),
+                  world.clearance_mm)
+    cp.seconds += time.perf_counter() - clock
+    return cp
+
+
+def _cell_pass_end(cp, samples, place, s):
+    """Per-pair figures, the world's figures and the finding lines of a fed cell pass."""
+    clock = time.perf_counter()
+    world, states, S = cp.world, cp.states(), len(samples)
     pairs, lines = [], []
     for pair, st in zip(world.pairs, states):
         a, b = world.pair_name(pair)
@@ -421,7 +431,7 @@ def _cell_pass(world, fk, q, samples, place, s):
             if len(runs) > s.max_findings_per_kind:
                 lines.append(f"collision: {len(runs) - s.max_findings_per_kind} more intervals for {a} x {b}")
     figures = dict(world.describe(), evaluations=int(sum(st.evaluations for st in states)),
-                   seconds=round(time.perf_counter() - clock, 4))
+                   seconds=round(cp.seconds + time.perf_counter() - clock, 4))
     return tuple(pairs), figures, lines
 
 
