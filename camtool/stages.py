@@ -27,6 +27,7 @@ from .plan import plan_path
 from .plan.connectors import LiftSettings, lift_reconfigurations
 from .plan.cwln import CwlnSolver
 from .plan.densify import densify_work
+from .plan.sag import add_surface_poses
 from .plan.smooth import SmoothSettings, smooth_runs
 from .plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
 from .plan.strategy import ik_settings
@@ -201,6 +202,7 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
                                  link_radius_mm=settings.check.link_radius_mm,
                                  clearance_mm=settings.check.clearance_mm, solver=solver, world=world,
                                  tip_exempt_mm=settings.check.tool_contact_exempt_mm)
+    joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm)
     joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
     if workpiece is not None:
         joint_path = add_home_moves(planner, workpiece, path, robot, joint_path, world=world)

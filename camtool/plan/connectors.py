@@ -35,7 +35,7 @@ from .cwln import CwlnSolver
 from .rrt import edge_valid, free_move
 
 EDGE_RESOLUTION_RAD = 0.01  # joint-space step at which a reconfiguration edge is collision-checked
-LIFT_FRACTIONS = (1.0, 0.75, 0.5, 0.25)  # of planner.lift_mm, tried in turn where the higher lifts are out of reach
+LIFT_FRACTIONS = (1.0, 0.75, 0.5, 0.25, 0.15, 0.1)  # of planner.lift_mm, tried in turn where the higher lifts are out of reach or collide
 SEARCH_TRACK_SCALE_MM = 500.0  # RRT metric: 1 rad weighs as this much track travel (not the IK's metric)
 
 
