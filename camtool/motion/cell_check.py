@@ -103,7 +103,6 @@ class CellPass:
                 self.static_T[i] = self._tf(b.local_T_mm)
             elif b.parent == BASE:
                 self.static_T[i] = self._tf(np.asarray(world.robot.base_T_mm, float) @ b.local_T_mm)
-        self.moving = sorted({i for p in world.pairs for i in (p.a, p.b)} - set(self.static_T))
         self.pair_C = [C[:, p.a] + C[:, p.b] for p in world.pairs]
         self._states = [_PairState(fails=[]) for _ in world.pairs]
         self._next = [0] * len(world.pairs)
@@ -112,23 +111,16 @@ class CellPass:
     def _tf(self, T):
         return self._coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
 
-    def _body_poses(self, R, P) -> dict:
-        """World rotation and position of every moving body for a batch of joint frames."""
-        out = {}
-        for i in self.moving:
-            b = self.world.bodies[i]
-            f = b.parent - 1
-            Rf = R[:, f]
-            out[i] = (np.ascontiguousarray(Rf @ b.local_T_mm[:3, :3]), P[:, f] + Rf @ b.local_T_mm[:3, 3])
-        return out
-
-    def _distance(self, pair, poses, j):
+    def _distance(self, pair, R, P, j):
+        """coal distance of a pair at row j of a batch of joint frames (R rotations, P origins)."""
         tf = []
         for i in (pair.a, pair.b):
             t = self.static_T.get(i)
             if t is None:
-                Rb, pb = poses[i]
-                t = self._coal.Transform3s(Rb[j], pb[j])
+                b = self.world.bodies[i]
+                f = b.parent - 1
+                Rf = R[j, f]
+                t = self._coal.Transform3s(Rf @ b.local_T_mm[:3, :3], P[j, f] + Rf @ b.local_T_mm[:3, 3])
             tf.append(t)
         self.res.clear()
         d = self._coal.distance(self.geo[pair.a], tf[0], self.geo[pair.b], tf[1], self.req, self.res)
@@ -136,19 +128,19 @@ class CellPass:
 
     def _at_fraction(self, pair, s: float):
         fkb = self.fk(self.q_at(np.array([s], float)), frames=True)
-        return self._distance(pair, self._body_poses(fkb.joint_R, fkb.joint_origins), 0)
+        return self._distance(pair, fkb.joint_R, fkb.joint_origins, 0)
 
     def feed(self, c0: int, fkb) -> None:
         """Advance every pair through the samples c0 .. c0 + len(fkb.tcp) - 1."""
         clock = time.perf_counter()
         c1 = c0 + len(fkb.tcp)
-        poses = self._body_poses(fkb.joint_R, fkb.joint_origins)
+        R, P = fkb.joint_R, fkb.joint_origins
         S, thr = self.S, self.thr
         for n, pair in enumerate(self.world.pairs):
             st, cp = self._states[n], self.pair_C[n]
             j = self._next[n]
             while j < c1:
-                d, pts = self._distance(pair, poses, j - c0)
+                d, pts = self._distance(pair, R, P, j - c0)
                 st.evaluations += 1
                 if st.k >= 0 and j > st.k:
                     lb_prev = st.d - (cp[j - 1] - cp[st.k])
