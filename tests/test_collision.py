@@ -231,3 +231,27 @@ def test_clear_motion_reports_every_pair_minimum(robot):
                 for x in qs)
     got = next(p["min_distance_mm"] for p in rep.cell_pairs if (p["a"], p["b"]) == ("tool", "ball"))
     assert exact - 1e-3 <= got <= exact + max(1.0, 0.1 * exact)
+
+
+def test_urdf_robots_use_their_own_collision_elements(tmp_path):
+    """A URDF's <collision> boxes and meshes become bodies on their joints (meshes as convex hulls, mm)."""
+    trimesh.creation.box(extents=(0.1, 0.1, 0.4)).export(tmp_path / "forearm.stl")
+    (tmp_path / "arm.urdf").write_text("""<robot name="arm">
+  <link name="base"><collision><geometry><box size="0.3 0.3 0.1"/></geometry></collision></link>
+  <link name="l1"><collision><origin xyz="0 0 0.2"/><geometry><mesh filename="forearm.stl"/></geometry></collision></link>
+  <link name="l2"><collision><geometry><cylinder radius="0.03" length="0.2"/></geometry></collision></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" velocity="2" effort="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.4"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" velocity="2" effort="1"/></joint>
+</robot>""")
+    robot = get_robot(str(tmp_path / "arm.urdf"))
+    bodies = {b.parent: b for b in robot_bodies(robot, 25.0)}
+    assert bodies[0].shape == "box" and bodies[0].kind == "base" and bodies[0].size_mm == pytest.approx((300, 300, 100))
+    assert bodies[1].shape == "convex" and np.abs(bodies[1].points_mm).max(axis=0) == pytest.approx([50, 50, 200])
+    assert bodies[1].local_T_mm[2, 3] == pytest.approx(200.0)
+    assert bodies[2].shape == "cylinder" and bodies[2].size_mm == pytest.approx((30.0, 200.0))
+    w = CollisionWorld(robot, CellSettings(obstacles=(sphere_at("ball", [0.0, 0.0, 1000.0], 100.0),)))
+    d = dict(zip([w.pair_name(p) for p in w.pairs], w.pair_distances_mm(np.zeros(2))))
+    l2 = next(k for k in d if k[1] == "ball" and "l2" in k[0])
+    assert d[l2] == pytest.approx(1000.0 - 400.0 - 100.0 - 100.0, abs=1e-3)   # cylinder top at z = 500

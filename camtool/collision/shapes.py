@@ -161,8 +161,11 @@ def joint_offsets(robot) -> list[np.ndarray]:
 
 
 def robot_bodies(robot, tool_radius_mm: float, tool_points_mm: np.ndarray | None = None) -> tuple[Body, ...]:
-    """The link, carriage, rail and tool bodies of a robot (module docstring)."""
-    bodies = []
+    """The link, carriage and tool bodies of a robot (module docstring); a URDF robot's own
+    collision elements when it has any (``urdf_bodies``)."""
+    bodies = urdf_bodies(robot) if robot.convention == "urdf" else []
+    if bodies:
+        return tuple(bodies) + _tool_bodies(robot, tool_radius_mm, tool_points_mm)
     names = list(robot.joint_names)
     offsets = joint_offsets(robot)
     for i, o in enumerate(offsets):
@@ -174,6 +177,11 @@ def robot_bodies(robot, tool_radius_mm: float, tool_points_mm: np.ndarray | None
                            segment_T(np.zeros(3), o)))
     if robot.dof and robot.prismatic[0]:
         bodies = _track_bodies(robot, offsets[0]) + bodies
+    return tuple(bodies) + _tool_bodies(robot, tool_radius_mm, tool_points_mm)
+
+
+def _tool_bodies(robot, tool_radius_mm, tool_points_mm) -> tuple[Body, ...]:
+    bodies = []
     flange = _se3_mm(robot.model.frames[robot.flange_frame_id].placement)
     tool = np.asarray(robot.tool_T_mm, float)
     if tool_points_mm is not None:
@@ -184,6 +192,37 @@ def robot_bodies(robot, tool_radius_mm: float, tool_points_mm: np.ndarray | None
         bodies.append(Body("tool", "tool", robot.dof, "cylinder", (float(tool_radius_mm), L),
                            flange @ segment_T(np.zeros(3), tool[:3, 3])))
     return tuple(bodies)
+
+
+def urdf_bodies(robot) -> list[Body]:
+    """A URDF robot's ``<collision>`` elements (Pinocchio's buildGeomFromUrdf): boxes, cylinders and
+    spheres as they are, meshes as their convex hulls (mm), on the joint frames they belong to."""
+    import pinocchio as pin
+    import coal
+
+    path = Path(robot.source)
+    data_dir = Path(__file__).resolve().parents[1] / "robots" / "data" / "ros-industrial"
+    try:
+        gm = pin.buildGeomFromUrdf(robot.model, str(path), pin.GeometryType.COLLISION,
+                                   package_dirs=[str(path.parent), str(data_dir)])
+    except Exception as exc:  # a mesh that cannot be found or read: one line for the user
+        raise BadInput(f"{path}: cannot read its collision elements ({(str(exc).splitlines() or [''])[0]})") from None
+    out = []
+    for k, go in enumerate(gm.geometryObjects):
+        T = _se3_mm(go.placement)
+        g = go.geometry
+        name = f"{go.name}" if go.name else f"collision{k}"
+        if isinstance(g, coal.Box):
+            out.append(Body(name, "link", go.parentJoint, "box", tuple(2.0 * MM_PER_M * np.asarray(g.halfSide)), T))
+        elif isinstance(g, coal.Cylinder):
+            out.append(Body(name, "link", go.parentJoint, "cylinder", (g.radius * MM_PER_M, 2 * g.halfLength * MM_PER_M), T))
+        elif isinstance(g, coal.Sphere):
+            out.append(Body(name, "link", go.parentJoint, "sphere", (g.radius * MM_PER_M,), T))
+        elif go.meshPath:
+            pts = mesh_points(Path(go.meshPath), "m") * np.asarray(go.meshScale)
+            out.append(Body(name, "link", go.parentJoint, "convex", (), T, hull_points(pts)))
+    return [b if b.parent > 0 else Body(b.name, "base", BASE, b.shape, b.size_mm, b.local_T_mm, b.points_mm)
+            for b in out]
 
 
 def _track_bodies(robot, first_offset) -> list[Body]:
