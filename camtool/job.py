@@ -106,7 +106,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "obstacles": Key("obstacles", [], "Fixtures, tables, walls: `[[cell.obstacles]]` tables, each with `name`, exactly one shape (`mesh` = a file with `units`, its convex hull is used; `box_mm = [x, y, z]` edge lengths, centred; `cylinder_mm = [radius, length]` along its z, centred; `sphere_mm = radius`), `xyz_mm` and `rpy_deg` (its centre / mesh origin) in `frame` = \"world\" or \"workpiece\" (a fixture that moves with the part). Every robot and tool body keeps cell.clearance_mm from each, on work too (docs/motion-check.md)."),
         "floor_z_mm": Key("float", None, "A floor (world z of its top); none when not given. Robot bodies fixed to the base stand on it and are not checked against it."),
         "clearance_mm": Key("float", 5.0, "Clearance every robot and tool body keeps from the obstacles, the floor and the robot's own links (pairs the allowed-collision matrix does not allow), everywhere.", check=lambda x: 0 <= x <= 1000, expect="a number in 0..1000 mm"),
-        "allow_collision": Key("pairs", [], "Body pairs added to the robot's allowed-collision matrix, e.g. [[\"j2\", \"j4\"]] (`camtool robots --acm NAME` lists the bodies and the matrix)."),
+        "allow_collision": Key("pairs", [], "Body pairs added to the robot's allowed-collision matrix, e.g. [[\"j2\", \"j4\"]] (report.json: motion_check.cell lists the bodies and the matrix)."),
         "check_collision": Key("pairs", [], "Body pairs removed from the allowed-collision matrix (checked although the matrix allows them)."),
     },
     "tool": {

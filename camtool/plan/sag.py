@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..robots.model import Robot
-from ..toolpath import SURFACE_CODES, Path
+from ..toolpath import SURFACE_CODES, WORK, Path
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
 
@@ -75,7 +75,8 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
                       chord_tol_mm: float) -> JointPath:
     """``joint_path`` with arc-midpoint rows where a surface step's sag exceeds ``chord_tol_mm / 2``.
 
-    Inserted rows have path_index -1 and the zone of the step's first row; the
+    Inserted rows have path_index -1 and the zone of the step (of its lead, on a step between work and a
+    lead); the
     events get ``sag_steps`` (steps split, rows inserted, the sag tolerance).
     """
     jp = joint_path
@@ -110,7 +111,13 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
         out[new] = fill
         return out
 
-    return JointPath(q=q, path_index=spread(jp.path_index, -1), zone=np.asarray(jp.zone)[src].copy(),
+    # an inserted row of a step between work and a lead lies in the lead: the work ends at its last work pose
+    # (past the part's edge a lead pose on the arc is behind the edge's tangent plane, not work)
+    zone = np.asarray(jp.zone)
+    step_zone = {r: (zone[r + 1] if zone[r] == WORK else zone[r]) for r in inserts}
+    new_zone = zone[src].copy()
+    new_zone[new] = np.concatenate([np.full(len(inserts[r]), step_zone[r]) for r in sorted(inserts)])
+    return JointPath(q=q, path_index=spread(jp.path_index, -1), zone=new_zone,
                      position_error_mm=spread(jp.position_error_mm, 0.0),
                      orientation_error_rad=spread(jp.orientation_error_rad, 0.0), jump=spread(jp.jump, False),
                      reverse_planned=spread(jp.reverse_planned, False), retract=spread(jp.retract, False),
