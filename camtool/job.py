@@ -105,12 +105,19 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "base_rpy_deg": Key("vec3", [0.0, 0.0, 0.0], "Robot base orientation (fixed-axis roll, pitch, yaw)."),
         "workpiece_xyz_mm": Key("vec3", [0.0, 0.0, 0.0], "Workpiece frame position in the world frame."),
         "workpiece_rpy_deg": Key("vec3", [0.0, 0.0, 0.0], "Workpiece frame orientation (fixed-axis roll, pitch, yaw)."),
+        "obstacles": Key("obstacles", [], "Fixtures, tables, walls: `[[cell.obstacles]]` tables, each with `name`, exactly one shape (`mesh` = a file with `units`, its convex hull is used; `box_mm = [x, y, z]` edge lengths, centred; `cylinder_mm = [radius, length]` along its z, centred; `sphere_mm = radius`), `xyz_mm` and `rpy_deg` (its centre / mesh origin) in `frame` = \"world\" or \"workpiece\" (a fixture that moves with the part). Every robot and tool body keeps cell.clearance_mm from each, on work too (docs/motion-check.md)."),
+        "floor_z_mm": Key("float", None, "A floor (world z of its top); none when not given. Robot bodies fixed to the base stand on it and are not checked against it."),
+        "clearance_mm": Key("float", 5.0, "Clearance every robot and tool body keeps from the obstacles, the floor and the robot's own links (pairs the allowed-collision matrix does not allow), everywhere.", check=lambda x: 0 <= x <= 1000, expect="a number in 0..1000 mm"),
+        "allow_collision": Key("pairs", [], "Body pairs added to the robot's allowed-collision matrix, e.g. [[\"j2\", \"j4\"]] (report.json: motion_check.cell lists the bodies and the matrix)."),
+        "check_collision": Key("pairs", [], "Body pairs removed from the allowed-collision matrix (checked although the matrix allows them)."),
     },
     "tool": {
         "name": Key("str", "tool0", "Tool name written to controller programs."),
         "tcp_xyz_mm": Key("vec3", [0.0, 0.0, 0.0], "Tool centre point in the flange frame."),
         "tcp_rpy_deg": Key("vec3", [0.0, 0.0, 0.0], "Tool frame orientation in the flange frame."),
         "mass_kg": _nonneg("Tool mass for controller tool data.", 1.0, 10_000),
+        "mesh": Key("str", "", "Collision shape of the tool: a mesh file in the flange frame (its convex hull is used); empty = a cylinder of check.tool_radius_mm from the flange to the TCP."),
+        "mesh_units": Key("str", "mm", "Length unit of tool.mesh.", choices=("mm", "m", "in")),
     },
     "planner": {
         "method": Key("str", "seed", "seed = CWLN + gradient projection + reverse planning; general = CWLN alone (the paper's baseline); arm-angle-sqp = seed 002's arm-angle SQP (task.kind = 'sequential_reach', SRS arms).", choices=("seed", "general", "arm-angle-sqp")),
@@ -301,6 +308,12 @@ def _coerce(key: Key, value, where: str):
     elif k == "table":
         if not isinstance(value, dict):
             fail("a table")
+    elif k == "obstacles":
+        from .collision.spec import parse_obstacles
+        value = parse_obstacles(value, where)
+    elif k == "pairs":
+        from .collision.spec import parse_pairs
+        value = parse_pairs(value, where)
     if key.check is not None and not key.check(value):
         fail(key.expect)
     name = where.rsplit(".", 1)[-1]

@@ -20,6 +20,8 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
+from .collision.plot import obstacle_traces
+
 from .robots.dh import MM_TO_M
 from .toolpath import WORK, ZONES
 
@@ -382,6 +384,7 @@ def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, fai
     if path is not None and len(path):
         traces += _path_traces(go, path, feed)
     traces += _event_traces(go, report, robot, path, joint_path, failing_indices)
+    traces += obstacle_traces(go, report)   # the cell's obstacles (camtool.collision)
     robot_trace, steps = _robot_traces(go, robot, path, joint_path)
     traces.append(robot_trace)
     fig = go.Figure()

@@ -323,6 +323,7 @@ class JobSettings:
     post: PostSettings
     check: CheckSettings
     process: ProcessSettings | None = None
+    cell: "CellSettings | None" = None   # obstacles, floor, clearance (camtool.collision); None = an empty cell
 
     @classmethod
     def from_job(cls, job: Job, robot=None) -> "JobSettings":
@@ -333,4 +334,12 @@ class JobSettings:
                    planner=PlannerSettings.from_section(job.planner, q_home),
                    timing=TimingSettings.from_section(job.timing), post=PostSettings.from_section(job.post),
                    check=CheckSettings.from_section(job.check),
-                   process=ProcessSettings.from_section(job.process, job.check.tool_radius_mm))
+                   process=ProcessSettings.from_section(job.process, job.check.tool_radius_mm),
+                   cell=_cell_settings(job))
+
+
+def _cell_settings(job: Job):
+    """The job's collision cell (``camtool.collision.CellSettings``)."""
+    from .collision import CellSettings
+
+    return CellSettings.from_job(job)

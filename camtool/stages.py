@@ -29,9 +29,11 @@ from .plan import plan_path
 from .plan.connectors import LiftSettings, lift_reconfigurations
 from .plan.cwln import CwlnSolver
 from .plan.densify import densify_work
+from .plan.sag import add_surface_poses
 from .plan.smooth import SmoothSettings, smooth_runs
 from .plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
 from .plan.strategy import ik_settings
+from .collision.stage import collision_world, with_world
 from .post import thin_waypoints, write_job_programs
 from .raster import raster_path
 from .report import (plan_metrics, plot_joints, plot_unreachable, stage_seconds, write_json_atomic,
@@ -144,7 +146,7 @@ def path_for_job(job: Job, surface):
 
 
 def free_move_checker(workpiece, robot, contact_xyz_mm=None, radius_mm: float = FREE_MOVE_RADIUS_MM, path=None,
-                      clearance_mm: float = 0.0):
+                      clearance_mm: float = 0.0, world=None, tip_exempt_mm: float = 0.0):
     """Validity check of a free move: link capsules against the placed workpiece, the tool contact exempt.
 
     A mesh gives ``CapsuleChecker`` (signed distance if watertight; with the
@@ -159,12 +161,15 @@ def free_move_checker(workpiece, robot, contact_xyz_mm=None, radius_mm: float = 
         if path is not None and path.is_work.any():
             work = path.poses_mm[path.is_work]
             outward = (work[:, :3, 3], -work[:, :3, 2])
-        return CapsuleChecker(robot, mesh, radius_mm, clearance_mm, exempt=exempt, outward=outward)
-    return CloudChecker(robot, workpiece.points_mm, radius_mm, clearance_mm, exempt=exempt)
+        return with_world(CapsuleChecker(robot, mesh, radius_mm, clearance_mm, exempt=exempt, outward=outward,
+                                         tip_exempt_mm=tip_exempt_mm), world)
+    return with_world(CloudChecker(robot, workpiece.points_mm, radius_mm, clearance_mm, exempt=exempt,
+                                   tip_exempt_mm=tip_exempt_mm), world)
 
 
 def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_path, every: bool = False,
-                    link_radius_mm: float | None = None, clearance_mm: float = 0.0, solver: CwlnSolver | None = None):
+                    link_radius_mm: float | None = None, clearance_mm: float = 0.0, solver: CwlnSolver | None = None,
+                    world=None, tip_exempt_mm: float = 0.0):
     """Every reconfiguring connector between runs made a lift - reconfigure - descend (``plan/connectors.py``).
 
     The reconfiguration at the lift height is checked against the placed
@@ -178,13 +183,14 @@ def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_pat
                         track_scale_mm=settings.track_scale_mm, seed=settings.seed)
     # the bodies the motion check measures (raster jobs), or small ones that leave room for a short hop
     radius = link_radius_mm if link_radius_mm is not None else min(CONNECTOR_RADIUS_MM, 0.5 * settings.lift_mm)
-    valid = None if workpiece is None else free_move_checker(workpiece, robot, radius_mm=radius, path=path,
-                                                             clearance_mm=clearance_mm)
+    valid = with_world(None, world) if workpiece is None else free_move_checker(
+        workpiece, robot, radius_mm=radius, path=path, clearance_mm=clearance_mm, world=world,
+        tip_exempt_mm=tip_exempt_mm)
     solver = solver or CwlnSolver(robot, ik_settings(settings), free_spin=path.free_spin)
     return lift_reconfigurations(joint_path, path, robot, lift, solver, valid, touch_points=every)
 
 
-def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path):
+def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path, world=None):
     """With a home configuration: RRT-Connect approach (home -> first row) and depart (last row -> home).
 
     The moves are inserted as 'approach' / 'depart' rows (path_index -1); the
@@ -199,7 +205,7 @@ def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path
     figures, moves = {}, {}
     for name, contact, qa, qb in (("approach", first, q_home, joint_path.q[0]),
                                   ("depart", last, joint_path.q[-1], q_home)):
-        valid = free_move_checker(workpiece, robot, contact)
+        valid = free_move_checker(workpiece, robot, contact, world=world)
         try:
             moves[name], info = free_move(robot, qa, qb, valid, seed=settings.seed,
                                           track_scale_mm=settings.track_scale_mm)
@@ -222,12 +228,15 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
     if planner.smooth_runs:
         smooth = SmoothSettings(feed_mm_s=settings.timing.tcp_speed_mm_s)
         joint_path = smooth_runs(joint_path, path, robot, solver, smooth)
+    world = collision_world(settings, robot)
     joint_path = lift_connectors(planner, workpiece, path, robot, joint_path,
                                  link_radius_mm=settings.check.link_radius_mm,
-                                 clearance_mm=settings.check.clearance_mm, solver=solver)
+                                 clearance_mm=settings.check.clearance_mm, solver=solver, world=world,
+                                 tip_exempt_mm=settings.check.tool_contact_exempt_mm)
+    joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm)
     joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
     if workpiece is not None:
-        joint_path = add_home_moves(planner, workpiece, path, robot, joint_path)
+        joint_path = add_home_moves(planner, workpiece, path, robot, joint_path, world=world)
     return joint_path
 
 
@@ -326,7 +335,7 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
                                               tool_radius_mm=c.tool_radius_mm, link_radius_mm=c.link_radius_mm,
                                               tool_contact_exempt_mm=c.tool_contact_exempt_mm),
                           path_index=row_segments(program.path_index, program.zone, path.segment),
-                          index_label="segment")
+                          index_label="segment", world=collision_world(settings, robot))
     figures = report.to_dict()
     if not report.ok:
         raise PlanInfeasible(f"the motion check failed ({len(report.findings)} finding(s)); first: "

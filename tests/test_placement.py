@@ -149,15 +149,21 @@ def _toy_path():
 
 def test_reachable_stretches_and_partial_path():
     path = _toy_path()
-    st = reachable_stretches(path, [3, {"index": 12}], min_work_poses=2)
+    # a cut end's work pose becomes the stretch's lead (#24: no work corner into the lift after a cut)
+    assert reachable_stretches(path, [3, {"index": 12}], min_work_poses=2) == []
+    st = reachable_stretches(path, [3, {"index": 12}], min_work_poses=1)
     assert [(s.first, s.last) for s in st] == [(0, 2), (4, 6), (9, 11), (13, 15)]
-    assert [s.work_poses for s in st] == [2, 2, 2, 2]
+    assert [s.work_poses for s in st] == [1, 1, 1, 1]
+    assert [(s.cut_in, s.cut_out) for s in st] == [(False, True), (True, False)] * 2
     assert [(s.first, s.last) for s in reachable_stretches(path, [3], min_work_poses=3)] == [(9, 15)]
     sub, idx = partial_path(path, st, [3, 12])
     assert list(idx) == [0, 1, 2, 4, 5, 6, 7, 8, 9, 10, 11, 13, 14, 15]   # connector 7-8 kept
     assert len(set(sub.segment.tolist())) == 4
+    z = dict(zip(idx.tolist(), sub.zone.tolist()))
+    assert (z[2], z[4], z[11], z[13]) == (ZONE_CODE["lead_out"], ZONE_CODE["lead_in"]) * 2
+    assert z[1] == z[5] == ZONE_CODE["work"]
     s = partial_summary(path, st)
-    assert s["work_poses_kept"] == 8 and s["work_poses_total"] == 10 and s["segments_split"] == 2
+    assert s["work_poses_kept"] == 4 and s["work_poses_total"] == 10 and s["segments_split"] == 2
 
 
 def test_partial_path_of_the_high_patch_plans(high):

@@ -95,3 +95,27 @@ def test_open3d_and_trimesh_backends_agree(watertight):
     assert (a < 0).any() == watertight  # inside points are negative only for a closed mesh
     with pytest.raises(BadInput, match="backend"):
         CapsuleChecker(robot, mesh, backend="fcl")
+
+
+def test_tip_exemption_measures_the_tcp_as_a_point():
+    """As the motion check: the chain's last tip_exempt_mm is no capsule, the TCP keeps the clearance itself
+    (a lift 25 mm off the part with a 60 mm capsule at the TCP touched it; the check never measured that)."""
+    robot = get_robot("irb2400")
+    q = np.radians([0, 20, 0, 0, 60, 0])
+    T = robot.fk_tcp(q)
+
+    def plate_ahead(gap_mm):
+        """A 200 x 200 mm plate square to the tool axis, its face ``gap_mm`` ahead of the TCP."""
+        plate = trimesh.creation.box(extents=(200, 200, 10))
+        M = np.eye(4)
+        M[:3, :3] = T[:3, :3]
+        M[:3, 3] = T[:3, 3] + T[:3, 2] * (gap_mm + 5.0)
+        return plate.apply_transform(M)
+
+    plate = plate_ahead(25.0)
+    full = CapsuleChecker(robot, plate, radius_mm=60.0, clearance_mm=5.0)
+    tip = CapsuleChecker(robot, plate, radius_mm=60.0, clearance_mm=5.0, tip_exempt_mm=100.0)
+    assert full.clearance_mm(q) < 0 and not full(q)
+    assert tip.clearance_mm(q) == pytest.approx(25.0, abs=0.5) and tip(q)
+    lower = CapsuleChecker(robot, plate_ahead(3.0), radius_mm=60.0, clearance_mm=5.0, tip_exempt_mm=100.0)
+    assert not lower(q)   # the TCP 3 mm above the plate: the point itself breaks the clearance

@@ -102,6 +102,8 @@ class MotionReport:
     settings: MotionCheckSettings
     check_seconds: float = 0.0
     horizon_mm: float = 0.0
+    cell_pairs: tuple[dict, ...] = ()   # per pair of bodies (link x obstacle, link x link): min distance, where
+    cell: dict | None = None            # the collision world's bodies and the cell pass's figures
 
     def to_dict(self) -> dict:
         d = {}
@@ -224,14 +226,16 @@ class _Best:
 
 
 def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckSettings | None = None,
-                 path_index=None, *, index_label: str = "path index") -> MotionReport:
+                 path_index=None, *, index_label: str = "path index", world=None) -> MotionReport:
     """Measure the joint-linear motion through the waypoints against the part.
 
     ``t_s`` (M,) strictly increasing waypoint times; ``q`` (M, dof) joint values
     (rad / mm); ``zone`` (M,) zone codes or names (camtool.toolpath.ZONES);
     ``robot`` placed (base and tool); ``part`` the placed part;
     ``path_index`` (M,) optional index per waypoint used in the findings
-    (``index_label`` names it, e.g. "segment"; -1 = none).
+    (``index_label`` names it, e.g. "segment"; -1 = none); ``world`` a
+    ``camtool.collision.CollisionWorld``: its pairs (robot and tool bodies x
+    obstacles, robot x robot) are measured too (``cell_check``).
     """
     clock = time.perf_counter()
     s = settings or MotionCheckSettings()
@@ -277,12 +281,15 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
 
     U_body, U_tcp = np.inf, np.inf
     nonwork_codes = np.array(NON_WORK)
+    cell = _cell_pass_start(world, fk, q, samples) if world is not None and world.pairs else None
 
     for start in range(0, S, int(s.chunk_samples)):
         sl = slice(start, min(start + int(s.chunk_samples), S))
         n = sl.stop - sl.start
         qc = samples.q(q, sl)
-        fkb = fk(qc)
+        fkb = fk(qc, frames=cell is not None)
+        if cell is not None:
+            cell.feed(sl.start, fkb)
         zc = samples.zone[sl]
         work = zc == WORK
         nonwork = np.isin(zc, nonwork_codes)
@@ -336,6 +343,11 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
 
     place = _Placer(samples, zone, pidx, index_label)
     findings: list[str] = []
+    cell_pairs, cell_figures, cell_ok = (), None, True
+    if cell is not None:
+        cell_pairs, cell_figures, cell_lines = _cell_pass_end(cell, samples, place, s)
+        findings += cell_lines
+        cell_ok = not cell_lines
     findings += _finding_lines(fails["penetration"], place, s, "penetration")
     findings += _finding_lines(fails["clearance"], place, s, "clearance")
     findings += _finding_lines(fails["deviation"], place, s, "deviation")
@@ -346,7 +358,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
     tcp_clear = best_tcp.value if best_tcp.value <= G else None
     dev = -best_dev.value if np.isfinite(best_dev.value) else None
     step_rev, step_rev_at, step_pri, step_pri_at = _joint_steps(q, tcp_wp, zone, robot, t_s, pidx, index_label)
-    ok = not any(fails[k][i][0].size for k in fails for i in range(len(fails[k])))
+    ok = cell_ok and not any(fails[k][i][0].size for k in fails for i in range(len(fails[k])))
     return MotionReport(
         ok=ok, samples=S, dt_s=float(s.dt_s), duration_s=float(t_s[-1] - t_s[0]),
         max_penetration_mm=max_pen, max_penetration_at=pen_at,
@@ -362,7 +374,65 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
         findings=tuple(findings),
         bodies=tuple(_body_figures(name, kind, radius, body_pen[name])
                      for name, kind, radius in [("tcp", "tcp", 0.0)] + [(b.name, b.kind, b.radius) for b in bodies]),
-        part=part.describe(), settings=s, check_seconds=time.perf_counter() - clock, horizon_mm=G)
+        part=part.describe(), settings=s, check_seconds=time.perf_counter() - clock, horizon_mm=G,
+        cell_pairs=cell_pairs, cell=cell_figures)
+
+
+def _cell_pass_start(world, fk, q, samples):
+    """The cell pass (``cell_check``) over these samples: motion bounds from the waypoints, chunks fed later."""
+    from .cell_check import CellPass, sampled_motion_bounds
+
+    clock = time.perf_counter()
+    S = len(samples)
+
+    def q_at(x):
+        x = np.asarray(x, float)
+        k = np.minimum(np.floor(x).astype(np.int64), S - 1)
+        f = (x - k)[:, None]
+        qa = samples.q(q, k)
+        qb = samples.q(q, np.minimum(k + 1, S - 1))
+        return qa + f * (qb - qa)
+
+    cp = CellPass(world, fk, q_at, sampled_motion_bounds(world, q, samples.seg, samples.frac),
+                  world.clearance_mm)
+    cp.seconds += time.perf_counter() - clock
+    return cp
+
+
+def _cell_pass_end(cp, samples, place, s):
+    """Per-pair figures, the world's figures and the finding lines of a fed cell pass."""
+    clock = time.perf_counter()
+    world, states, S = cp.world, cp.states(), len(samples)
+    pairs, lines = [], []
+    for pair, st in zip(world.pairs, states):
+        a, b = world.pair_name(pair)
+        at = place(int(st.best_at), f"{a} x {b}") if st.best_at >= 0 else None
+        entry = {"a": a, "b": b, "kind": pair.kind, "min_distance_mm": round(float(st.best), 3),
+                 "evaluations": st.evaluations}
+        if at is not None:
+            entry["at"] = at.to_dict()
+            entry["t_s"] = round(float(np.interp(st.best_at, np.arange(S), samples.t)), 6)
+            entry["points_mm"] = [[round(float(x), 2) for x in pt] for pt in st.best_points]
+        pairs.append(entry)
+        if st.fails:
+            k = np.array([f[0] for f in st.fails])
+            v = np.array([f[1] for f in st.fails])
+            runs = np.split(np.arange(len(k)), np.nonzero(np.diff(k) > 1.0 + 1e-9)[0] + 1)
+            for run in runs[: s.max_findings_per_kind]:
+                i = run[np.argmin(v[run])]
+                p = place(int(k[i]), f"{a} x {b}")
+                t = float(np.interp(k[i], np.arange(S), samples.t))
+                what = (f"{a} and {b} overlap by {-v[i]:.3f} mm" if v[i] < 0 else
+                        f"{a} and {b} are {v[i]:.3f} mm apart (< cell.clearance_mm {world.clearance_mm:g} mm)")
+                where = p.text().replace(f"t = {p.t_s:.3f} s", f"t = {t:.3f} s", 1)
+                near = " at ({:.0f}, {:.0f}, {:.0f}) mm".format(*st.best_points[0]) if len(st.best_points) and \
+                    i == int(np.argmin(v)) else ""
+                lines.append(f"collision: {what} at {where}{near}")
+            if len(runs) > s.max_findings_per_kind:
+                lines.append(f"collision: {len(runs) - s.max_findings_per_kind} more intervals for {a} x {b}")
+    figures = dict(world.describe(), evaluations=int(sum(st.evaluations for st in states)),
+                   seconds=round(cp.seconds + time.perf_counter() - clock, 4))
+    return tuple(pairs), figures, lines
 
 
 def _body_figures(name, kind, radius, pen: _Best) -> dict:

@@ -42,6 +42,7 @@ class FKBatch:
     flange: np.ndarray
     tcp: np.ndarray
     tcp_R: np.ndarray
+    joint_R: np.ndarray | None = None   # (S, dof, 3, 3) joint frame orientations, with ``frames=True``
 
 
 class BatchFK:
@@ -87,19 +88,21 @@ class BatchFK:
         nxt = self._before[1:] + [self._flange]
         return np.array([np.linalg.norm(T[:3, 3]) for T in nxt])
 
-    def __call__(self, q: np.ndarray) -> FKBatch:
+    def __call__(self, q: np.ndarray, frames: bool = False) -> FKBatch:
+        """FK of (S, dof) joint values; ``frames``: also the joint frames' orientations."""
         q = np.asarray(q, dtype=float)
         if q.ndim != 2 or q.shape[1] != self.dof:
             raise ValueError(f"{self.robot.name} takes (S, {self.dof}) joint values, got shape {q.shape}")
         if self.uses_dh:
-            return self._dh(q)
-        return self._pinocchio(q)
+            return self._dh(q, frames)
+        return self._pinocchio(q, frames)
 
-    def _dh(self, q: np.ndarray) -> FKBatch:
+    def _dh(self, q: np.ndarray, frames: bool = False) -> FKBatch:
         S = len(q)
         R = np.broadcast_to(self._base_R, (S, 3, 3)).copy()
         p = np.broadcast_to(self._base_p, (S, 3)).copy()
         origins = np.empty((S, self.dof, 3))
+        joint_R = np.empty((S, self.dof, 3, 3)) if frames else None
         for i, before in enumerate(self._before):
             p += R @ before[:3, 3]
             R = R @ before[:3, :3]
@@ -111,12 +114,14 @@ class BatchFK:
                 R[:, :, 0] = c * x + s * y
                 R[:, :, 1] = c * y - s * x
             origins[:, i] = p
+            if frames:
+                joint_R[:, i] = R
         flange_p = p + R @ self._flange[:3, 3]
         flange_R = R @ self._flange[:3, :3]
         tcp = flange_p + flange_R @ self._tool_p
-        return FKBatch(origins, flange_p, tcp, flange_R @ self._tool_R)
+        return FKBatch(origins, flange_p, tcp, flange_R @ self._tool_R, joint_R)
 
-    def _pinocchio(self, q: np.ndarray) -> FKBatch:
+    def _pinocchio(self, q: np.ndarray, frames: bool = False) -> FKBatch:
         import pinocchio as pin
 
         model = self.robot.model
@@ -124,6 +129,7 @@ class BatchFK:
         scale = np.where(self.prismatic, 1.0 / MM_PER_M, 1.0)
         S = len(q)
         origins = np.empty((S, self.dof, 3))
+        joint_R = np.empty((S, self.dof, 3, 3))
         flange_p = np.empty((S, 3))
         flange_R = np.empty((S, 3, 3))
         fid = self.robot.flange_frame_id
@@ -131,6 +137,7 @@ class BatchFK:
             pin.forwardKinematics(model, data, q[k] * scale)
             for j in range(1, model.njoints):
                 origins[k, j - 1] = data.oMi[j].translation
+                joint_R[k, j - 1] = data.oMi[j].rotation
             M = pin.updateFramePlacement(model, data, fid)
             flange_p[k] = M.translation
             flange_R[k] = M.rotation
@@ -138,4 +145,5 @@ class BatchFK:
         flange_p = flange_p * MM_PER_M @ self._base_R.T + self._base_p
         flange_R = self._base_R @ flange_R
         tcp = flange_p + flange_R @ self._tool_p
-        return FKBatch(origins, flange_p, tcp, flange_R @ self._tool_R)
+        return FKBatch(origins, flange_p, tcp, flange_R @ self._tool_R,
+                       self._base_R @ joint_R if frames else None)

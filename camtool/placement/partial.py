@@ -10,7 +10,10 @@ When a few poses are out of reach, the rest of the raster can still be worked:
 A *run* is a stretch of surface poses (work, lead-in, lead-out) of one
 segment (``toolpath.run_bounds``). Each run is cut at its unreachable poses
 into maximal stretches of reachable poses; a stretch with fewer than
-``min_work_poses`` work poses is dropped. Connector poses (self-motion zones,
+``min_work_poses`` work poses is dropped. A stretch's end at a cut (an
+unreachable pose of its row next to it) becomes its lead: that work pose is
+relabelled lead-in / lead-out, so the work never ends in the corner of the
+lift that follows (and the coverage counts it out). Connector poses (self-motion zones,
 approach, depart) are never part of a stretch; ``partial_path`` keeps the
 original connectors between two consecutive kept stretches of different
 segments (when none of their poses is unreachable) and renumbers the segments
@@ -25,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..toolpath import SURFACE_CODES as SURFACE
-from ..toolpath import WORK, Path, run_bounds
+from ..toolpath import WORK, ZONE_CODE, Path, run_bounds
 
 
 @dataclass(frozen=True)
@@ -36,9 +39,12 @@ class Stretch:
     last: int
     segment: int
     work_poses: int
+    cut_in: bool = False    # the stretch starts at a cut (an unreachable pose of its row before it)
+    cut_out: bool = False   # it ends at a cut
 
     def as_dict(self) -> dict:
-        return {"first": self.first, "last": self.last, "segment": self.segment, "work_poses": self.work_poses}
+        return {"first": self.first, "last": self.last, "segment": self.segment, "work_poses": self.work_poses,
+                "cut_in": self.cut_in, "cut_out": self.cut_out}
 
 
 def _runs(path: Path) -> list[tuple[int, int]]:
@@ -69,8 +75,11 @@ def reachable_stretches(path: Path, unreachable, min_work_poses: int = 2) -> lis
             while k <= b and not bad[k]:
                 k += 1
             work = int(np.count_nonzero(path.zone[s:k] == WORK))
-            if work >= min_work_poses:
-                out.append(Stretch(s, k - 1, int(path.segment[s]), work))
+            cut_in = s > a and path.zone[s] == WORK
+            cut_out = k - 1 < b and path.zone[k - 1] == WORK
+            work -= int(cut_in) + int(cut_out)   # a cut end's work pose becomes the stretch's lead (partial_path)
+            if work >= max(min_work_poses, 1):
+                out.append(Stretch(s, k - 1, int(path.segment[s]), work, bool(cut_in), bool(cut_out)))
     return out
 
 
@@ -89,7 +98,17 @@ def partial_path(path: Path, stretches: list[Stretch], unreachable=()) -> tuple[
         keep += list(range(st.first, st.last + 1))
         seg += [n] * (st.last - st.first + 1)
     idx = np.array(keep, int)
-    sub = Path(path.poses_mm[idx], np.array(seg, dtype=path.segment.dtype), path.point[idx], path.zone[idx],
+    zone = path.zone[idx].copy()
+    # A stretch cut at an unreachable pose ends in work with no lead: the controller's blend into the lift
+    # there would round the last work corner (the program simulator measured 0.5-1.5 mm off the path).
+    # The cut end's work pose becomes the stretch's lead-in / lead-out: on the surface, out of the work zone.
+    where = {int(i): k for k, i in enumerate(idx)}
+    for st in stretches:
+        if st.cut_in:
+            zone[where[st.first]] = ZONE_CODE["lead_in"]
+        if st.cut_out:
+            zone[where[st.last]] = ZONE_CODE["lead_out"]
+    sub = Path(path.poses_mm[idx], np.array(seg, dtype=path.segment.dtype), path.point[idx], zone,
                path.free_spin, path.step_over_mm, path.pitch_mm)
     return sub, idx
 

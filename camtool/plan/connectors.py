@@ -30,11 +30,12 @@ from ..errors import PlanInfeasible
 from ..robots.model import Robot
 from ..toolpath import ZONE_CODE, Path, row_segments, run_bounds
 from ..trajectory import JointPath
+from ..collision.world import WorldChecker
 from .cwln import CwlnSolver
 from .rrt import edge_valid, free_move
 
 EDGE_RESOLUTION_RAD = 0.01  # joint-space step at which a reconfiguration edge is collision-checked
-LIFT_FRACTIONS = (1.0, 0.75, 0.5, 0.25)  # of planner.lift_mm, tried in turn where the higher lifts are out of reach
+LIFT_FRACTIONS = (1.0, 0.75, 0.5, 0.25, 0.15, 0.1)  # of planner.lift_mm, tried in turn where the higher lifts are out of reach or collide
 SEARCH_TRACK_SCALE_MM = 500.0  # RRT metric: 1 rad weighs as this much track travel (not the IK's metric)
 
 
@@ -84,24 +85,36 @@ def lift_and_reconfigure(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: n
     it, RRT-Connect replaces it. Raises PlanInfeasible when a lift cannot be
     solved or no collision-free reconfiguration is found.
     """
+    world = valid.world if isinstance(valid, WorldChecker) else None
+    touches, chosen = [], None
     for height in settings.clearance_mm * np.array(LIFT_FRACTIONS):
         up = cartesian_lift(solver, Ta, qa, height, settings.steps)
         down = cartesian_lift(solver, Tb, qb, height, settings.steps) if up is not None else None
-        if up is not None and down is not None:
-            break
-    else:
+        if up is None or down is None:
+            continue
+        down = down[::-1]
+        if valid is not None and not (valid(up[-1]) and valid(down[0])):
+            touches.append(f"at {height:g} mm above the surface the arm still touches the part")
+            continue
+        hit = _world_hit(world, np.concatenate([up, down])) if world is not None else None
+        if hit is not None:
+            touches.append(f"the {height:g} mm lift brings {hit}")
+            continue   # a lower lift may pass under the obstacle
+        chosen = height, up, down
+        break
+    if chosen is None:
+        if touches:
+            raise PlanInfeasible(f"{touches[0]}; raise planner.lift_mm or move the part (camtool place)"
+                                 + (f" (lower lifts: {'; '.join(touches[1:])})" if len(touches) > 1 else ""))
         raise PlanInfeasible(f"the tool cannot be lifted {LIFT_FRACTIONS[-1] * settings.clearance_mm:g}-"
                              f"{settings.clearance_mm:g} mm "
                              "off the surface to reconfigure: the part is at the edge of the robot's reach; move "
                              "it closer (camtool place)")
-    down = down[::-1]
+    height, up, down = chosen
     info = {"lift_mm": float(height), "rrt": False}
     middle = np.zeros((0, len(qa)))
     if valid is not None:
         w = np.where(robot.prismatic, 1.0 / SEARCH_TRACK_SCALE_MM, 1.0)
-        if not (valid(up[-1]) and valid(down[0])):
-            raise PlanInfeasible(f"at {height:g} mm above the surface the arm still touches the part; "
-                                 "raise planner.lift_mm or move the part (camtool place)")
         if not edge_valid(up[-1], down[0], valid, EDGE_RESOLUTION_RAD, w):
             q, figures = free_move(robot, up[-1], down[0], valid, seed=settings.seed,
                                    track_scale_mm=SEARCH_TRACK_SCALE_MM)
@@ -110,6 +123,16 @@ def lift_and_reconfigure(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: n
     info["straight_from"] = len(up)  # rows from here to the first descent row are reached by straight joint moves
     info["straight_to"] = len(up) + len(middle)
     return np.concatenate([up, middle, down]), info
+
+
+def _world_hit(world, rows) -> str | None:
+    """'<body> within d mm of <body>' for the first row of a lift that breaks the world's clearance, else None."""
+    for q in rows:
+        d, pair = world.clearance_mm_at(q)
+        if d < world.clearance_mm:
+            a, b = world.pair_name(pair)
+            return f"{a} within {d:.1f} mm of {b} (cell.clearance_mm {world.clearance_mm:g} mm)"
+    return None
 
 
 def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, settings: LiftSettings,

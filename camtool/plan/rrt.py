@@ -47,7 +47,8 @@ class _LinkCapsules:
     is meant to touch the part.
     """
 
-    def __init__(self, robot, radius_mm: float, clearance_mm: float, skip_links: int, spacing_mm, exempt):
+    def __init__(self, robot, radius_mm: float, clearance_mm: float, skip_links: int, spacing_mm, exempt,
+                 tip_exempt_mm: float = 0.0):
         if radius_mm <= 0:
             raise BadInput(f"capsule radius must be > 0 mm, found {radius_mm}")
         self.robot = robot
@@ -56,18 +57,39 @@ class _LinkCapsules:
         self.skip = int(skip_links)   # links from the base not checked (the base stands on its own floor)
         self.spacing = spacing_mm or self.radius / 2.0
         self.exempt = [(np.asarray(c, float), float(r)) for c, r in exempt]
+        # as the motion check measures: the last ``tip_exempt_mm`` of the chain before the TCP is no capsule
+        # (the tool touches the part by design), the TCP itself keeps the clearance as a point
+        self.tip_exempt = float(tip_exempt_mm)
         self.calls = 0
 
-    def link_points(self, q) -> np.ndarray:
-        """Points (M, 3) along the link segments, world frame (exempt balls removed)."""
+    def _chain_points(self, q):
         F = self.chain.frames(np.asarray(q, float))
         pts = [np.zeros(3)] + [T[:3, 3] for T in F] + [(F[-1] @ self.robot.tool_T_mm)[:3, 3]]
-        out = []
-        for a, b in list(zip(pts[:-1], pts[1:]))[self.skip:]:
-            n = max(int(np.ceil(np.linalg.norm(b - a) / self.spacing)), 1)
-            out.append(a + np.linspace(0.0, 1.0, n + 1)[:, None] * (b - a))
+        out, to_tip = [], []
+        seg = list(zip(pts[:-1], pts[1:]))
+        lengths = [float(np.linalg.norm(b - a)) for a, b in seg]
+        after = np.cumsum(lengths[::-1])[::-1] - np.array(lengths)  # chain length from each segment's end to the TCP
+        for (a, b), L, rest in list(zip(seg, lengths, after))[self.skip:]:
+            n = max(int(np.ceil(L / self.spacing)), 1)
+            f = np.linspace(0.0, 1.0, n + 1)
+            out.append(a + f[:, None] * (b - a))
+            to_tip.append(rest + (1.0 - f) * L)
         P = np.concatenate(out)
         P = P @ self.robot.base_T_mm[:3, :3].T + self.robot.base_T_mm[:3, 3]
+        return P, np.concatenate(to_tip)
+
+    def link_points(self, q) -> np.ndarray:
+        """Points (M, 3) along the link segments, world frame (exempt balls and the exempt tip removed)."""
+        P, to_tip = self._chain_points(q)
+        if self.tip_exempt > 0:
+            P = P[to_tip > self.tip_exempt]
+        for c, r in self.exempt:
+            P = P[np.linalg.norm(P - c, axis=1) > r]
+        return P
+
+    def _tcp(self, q) -> np.ndarray:
+        T = self.robot.base_T_mm @ self.chain.frames(np.asarray(q, float))[-1] @ self.robot.tool_T_mm
+        P = T[:3, 3][None]
         for c, r in self.exempt:
             P = P[np.linalg.norm(P - c, axis=1) > r]
         return P
@@ -76,11 +98,14 @@ class _LinkCapsules:
         raise NotImplementedError
 
     def clearance_mm(self, q) -> float:
-        """Smallest distance from a link capsule's surface to the part (negative: overlap)."""
+        """Smallest distance from a link capsule's surface (or, with a tip exemption, the TCP) to the part."""
         P = self.link_points(q)
-        if len(P) == 0:
-            return np.inf
-        return float(self.distances(P).min() - self.radius)
+        c = np.inf if len(P) == 0 else float(self.distances(P).min() - self.radius)
+        if self.tip_exempt > 0:
+            tcp = self._tcp(q)
+            if len(tcp):
+                c = min(c, float(self.distances(tcp).min()))
+        return c
 
     def __call__(self, q) -> bool:
         self.calls += 1
@@ -100,10 +125,10 @@ class CapsuleChecker(_LinkCapsules):
 
     def __init__(self, robot, mesh, radius_mm: float = 60.0, clearance_mm: float = 0.0,
                  skip_links: int = 1, spacing_mm: float | None = None, exempt=(), backend: str = "open3d",
-                 outward=None):
+                 outward=None, tip_exempt_mm: float = 0.0):
         import trimesh
 
-        super().__init__(robot, radius_mm, clearance_mm, skip_links, spacing_mm, exempt)
+        super().__init__(robot, radius_mm, clearance_mm, skip_links, spacing_mm, exempt, tip_exempt_mm)
         # an open surface patch is not a solid: with ``outward`` = (points_mm, unit directions towards the
         # tool side), a point behind the surface (closest-point offset against the oriented face normal)
         # counts as inside the part, however far it is from the surface
@@ -193,10 +218,10 @@ class CloudChecker(_LinkCapsules):
     """Joint limits plus link-capsule clearance from a point cloud (KD-tree; no inside test)."""
 
     def __init__(self, robot, points_mm, radius_mm: float = 60.0, clearance_mm: float = 0.0,
-                 skip_links: int = 1, spacing_mm: float | None = None, exempt=()):
+                 skip_links: int = 1, spacing_mm: float | None = None, exempt=(), tip_exempt_mm: float = 0.0):
         from scipy.spatial import cKDTree
 
-        super().__init__(robot, radius_mm, clearance_mm, skip_links, spacing_mm, exempt)
+        super().__init__(robot, radius_mm, clearance_mm, skip_links, spacing_mm, exempt, tip_exempt_mm)
         pts = np.asarray(points_mm, float)
         if pts.ndim != 2 or len(pts) == 0:
             raise BadInput("the collision check needs the workpiece points")

@@ -1,0 +1,173 @@
+"""One collision world in coal: the robot's bodies, the tool, the obstacles and the floor.
+
+``CollisionWorld`` holds the bodies (``shapes``), the allowed-collision matrix
+(``acm``) and the pairs to measure: every robot or tool body against every
+obstacle (bodies fixed to the robot base are not measured against the floor
+they stand on), and every pair of robot bodies the matrix does not allow.
+The planner asks one configuration at a time (``clearance_mm``, ``valid``);
+the independent motion check (``camtool.motion.cell_check``) takes the same
+bodies and pairs and does its own sampling and bounding.
+
+Distances are coal's (GJK / EPA on the primitives and convex hulls), in mm,
+negative when two bodies overlap (the penetration depth).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .acm import AllowedCollisions, robot_acm
+from .shapes import BASE, WORLD, Body, obstacle_bodies, robot_bodies
+
+MM_PER_M = 1000.0
+
+
+@dataclass(frozen=True)
+class Pair:
+    """Two bodies measured against each other (indices into ``CollisionWorld.bodies``)."""
+
+    a: int
+    b: int
+    kind: str   # "environment" (robot / tool x obstacle) or "self" (robot x robot)
+
+
+@dataclass(frozen=True)
+class CellSettings:
+    """The cell beyond the part: obstacles (bodies), clearance (mm), the matrix overrides."""
+
+    obstacles: tuple[Body, ...] = ()
+    clearance_mm: float = 5.0
+    allow: tuple[tuple[str, str], ...] = ()
+    check: tuple[tuple[str, str], ...] = ()
+    tool_points_mm: np.ndarray | None = field(default=None, repr=False)
+
+    @classmethod
+    def from_job(cls, job) -> "CellSettings":
+        """The job's ``[cell]`` obstacles, floor, clearance and matrix overrides, ``[tool] mesh``."""
+        from ..transforms import matrix_from_xyz_rpy
+        from .shapes import mesh_points
+        from .spec import obstacle_specs
+
+        c = job.cell
+        wp_T = matrix_from_xyz_rpy(c.workpiece_xyz_mm, c.workpiece_rpy_deg)
+        obstacles = obstacle_bodies(obstacle_specs(c.obstacles), wp_T, job.dir, c.floor_z_mm)
+        tool = mesh_points(job.resolve(job.tool.mesh), job.tool.mesh_units) if job.tool.mesh else None
+        return cls(obstacles, float(c.clearance_mm), tuple(map(tuple, c.allow_collision)),
+                   tuple(map(tuple, c.check_collision)), tool)
+
+
+class CollisionWorld:
+    """The robot (placed), its tool, the obstacles; the pairs to measure and their coal shapes."""
+
+    def __init__(self, robot, cell: CellSettings | None = None, tool_radius_mm: float = 25.0,
+                 acm: AllowedCollisions | None = None):
+        cell = cell or CellSettings()
+        self.robot = robot
+        self.cell = cell
+        self.clearance_mm = float(cell.clearance_mm)
+        self.robot_bodies = robot_bodies(robot, tool_radius_mm, cell.tool_points_mm)
+        self.bodies: tuple[Body, ...] = self.robot_bodies + tuple(cell.obstacles)
+        self.acm = (acm or robot_acm(robot, self.robot_bodies)).overridden(cell.allow, cell.check,
+                                                                           [b.name for b in self.robot_bodies])
+        self.geometry = [b.coal_geometry() for b in self.bodies]
+        n_robot = len(self.robot_bodies)
+        pairs = []
+        for i, b in enumerate(self.robot_bodies):
+            for j in range(n_robot, len(self.bodies)):
+                if b.parent == BASE and self.bodies[j].shape == "halfspace":
+                    continue   # the base stands on the floor
+                pairs.append(Pair(i, j, "environment"))
+        for i in range(n_robot):
+            for j in range(i + 1, n_robot):
+                bi, bj = self.bodies[i], self.bodies[j]
+                if bi.parent == bj.parent or (bi.parent <= BASE and bj.parent <= BASE):
+                    continue   # rigidly joined: their distance never changes
+                if not self.acm.allowed(bi.name, bj.name):
+                    pairs.append(Pair(i, j, "self"))
+        self.pairs = tuple(pairs)
+        base = np.asarray(robot.base_T_mm, float)
+        self._base = base
+        self._q_scale = np.where(np.asarray(robot.prismatic, bool), 1.0 / MM_PER_M, 1.0)
+        self._data = robot.model.createData()
+        self.calls = 0
+
+    @property
+    def has_obstacles(self) -> bool:
+        return len(self.bodies) > len(self.robot_bodies)
+
+    def pair_name(self, p: Pair) -> tuple[str, str]:
+        return self.bodies[p.a].name, self.bodies[p.b].name
+
+    def joint_frames_mm(self, q) -> np.ndarray:
+        """(dof, 4, 4) world poses (mm) of the joint frames after their motion (Pinocchio's oMi)."""
+        import pinocchio as pin
+
+        pin.forwardKinematics(self.robot.model, self._data, np.asarray(q, float) * self._q_scale)
+        F = np.empty((self.robot.dof, 4, 4))
+        for j in range(1, self.robot.model.njoints):
+            M = self._data.oMi[j]
+            F[j - 1] = np.eye(4)
+            F[j - 1, :3, :3] = M.rotation
+            F[j - 1, :3, 3] = np.asarray(M.translation) * MM_PER_M
+        return self._base @ F
+
+    def body_poses_mm(self, frames: np.ndarray) -> list[np.ndarray]:
+        """World pose (mm) of every body for these joint frames (``joint_frames_mm``)."""
+        out = []
+        for b in self.bodies:
+            if b.parent == WORLD:
+                out.append(b.local_T_mm)
+            elif b.parent == BASE:
+                out.append(self._base @ b.local_T_mm)
+            else:
+                out.append(frames[b.parent - 1] @ b.local_T_mm)
+        return out
+
+    def pair_distances_mm(self, q, pairs=None) -> np.ndarray:
+        """coal distance (mm, negative = overlap) of each pair at configuration q."""
+        import coal
+
+        self.calls += 1
+        poses = self.body_poses_mm(self.joint_frames_mm(q))
+        tf = [coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy()) for T in poses]
+        req, res = coal.DistanceRequest(), coal.DistanceResult()
+        pairs = self.pairs if pairs is None else pairs
+        d = np.empty(len(pairs))
+        for k, p in enumerate(pairs):
+            res.clear()
+            d[k] = coal.distance(self.geometry[p.a], tf[p.a], self.geometry[p.b], tf[p.b], req, res)
+        return d
+
+    def clearance_mm_at(self, q) -> tuple[float, Pair | None]:
+        """The smallest pair distance at q and its pair (inf, None without pairs)."""
+        if not self.pairs:
+            return np.inf, None
+        d = self.pair_distances_mm(q)
+        k = int(np.argmin(d))
+        return float(d[k]), self.pairs[k]
+
+    def valid(self, q) -> bool:
+        """Every pair keeps ``clearance_mm``."""
+        return not self.pairs or self.clearance_mm_at(q)[0] >= self.clearance_mm
+
+    def describe(self) -> dict:
+        return {"bodies": [b.describe() for b in self.bodies], "clearance_mm": self.clearance_mm,
+                "pairs": {"environment": sum(p.kind == "environment" for p in self.pairs),
+                          "self": sum(p.kind == "self" for p in self.pairs)},
+                "allowed_collisions": self.acm.describe()}
+
+
+class WorldChecker:
+    """A planner validity check ``valid(q) -> bool``: another check (the part) and the collision world."""
+
+    def __init__(self, inner, world: CollisionWorld):
+        self.inner, self.world = inner, world
+
+    def __call__(self, q) -> bool:
+        if self.inner is not None and not self.inner(q):
+            return False
+        return self.world.valid(q)
+
+    def __getattr__(self, name):   # the inner checker's figures (calls, mesh, ...)
+        return getattr(self.inner, name)

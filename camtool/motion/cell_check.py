@@ -1,0 +1,180 @@
+"""The motion check's cell pass: every robot and tool body against the obstacles, the floor and the
+robot's own links (the pairs of ``camtool.collision.CollisionWorld``), on the check's samples.
+
+Shared with the planner: only the bodies and pairs (what the cell *is*). The
+sampling, the forward kinematics (``fk_batch``) and the bounds are the
+check's own.
+
+Conservative advancement. A point of body b moves, over a joint-linear step
+dq, by at most sum_j |dq_j| R_jb: R_jb is 1 for a prismatic joint j before b
+and, for a revolute one, the chain length from joint j's origin to b's frame
+plus b's extent (the farthest point of b from that frame), an upper bound of
+the point's distance from j's axis in every configuration. A pair's distance
+changes by at most the sum of its two bodies' motions (``C``, cumulated over
+the samples). After an exact coal distance d at a sample, the samples whose
+bound d - (C[j] - C[k]) stays above both the clearance and the pair's smallest
+distance so far (less 1 mm or 10 %) are skipped: none of them can fail or
+change the reported minimum by more than that. Between two consecutive samples
+the distance is at least (d_a + d_b - m) / 2 (m the motion bound of the step);
+where that bound is below the clearance but both ends are not, the step is
+bisected (configurations on the same joint-linear motion) until the bound
+holds or a failing configuration is found: a thin wall cannot pass between
+two samples.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..collision.shapes import BASE, WORLD
+
+MIN_SLACK_MM = 1.0
+SLACK_FRACTION = 0.1
+MAX_BISECTIONS = 12
+
+
+@dataclass
+class _PairState:
+    k: int = -1            # last exactly evaluated sample
+    d: float = np.inf      # its distance
+    best: float = np.inf
+    best_at: float = -1.0  # sample (fractional between samples after a bisection)
+    best_points: tuple = ()
+    evaluations: int = 0
+    fails: list = None
+
+
+def motion_rates(world) -> np.ndarray:
+    """(dof, B) R_jb: the most a point of body b moves per unit of joint j (mm per rad, mm per mm)."""
+    from ..collision.shapes import joint_offsets
+
+    robot = world.robot
+    dof = robot.dof
+    prism = np.asarray(robot.prismatic, bool)
+    lo, hi = np.asarray(robot.limits.lower, float), np.asarray(robot.limits.upper, float)
+    off = np.array([np.linalg.norm(o) for o in joint_offsets(robot)])
+    stroke = np.where(prism, np.maximum(np.abs(lo), np.abs(hi)), 0.0)
+    Rjb = np.zeros((dof, len(world.bodies)))
+    for b, body in enumerate(world.bodies):
+        if body.parent <= BASE:
+            continue
+        f = body.parent - 1            # the joint (0-based) whose frame carries the body
+        ext = body.extent_mm
+        for j in range(f + 1):
+            Rjb[j, b] = 1.0 if prism[j] else off[j:f].sum() + stroke[j + 1:f + 1].sum() + ext
+    return Rjb
+
+
+def motion_bounds(world, q: np.ndarray) -> np.ndarray:
+    """(S, B) cumulated motion bound (mm) of each body along the joint-linear motion through the rows of q."""
+    step = np.abs(np.diff(q, axis=0)) @ motion_rates(world)
+    return np.vstack([np.zeros((1, len(world.bodies))), np.cumsum(step, axis=0)])
+
+
+def sampled_motion_bounds(world, q_waypoints: np.ndarray, seg: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """(S, B) the same at the samples (waypoint interval ``seg``, fraction ``frac``), from the waypoints alone."""
+    W = motion_bounds(world, q_waypoints)
+    nxt = np.minimum(seg + 1, len(W) - 1)
+    return W[seg] + frac[:, None] * (W[nxt] - W[seg])
+
+
+class CellPass:
+    """Runs the pairs of a CollisionWorld over the samples, chunk by chunk (module docstring).
+
+    ``feed(start, fkb)`` takes the check's FK of samples start.. (with joint
+    frames); ``states()`` the per-pair figures once every sample was fed.
+    """
+
+    def __init__(self, world, fk, q_at, C: np.ndarray, clearance_mm: float):
+        import coal
+
+        self.world, self.fk, self.q_at, self.C = world, fk, q_at, C
+        self.S = len(C)
+        self.thr = float(clearance_mm)
+        self.geo = world.geometry
+        self.req = coal.DistanceRequest()
+        self.res = coal.DistanceResult()
+        self._coal = coal
+        self.static_T = {}
+        for i, b in enumerate(world.bodies):
+            if b.parent == WORLD:
+                self.static_T[i] = self._tf(b.local_T_mm)
+            elif b.parent == BASE:
+                self.static_T[i] = self._tf(np.asarray(world.robot.base_T_mm, float) @ b.local_T_mm)
+        self.pair_C = [C[:, p.a] + C[:, p.b] for p in world.pairs]
+        self._states = [_PairState(fails=[]) for _ in world.pairs]
+        self._next = [0] * len(world.pairs)
+        self.seconds = 0.0
+
+    def _tf(self, T):
+        return self._coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
+
+    def _distance(self, pair, R, P, j):
+        """coal distance of a pair at row j of a batch of joint frames (R rotations, P origins)."""
+        tf = []
+        for i in (pair.a, pair.b):
+            t = self.static_T.get(i)
+            if t is None:
+                b = self.world.bodies[i]
+                f = b.parent - 1
+                Rf = R[j, f]
+                t = self._coal.Transform3s(Rf @ b.local_T_mm[:3, :3], P[j, f] + Rf @ b.local_T_mm[:3, 3])
+            tf.append(t)
+        self.res.clear()
+        d = self._coal.distance(self.geo[pair.a], tf[0], self.geo[pair.b], tf[1], self.req, self.res)
+        return d, (self.res.getNearestPoint1().copy(), self.res.getNearestPoint2().copy())
+
+    def _at_fraction(self, pair, s: float):
+        fkb = self.fk(self.q_at(np.array([s], float)), frames=True)
+        return self._distance(pair, fkb.joint_R, fkb.joint_origins, 0)
+
+    def feed(self, c0: int, fkb) -> None:
+        """Advance every pair through the samples c0 .. c0 + len(fkb.tcp) - 1."""
+        clock = time.perf_counter()
+        c1 = c0 + len(fkb.tcp)
+        R, P = fkb.joint_R, fkb.joint_origins
+        S, thr = self.S, self.thr
+        for n, pair in enumerate(self.world.pairs):
+            st, cp = self._states[n], self.pair_C[n]
+            j = self._next[n]
+            while j < c1:
+                d, pts = self._distance(pair, R, P, j - c0)
+                st.evaluations += 1
+                if st.k >= 0 and j > st.k:
+                    lb_prev = st.d - (cp[j - 1] - cp[st.k])
+                    m = cp[j] - cp[j - 1]
+                    if lb_prev >= thr and d >= thr and (lb_prev + d - m) / 2.0 < thr:
+                        self._bisect(pair, st, j - 1, j, lb_prev, d, m)
+                self._offer(st, j, d, pts)
+                st.k, st.d = j, d
+                target = max(thr, st.best - max(MIN_SLACK_MM, SLACK_FRACTION * max(st.best, 0.0)))
+                if d >= target:
+                    j = max(int(cp.searchsorted(cp[j] + d - target, side="right")), j + 1)
+                else:
+                    j += 1
+            self._next[n] = j
+        self.seconds += time.perf_counter() - clock
+
+    def states(self) -> list[_PairState]:
+        return self._states
+
+    def _offer(self, st, s, d, pts):
+        if d < st.best:
+            st.best, st.best_at, st.best_points = float(d), float(s), pts
+        if d < self.thr:
+            st.fails.append((float(s), float(d)))
+
+    def _bisect(self, pair, st, a, b, da, db, m, depth=0):
+        """Between samples (or fractions) a and b, distance bounds da, db, motion bound m."""
+        if depth >= MAX_BISECTIONS or (da + db - m) / 2.0 >= self.thr:
+            return
+        mid = (a + b) / 2.0
+        d, pts = self._at_fraction(pair, mid)
+        st.evaluations += 1
+        self._offer(st, mid, d, pts)
+        if d < self.thr:
+            return
+        self._bisect(pair, st, a, mid, da, d, m / 2.0, depth + 1)
+        self._bisect(pair, st, mid, b, d, db, m / 2.0, depth + 1)

@@ -1,0 +1,124 @@
+"""Chord sag on curved parts: intermediate poses *on the surface* between surface poses.
+
+Between two poses on a convex part the straight chord runs behind the
+surface by the sag; the controller's joint-linear motion follows that chord
+(plus its own bow, kept within ``planner.chord_tol_mm`` by ``densify``). At a
+20 mm pitch on a 600 mm sphere the sag alone is 0.083 mm, and with the bow the
+TCP goes 0.108 mm behind the surface: more than ``check.path_tol_mm``. Here
+every step between consecutive Path poses in the surface zones (lead-in, work,
+lead-out) whose sag exceeds half the chord tolerance gets the arc's midpoint as
+an intermediate pose, again for each half, up to ``MAX_SPLITS`` times.
+
+The arc is the circle through both poses that meets their tool axes at right
+angles (exact on spheres and cylinders, the surfaces camtool fits): with c the
+chord and theta the angle between the two tool axes the sag is
+c / 2 * tan(theta / 4), towards the tool where the normals diverge (convex),
+away from it where they converge (concave). The orientation is slerped halfway.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from ..robots.model import Robot
+from ..toolpath import SURFACE_CODES, WORK, Path
+from ..trajectory import JointPath
+from .cwln import CwlnSolver
+
+MAX_SPLITS = 3  # a step is halved at most this many times for its sag (8 pieces), twice more for its bow
+
+
+def arc_midpose(Ta: np.ndarray, Tb: np.ndarray) -> tuple[np.ndarray, float]:
+    """(pose midway along the surface arc between Ta and Tb, the chord's sag in mm)."""
+    pa, pb = Ta[:3, 3], Tb[:3, 3]
+    za, zb = Ta[:3, 2], Tb[:3, 2]
+    c = float(np.linalg.norm(pb - pa))
+    theta = float(np.arccos(np.clip(za @ zb, -1.0, 1.0)))
+    sag = 0.5 * c * np.tan(theta / 4.0)
+    out = -(za + zb)
+    n = np.linalg.norm(out)
+    T = np.eye(4)
+    T[:3, :3] = Slerp([0.0, 1.0], Rotation.from_matrix([Ta[:3, :3], Tb[:3, :3]]))(0.5).as_matrix()
+    if n < 1e-9 or sag <= 0.0:
+        T[:3, 3] = 0.5 * (pa + pb)
+        return T, 0.0
+    out /= n
+    convex = ((-zb) - (-za)) @ (pb - pa) > 0.0   # outward normals diverge along the step
+    T[:3, 3] = 0.5 * (pa + pb) + (sag if convex else -sag) * out
+    return T, sag
+
+
+def _split(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, depth):
+    """Inserted joint rows strictly between a and b. A step this module splits is also kept within the
+    bow tolerance (``densify`` no longer sees it as one step of the Path)."""
+    T_mid, sag = arc_midpose(Ta, Tb)
+    q_mid = 0.5 * (qa + qb)
+    if depth >= MAX_SPLITS + 2:
+        return []
+    if depth == 0 and sag <= tol_mm:
+        return []
+    if depth > 0 and sag <= tol_mm:
+        chord_mid = 0.5 * (Ta[:3, 3] + Tb[:3, 3])
+        if np.linalg.norm(solver.tcp_pose(q_mid)[:3, 3] - chord_mid) <= bow_tol_mm:
+            return []
+        T_mid[:3, 3] = chord_mid if sag <= 1e-9 else T_mid[:3, 3]
+    res = solver.solve(T_mid, q_mid, clamp=False)
+    if not res.converged or np.any(res.q < solver.lo) or np.any(res.q > solver.hi):
+        return []
+    return (_split(solver, Ta, qa, T_mid, res.q, tol_mm, bow_tol_mm, depth + 1) + [res.q]
+            + _split(solver, T_mid, res.q, Tb, qb, tol_mm, bow_tol_mm, depth + 1))
+
+
+def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver,
+                      chord_tol_mm: float) -> JointPath:
+    """``joint_path`` with arc-midpoint rows where a surface step's sag exceeds ``chord_tol_mm / 2``.
+
+    Inserted rows have path_index -1 and the zone of the step (of its lead, on a step between work and a
+    lead); the
+    events get ``sag_steps`` (steps split, rows inserted, the sag tolerance).
+    """
+    jp = joint_path
+    tol = 0.5 * chord_tol_mm
+    base_inv = np.linalg.inv(robot.base_T_mm)
+    on = np.isin(jp.zone, SURFACE_CODES) & (jp.path_index >= 0)
+    steps = np.flatnonzero(on[:-1] & on[1:] & (np.diff(jp.path_index) == 1))
+    inserts = {}
+    for r in steps:
+        Ta = base_inv @ path.poses_mm[jp.path_index[r]]
+        Tb = base_inv @ path.poses_mm[jp.path_index[r + 1]]
+        extra = _split(solver, Ta, jp.q[r], Tb, jp.q[r + 1], tol, chord_tol_mm, 0)
+        if extra:
+            inserts[int(r)] = np.array(extra)
+    events = {**jp.events, "sag_steps": {"steps": len(inserts), "rows": int(sum(len(v) for v in inserts.values())),
+                                         "sag_tol_mm": tol}}
+    if not inserts:
+        return replace(jp, events=events)
+    src, new = [], []
+    for r in range(len(jp.q)):
+        src.append(r)
+        new.append(False)
+        for _ in inserts.get(r, ()):
+            src.append(r)
+            new.append(True)
+    src, new = np.array(src), np.array(new)
+    q = jp.q[src].copy()
+    q[new] = np.concatenate([inserts[r] for r in sorted(inserts)])
+
+    def spread(a, fill):
+        out = np.asarray(a)[src].copy()
+        out[new] = fill
+        return out
+
+    # an inserted row of a step between work and a lead lies in the lead: the work ends at its last work pose
+    # (past the part's edge a lead pose on the arc is behind the edge's tangent plane, not work)
+    zone = np.asarray(jp.zone)
+    step_zone = {r: (zone[r + 1] if zone[r] == WORK else zone[r]) for r in inserts}
+    new_zone = zone[src].copy()
+    new_zone[new] = np.concatenate([np.full(len(inserts[r]), step_zone[r]) for r in sorted(inserts)])
+    return JointPath(q=q, path_index=spread(jp.path_index, -1), zone=new_zone,
+                     position_error_mm=spread(jp.position_error_mm, 0.0),
+                     orientation_error_rad=spread(jp.orientation_error_rad, 0.0), jump=spread(jp.jump, False),
+                     reverse_planned=spread(jp.reverse_planned, False), retract=spread(jp.retract, False),
+                     singular=spread(jp.singular, False), reached=spread(jp.reached, True), events=events)
