@@ -68,7 +68,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "normal_neighbours": Key("int", 30, "Neighbours used to estimate point-cloud normals.", check=lambda x: 3 <= x <= 1000, expect="an integer in 3..1000"),
     },
     "fit": {
-        "model": Key("str", "auto", "Surface model; auto takes the one with most inliers (a huge sphere counts as a plane).", choices=("auto", "plane", "sphere")),
+        "model": Key("str", "auto", "Surface model; auto takes the one with most inliers (a huge sphere counts as a plane; a cylinder needs 5 % more inliers than the plane or sphere).", choices=("auto", "plane", "sphere", "cylinder")),
         "threshold_mm": _pos("RANSAC inlier distance.", 0.5, " mm"),
         "iterations": Key("int", 1000, "RANSAC hypotheses per model.", check=lambda x: 1 <= x <= 100_000, expect="an integer in 1..100000"),
         "min_inlier_ratio": Key("float", 0.2, "Smallest inlier share a model must reach.", check=lambda x: 0 < x <= 1, expect="a number in (0, 1]"),
