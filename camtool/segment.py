@@ -52,8 +52,9 @@ HYPOTHESES = 300          # hypotheses per model and round
 PLANE_MARGIN = 0.98       # a plane wins when it holds this share of the best model's support
 CONNECT_SPACINGS = 6.0    # points closer than this many median nearest-neighbour spacings are connected
 MIN_FACE_SAMPLES = 30     # a round whose best face holds fewer sample points ends the search
-PAIR_RADIUS_SHARE = 0.15  # the second point of a sphere / cylinder pair lies within this share of the extent
+PAIR_NEIGHBOURS = 64      # the second point of a sphere / cylinder pair is one of the seed's nearest sample points
 SELECT_REFINE_POINTS = 3000  # points (strided) a candidate is refined on while the models of a round compete
+BOUNDARY_POINTS = 200000  # points of a face (strided) its boundary is traced from
 REFINE_POINTS = 50000     # points (strided) used by the final least-squares refinement of a face
 MODELS = ("plane", "sphere", "cylinder")
 
@@ -213,13 +214,14 @@ def _best_hypotheses(S, NS, tree, remaining, rng, extent, settings: SegmentSetti
     score = idx if len(idx) <= SCORE_POINTS else np.sort(rng.choice(idx, SCORE_POINTS, replace=False))
     Q, NQ = S[score], NS[score]
     seeds = rng.choice(idx, HYPOTHESES, replace=len(idx) < HYPOTHESES)
-    # partners: a random remaining point within PAIR_RADIUS_SHARE of the extent of each seed
-    near = tree.query_ball_point(S[seeds], PAIR_RADIUS_SHARE * extent, return_sorted=True)
-    partner = np.empty(len(seeds), dtype=np.int64)
-    for k, lst in enumerate(near):
-        cand = np.asarray(lst, dtype=np.int64)
-        cand = cand[remaining[cand]] if len(cand) else cand
-        partner[k] = cand[rng.integers(len(cand))] if len(cand) else seeds[k]
+    # partners: a random remaining point among the PAIR_NEIGHBOURS nearest sample points of each seed
+    _, near = tree.query(S[seeds], k=min(PAIR_NEIGHBOURS, len(S)))
+    near = near.reshape(len(seeds), -1)
+    ok = remaining[near]
+    ok[:, 0] = False  # the seed itself
+    key = rng.random(near.shape) + ok  # the largest key is a random remaining neighbour
+    col = np.argmax(key, axis=1)
+    partner = np.where(ok[np.arange(len(seeds)), col], near[np.arange(len(seeds)), col], seeds)
     best = {}
     n = NS[seeds]
     hyps = {"plane": (n, np.einsum("ij,ij->i", n, S[seeds])),
@@ -382,12 +384,12 @@ def segment(workpiece, settings: SegmentSettings = SegmentSettings()) -> Segment
     best_res = np.full(len(P), np.inf)
     label = np.full(len(P), -1, dtype=np.int64)
     for k, (model, piece) in enumerate(zip(models, members)):
-        chart = _Chart(model.kind, model.params, S[piece], cell)
-        inside = np.flatnonzero(chart.contains(P))
-        res = model.residual(P[inside])
-        ok = (res < thr) & (model.normal_cos(P[inside], N_all[inside]) > cos_tol) & (res < best_res[inside])
-        label[inside[ok]] = k
-        best_res[inside[ok]] = res[ok]
+        res = model.residual(P)  # cheapest test first: distance, then normal, then the face's cells
+        cand = np.flatnonzero((res < thr) & (res < best_res))
+        cand = cand[model.normal_cos(P[cand], N_all[cand]) > cos_tol]
+        cand = cand[_Chart(model.kind, model.params, S[piece], cell).contains(P[cand])]
+        label[cand] = k
+        best_res[cand] = res[cand]
     faces, dropped = _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
     assigned = sum(len(f.inliers) for f in faces)
     return Segmentation(tuple(faces), len(P), len(P) - assigned, dropped)
@@ -469,8 +471,7 @@ def _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
         model = model.refined(P[sub], thr)
         built.append((model, idx))
     # small faces
-    surfaces = [(_surface(m, P_world[idx], N_all[idx], P[idx], centroid, bkw, len(P_world)), m, idx)
-                for m, idx in built]
+    surfaces = [(_surface(m, P_world, N_all, P, idx, centroid, bkw), m, idx) for m, idx in built]
     big = [_area_mm2(s) >= settings.min_area_mm2 for s, _, _ in surfaces]
     dropped = big.count(False)
     if settings.small_faces == "merge" and dropped and any(big):
@@ -487,19 +488,25 @@ def _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
             for j in range(len(keep)):
                 extra[j].append(idx[fine & (to == j)])
         merged = [(m, np.sort(np.concatenate([idx, *e]))) for (m, idx), e in zip(keep, extra)]
-        surfaces = [(_surface(m, P_world[idx], N_all[idx], P[idx], centroid, bkw, len(P_world)), m, idx)
-                    for m, idx in merged]
+        surfaces = [(_surface(m, P_world, N_all, P, idx, centroid, bkw), m, idx) for m, idx in merged]
     else:
         surfaces = [t for t, b in zip(surfaces, big) if b]
     faces = [Face(i, s, idx, _area_mm2(s)) for i, (s, _, idx) in enumerate(surfaces)]
     return faces, dropped
 
 
-def _surface(model: _Model, Q_world, normals, Q, centroid, bkw, n_points):
-    """The world-frame surface of a face's points, with stats, boundary and material side."""
-    res = model.residual(Q)
-    stats = FitStats(float(len(Q) / n_points), float(np.sqrt(np.mean(res ** 2))), float(res.max()),
-                     int(n_points), int(len(Q)))
+def _surface(model: _Model, P_world, N_all, P, idx, centroid, bkw):
+    """The world-frame surface of a face's points idx, with stats, boundary and material side.
+
+    The boundary and the frame are taken from at most ``BOUNDARY_POINTS``
+    of them (evenly strided): denser points no longer change the boundary's cells.
+    """
+    n_points = len(P_world)
+    res = model.residual(P[idx])
+    stats = FitStats(float(len(idx) / n_points), float(np.sqrt(np.mean(res ** 2))), float(res.max()),
+                     int(n_points), int(len(idx)))
+    sub = idx if len(idx) <= BOUNDARY_POINTS else idx[np.linspace(0, len(idx) - 1, BOUNDARY_POINTS).astype(int)]
+    Q_world, normals = P_world[sub], N_all[sub]
     if model.kind == "plane":
         n, d = model.params
         return plane_surface(Q_world, normals, n, d + float(n @ centroid), stats, bkw)
