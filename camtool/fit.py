@@ -365,6 +365,9 @@ def fit_surface(workpiece, settings: FitSettings) -> PlaneSurface | SpherePatch:
     if model in ("auto", "cylinder") and sphere_ok and len(P) >= MIN_POINTS["cylinder"]:
         cylinder = fit_model(P, "cylinder", normals=np.asarray(workpiece.normals, float), **kw)
     fit = _choose_cylinder(_choose(plane, sphere, extent), cylinder, extent)
+    if fit is None and model == "cylinder":
+        raise BadInput(f"{source}: no cylinder is defined: the points' normals are (nearly) parallel, as on a "
+                       "plane; use fit.model = \"plane\" or \"auto\"")
     if fit is None:
         raise BadInput(f"{source}: every RANSAC sample was degenerate; check the points")
     ratio = fit.n_inliers / len(P)
@@ -423,7 +426,7 @@ def cylinder_surface(Q, normals, c, a, r, stats, bkw) -> Cylinder:
     boundary is taken in the (R u, v) chart, an isometry of the cylinder.
     """
     a = np.asarray(a, float) / np.linalg.norm(a)
-    if a[2] < -1e-9 or (abs(a[2]) <= 1e-9 and a[np.argmax(np.abs(a))] < 0):
+    if a[2] < -1e-6 or (abs(a[2]) <= 1e-6 and a[np.argmax(np.abs(a))] < 0):
         a = -a
     rad = cylinder_radial(Q, c, a)
     concave = bool(np.median(np.sum(np.asarray(normals, float) * rad, axis=1)) < 0) if len(normals) else False

@@ -29,7 +29,7 @@ score. The steps:
    (within 3x threshold_mm, normals agreeing) and the rest are dropped.
 
 Deterministic: the same points and seed give the same faces in the same
-order (largest first, as found).
+order: numbered by area, largest first (ties in the order found).
 """
 from __future__ import annotations
 
@@ -112,7 +112,7 @@ class Face:
 
 @dataclass(frozen=True)
 class Segmentation:
-    """The faces of a workpiece (largest first) and the count of points no face took."""
+    """The faces of a workpiece (numbered by area, largest first), the points no face took, the small faces left out."""
 
     faces: tuple[Face, ...]
     n_points: int
@@ -376,6 +376,9 @@ def segment(workpiece, settings: SegmentSettings = SegmentSettings()) -> Segment
         models.append(model)
         members.append(piece)
     models, members = _merge_equivalent(S, models, members, CONNECT_SPACINGS * spacing, settings)
+    members = _relabel_sample(S, NS, models, members, CONNECT_SPACINGS * spacing, thr, cos_tol)
+    keep = [k for k, m in enumerate(members) if len(m) >= MIN_FACE_SAMPLES]
+    models, members = [models[k] for k in keep], [members[k] for k in keep]
     if not models:
         raise BadInput(f"{source}: no plane, sphere or cylinder face found within threshold_mm = {thr:g}; "
                        "check the units or raise the threshold")
@@ -437,6 +440,26 @@ def _merge_equivalent(S, models, members, radius, settings):
     return models, members
 
 
+def _relabel_sample(S, NS, models, members, radius, thr, cos_tol):
+    """Each sample point to the face it fits best among the faces whose piece it touches.
+
+    The rounds are greedy: a face found early takes the points near a tangent
+    seam that fit it loosely (a cylinder holds a band of the dome on it); here
+    the face that fits them closer takes them back.
+    """
+    best = np.full(len(S), np.inf)
+    label = np.full(len(S), -1, dtype=np.int64)
+    for k, (model, piece) in enumerate(zip(models, members)):
+        res = model.residual(S)
+        cand = np.flatnonzero((res < thr) & (res < best))
+        cand = cand[model.normal_cos(S[cand], NS[cand]) > cos_tol]
+        d, _ = cKDTree(S[piece]).query(S[cand], distance_upper_bound=radius)
+        cand = cand[np.isfinite(d)]
+        label[cand] = k
+        best[cand] = res[cand]
+    return [np.flatnonzero(label == k) for k in range(len(models))]
+
+
 def _area_mm2(surface) -> float:
     """Area of the material region (outer polygon minus holes) in the surface's flat chart (mm^2)."""
     def chart(uv):
@@ -491,7 +514,9 @@ def _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
         surfaces = [(_surface(m, P_world, N_all, P, idx, centroid, bkw), m, idx) for m, idx in merged]
     else:
         surfaces = [t for t, b in zip(surfaces, big) if b]
-    faces = [Face(i, s, idx, _area_mm2(s)) for i, (s, _, idx) in enumerate(surfaces)]
+    areas = [_area_mm2(s) for s, _, _ in surfaces]
+    order = sorted(range(len(surfaces)), key=lambda k: (-round(areas[k], 6), k))  # largest first
+    faces = [Face(i, surfaces[k][0], surfaces[k][2], areas[k]) for i, k in enumerate(order)]
     return faces, dropped
 
 

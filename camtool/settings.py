@@ -101,6 +101,7 @@ class RasterSettings(_FromSection):
     lead_rad: float
     tilt_rad: float
     free_spin: bool
+    cylinder_rows: str = "around"  # on a cylinder: rows around the axis or along it
 
     @classmethod
     def from_section(cls, sec):
@@ -111,7 +112,7 @@ class RasterSettings(_FromSection):
                    transition_points=int(sec["transition_points"]),
                    tool_x=sec["tool_x"], tool_x_world=tuple(float(x) for x in sec["tool_x_world"]),
                    lead_rad=math.radians(sec["lead_deg"]), tilt_rad=math.radians(sec["tilt_deg"]),
-                   free_spin=bool(sec["free_spin"]))
+                   free_spin=bool(sec["free_spin"]), cylinder_rows=sec["cylinder_rows"])
 
 
 @dataclass(frozen=True)
@@ -258,6 +259,7 @@ class JobSettings:
     timing: TimingSettings
     post: PostSettings
     check: CheckSettings
+    segmented: bool = False  # [faces] select splits the workpiece into faces (camtool.faces)
 
     @classmethod
     def from_job(cls, job: Job, robot=None) -> "JobSettings":
@@ -267,4 +269,4 @@ class JobSettings:
                    raster=RasterSettings.from_section(job.raster),
                    planner=PlannerSettings.from_section(job.planner, q_home),
                    timing=TimingSettings.from_section(job.timing), post=PostSettings.from_section(job.post),
-                   check=CheckSettings.from_section(job.check))
+                   check=CheckSettings.from_section(job.check), segmented=job.faces.select != "single")
