@@ -38,8 +38,83 @@ def segment_settings(job: Job) -> SegmentSettings:
 
 
 def segment_job(job: Job, workpiece) -> Segmentation:
-    """The faces of the job's placed workpiece."""
+    """The faces of the job's placed workpiece; a STEP part's analytic faces are taken exactly."""
+    file = job.resolve(job.workpiece.file)
+    if file.suffix.lower() in (".step", ".stp"):
+        return step_segmentation(file, workpiece, placement_mm(job), segment_settings(job))
     return segment(workpiece, segment_settings(job))
+
+
+def placement_mm(job: Job) -> np.ndarray:
+    """The 4x4 pose (mm) that places the workpiece file's coordinates in the cell, units included."""
+    from .transforms import matrix_from_xyz_rpy
+    from .workpiece import UNIT_TO_MM
+
+    T = matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg)
+    S = np.eye(4)
+    S[:3, :3] *= UNIT_TO_MM[job.workpiece.units]
+    return T @ S
+
+
+def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: SegmentSettings) -> Segmentation:
+    """The faces of a STEP part: plane, sphere and cylinder B-rep faces exactly (``camtool.step``), the
+    others' points segmented by RANSAC. Each workpiece point belongs to the B-rep face of its nearest triangle."""
+    import trimesh
+
+    from .fit import cylinder_surface, plane_surface, sphere_patch
+    from .segment import MIN_FACE_SAMPLES, area_mm2, boundary_on_points
+    from .step import read_step_faces, step_mesh
+    from .surface import FitStats
+    from .workpiece import Workpiece
+
+    R, t = T_mm[:3, :3], T_mm[:3, 3]
+    scale = float(np.cbrt(np.linalg.det(R)))
+    rot = R / scale
+    verts, tris, owner = step_mesh(file)
+    mesh = trimesh.Trimesh(verts @ R.T + t, tris, process=False)
+    P = np.asarray(workpiece.points_mm, float)
+    N = np.asarray(workpiece.normals, float)
+    _, _, tri_id = trimesh.proximity.closest_point(mesh, P)
+    label = owner[tri_id]
+    bkw = dict(cell_mm=settings.boundary_cell_mm, close_gaps_mm=settings.close_gaps_mm,
+               simplify_mm=settings.simplify_mm, source=str(file))
+    built, rest = [], []
+    for k, f in enumerate(read_step_faces(file)):
+        idx = np.flatnonzero(label == k)
+        if f.model == "other":
+            rest.append(idx)
+            continue
+        if len(idx) < MIN_FACE_SAMPLES:
+            continue
+        Q, NQ = P[idx], N[idx]
+        if f.model == "plane":
+            n = rot @ f.params[0]
+            d = scale * f.params[1] + float(n @ t)
+            res = np.abs(Q @ n - d)
+            make = lambda st, Q=Q, NQ=NQ, n=n, d=d: plane_surface(Q, NQ, n, d, st, bkw)  # noqa: E731
+        elif f.model == "sphere":
+            c, r = R @ f.params[0] + t, scale * f.params[1]
+            res = np.abs(np.linalg.norm(Q - c, axis=1) - r)
+            make = lambda st, Q=Q, NQ=NQ, c=c, r=r: sphere_patch(Q, NQ, c, r, st, bkw)  # noqa: E731
+        else:
+            c, a, r = R @ f.params[0] + t, rot @ f.params[1], scale * f.params[2]
+            res = np.abs(np.linalg.norm((Q - c) - ((Q - c) @ a)[:, None] * a, axis=1) - r)
+            make = lambda st, Q=Q, NQ=NQ, c=c, a=a, r=r: cylinder_surface(Q, NQ, c, a, r, st, bkw)  # noqa: E731
+        stats = FitStats(len(idx) / len(P), float(np.sqrt(np.mean(res ** 2))), float(res.max()), len(P), len(idx))
+        built.append((boundary_on_points(make(stats), Q), idx))
+    dropped = 0
+    if rest:  # the other faces: RANSAC on their points
+        idx_rest = np.concatenate(rest)
+        if len(idx_rest) >= 4 * MIN_FACE_SAMPLES:
+            sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)), settings)
+            built += [(f.surface, idx_rest[f.inliers]) for f in sub.faces]
+            dropped += sub.dropped_faces
+    kept = [(s, idx) for s, idx in built if area_mm2(s) >= settings.min_area_mm2]
+    dropped += len(built) - len(kept)
+    areas = [area_mm2(s) for s, _ in kept]
+    order = sorted(range(len(kept)), key=lambda k: (-round(areas[k], 6), k))
+    faces = tuple(Face(i, kept[k][0], kept[k][1], areas[k]) for i, k in enumerate(order))
+    return Segmentation(faces, len(P), len(P) - sum(len(f.inliers) for f in faces), dropped)
 
 
 def _distance_mm(face: Face, workpiece, point_mm: np.ndarray) -> float:

@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -55,6 +56,8 @@ MIN_FACE_SAMPLES = 30     # a round whose best face holds fewer sample points en
 PAIR_NEIGHBOURS = 64      # the second point of a sphere / cylinder pair is one of the seed's nearest sample points
 SELECT_REFINE_POINTS = 3000  # points (strided) a candidate is refined on while the models of a round compete
 BOUNDARY_POINTS = 200000  # points of a face (strided) its boundary is traced from
+OFFSET_PERCENTILE = 90.0  # the smoothed outline moves into the material by this percentile of its overshoot
+SMOOTH_VERTICES = 7      # a face's pulled outline (1 mm vertices) is averaged over 2 x 7 + 1 vertices
 REFINE_POINTS = 50000     # points (strided) used by the final least-squares refinement of a face
 MODELS = ("plane", "sphere", "cylinder")
 
@@ -460,7 +463,7 @@ def _relabel_sample(S, NS, models, members, radius, thr, cos_tol):
     return [np.flatnonzero(label == k) for k in range(len(models))]
 
 
-def _area_mm2(surface) -> float:
+def area_mm2(surface) -> float:
     """Area of the material region (outer polygon minus holes) in the surface's flat chart (mm^2)."""
     def chart(uv):
         if isinstance(surface, PlaneSurface):
@@ -495,7 +498,7 @@ def _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
         built.append((model, idx))
     # small faces
     surfaces = [(_surface(m, P_world, N_all, P, idx, centroid, bkw), m, idx) for m, idx in built]
-    big = [_area_mm2(s) >= settings.min_area_mm2 for s, _, _ in surfaces]
+    big = [area_mm2(s) >= settings.min_area_mm2 for s, _, _ in surfaces]
     dropped = big.count(False)
     if settings.small_faces == "merge" and dropped and any(big):
         keep = [(m, idx) for (s, m, idx), b in zip(surfaces, big) if b]
@@ -514,7 +517,7 @@ def _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
         surfaces = [(_surface(m, P_world, N_all, P, idx, centroid, bkw), m, idx) for m, idx in merged]
     else:
         surfaces = [t for t, b in zip(surfaces, big) if b]
-    areas = [_area_mm2(s) for s, _, _ in surfaces]
+    areas = [area_mm2(s) for s, _, _ in surfaces]
     order = sorted(range(len(surfaces)), key=lambda k: (-round(areas[k], 6), k))  # largest first
     faces = [Face(i, surfaces[k][0], surfaces[k][2], areas[k]) for i, k in enumerate(order)]
     return faces, dropped
@@ -534,10 +537,77 @@ def _surface(model: _Model, P_world, N_all, P, idx, centroid, bkw):
     Q_world, normals = P_world[sub], N_all[sub]
     if model.kind == "plane":
         n, d = model.params
-        return plane_surface(Q_world, normals, n, d + float(n @ centroid), stats, bkw)
-    if model.kind == "sphere":
+        surface = plane_surface(Q_world, normals, n, d + float(n @ centroid), stats, bkw)
+    elif model.kind == "sphere":
         c, r = model.params
-        return sphere_patch(Q_world, normals, c + centroid, r, stats, bkw)
-    c, a, r = model.params
-    cw = c + centroid
-    return cylinder_surface(Q_world, normals, cw - (cw @ a) * a, a, r, stats, bkw)
+        surface = sphere_patch(Q_world, normals, c + centroid, r, stats, bkw)
+    else:
+        c, a, r = model.params
+        cw = c + centroid
+        surface = cylinder_surface(Q_world, normals, cw - (cw @ a) * a, a, r, stats, bkw)
+    return boundary_on_points(surface, Q_world)
+
+
+def _flat(surface, uv: np.ndarray) -> np.ndarray:
+    """(u, v) in the surface's flat chart (mm): a plane's own, (R u, v) on a cylinder, sinusoidal on a sphere."""
+    if isinstance(surface, PlaneSurface):
+        return uv
+    if isinstance(surface, Cylinder):
+        return np.stack([surface.radius_mm * uv[:, 0], uv[:, 1]], axis=-1)
+    r = surface.radius_mm
+    return np.stack([r * uv[:, 0] * np.cos(uv[:, 1]), r * uv[:, 1]], axis=-1)
+
+
+def _unflat(surface, xy: np.ndarray) -> np.ndarray:
+    if isinstance(surface, PlaneSurface):
+        return xy
+    if isinstance(surface, Cylinder):
+        return np.stack([xy[:, 0] / surface.radius_mm, xy[:, 1]], axis=-1)
+    r = surface.radius_mm
+    v = np.clip(xy[:, 1] / r, -math.pi / 2 + 1e-6, math.pi / 2 - 1e-6)
+    return np.stack([xy[:, 0] / (r * np.cos(v)), v], axis=-1)
+
+
+def boundary_on_points(surface, Q_world: np.ndarray):
+    """The face's boundary polygons densified (1 mm) and pulled to within half a point spacing of its points.
+
+    The boundary image's cells and smoothing put the traced contour up to a
+    cell or two past the last points; on a face that ends at an edge of the part
+    that is work beyond the edge (the motion check sees the tool off the part).
+    ``boundary._within_reach_of_points`` (the sparse-scan cut-back of the
+    single-surface fit) does the pulling.
+    """
+    from dataclasses import replace
+
+    from .boundary import _within_reach_of_points
+    from .surface import Boundary
+
+    xy = _flat(surface, surface.uv_from_points(Q_world))
+    tree = cKDTree(xy)
+    probe = xy[np.linspace(0, len(xy) - 1, min(len(xy), 2000)).astype(int)]
+    d, _ = tree.query(probe, k=2)
+    reach = 0.5 * float(np.median(d[:, 1]))
+    b = surface.boundary
+
+    def pulled(poly):
+        xy_poly = _within_reach_of_points(_flat(surface, np.asarray(poly, float)), xy, reach, 1.0)
+        # the pulled outline follows the points' scatter; smoothed along the outline (circular average over
+        # 2 x SMOOTH_VERTICES + 1 vertices 1 mm apart) and moved into the material (the left side of outer
+        # contours and holes alike) by the OFFSET_PERCENTILE-th percentile of its overshoot, a row near and
+        # along an edge crosses it once instead of weaving in and out; the few vertices still beyond reach
+        # of the points are pulled in one by one
+        k = SMOOTH_VERTICES
+        if len(xy_poly) > 2 * k + 2:
+            pad = np.vstack([xy_poly[-k:], xy_poly, xy_poly[:k]])
+            kernel = np.ones(2 * k + 1) / (2 * k + 1)
+            xy_poly = np.stack([np.convolve(pad[:, i], kernel, mode="valid") for i in range(2)], axis=-1)
+            tangent = np.roll(xy_poly, -1, axis=0) - np.roll(xy_poly, 1, axis=0)
+            left = np.stack([-tangent[:, 1], tangent[:, 0]], axis=-1)
+            left /= np.maximum(np.linalg.norm(left, axis=1), 1e-12)[:, None]
+            over = tree.query(xy_poly)[0] - reach
+            xy_poly = xy_poly + max(float(np.percentile(over, OFFSET_PERCENTILE)), 0.0) * left
+            xy_poly = _within_reach_of_points(xy_poly, xy, reach, 1.0)  # where the offset could not reach
+        simple = cv2.approxPolyDP(xy_poly.reshape(-1, 1, 2).astype(np.float32), 0.05, True).reshape(-1, 2)
+        return _unflat(surface, simple.astype(float) if len(simple) >= 3 else xy_poly)
+
+    return replace(surface, boundary=Boundary(pulled(b.outer_uv), tuple(pulled(h) for h in b.holes_uv)))

@@ -23,6 +23,8 @@ parameters, and the face's outline sampled every 2 mm):
   open at the bottom (a cylinder and a sphere, tangent);
 - plate_chamfer: a 300 x 200 x 20 mm plate whose top edges carry a 10 mm
   45 deg chamfer (top, four chamfers, four sides; no bottom).
+
+pipe_half is also written as STEP (``pipe_half.step``, OCP), its faces exact.
 """
 from __future__ import annotations
 
@@ -272,6 +274,31 @@ def write_ply_with_normals(path: Path, pts: np.ndarray, normals: np.ndarray) -> 
     path.write_bytes(head + data.tobytes())
 
 
+def write_pipe_step(path: Path) -> None:
+    """pipe_half as a STEP solid (OCP): the same six faces as pipe_half.stl, exact B-rep surfaces.
+
+    The header's time stamp is fixed so that the file is the same on every run.
+    """
+    import contextlib
+    import io
+    import re
+
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeCylinder
+    from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
+
+    ax = gp_Ax2(gp_Pnt(-150, 0, 0), gp_Dir(1, 0, 0), gp_Dir(0, 1, 0))  # angle 0 at +y, turning through +z
+    outer = BRepPrimAPI_MakeCylinder(ax, 120.0, 300.0, np.pi).Shape()
+    inner = BRepPrimAPI_MakeCylinder(ax, 100.0, 300.0, np.pi).Shape()
+    writer = STEPControl_Writer()
+    with contextlib.redirect_stdout(io.StringIO()):
+        writer.Transfer(BRepAlgoAPI_Cut(outer, inner).Shape(), STEPControl_AsIs)
+        writer.Write(str(path))
+    text = re.sub(r"'\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}'", "'2026-12-01T00:00:00'", path.read_text(), count=1)
+    path.write_text(text)
+
+
 def make_parts() -> list[str]:
     """Write every multi-face part (mesh, scan) and faces_truth.json; returns the file names."""
     import json
@@ -286,7 +313,8 @@ def make_parts() -> list[str]:
         truth_all[name] = {"scan_sigma_mm": 0.1, "faces": truth}
         names += [f"{name}.stl", f"{name}_scan.ply"]
     (OUT / "faces_truth.json").write_text(json.dumps(truth_all) + "\n")
-    return names + ["faces_truth.json"]
+    write_pipe_step(OUT / "pipe_half.step")
+    return names + ["faces_truth.json", "pipe_half.step"]
 
 
 def main() -> None:

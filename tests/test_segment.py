@@ -99,7 +99,7 @@ def test_faces_are_numbered_largest_first_with_boundaries_and_stats(mesh_segment
 
 
 def test_boundaries_lie_near_the_true_outline(mesh_segments):
-    """Every boundary vertex of the box's faces lies within 8 mm of the face's true outline (a regression
+    """Every boundary vertex of the box's faces lies within 10 mm of the face's true outline (a regression
     bound: the boundary image's cells and simplification, docs/faces.md)."""
     seg = mesh_segments["box_open"]
     truths = TRUTH["box_open"]["faces"]
@@ -107,7 +107,7 @@ def test_boundaries_lie_near_the_true_outline(mesh_segments):
         outline = np.asarray(t["outline_mm"])
         pts = f.surface.point_mm(*f.surface.boundary.outer_uv.T)
         d = np.min(np.linalg.norm(pts[:, None, :] - outline[None], axis=2), axis=1)
-        assert d.max() < 8.0
+        assert d.max() < 10.0
 
 
 def test_same_seed_same_faces_other_seed_same_models():
