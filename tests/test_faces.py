@@ -95,3 +95,15 @@ def test_cli_faces_json_and_png(tmp_path):
 def test_cli_faces_bad_input_is_one_line(tmp_path):
     r = run_camtool("faces", write_job(tmp_path, "select = [7]"))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "has 6 faces" in r.stderr
+
+
+def test_cylinder_job_end_to_end_passes_the_motion_check(tmp_path):
+    """samples/pipe_half.toml as shipped: the outside cylinder is rastered, planned, checked and posted."""
+    out = tmp_path / "out"
+    r = run_camtool("run", SAMPLES / "pipe_half.toml", "-o", out)
+    assert r.returncode == 0, r.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert report["status"] == "ok" and report["motion_check"]["ok"]
+    assert (out / "PIPE.mod").is_file()
+    raster = run_camtool("raster", SAMPLES / "pipe_half.toml", "--json")
+    assert raster.returncode == 0 and json.loads(raster.stdout)["coverage"] >= 0.995
