@@ -55,7 +55,7 @@ CONNECT_SPACINGS = 6.0    # points closer than this many median nearest-neighbou
 MIN_FACE_SAMPLES = 30     # a round whose best face holds fewer sample points ends the search
 PAIR_NEIGHBOURS = 64      # the second point of a sphere / cylinder pair is one of the seed's nearest sample points
 SELECT_REFINE_POINTS = 3000  # points (strided) a candidate is refined on while the models of a round compete
-BOUNDARY_POINTS = 200000  # points of a face (strided) its boundary is traced from
+BOUNDARY_POINTS = 100000  # points of a face (strided) its boundary is traced from (a job samples 100k in all)
 OFFSET_PERCENTILE = 90.0  # the smoothed outline moves into the material by this percentile of its overshoot
 SMOOTH_VERTICES = 7      # a face's pulled outline (1 mm vertices) is averaged over 2 x 7 + 1 vertices
 REFINE_POINTS = 50000     # points (strided) used by the final least-squares refinement of a face
@@ -568,6 +568,22 @@ def _unflat(surface, xy: np.ndarray) -> np.ndarray:
     return np.stack([xy[:, 0] / (r * np.cos(v)), v], axis=-1)
 
 
+def _pull_within(poly: np.ndarray, tree: cKDTree, xy: np.ndarray, reach_mm: float, step_mm: float) -> np.ndarray:
+    """The closed polygon densified to ``step_mm`` and every vertex farther than ``reach_mm`` from the
+    points ``xy`` (``tree``) moved to that distance from its nearest point."""
+    closed = np.vstack([poly, poly[:1]])
+    seg = np.diff(closed, axis=0)
+    n = np.maximum(np.ceil(np.linalg.norm(seg, axis=1) / step_mm).astype(int), 1)
+    start = np.repeat(closed[:-1], n, axis=0)
+    frac = np.concatenate([np.arange(k) / k for k in n])
+    dense = start + frac[:, None] * np.repeat(seg, n, axis=0)
+    dist, idx = tree.query(dense)
+    far = dist > reach_mm
+    p = xy[idx[far]]
+    dense[far] = p + (dense[far] - p) * (reach_mm / dist[far])[:, None]
+    return dense
+
+
 def boundary_on_points(surface, Q_world: np.ndarray):
     """The face's boundary polygons densified (1 mm) and pulled to within half a point spacing of its points.
 
@@ -575,11 +591,11 @@ def boundary_on_points(surface, Q_world: np.ndarray):
     cell or two past the last points; on a face that ends at an edge of the part
     that is work beyond the edge (the motion check sees the tool off the part).
     ``boundary._within_reach_of_points`` (the sparse-scan cut-back of the
-    single-surface fit) does the pulling.
+    single-surface fit) does the same pulling with a tree of its own per call;
+    here one tree per face serves every pull (``_pull_within``).
     """
     from dataclasses import replace
 
-    from .boundary import _within_reach_of_points
     from .surface import Boundary
 
     xy = _flat(surface, surface.uv_from_points(Q_world))
@@ -590,7 +606,7 @@ def boundary_on_points(surface, Q_world: np.ndarray):
     b = surface.boundary
 
     def pulled(poly):
-        xy_poly = _within_reach_of_points(_flat(surface, np.asarray(poly, float)), xy, reach, 1.0)
+        xy_poly = _pull_within(_flat(surface, np.asarray(poly, float)), tree, xy, reach, 1.0)
         # the pulled outline follows the points' scatter; smoothed along the outline (circular average over
         # 2 x SMOOTH_VERTICES + 1 vertices 1 mm apart) and moved into the material (the left side of outer
         # contours and holes alike) by the OFFSET_PERCENTILE-th percentile of its overshoot, a row near and
@@ -606,7 +622,7 @@ def boundary_on_points(surface, Q_world: np.ndarray):
             left /= np.maximum(np.linalg.norm(left, axis=1), 1e-12)[:, None]
             over = tree.query(xy_poly)[0] - reach
             xy_poly = xy_poly + max(float(np.percentile(over, OFFSET_PERCENTILE)), 0.0) * left
-            xy_poly = _within_reach_of_points(xy_poly, xy, reach, 1.0)  # where the offset could not reach
+            xy_poly = _pull_within(xy_poly, tree, xy, reach, 1.0)  # where the offset could not reach
         simple = cv2.approxPolyDP(xy_poly.reshape(-1, 1, 2).astype(np.float32), 0.05, True).reshape(-1, 2)
         return _unflat(surface, simple.astype(float) if len(simple) >= 3 else xy_poly)
 
