@@ -107,3 +107,16 @@ def test_cylinder_job_end_to_end_passes_the_motion_check(tmp_path):
     assert (out / "PIPE.mod").is_file()
     raster = run_camtool("raster", SAMPLES / "pipe_half.toml", "--json")
     assert raster.returncode == 0 and json.loads(raster.stdout)["coverage"] >= 0.995
+
+
+def test_fit_stage_file_of_a_face_resumes_the_raster(tmp_path):
+    job = write_job(tmp_path, "select = [1]", '[raster]\nstep_over_mm = 30.0\npitch_mm = 15.0\n')
+    out = tmp_path / "out"
+    fit = run_camtool("fit", job, "-o", out, "--json")
+    assert fit.returncode == 0, fit.stderr
+    d = json.loads(fit.stdout)
+    assert d["model"] == "cylinder" and d["concave"] and abs(d["radius_mm"] - 100) < 0.5 and "axis" in d
+    resumed = run_camtool("raster", job, "--from", out / "surface.json", "--json")
+    direct = run_camtool("raster", job, "--json")
+    assert resumed.returncode == 0 and direct.returncode == 0
+    assert json.loads(resumed.stdout) == json.loads(direct.stdout)
