@@ -10,7 +10,7 @@ import traceback
 
 import click
 
-from .commands import batch, check, design, fit, fk, place, plan, post, posts, raster, robots, run, timing, watch
+from .commands import batch, check, design, faces, fit, fk, place, plan, post, posts, raster, robots, run, timing, watch
 from .errors import CamtoolError
 
 DEBUG_KEY = "camtool.debug"  # ctx.meta key set by the group's --debug option
@@ -118,7 +118,7 @@ def cli(ctx: click.Context, debug: bool, no_plugins: bool) -> None:
 
 
 def _register() -> None:
-    for module in (robots, fk, fit, raster, plan, timing, post, run, batch, watch, design, place, posts, check):
+    for module in (robots, fk, fit, faces, raster, plan, timing, post, run, batch, watch, design, place, posts, check):
         cli.add_command(module.command)
 
 

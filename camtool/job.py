@@ -70,7 +70,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "normal_neighbours": Key("int", 30, "Neighbours used to estimate point-cloud normals.", check=lambda x: 3 <= x <= 1000, expect="an integer in 3..1000"),
     },
     "fit": {
-        "model": Key("str", "auto", "Surface model; auto takes the one with most inliers (a huge sphere counts as a plane).", choices=("auto", "plane", "sphere")),
+        "model": Key("str", "auto", "Surface model; auto takes the one with most inliers (a huge sphere counts as a plane; a cylinder needs 5 % more inliers than the plane or sphere).", choices=("auto", "plane", "sphere", "cylinder")),
         "threshold_mm": _pos("RANSAC inlier distance.", 0.5, " mm"),
         "iterations": Key("int", 1000, "RANSAC hypotheses per model.", check=lambda x: 1 <= x <= 100_000, expect="an integer in 1..100000"),
         "min_inlier_ratio": Key("float", 0.2, "Smallest inlier share a model must reach.", check=lambda x: 0 < x <= 1, expect="a number in (0, 1]"),
@@ -94,6 +94,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "lead_deg": _angle89("Lead angle: tilt of the tool about its y axis, in the travel direction."),
         "tilt_deg": _angle89("Side-tilt angle: tilt of the tool about the travel direction."),
         "free_spin": Key("bool", False, "Rotation about tool z is free (symmetric tools); the planner may use it as redundancy."),
+        "cylinder_rows": Key("str", "around", "On a cylinder face: rows run around the axis (circles, angle_deg = 0) or along it (lines); angle_deg turns them further (docs/raster.md).", choices=("around", "along")),
     },
     "robot": {
         "name": Key("str", "seed8", "Built-in robot (seed8, irb2400, irb2400_paper, sia20) or a .toml / .urdf file."),
@@ -207,6 +208,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "dwell_iterations": Key("int", 12, "target_removal_file: iterations of the dwell-time solve.", check=lambda x: 1 <= x <= 200, expect="an integer in 1..200"),
         "feed_factor_min": Key("float", 0.25, "target_removal_file: lowest feed, as a share of timing.tcp_speed_mm_s (the longest dwell).", check=lambda x: 0.01 <= x <= 1, expect="a number in 0.01..1"),
     },
+    "faces": {
+        "select": Key("select", "single", "Which faces of the workpiece the job works: single = the one surface [fit] finds (as before faces existed); all; a list of face indices as `camtool faces JOB` prints them (largest first); a model name (plane, sphere, cylinder); {largest = N}; or {nearest_mm = [x, y, z]} (world frame). Any other choice splits the workpiece into faces (docs/faces.md); one face per job for now."),
+        "normal_tol_deg": Key("float", 10.0, "A point belongs to a face only when its normal is within this angle of the face's normal there.", check=lambda x: 0.5 <= x <= 45, expect="an angle in 0.5..45 deg"),
+        "min_area_mm2": _nonneg("Faces smaller than this are dropped or merged (small_faces).", 100.0),
+        "small_faces": Key("str", "drop", "What becomes of a face smaller than min_area_mm2: drop it, or merge its points into the neighbouring face they fit (within 3x fit.threshold_mm, normals agreeing).", choices=("drop", "merge")),
+        "max_faces": Key("int", 32, "Most faces the segmentation looks for.", check=lambda x: 1 <= x <= 256, expect="an integer in 1..256"),
+        "raster": Key("table", {}, "Raster keys per face index, e.g. {\"2\" = {step_over_mm = 5, cylinder_rows = \"along\"}}; needs select = [indices] or {largest = N}."),
+    },
     "post": {
         "formats": Key("strs", ["rapid", "inform", "csv"], "Post-processor plugins to run (see `camtool posts`); at least one, each once.", check=lambda x: 0 < len(x) == len(set(x)), expect="a non-empty list of distinct format names"),
         "program_name": Key("str", "CAMTOOL", "Program / job name (sanitised per controller).", check=lambda x: bool(x.strip()), expect="a non-empty name"),
@@ -314,6 +323,8 @@ def _coerce(key: Key, value, where: str):
     elif k == "pairs":
         from .collision.spec import parse_pairs
         value = parse_pairs(value, where)
+    elif k == "select":
+        value = _faces_select(value, fail)
     if key.check is not None and not key.check(value):
         fail(key.expect)
     name = where.rsplit(".", 1)[-1]
@@ -323,6 +334,33 @@ def _coerce(key: Key, value, where: str):
     if name.endswith("_deg") and k in ("float", "vec3", "floats") and any(abs(x) > MAX_ANGLE_DEG for x in values):
         fail(f"angles within +-{MAX_ANGLE_DEG:g} deg")
     return value
+
+
+FACE_MODELS = ("plane", "sphere", "cylinder")
+
+
+def _faces_select(value, fail):
+    """faces.select: 'single', 'all', a model name, [indices], {largest = N} or {nearest_mm = [x, y, z]}."""
+    expect = ("'single', 'all', 'plane', 'sphere', 'cylinder', a list of face indices, {largest = N} "
+              "or {nearest_mm = [x, y, z]}")
+    if isinstance(value, str):
+        if value not in ("single", "all", *FACE_MODELS):
+            fail(expect)
+        return value
+    if isinstance(value, list):
+        if not value or not all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < 10_000 for i in value) \
+                or len(set(value)) != len(value):
+            fail("a non-empty list of distinct face indices (integers >= 0)")
+        return list(value)
+    if isinstance(value, dict) and len(value) == 1:
+        (key, v), = value.items()
+        if key == "largest" and isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 10_000:
+            return {"largest": v}
+        if key == "nearest_mm" and isinstance(v, list) and len(v) == 3 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and abs(x) <= MAX_LENGTH_MM
+                for x in v):
+            return {"nearest_mm": [float(x) for x in v]}
+    fail(expect)
 
 
 def parse_override(text: str) -> tuple[str, str, Any]:
@@ -406,8 +444,31 @@ def _check_cross(job: Job) -> None:
     if stem in OWN_FILE_STEMS:
         raise BadInput(f"{job.path}: post.program_name = {job.post.program_name!r}: its program would clash with "
                        f"camtool's own {OWN_FILE_STEMS[stem]}; choose another name")
+    _check_face_raster(job)
     if not job.workpiece.file:
         raise BadInput(f"{job.path}: workpiece.file: expected the workpiece file name, found nothing")
+
+
+def _check_face_raster(job: Job) -> None:
+    """faces.raster: keys are face indices the selection names, values valid [raster] keys."""
+    table = job.faces.raster
+    if not table:
+        return
+    sel = job.faces.select
+    static = sel if isinstance(sel, list) else list(range(sel["largest"])) if isinstance(sel, dict) and \
+        "largest" in sel else None
+    if static is None:
+        raise BadInput(f"{job.path}: faces.raster: per-face raster keys need faces.select = [indices] or "
+                       f"{{largest = N}} (the faces are then known by index), found select = {sel!r}")
+    for index, keys in table.items():
+        if not (isinstance(index, str) and index.isdigit() and int(index) in static):
+            raise BadInput(f"{job.path}: faces.raster: {index!r} is not one of the selected face indices "
+                           f"{static}")
+        if not isinstance(keys, dict):
+            raise BadInput(f"{job.path}: faces.raster.{index}: expected a table of [raster] keys")
+        checked = validate({"raster": keys}, f"{job.path}: faces.raster.{index}")["raster"]
+        if static == [int(index)]:  # the job's one face: its keys are the job's raster keys
+            job.sections["raster"].update({k: checked[k] for k in keys})
 
 
 def schema_markdown() -> str:

@@ -7,7 +7,11 @@ domain: 1 and 1 on a plane; ``R cos v_ref`` and ``R`` on a sphere patch, with
 ``v_ref`` the elevation of the patch nearest the equator. Rows are ``step_over_mm``
 apart in this chart, so on a sphere rows of constant elevation (angle 0) are
 exactly ``step_over_mm`` apart along the surface (geodesic), and at any other
-angle the spacing on the surface is never larger than ``step_over_mm``.
+angle the spacing on the surface is never larger than ``step_over_mm``. On a
+cylinder the chart ``(R u, v)`` is an isometry: rows are geodesics (circles
+round the axis at angle 0, lines along it with ``cylinder_rows = "along"``,
+helices between) and exactly ``step_over_mm`` apart on the surface
+(noether issue #178 asks for rows around a cylinder).
 Rows are centred across the domain (each outer edge is at most half a
 step-over from the nearest row).
 
@@ -251,6 +255,12 @@ def _direction(v) -> np.ndarray:
 # ----------------------------------------------------------------------------- entry
 
 
+def row_angle_rad(surface, settings: RasterSettings) -> float:
+    """The rows' angle from the u axis: ``angle_rad``, plus 90 deg on a cylinder whose rows run along its axis."""
+    along = surface.model == "cylinder" and settings.cylinder_rows == "along"
+    return settings.angle_rad + (math.pi / 2 if along else 0.0)
+
+
 def raster_path(surface, settings: RasterSettings) -> Path:
     """Raster ``surface`` into a Path: boustrophedon rows of work points with zones.
 
@@ -265,7 +275,7 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     w = _direction(settings.tool_x_world)
     step, pitch, lead, clear = settings.step_over_mm, settings.pitch_mm, settings.lead_mm, settings.clearance_mm
     m = settings.transition_points
-    chart, g_lo = _chart_for(surface, settings.angle_rad)
+    chart, g_lo = _chart_for(surface, row_angle_rad(surface, settings))
     boundary = surface.boundary
 
     # rows and runs

@@ -245,6 +245,11 @@ def _summary_section(report, robot, surface, path, failing_indices):
             extra.append(("surface.center_mm", ", ".join(f"{v:.1f}" for v in surface.center_mm)))
         elif getattr(surface, "model", "") == "plane":
             extra.append(("surface.normal", ", ".join(f"{v:.4f}" for v in surface.normal)))
+        elif getattr(surface, "model", "") == "cylinder":
+            extra.append(("surface.radius_mm", f"{surface.radius_mm:.6g}"))
+            extra.append(("surface.axis", ", ".join(f"{v:.4f}" for v in surface.axis)))
+            extra.append(("surface.center_mm", ", ".join(f"{v:.1f}" for v in surface.center_mm)))
+            extra.append(("surface.side", "inside (concave)" if surface.concave else "outside"))
         if getattr(surface, "stats", None) is not None:
             extra.append(("surface.rms_mm", f"{surface.stats.rms_mm:.4g}"))
     if path is not None:

@@ -102,6 +102,7 @@ class RasterSettings(_FromSection):
     tilt_rad: float
     free_spin: bool
     step_over_auto: bool = False  # step_over_mm = "auto": chosen from the process map (camtool.process.stepover)
+    cylinder_rows: str = "around"  # on a cylinder: rows around the axis or along it
 
     @classmethod
     def from_section(cls, sec):
@@ -113,7 +114,7 @@ class RasterSettings(_FromSection):
                    transition_points=int(sec["transition_points"]),
                    tool_x=sec["tool_x"], tool_x_world=tuple(float(x) for x in sec["tool_x_world"]),
                    lead_rad=math.radians(sec["lead_deg"]), tilt_rad=math.radians(sec["tilt_deg"]),
-                   free_spin=bool(sec["free_spin"]))
+                   free_spin=bool(sec["free_spin"]), cylinder_rows=sec["cylinder_rows"])
 
 
 @dataclass(frozen=True)
@@ -324,6 +325,7 @@ class JobSettings:
     check: CheckSettings
     process: ProcessSettings | None = None
     cell: "CellSettings | None" = None   # obstacles, floor, clearance (camtool.collision); None = an empty cell
+    segmented: bool = False  # [faces] select splits the workpiece into faces (camtool.faces)
 
     @classmethod
     def from_job(cls, job: Job, robot=None) -> "JobSettings":
@@ -335,7 +337,7 @@ class JobSettings:
                    timing=TimingSettings.from_section(job.timing), post=PostSettings.from_section(job.post),
                    check=CheckSettings.from_section(job.check),
                    process=ProcessSettings.from_section(job.process, job.check.tool_radius_mm),
-                   cell=_cell_settings(job))
+                   cell=_cell_settings(job), segmented=job.faces.select != "single")
 
 
 def _cell_settings(job: Job):

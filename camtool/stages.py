@@ -21,6 +21,7 @@ import numpy as np
 import trimesh
 
 from .errors import PlanInfeasible
+from .faces import face_surface_for_job, segmented
 from .fit import fit_surface
 from .job import Job
 from .motion import MotionCheckSettings, check_motion, part_from_path
@@ -133,7 +134,9 @@ def workpiece_for_job(job: Job):
 
 
 def surface_for_job(job: Job, workpiece):
-    """Fit the job's surface (world frame) to a placed workpiece."""
+    """Fit the job's surface (world frame) to a placed workpiece; with [faces] select, the selected face's."""
+    if segmented(job):
+        return face_surface_for_job(job, workpiece)
     return fit_surface(workpiece, FitSettings.from_section(job.fit))
 
 
@@ -305,8 +308,8 @@ def plan_and_time_sized(settings: JobSettings, surface, path, robot, workpiece=N
 def part_for_checks(settings: JobSettings, workpiece, surface):
     """The part that collision and motion checks measure against: a mesh as loaded; a scanned cloud without
     the points off its fitted surface (outliers, clutter), those within 3x fit.threshold_mm of it."""
-    if workpiece.faces is not None or surface is None:
-        return workpiece
+    if workpiece.faces is not None or surface is None or settings.segmented:
+        return workpiece  # a face of a segmented scan: the other faces' points stay obstacles
     P = np.asarray(workpiece.points_mm, float)
     on = np.linalg.norm(surface.point_mm(*surface.uv_from_points(P).T) - P, axis=1) <= 3.0 * settings.fit.threshold_mm
     return replace(workpiece, points_mm=P[on], normals=np.asarray(workpiece.normals)[on])

@@ -10,6 +10,14 @@ Two kinds:
   ``p(u, v) = c + R (cos v cos u e1 + cos v sin u e2 + sin v e3)``.
   The normal is the outward radial direction (worked from outside).
 
+- ``Cylinder``: u is the angle in **radians** about the axis from the frame's
+  e1 (the patch's mean radial direction), v the axial position in **mm** from
+  ``center_mm`` along the axis e3:
+  ``p(u, v) = c + R (cos u e1 + sin u e2) + v e3``. The normal is radial,
+  outward (worked from outside) or to the axis when ``concave`` (a bore,
+  worked from inside). The (R u, v) chart is an isometry, so rows of the chart
+  are geodesics of the cylinder (helices, circles and lines).
+
 The boundary is a set of polygons in (u, v): one outer contour and any number
 of holes; material is inside the outer polygon and outside every hole.
 """
@@ -178,7 +186,68 @@ class SpherePatch:
         return _with_stats(d, self.stats)
 
 
-Surface = PlaneSurface | SpherePatch
+@dataclass(frozen=True)
+class Cylinder:
+    """A patch of a circular cylinder, parameterised by angle u (rad) about the axis and axial v (mm).
+
+    ``frame``: columns e1 (u = 0, the patch's mean radial direction), e2, e3 (the axis);
+    ``center_mm`` is the point of the axis at v = 0. ``concave``: the material
+    is outside the cylinder (a bore or the inside of a pipe, worked from
+    inside); the normal then points to the axis.
+    """
+
+    center_mm: np.ndarray
+    radius_mm: float
+    frame: np.ndarray  # 3x3, columns e1, e2, e3 = axis
+    boundary: Boundary
+    stats: FitStats | None = None
+    concave: bool = False
+    model: str = field(default="cylinder", init=False)
+    uv_unit: str = field(default="rad,mm", init=False)
+
+    @property
+    def axis(self) -> np.ndarray:
+        return self.frame[:, 2]
+
+    def _radial(self, u) -> np.ndarray:
+        u = np.asarray(u, dtype=float)
+        return np.cos(u)[..., None] * self.frame[:, 0] + np.sin(u)[..., None] * self.frame[:, 1]
+
+    def point_mm(self, u, v) -> np.ndarray:
+        """Points (..., 3) in mm at angle u (rad) and axial position v (mm)."""
+        u, v = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(v, dtype=float))
+        return self.center_mm + self.radius_mm * self._radial(u) + v[..., None] * self.axis
+
+    def normal_at(self, u, v) -> np.ndarray:
+        """Unit normals (..., 3) at u, v out of the material (radial; to the axis when concave)."""
+        u, _ = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(v, dtype=float))
+        return -self._radial(u) if self.concave else self._radial(u)
+
+    def uv_from_points(self, points_mm: np.ndarray) -> np.ndarray:
+        """(N, 2) angle (rad) and axial position (mm) of points."""
+        local = (np.asarray(points_mm) - self.center_mm) @ self.frame
+        return np.stack([np.arctan2(local[..., 1], local[..., 0]), local[..., 2]], axis=-1)
+
+    def metric_scale(self, uv: np.ndarray) -> np.ndarray:
+        """(N, 2) mm per rad of u (R) and per mm of v (1)."""
+        uv = np.atleast_2d(uv)
+        return np.stack([np.full(len(uv), self.radius_mm), np.ones(len(uv))], axis=-1)
+
+    def to_dict(self) -> dict:
+        d = {
+            "model": "cylinder",
+            "center_mm": self.center_mm.tolist(),
+            "axis": self.axis.tolist(),
+            "radius_mm": float(self.radius_mm),
+            "frame": self.frame.tolist(),
+            "concave": bool(self.concave),
+            "uv_unit": "rad,mm",
+            "boundary": self.boundary.to_dict(),
+        }
+        return _with_stats(d, self.stats)
+
+
+Surface = PlaneSurface | SpherePatch | Cylinder
 
 
 def _with_stats(d: dict, stats: FitStats | None) -> dict:
@@ -217,7 +286,7 @@ def surface_from_dict(d: dict) -> Surface:
     if d["model"] == "plane":
         _finite(d, ("origin_mm", "normal", "u_axis", "v_axis"))
         _unit_vectors(d, ("normal", "u_axis", "v_axis"))
-    elif d["model"] == "sphere":
+    elif d["model"] in ("sphere", "cylinder"):
         _finite(d, ("center_mm", "radius_mm", "frame"))
         _unit_vectors(d, ("frame",))
         if not 0 < float(d["radius_mm"]) <= 1e6:
@@ -236,7 +305,13 @@ def surface_from_dict(d: dict) -> Surface:
             np.asarray(d["center_mm"], float), float(d["radius_mm"]),
             np.asarray(d["frame"], float), boundary, stats, bool(d.get("concave", False)),
         )
-    raise BadInput(f"surface model {d['model']!r} is not 'plane' or 'sphere'")
+    if d["model"] == "cylinder":
+        frame = np.asarray(d["frame"], float)
+        if not np.allclose(frame.T @ frame, np.eye(3), atol=1e-6):
+            raise ValueError("frame must be orthonormal")
+        return Cylinder(np.asarray(d["center_mm"], float), float(d["radius_mm"]), frame, boundary, stats,
+                        bool(d.get("concave", False)))
+    raise BadInput(f"surface model {d['model']!r} is not 'plane', 'sphere' or 'cylinder'")
 
 
 SURFACE_FORMAT, SURFACE_VERSION = "camtool-surface", 1

@@ -3,9 +3,9 @@
 One call, :func:`load_workpiece`, dispatches on the file extension to a loader
 registered in ``LOADERS`` (trimesh style), so a new format touches one place.
 
-- Meshes (STL, OBJ, OFF, GLB/GLTF, PLY with faces; STEP when ``cascadio`` is
-  installed) are read with trimesh and sampled area-weighted into points with
-  the face normals (seeded, deterministic).
+- Meshes (STL, OBJ, OFF, GLB/GLTF, PLY with faces) are read with trimesh, STEP
+  with OCP (``camtool.step``: its B-rep faces tessellated); all are sampled
+  area-weighted into points with the face normals (seeded, deterministic).
 - Point clouds (PLY without faces, PCD, XYZ/CSV/TXT/PTS) are read with
   trimesh, open3d or numpy; normals stored in the file are kept, missing ones
   are estimated with open3d from ``normal_neighbours`` neighbours and oriented
@@ -452,12 +452,11 @@ def _load_gltf(path: Path) -> _Raw:
 
 @register_loader(".step", ".stp")
 def _load_step(path: Path) -> _Raw:
-    try:
-        import cascadio  # noqa: F401  (trimesh's STEP reader)
-    except ImportError:
-        raise BadInput(f"{path}: STEP needs the optional loader: pip install 'camtool[step]' "
-                       "(cascadio), or export the part as STL") from None
-    return _mesh_from_trimesh(_trimesh_load(path, "step"), path)
+    """STEP through OCP (``camtool.step``): every B-rep face tessellated, triangles facing out of the material."""
+    from .step import step_mesh
+
+    verts, tris, _ = step_mesh(path)
+    return _Raw(verts, None, tris, "vertex")
 
 
 # --------------------------------------------------------------------------- PLY

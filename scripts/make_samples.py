@@ -8,6 +8,23 @@
   sigma 0.1 mm plus 20 % outliers (50k points).
 - plate_hole.stl: the top face (z = 0) of a 400 x 300 mm plate with an 80 x 80 mm
   square hole centred at (60, 30) mm; one-sided, normals +z.
+
+Multi-face parts (issue 26), each as a mesh (``<part>.stl``) and as a noisy
+scan (``<part>_scan.ply``: 60k points, sigma 0.1 mm, normals estimated by
+open3d from 30 neighbours and oriented out of the material, as a scanner's
+software does), with the truth of every face in ``faces_truth.json`` (model,
+parameters, and the face's outline sampled every 2 mm):
+
+- box_open: a 300 x 200 x 150 mm box without its bottom (five planes);
+- pipe_half: half a pipe section, R 120 mm outside and 100 mm inside, 300 mm
+  long along x (two cylinders, one concave; two half-ring ends; two coplanar
+  cut strips);
+- dome_cylinder: a hemisphere R 100 mm on a cylinder R 100 mm, 150 mm tall,
+  open at the bottom (a cylinder and a sphere, tangent);
+- plate_chamfer: a 300 x 200 x 20 mm plate whose top edges carry a 10 mm
+  45 deg chamfer (top, four chamfers, four sides; no bottom).
+
+pipe_half is also written as STEP (``pipe_half.step``, OCP), its faces exact.
 """
 from __future__ import annotations
 
@@ -79,6 +96,227 @@ def plate_hole_mesh(cell_mm: float = 10.0) -> trimesh.Trimesh:
     return mesh
 
 
+# ----------------------------------------------------------------------------- multi-face parts (issue 26)
+
+def _grid(fn, nu: int, nv: int, outward):
+    """A face tessellated on an (nu+1) x (nv+1) grid of fn(s, t), s, t in 0..1, triangles facing ``outward``."""
+    s, t = np.meshgrid(np.linspace(0, 1, nu + 1), np.linspace(0, 1, nv + 1), indexing="ij")
+    verts = fn(s, t).reshape(-1, 3)
+    n1 = nv + 1
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+    a, b = (i * n1 + j).ravel(), ((i + 1) * n1 + j).ravel()
+    c, d = (i * n1 + j + 1).ravel(), ((i + 1) * n1 + j + 1).ravel()
+    faces = np.vstack([np.stack([a, b, d], 1), np.stack([a, d, c], 1)])
+    tri = verts[faces]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    flip = np.einsum("ij,ij->i", n, outward(tri.mean(axis=1))) < 0
+    faces[flip] = faces[flip][:, ::-1]
+    return verts, faces
+
+
+def _outline(fn, step_mm: float = 2.0) -> list:
+    """The face's outline (its grid's border, s, t in 0..1) sampled about every step_mm, as lists of mm."""
+    border = []
+    for s0, t0, s1, t1 in ((0, 0, 1, 0), (1, 0, 1, 1), (1, 1, 0, 1), (0, 1, 0, 0)):
+        f = np.linspace(0, 1, 2001)
+        p = fn(s0 + (s1 - s0) * f, t0 + (t1 - t0) * f)
+        length = float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+        k = max(2, int(np.ceil(length / step_mm)) + 1)
+        f = np.linspace(0, 1, k)
+        border.append(fn(s0 + (s1 - s0) * f, t0 + (t1 - t0) * f))
+    pts = np.vstack(border)
+    _, keep = np.unique(np.round(pts, 6), axis=0, return_index=True)  # a degenerate edge (a pole) is one point
+    return np.round(pts[np.sort(keep)], 4).tolist()
+
+
+def _plane_face(origin, e1, e2, normal, nu=10, nv=10):
+    origin, e1, e2, normal = (np.asarray(x, float) for x in (origin, e1, e2, normal))
+    fn = lambda s, t: origin + np.asarray(s)[..., None] * e1 + np.asarray(t)[..., None] * e2  # noqa: E731
+    truth = {"model": "plane", "normal": (normal / np.linalg.norm(normal)).tolist(),
+             "offset_mm": float(normal @ origin / np.linalg.norm(normal))}
+    return fn, nu, nv, (lambda p: np.broadcast_to(normal, p.shape)), truth
+
+
+def _quad_face(p00, p10, p11, p01, normal, nu=10, nv=4):
+    """A planar quadrilateral (bilinear in its corners)."""
+    P = [np.asarray(x, float) for x in (p00, p10, p11, p01)]
+    normal = np.asarray(normal, float)
+
+    def fn(s, t):
+        s, t = np.asarray(s)[..., None], np.asarray(t)[..., None]
+        return (1 - s) * (1 - t) * P[0] + s * (1 - t) * P[1] + s * t * P[2] + (1 - s) * t * P[3]
+
+    n = normal / np.linalg.norm(normal)
+    truth = {"model": "plane", "normal": n.tolist(), "offset_mm": float(n @ P[0])}
+    return fn, nu, nv, (lambda p: np.broadcast_to(normal, p.shape)), truth
+
+
+def _cylinder_face(center, e1, e2, axis, r, ang, length, concave=False, step_deg=1.0, nv=10):
+    c, e1, e2, a = (np.asarray(x, float) for x in (center, e1, e2, axis))
+
+    def fn(s, t):
+        u = ang[0] + (ang[1] - ang[0]) * np.asarray(s)
+        v = length[0] + (length[1] - length[0]) * np.asarray(t)
+        return c + r * (np.cos(u)[..., None] * e1 + np.sin(u)[..., None] * e2) + v[..., None] * a
+
+    def outward(p):
+        d = p - c
+        d = d - (d @ a)[:, None] * a
+        return -d if concave else d
+
+    nu = int(round(np.degrees(ang[1] - ang[0]) / step_deg))
+    truth = {"model": "cylinder", "axis": a.tolist(), "axis_point_mm": c.tolist(), "radius_mm": float(r),
+             "concave": bool(concave)}
+    return fn, nu, nv, outward, truth
+
+
+def _sphere_face(center, r, el, step_deg=2.0):
+    c = np.asarray(center, float)
+
+    def fn(s, t):
+        az = 2 * np.pi * np.asarray(s)
+        e = el[0] + (el[1] - el[0]) * np.asarray(t)
+        return c + r * np.stack([np.cos(e) * np.cos(az), np.cos(e) * np.sin(az), np.sin(e) + 0 * az], axis=-1)
+
+    nu = int(round(360 / step_deg))
+    nv = int(round(np.degrees(el[1] - el[0]) / step_deg))
+    truth = {"model": "sphere", "center_mm": c.tolist(), "radius_mm": float(r), "concave": False}
+    return fn, nu, nv, (lambda p: p - c), truth
+
+
+def faces_of_part(name: str) -> list:
+    """The faces (fn, nu, nv, outward, truth) of a multi-face sample part."""
+    if name == "box_open":
+        X, Y, H = 150.0, 100.0, 150.0
+        return [_plane_face([-X, -Y, H], [2 * X, 0, 0], [0, 2 * Y, 0], [0, 0, 1], 30, 20),
+                _plane_face([X, -Y, 0], [0, 2 * Y, 0], [0, 0, H], [1, 0, 0], 20, 15),
+                _plane_face([-X, -Y, 0], [0, 2 * Y, 0], [0, 0, H], [-1, 0, 0], 20, 15),
+                _plane_face([-X, Y, 0], [2 * X, 0, 0], [0, 0, H], [0, 1, 0], 30, 15),
+                _plane_face([-X, -Y, 0], [2 * X, 0, 0], [0, 0, H], [0, -1, 0], 30, 15)]
+    if name == "pipe_half":
+        L, RO, RI = 150.0, 120.0, 100.0
+        ex, ey, ez = np.eye(3)
+        ang = (0.0, np.pi)
+        faces = [_cylinder_face([0, 0, 0], ey, ez, ex, RO, ang, (-L, L)),
+                 _cylinder_face([0, 0, 0], ey, ez, ex, RI, ang, (-L, L), concave=True)]
+        for sx in (1.0, -1.0):  # half-ring ends
+            def ring(s, t, sx=sx):
+                u = np.pi * np.asarray(s)
+                rr = RI + (RO - RI) * np.asarray(t)
+                return np.stack([sx * L + 0 * u, rr * np.cos(u), rr * np.sin(u)], axis=-1)
+            n = np.array([sx, 0.0, 0.0])
+            faces.append((ring, 180, 4, (lambda p, n=n: np.broadcast_to(n, p.shape)),
+                          {"model": "plane", "normal": n.tolist(), "offset_mm": L}))
+        faces += [_plane_face([-L, RI, 0], [2 * L, 0, 0], [0, RO - RI, 0], [0, 0, -1], 30, 4),
+                  _plane_face([-L, -RO, 0], [2 * L, 0, 0], [0, RO - RI, 0], [0, 0, -1], 30, 4)]
+        return faces
+    if name == "dome_cylinder":
+        R, H = 100.0, 150.0
+        ex, ey, ez = np.eye(3)
+        return [_cylinder_face([0, 0, 0], ex, ey, ez, R, (-np.pi, np.pi), (0.0, H), step_deg=2.0, nv=15),
+                _sphere_face([0, 0, H], R, (0.0, np.pi / 2))]
+    if name == "plate_chamfer":
+        X, Y, T, C = 150.0, 100.0, 20.0, 10.0
+        top = _plane_face([-(X - C), -(Y - C), T], [2 * (X - C), 0, 0], [0, 2 * (Y - C), 0], [0, 0, 1], 28, 18)
+        xa, ya, xb, yb = X - C, Y - C, X, Y
+        zt, zb = T, T - C
+        chamfers = [
+            _quad_face([xa, -ya, zt], [xa, ya, zt], [xb, yb, zb], [xb, -yb, zb], [1, 0, 1]),
+            _quad_face([-xa, ya, zt], [-xa, -ya, zt], [-xb, -yb, zb], [-xb, yb, zb], [-1, 0, 1]),
+            _quad_face([xa, ya, zt], [-xa, ya, zt], [-xb, yb, zb], [xb, yb, zb], [0, 1, 1]),
+            _quad_face([-xa, -ya, zt], [xa, -ya, zt], [xb, -yb, zb], [-xb, -yb, zb], [0, -1, 1]),
+        ]
+        sides = [_plane_face([X, -Y, 0], [0, 2 * Y, 0], [0, 0, zb], [1, 0, 0], 20, 2),
+                 _plane_face([-X, -Y, 0], [0, 2 * Y, 0], [0, 0, zb], [-1, 0, 0], 20, 2),
+                 _plane_face([-X, Y, 0], [2 * X, 0, 0], [0, 0, zb], [0, 1, 0], 30, 2),
+                 _plane_face([-X, -Y, 0], [2 * X, 0, 0], [0, 0, zb], [0, -1, 0], 30, 2)]
+        return [top, *chamfers, *sides]
+    raise KeyError(name)
+
+
+PARTS = ("box_open", "pipe_half", "dome_cylinder", "plate_chamfer")
+
+
+def part_mesh(name: str) -> tuple[trimesh.Trimesh, list]:
+    """The part's mesh (vertices merged) and the truth of its faces (with outlines)."""
+    verts, faces, truth, at = [], [], [], 0
+    for fn, nu, nv, outward, t in faces_of_part(name):
+        v, f = _grid(fn, nu, nv, outward)
+        verts.append(v)
+        faces.append(f + at)
+        at += len(v)
+        truth.append({**t, "outline_mm": _outline(fn)})
+    mesh = trimesh.Trimesh(np.vstack(verts), np.vstack(faces), process=True)
+    return mesh, truth
+
+
+def part_scan(mesh: trimesh.Trimesh, rng, n: int = 60_000, sigma_mm: float = 0.1):
+    """A noisy scan of the mesh: points, and normals estimated from them, oriented out of the material."""
+    import open3d as o3d
+
+    pts, face_idx = trimesh.sample.sample_surface(mesh, n, seed=rng)
+    pts = np.asarray(pts) + rng.normal(0.0, sigma_mm, (n, 3))
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
+    pc.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=30))
+    normals = np.asarray(pc.normals)
+    flip = np.einsum("ij,ij->i", normals, mesh.face_normals[face_idx]) < 0
+    normals[flip] *= -1
+    return pts, normals
+
+
+def write_ply_with_normals(path: Path, pts: np.ndarray, normals: np.ndarray) -> None:
+    """Binary little-endian PLY of float32 x y z nx ny nz."""
+    data = np.hstack([pts, normals]).astype("<f4")
+    head = ("ply\nformat binary_little_endian 1.0\n"
+            f"element vertex {len(data)}\n"
+            + "".join(f"property float {c}\n" for c in ("x", "y", "z", "nx", "ny", "nz"))
+            + "end_header\n").encode()
+    path.write_bytes(head + data.tobytes())
+
+
+def write_pipe_step(path: Path) -> None:
+    """pipe_half as a STEP solid (OCP): the same six faces as pipe_half.stl, exact B-rep surfaces.
+
+    The header's time stamp is fixed so that the file is the same on every run.
+    """
+    import contextlib
+    import io
+    import re
+
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeCylinder
+    from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
+
+    ax = gp_Ax2(gp_Pnt(-150, 0, 0), gp_Dir(1, 0, 0), gp_Dir(0, 1, 0))  # angle 0 at +y, turning through +z
+    outer = BRepPrimAPI_MakeCylinder(ax, 120.0, 300.0, np.pi).Shape()
+    inner = BRepPrimAPI_MakeCylinder(ax, 100.0, 300.0, np.pi).Shape()
+    writer = STEPControl_Writer()
+    with contextlib.redirect_stdout(io.StringIO()):
+        writer.Transfer(BRepAlgoAPI_Cut(outer, inner).Shape(), STEPControl_AsIs)
+        writer.Write(str(path))
+    text = re.sub(r"'\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}'", "'2026-12-01T00:00:00'", path.read_text(), count=1)
+    path.write_text(text)
+
+
+def make_parts() -> list[str]:
+    """Write every multi-face part (mesh, scan) and faces_truth.json; returns the file names."""
+    import json
+
+    rng = np.random.default_rng(20261201)
+    names, truth_all = [], {}
+    for name in PARTS:
+        mesh, truth = part_mesh(name)
+        mesh.export(OUT / f"{name}.stl")
+        pts, normals = part_scan(mesh, rng)
+        write_ply_with_normals(OUT / f"{name}_scan.ply", pts, normals)
+        truth_all[name] = {"scan_sigma_mm": 0.1, "faces": truth}
+        names += [f"{name}.stl", f"{name}_scan.ply"]
+    (OUT / "faces_truth.json").write_text(json.dumps(truth_all) + "\n")
+    write_pipe_step(OUT / "pipe_half.step")
+    return names + ["faces_truth.json", "pipe_half.step"]
+
+
 def main() -> None:
     OUT.mkdir(exist_ok=True)
     rng = np.random.default_rng(20230601)
@@ -86,7 +324,7 @@ def main() -> None:
     trimesh.PointCloud(sphere_scan(rng).astype(np.float32)).export(OUT / "sphere_scan.ply")
     trimesh.PointCloud(wall_cloud(rng).astype(np.float32)).export(OUT / "wall.ply")
     plate_hole_mesh().export(OUT / "plate_hole.stl")
-    for name in ("sphere_patch.stl", "sphere_scan.ply", "wall.ply", "plate_hole.stl"):
+    for name in ("sphere_patch.stl", "sphere_scan.ply", "wall.ply", "plate_hole.stl", *make_parts()):
         print(f"wrote {OUT / name} ({(OUT / name).stat().st_size / 1e6:.2f} MB)")
 
 

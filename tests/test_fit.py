@@ -135,3 +135,40 @@ def test_a_bowl_is_worked_from_inside():
     assert np.all(np.sum(work[:, :3, 2] * radial, axis=1) > 0.99)  # tool z into the material, away from the centre
     convex = fit_surface(Workpiece(bowl.points_mm, d), FitSettings.make(model="sphere"))
     assert not convex.concave
+
+
+def cylinder_points(n, rng, sigma=0.1, R=150.0, inside=False):
+    """Points on a third of a cylinder R about the axis through (1000, 0, 100) along (0, 1, 1)/sqrt 2."""
+    a = np.array([0.0, 1, 1]) / np.sqrt(2)
+    e1 = np.array([1.0, 0, 0])
+    e2 = np.cross(a, e1)
+    u = rng.uniform(-1.0, 1.0, n)
+    v = rng.uniform(-200, 200, n)
+    radial = np.cos(u)[:, None] * e1 + np.sin(u)[:, None] * e2
+    pts = CENTER + (R + rng.normal(0, sigma, n))[:, None] * radial + v[:, None] * a
+    return pts, (-radial if inside else radial), a
+
+
+@pytest.mark.parametrize("inside", [False, True])
+def test_cylinder_fit_explicit_and_auto(inside):
+    rng = np.random.default_rng(5)
+    pts, normals, a = cylinder_points(20000, rng, inside=inside)
+    wp = _with_outliers(pts, normals, rng, ratio=0.2)
+    for model in ("cylinder", "auto"):
+        s = fit_surface(wp, FitSettings.make(model=model))
+        assert s.model == "cylinder" and s.concave == inside
+        assert abs(s.radius_mm - 150.0) < 0.1
+        assert np.degrees(np.arccos(min(1.0, abs(float(s.axis @ a))))) < 0.1
+        d = s.center_mm - CENTER
+        assert np.linalg.norm(d - (d @ a) * a) < 0.1
+        assert 0.75 < s.stats.inlier_ratio < 0.85
+
+
+def test_auto_keeps_plane_and_sphere_over_cylinder(sphere_wp):
+    s = fit_surface(sphere_wp, FitSettings.make(model="auto"))
+    assert s.model == "sphere"
+    rng = np.random.default_rng(2)
+    pts, normals = plane_points(5000, rng, np.array([0.2, 0.3, 1.0]), 50.0)
+    assert fit_surface(Workpiece(pts, normals), FitSettings.make(model="auto")).model == "plane"
+    with pytest.raises(BadInput, match="no cylinder"):
+        fit_surface(Workpiece(pts, normals), FitSettings.make(model="cylinder"))

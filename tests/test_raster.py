@@ -330,3 +330,54 @@ def test_hole_covering_everything_is_empty(plate):
                         Boundary(rect(0, 100, 0, 100), (rect(-10, 110, -10, 110),)))
     with pytest.raises(BadInput, match="no material"):
         raster_path(surf, RasterSettings.make())
+
+
+# ------------------------------------------------------------------ cylinders
+
+
+@pytest.fixture(scope="module")
+def pipe():
+    """The outside of half a pipe: R 120 mm, axis along world x, u -90..90 deg about +z, v -150..150 mm."""
+    from camtool.surface import Cylinder
+
+    frame = np.array([[0.0, 0, 1], [0, -1.0, 0], [1.0, 0, 0]]).T  # e1 = +z (the middle), e2 = -y, e3 = +x
+    return Cylinder(np.zeros(3), 120.0, frame, Boundary(np.array([[-math.pi / 2, -150], [math.pi / 2, -150],
+                                                                  [math.pi / 2, 150], [-math.pi / 2, 150]])))
+
+
+@pytest.mark.parametrize("rows", ["around", "along"])
+def test_cylinder_rows_around_or_along_the_axis_geodesic_step(pipe, rows):
+    path = raster_path(pipe, RasterSettings.make(step_over_mm=15, pitch_mm=5, lead_mm=0, cylinder_rows=rows))
+    segs = work_segments(path)
+    for s in segs:
+        r = np.hypot(s[:, 1], s[:, 2])
+        assert np.allclose(r, 120.0, atol=1e-6)  # on the surface
+        if rows == "around":
+            assert np.ptp(s[:, 0]) < 1e-6  # a circle round the axis: constant x
+        else:
+            assert np.ptp(np.arctan2(s[:, 1], s[:, 2])) < 1e-9  # a line along the axis: constant angle
+    # neighbouring rows are exactly one step-over apart on the surface (arc length round the axis, or along it)
+    firsts = np.array([s[0] for s in segs])
+    if rows == "around":
+        gaps = np.diff(np.sort(firsts[:, 0]))
+    else:
+        ang = np.sort(np.arctan2(firsts[:, 1], firsts[:, 2]))
+        gaps = 120.0 * np.diff(ang)
+    assert np.allclose(gaps, 15.0, atol=1e-6)
+    assert np.allclose(spacings(path), 5.0, rtol=0.05)
+    assert coverage(pipe, path, 15.0) >= 0.995
+
+
+def test_cylinder_tool_axis_radial_outside_and_inside(pipe):
+    from camtool.surface import Cylinder
+
+    for concave in (False, True):
+        cyl = Cylinder(pipe.center_mm, pipe.radius_mm, pipe.frame, pipe.boundary, None, concave)
+        path = raster_path(cyl, RasterSettings.make(step_over_mm=20, pitch_mm=10))
+        w = path.poses_mm[path.is_work]
+        radial = w[:, :3, 3].copy()
+        radial[:, 0] = 0.0
+        radial /= np.linalg.norm(radial, axis=1)[:, None]
+        # tool z = -normal: into the material, towards the axis outside, away from it inside
+        expect = -radial if not concave else radial
+        assert np.allclose(w[:, :3, 2], expect, atol=1e-9)

@@ -219,3 +219,37 @@ def test_unknown_model_is_bad_input():
 def test_save_surface_onto_a_folder_is_bad_input(tmp_path):
     with pytest.raises(BadInput):
         save_surface(tilted_plane(), tmp_path)
+
+
+def _cylinder():
+    from camtool.surface import Cylinder
+
+    frame = np.array([[0.0, 0, 1], [0, -1.0, 0], [1.0, 0, 0]]).T
+    return Cylinder(np.array([10.0, 20, 30]), 120.0, frame,
+                    Boundary(np.array([[-1.5, -150], [1.5, -150], [1.5, 150], [-1.5, 150]])), None, True)
+
+
+def test_cylinder_points_normals_uv_and_metric():
+    c = _cylinder()
+    assert c.model == "cylinder" and c.uv_unit == "rad,mm" and np.allclose(c.axis, [1, 0, 0])
+    uv = np.array([[0.3, -20.0], [-1.2, 140.0]])
+    p = c.point_mm(uv[:, 0], uv[:, 1])
+    d = p - c.center_mm
+    assert np.allclose(np.hypot(d[:, 1], d[:, 2]), 120.0) and np.allclose(d[:, 0], uv[:, 1])
+    assert np.allclose(c.uv_from_points(p), uv)
+    n = c.normal_at(uv[:, 0], uv[:, 1])
+    radial = d.copy()
+    radial[:, 0] = 0
+    assert np.allclose(n, -radial / 120.0)  # concave: towards the axis
+    assert np.allclose(c.metric_scale(uv), [[120.0, 1.0], [120.0, 1.0]])
+
+
+def test_cylinder_round_trip_and_bad_frame(tmp_path):
+    c = _cylinder()
+    save_surface(c, tmp_path / "c.json")
+    back = load_surface(tmp_path / "c.json")
+    assert back.to_dict() == c.to_dict() and back.concave
+    d = c.to_dict()
+    d["frame"] = [[1, 0, 0], [1, 0, 0], [0, 0, 1]]
+    with pytest.raises(ValueError):
+        surface_from_dict(d)

@@ -1,4 +1,4 @@
-"""``camtool fit``: load a workpiece and fit a plane or sphere patch with its boundary."""
+"""``camtool fit``: load a workpiece and fit a plane, sphere patch or cylinder with its boundary."""
 from pathlib import Path
 
 import click
@@ -19,6 +19,8 @@ def surface_summary(surface) -> dict:
         d.update(normal=surface.normal, offset_mm=surface.offset_mm)
     else:
         d.update(center_mm=surface.center_mm, radius_mm=float(surface.radius_mm))
+        if surface.model == "cylinder":
+            d.update(axis=surface.axis, concave=bool(surface.concave))
     s = surface.stats
     d.update(inlier_ratio=s.inlier_ratio, rms_mm=s.rms_mm, max_residual_mm=s.max_residual_mm,
              n_points=s.n_points, n_inliers=s.n_inliers)
@@ -32,7 +34,7 @@ def surface_summary(surface) -> dict:
               help="With a JOB: override a job-file key, e.g. --set fit.threshold_mm=1 (repeatable).")
 @click.option("-o", "--outdir", type=click.Path(path_type=Path), default=None,
               help=f"Save the surface as OUTDIR/{SURFACE_FILE}, for `camtool raster JOB --from`.")
-@click.option("--model", type=click.Choice(["auto", "plane", "sphere"]), default="auto", show_default=True,
+@click.option("--model", type=click.Choice(["auto", "plane", "sphere", "cylinder"]), default="auto", show_default=True,
               help="Surface model; auto takes the one with most inliers (a plane when a plane explains the data).")
 @click.option("--threshold", "threshold_mm", type=click.FloatRange(min=0, min_open=True), default=0.5,
               show_default=True, help="RANSAC inlier distance in mm.")
@@ -85,10 +87,16 @@ def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, m
     else:
         c = surface.center_mm
         rows += [("center_mm", f"{c[0]:.4f} {c[1]:.4f} {c[2]:.4f}"), ("radius_mm", f"{surface.radius_mm:.4f}")]
+        if surface.model == "cylinder":
+            a = surface.axis
+            rows += [("axis", f"{a[0]:.6f} {a[1]:.6f} {a[2]:.6f}"),
+                     ("side", "inside (concave)" if surface.concave else "outside")]
     lo, hi = b.bounds()
     unit = surface.uv_unit
     if unit == "rad":
         lo, hi, unit = np.degrees(lo), np.degrees(hi), "deg"
+    elif unit == "rad,mm":  # cylinder: angle, axial mm
+        lo, hi, unit = np.array([np.degrees(lo[0]), lo[1]]), np.array([np.degrees(hi[0]), hi[1]]), "deg, mm"
     rows += [("inliers", f"{s.n_inliers} of {s.n_points} ({100 * s.inlier_ratio:.1f} %)"),
              ("rms_mm", f"{s.rms_mm:.4f}"), ("max_residual_mm", f"{s.max_residual_mm:.4f}"),
              ("boundary", f"{len(b.outer_uv)} vertices, {len(b.holes_uv)} holes, "

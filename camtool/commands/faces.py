@@ -1,0 +1,59 @@
+"""``camtool faces JOB``: split the job's placed workpiece into faces, number them, picture them."""
+from pathlib import Path
+
+import click
+
+from ..console import echo_json
+from ..faces import faces_png, segment_job, select_faces, segmented
+from ..job import load_job
+from ..stages import workpiece_for_job
+
+PNG_FILE = "faces.png"
+
+
+@click.command("faces")
+@click.argument("job_file", metavar="JOB", type=click.Path(path_type=Path))
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+              help="Override a job-file key, e.g. --set faces.normal_tol_deg=15 (repeatable).")
+@click.option("-o", "--outdir", type=click.Path(path_type=Path), default=None,
+              help=f"Write the picture OUTDIR/{PNG_FILE} (the points coloured and numbered by face).")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON for scripts.")
+def command(job_file: Path, overrides: tuple[str, ...], outdir: Path | None, as_json: bool) -> None:
+    """List the faces of a JOB's workpiece (planes, spheres, cylinders), numbered largest first.
+
+    The numbers are what [faces] select = [indices] names. Each face: its
+    model, area, normal (plane) or axis (cylinder), radius, centre, inliers
+    and RMS residual; `selected` marks the faces the job's selection takes.
+    Settings: [faces] and fit.threshold_mm, fit.seed (docs/faces.md).
+    """
+    job = load_job(job_file, list(overrides))
+    wp = workpiece_for_job(job)
+    for w in wp.warnings:
+        click.echo(f"camtool: warning: {w}", err=True)
+    seg = segment_job(job, wp)
+    chosen = set()
+    if segmented(job):
+        chosen = {f.index for f in select_faces(seg, job.faces.select, wp, str(job.path))}
+    rows = [{**f.summary(), "selected": f.index in chosen} for f in seg.faces]
+    png = faces_png(seg, wp, outdir / PNG_FILE, title=f"{job_file.name}: {len(seg.faces)} faces") \
+        if outdir is not None else None
+    if as_json:
+        echo_json({"faces": rows, "n_points": seg.n_points, "unassigned": seg.unassigned,
+                   "dropped_small_faces": seg.dropped_faces, "image": None if png is None else str(png)})
+        return
+    click.echo(f"{'face':>4} {'model':<15} {'area_mm2':>11} {'radius_mm':>10} {'normal / axis':<26} "
+               f"{'center_mm':<28} {'inliers':>8} {'rms_mm':>7}")
+    for r in rows:
+        direction = r.get("normal") or r.get("axis") or []
+        d = " ".join(f"{x:+.3f}" for x in direction)
+        c = " ".join(f"{x:.1f}" for x in r["center_mm"])
+        radius = "" if r["radius_mm"] is None else f"{r['radius_mm']:.3f}"
+        side = " inside" if r.get("concave") else ""
+        mark = " *" if r["selected"] else ""
+        click.echo(f"{r['index']:>4} {r['model'] + side:<15} {r['area_mm2']:>11.1f} {radius:>10} {d:<26} {c:<28} "
+                   f"{r['inliers']:>8} {r['rms_mm']:>7.4f}{mark}")
+    click.echo(f"{seg.unassigned} of {seg.n_points} points on no face; {seg.dropped_faces} small face(s) "
+               f"{'merged' if job.faces.small_faces == 'merge' else 'dropped'}"
+               + ("; * = selected by faces.select" if chosen else ""))
+    if png is not None:
+        click.echo(f"wrote {png}")

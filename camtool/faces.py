@@ -1,0 +1,195 @@
+"""Faces of a job's workpiece: the segmentation the job asks for, the selection, the picture.
+
+``[faces] select`` (docs/faces.md) decides:
+
+- ``"single"`` (the default): no segmentation; [fit] finds one surface, as before;
+- ``"all"``, a model name, ``[indices]``, ``{largest = N}``, ``{nearest_mm = [x, y, z]}``:
+  the placed workpiece is split into faces (``camtool.segment``), numbered
+  largest first, and the selection picks from them.
+
+A job works one face for now; a selection of several faces is refused with
+the list of what it selected (``camtool faces JOB`` shows them).
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .errors import BadInput
+from .job import Job
+from .segment import Face, Segmentation, SegmentSettings, segment
+
+
+def segmented(job: Job) -> bool:
+    """True when the job works faces of a segmentation (``faces.select`` is not 'single')."""
+    return job.faces.select != "single"
+
+
+def segment_settings(job: Job) -> SegmentSettings:
+    """The segmentation settings of a job: [faces] keys, with [fit]'s threshold, seed and boundary keys."""
+    f, fit = job.faces, job.fit
+    return SegmentSettings(threshold_mm=float(fit.threshold_mm), normal_tol_rad=math.radians(f.normal_tol_deg),
+                           min_area_mm2=float(f.min_area_mm2), small_faces=f.small_faces,
+                           max_faces=int(f.max_faces), seed=int(fit.seed),
+                           boundary_cell_mm=float(fit.boundary_cell_mm), close_gaps_mm=float(fit.close_gaps_mm),
+                           simplify_mm=float(fit.simplify_mm))
+
+
+def segment_job(job: Job, workpiece) -> Segmentation:
+    """The faces of the job's placed workpiece; a STEP part's analytic faces are taken exactly."""
+    file = job.resolve(job.workpiece.file)
+    if file.suffix.lower() in (".step", ".stp"):
+        return step_segmentation(file, workpiece, placement_mm(job), segment_settings(job))
+    return segment(workpiece, segment_settings(job))
+
+
+def placement_mm(job: Job) -> np.ndarray:
+    """The 4x4 pose (mm) that places the workpiece file's coordinates in the cell, units included."""
+    from .transforms import matrix_from_xyz_rpy
+    from .workpiece import UNIT_TO_MM
+
+    T = matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg)
+    S = np.eye(4)
+    S[:3, :3] *= UNIT_TO_MM[job.workpiece.units]
+    return T @ S
+
+
+def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: SegmentSettings) -> Segmentation:
+    """The faces of a STEP part: plane, sphere and cylinder B-rep faces exactly (``camtool.step``), the
+    others' points segmented by RANSAC. Each workpiece point belongs to the B-rep face of its nearest triangle."""
+    import trimesh
+
+    from .fit import cylinder_surface, plane_surface, sphere_patch
+    from .segment import MIN_FACE_SAMPLES, area_mm2, boundary_on_points
+    from .step import read_step_faces, step_mesh
+    from .surface import FitStats
+    from .workpiece import Workpiece
+
+    R, t = T_mm[:3, :3], T_mm[:3, 3]
+    scale = float(np.cbrt(np.linalg.det(R)))
+    rot = R / scale
+    verts, tris, owner = step_mesh(file)
+    mesh = trimesh.Trimesh(verts @ R.T + t, tris, process=False)
+    P = np.asarray(workpiece.points_mm, float)
+    N = np.asarray(workpiece.normals, float)
+    _, _, tri_id = trimesh.proximity.closest_point(mesh, P)
+    label = owner[tri_id]
+    bkw = dict(cell_mm=settings.boundary_cell_mm, close_gaps_mm=settings.close_gaps_mm,
+               simplify_mm=settings.simplify_mm, source=str(file))
+    built, rest = [], []
+    for k, f in enumerate(read_step_faces(file)):
+        idx = np.flatnonzero(label == k)
+        if f.model == "other":
+            rest.append(idx)
+            continue
+        if len(idx) < MIN_FACE_SAMPLES:
+            continue
+        Q, NQ = P[idx], N[idx]
+        if f.model == "plane":
+            n = rot @ f.params[0]
+            d = scale * f.params[1] + float(n @ t)
+            res = np.abs(Q @ n - d)
+            make = lambda st, Q=Q, NQ=NQ, n=n, d=d: plane_surface(Q, NQ, n, d, st, bkw)  # noqa: E731
+        elif f.model == "sphere":
+            c, r = R @ f.params[0] + t, scale * f.params[1]
+            res = np.abs(np.linalg.norm(Q - c, axis=1) - r)
+            make = lambda st, Q=Q, NQ=NQ, c=c, r=r: sphere_patch(Q, NQ, c, r, st, bkw)  # noqa: E731
+        else:
+            c, a, r = R @ f.params[0] + t, rot @ f.params[1], scale * f.params[2]
+            res = np.abs(np.linalg.norm((Q - c) - ((Q - c) @ a)[:, None] * a, axis=1) - r)
+            make = lambda st, Q=Q, NQ=NQ, c=c, a=a, r=r: cylinder_surface(Q, NQ, c, a, r, st, bkw)  # noqa: E731
+        stats = FitStats(len(idx) / len(P), float(np.sqrt(np.mean(res ** 2))), float(res.max()), len(P), len(idx))
+        built.append((boundary_on_points(make(stats), Q), idx))
+    dropped = 0
+    if rest:  # the other faces: RANSAC on their points
+        idx_rest = np.concatenate(rest)
+        if len(idx_rest) >= 4 * MIN_FACE_SAMPLES:
+            sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)), settings)
+            built += [(f.surface, idx_rest[f.inliers]) for f in sub.faces]
+            dropped += sub.dropped_faces
+    kept = [(s, idx) for s, idx in built if area_mm2(s) >= settings.min_area_mm2]
+    dropped += len(built) - len(kept)
+    areas = [area_mm2(s) for s, _ in kept]
+    order = sorted(range(len(kept)), key=lambda k: (-round(areas[k], 6), k))
+    faces = tuple(Face(i, kept[k][0], kept[k][1], areas[k]) for i, k in enumerate(order))
+    return Segmentation(faces, len(P), len(P) - sum(len(f.inliers) for f in faces), dropped)
+
+
+def _distance_mm(face: Face, workpiece, point_mm: np.ndarray) -> float:
+    pts = np.asarray(workpiece.points_mm)[face.inliers]
+    return float(np.min(np.linalg.norm(pts - point_mm, axis=1)))
+
+
+def select_faces(seg: Segmentation, select, workpiece=None, source: str = "job") -> list[Face]:
+    """The faces ``select`` names (see the module docstring), in index order; BadInput when none."""
+    faces = list(seg.faces)
+    if select == "all":
+        chosen = faces
+    elif isinstance(select, str):
+        chosen = [f for f in faces if f.model == select]
+    elif isinstance(select, list):
+        missing = [i for i in select if i >= len(faces)]
+        if missing:
+            raise BadInput(f"{source}: faces.select names face {missing[0]}, but the workpiece has {len(faces)} "
+                           f"faces (0..{len(faces) - 1}); see `camtool faces JOB`")
+        chosen = [faces[i] for i in sorted(select)]
+    elif "largest" in select:
+        chosen = faces[:select["largest"]]
+    else:
+        p = np.asarray(select["nearest_mm"], float)
+        chosen = [min(faces, key=lambda f: (_distance_mm(f, workpiece, p), f.index))]
+    if not chosen:
+        raise BadInput(f"{source}: faces.select = {select!r} selects no face (the workpiece has "
+                       f"{', '.join(f'{f.index}: {f.model}' for f in faces)}); see `camtool faces JOB`")
+    return chosen
+
+
+def face_surface_for_job(job: Job, workpiece):
+    """The surface of the job's one selected face (world frame); BadInput when the selection holds several."""
+    seg = segment_job(job, workpiece)
+    chosen = select_faces(seg, job.faces.select, workpiece, str(job.path))
+    if len(chosen) > 1:
+        raise BadInput(f"{job.path}: faces.select = {job.faces.select!r} selects {len(chosen)} faces "
+                       f"({', '.join(str(f.index) for f in chosen)}); a job works one face for now: "
+                       "select one, e.g. select = [" + str(chosen[0].index) + "]")
+    return chosen[0].surface
+
+
+def faces_png(seg: Segmentation, workpiece, path: Path, title: str = "") -> Path:
+    """A picture of the faces: the points coloured by face, each face numbered at its middle (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .files import output_file
+
+    P = np.asarray(workpiece.points_mm)
+    fig = plt.figure(figsize=(8, 7), dpi=110)
+    ax = fig.add_subplot(projection="3d")
+    cmap = plt.get_cmap("tab20")
+    rng = np.random.default_rng(0)
+    for f in seg.faces:
+        idx = f.inliers
+        if len(idx) > 4000:
+            idx = np.sort(rng.choice(idx, 4000, replace=False))
+        Q = P[idx]
+        ax.scatter(Q[:, 0], Q[:, 1], Q[:, 2], s=1, color=cmap(f.index % 20), depthshade=False)
+        mid = P[f.inliers].mean(axis=0)
+        ax.text(*mid, f"{f.index}: {f.model}", fontsize=9, weight="bold", color="black")
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    half = 0.5 * float((hi - lo).max())
+    c = 0.5 * (lo + hi)
+    ax.set_xlim(c[0] - half, c[0] + half)
+    ax.set_ylim(c[1] - half, c[1] + half)
+    ax.set_zlim(c[2] - half, c[2] + half)
+    ax.set_xlabel("x mm")
+    ax.set_ylabel("y mm")
+    ax.set_zlabel("z mm")
+    ax.set_title(title or f"{len(seg.faces)} faces")
+    out = output_file(path)
+    fig.savefig(out)
+    plt.close(fig)
+    return out

@@ -1,0 +1,115 @@
+"""STEP parts through OCP (``cadquery-ocp-novtk``): the mesh, and every B-rep face with its exact surface.
+
+Why OCP and not cascadio: cascadio converts STEP to a GLB mesh, so the faces
+and their types are lost and would have to be found again by RANSAC; OCP (the
+OpenCASCADE bindings CadQuery uses, on PyPI as a wheel) reads the B-rep, so a
+plane, sphere or cylinder face is used exactly (type, parameters, material
+side from the face's orientation) and only other faces (B-splines, cones,
+tori) are tessellated and fitted. The ``-novtk`` build is the same OCP without
+the VTK viewer.
+
+Each face is tessellated by ``BRepMesh_IncrementalMesh`` (chordal deflection
+``DEFLECTION_MM``); triangles are wound so their normals point out of the
+material (the face's orientation says which way).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import BadInput
+
+DEFLECTION_MM = 0.05    # largest distance of the tessellation from the B-rep surface
+ANGLE_RAD = 0.1         # largest angle between neighbouring triangles of one face
+
+
+@dataclass(frozen=True)
+class StepFace:
+    """One B-rep face: its type ('plane', 'sphere', 'cylinder' or 'other'), exact parameters, triangles (mm).
+
+    ``params``: plane (unit normal out of the material, offset_mm); sphere
+    (centre, radius, concave); cylinder (axis point, unit axis, radius, concave); other: ().
+    """
+
+    model: str
+    params: tuple
+    vertices_mm: np.ndarray
+    triangles: np.ndarray
+
+
+def _vec(p) -> np.ndarray:
+    return np.array([p.X(), p.Y(), p.Z()], dtype=float)
+
+
+def read_step_faces(path: Path) -> list[StepFace]:
+    """The faces of a STEP file, in the file's order; BadInput when it cannot be read."""
+    try:
+        from OCP.BRep import BRep_Tool
+        from OCP.BRepAdaptor import BRepAdaptor_Surface
+        from OCP.BRepMesh import BRepMesh_IncrementalMesh
+        from OCP.GeomAbs import GeomAbs_Cylinder, GeomAbs_Plane, GeomAbs_Sphere
+        from OCP.IFSelect import IFSelect_RetDone
+        from OCP.STEPControl import STEPControl_Reader
+        from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
+        from OCP.TopExp import TopExp_Explorer
+        from OCP.TopLoc import TopLoc_Location
+        from OCP.TopoDS import TopoDS
+    except ImportError:
+        raise BadInput(f"{path}: STEP needs OCP: pip install cadquery-ocp-novtk (a camtool dependency; "
+                       "reinstall camtool), or export the part as STL") from None
+    reader = STEPControl_Reader()
+    if reader.ReadFile(str(path)) != IFSelect_RetDone or reader.TransferRoots() == 0:
+        raise BadInput(f"{path}: not a readable STEP file (OpenCASCADE could not transfer it); export it again")
+    shape = reader.OneShape()
+    BRepMesh_IncrementalMesh(shape, DEFLECTION_MM, False, ANGLE_RAD, True)
+    faces = []
+    explorer = TopExp_Explorer(shape, TopAbs_FACE)
+    while explorer.More():
+        face = TopoDS.Face(explorer.Current())
+        explorer.Next()
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is None or tri.NbTriangles() == 0:
+            continue
+        T = loc.Transformation()
+        verts = np.array([_vec(tri.Node(i).Transformed(T)) for i in range(1, tri.NbNodes() + 1)])
+        tris = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64) - 1
+        reversed_ = face.Orientation() == TopAbs_REVERSED
+        if reversed_:
+            tris = tris[:, ::-1]
+        surf = BRepAdaptor_Surface(face)
+        kind = surf.GetType()
+        # the face's outward sense: the surface's own normal (flipped for a left-handed frame), then the orientation
+        if kind == GeomAbs_Plane:
+            pln = surf.Plane()
+            n = _vec(pln.Axis().Direction()) * (1.0 if pln.Direct() else -1.0) * (-1.0 if reversed_ else 1.0)
+            model, params = "plane", (n, float(n @ _vec(pln.Location())))
+        elif kind == GeomAbs_Cylinder:
+            cyl = surf.Cylinder()
+            outward = cyl.Direct() != reversed_  # the surface normal of a direct cylinder points away from the axis
+            a = _vec(cyl.Position().Direction())
+            model, params = "cylinder", (_vec(cyl.Location()), a, float(cyl.Radius()), not outward)
+        elif kind == GeomAbs_Sphere:
+            sph = surf.Sphere()
+            outward = sph.Direct() != reversed_
+            model, params = "sphere", (_vec(sph.Location()), float(sph.Radius()), not outward)
+        else:
+            model, params = "other", ()
+        faces.append(StepFace(model, params, verts, tris))
+    if not faces:
+        raise BadInput(f"{path}: the STEP file holds no faces; export the part as a solid or surfaces")
+    return faces
+
+
+def step_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vertices mm, triangles, face index of each triangle) of the whole part."""
+    faces = read_step_faces(path)
+    verts, tris, owner, at = [], [], [], 0
+    for k, f in enumerate(faces):
+        verts.append(f.vertices_mm)
+        tris.append(f.triangles + at)
+        owner.append(np.full(len(f.triangles), k))
+        at += len(f.vertices_mm)
+    return np.vstack(verts), np.vstack(tris), np.concatenate(owner)

@@ -1,0 +1,65 @@
+"""camtool.step: a STEP part's B-rep faces read exactly (OCP), its mesh, and its faces in a job."""
+import numpy as np
+import pytest
+
+from camtool.errors import BadInput
+from camtool.faces import segment_job
+from camtool.job import load_job
+from camtool.stages import workpiece_for_job
+from camtool.step import read_step_faces, step_mesh
+from camtool.workpiece import load_workpiece
+
+from conftest import SAMPLES
+
+STEP = SAMPLES / "pipe_half.step"
+
+
+def test_faces_types_parameters_and_sides():
+    faces = read_step_faces(STEP)
+    assert sorted(f.model for f in faces) == ["cylinder", "cylinder", "plane", "plane", "plane", "plane"]
+    cyl = sorted((f for f in faces if f.model == "cylinder"), key=lambda f: f.params[2])
+    (c0, a0, r0, concave0), (c1, a1, r1, concave1) = cyl[0].params, cyl[1].params
+    assert r0 == 100.0 and concave0 and r1 == 120.0 and not concave1
+    assert np.allclose(np.abs(a0), [1, 0, 0]) and np.allclose(c0[1:], 0)
+    planes = sorted(tuple(np.round(f.params[0], 9) + 0.0) + (round(f.params[1], 6) + 0.0,)
+                    for f in faces if f.model == "plane")
+    assert planes == [(-1.0, 0.0, 0.0, 150.0), (0.0, 0.0, -1.0, 0.0), (0.0, 0.0, -1.0, 0.0), (1.0, 0.0, 0.0, 150.0)]
+    for f in faces:  # triangles face out of the material
+        tri = f.vertices_mm[f.triangles]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        mid = tri.mean(axis=1)
+        if f.model == "plane":
+            assert np.all(n @ f.params[0] > 0)
+        else:
+            c, a, r, concave = f.params
+            radial = (mid - c) - ((mid - c) @ a)[:, None] * a
+            assert np.all(np.einsum("ij,ij->i", n, radial) * (-1 if concave else 1) > 0)
+
+
+def test_mesh_loads_as_a_workpiece():
+    verts, tris, owner = step_mesh(STEP)
+    assert len(tris) == len(owner) and owner.max() == 5
+    wp = load_workpiece(STEP, sample_points=5000)
+    assert wp.faces is not None and wp.n_points == 5000
+    r = np.hypot(wp.points_mm[:, 1], wp.points_mm[:, 2])
+    assert r.min() > 99.9 and r.max() < 120.01
+
+
+def test_job_faces_are_the_brep_faces_placed(tmp_path):
+    job = tmp_path / "job.toml"
+    job.write_text(f'[workpiece]\nfile = "{STEP}"\nsample_points = 20000\n[faces]\nselect = [0]\n'
+                   '[cell]\nworkpiece_xyz_mm = [600.0, 0.0, 300.0]\nworkpiece_rpy_deg = [0.0, -90.0, 0.0]\n')
+    j = load_job(job)
+    seg = segment_job(j, workpiece_for_job(j))
+    assert [f.model for f in seg.faces][:2] == ["cylinder", "cylinder"] and len(seg.faces) == 6
+    outer = seg.faces[0].surface
+    assert outer.radius_mm == 120.0 and not outer.concave and np.allclose(outer.axis, [0, 0, 1])
+    d = outer.center_mm - [600.0, 0, 300.0]
+    assert np.linalg.norm(d - (d @ outer.axis) * outer.axis) < 1e-9
+
+
+def test_not_a_step_file_is_bad_input(tmp_path):
+    bad = tmp_path / "bad.step"
+    bad.write_text("ISO-10303-21;\nthis is not a part\n")
+    with pytest.raises(BadInput, match="not a readable STEP file"):
+        load_workpiece(bad)
