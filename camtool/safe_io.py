@@ -254,6 +254,9 @@ def _open_dir(outdir, parts: list[str], create: bool) -> int:
             except OSError as exc:
                 if exc.errno in (errno.ELOOP, errno.ENOTDIR):
                     mode = os.lstat(name, dir_fd=fd).st_mode
+                    if stat.S_ISREG(mode):
+                        raise BadInput(f"{Path(outdir, *parts[:i + 1])}: is a file where camtool needs a folder; "
+                                       "remove or rename it") from None
                     _refuse_special(Path(outdir, *parts[:i + 1]), mode)
                 raise
             os.close(fd)

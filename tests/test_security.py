@@ -478,3 +478,9 @@ def test_a_fifo_or_dev_zero_profile_is_refused_at_once(tmp_path):
         r = camtool("run", SPHERE, "-o", tmp_path / "out", "--set", 'post.formats=["rapid"]',
                     "--set", f"post.profiles={{rapid = '{prof}'}}", timeout=60)
         assert r.returncode == 2 and ("FIFO" in r.stderr or "device" in r.stderr), r.stderr
+
+
+def test_a_file_where_a_folder_goes_is_one_line(tmp_path):
+    (tmp_path / "plots").write_text("not a folder")
+    with pytest.raises(BadInput, match="plots: is a file where camtool needs a folder"):
+        safe_io.check_target(tmp_path, "plots/joint_angle.png")
