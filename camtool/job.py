@@ -447,6 +447,11 @@ def _check_cross(job: Job) -> None:
     _check_face_raster(job)
     if not job.workpiece.file:
         raise BadInput(f"{job.path}: workpiece.file: expected the workpiece file name, found nothing")
+    for i, ob in enumerate(job.cell.obstacles):
+        if "mesh" in ob and not job.resolve(ob["mesh"]).is_file():
+            raise BadInput(f"{job.path}: cell.obstacles[{i}] ({ob['name']}).mesh: file {job.resolve(ob['mesh'])} not found")
+    if job.tool.mesh and not job.resolve(job.tool.mesh).is_file():
+        raise BadInput(f"{job.path}: tool.mesh: file {job.resolve(job.tool.mesh)} not found")
 
 
 def _check_face_raster(job: Job) -> None:

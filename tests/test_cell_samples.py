@@ -61,3 +61,11 @@ def test_sample_100_mm_farther_partial_job_passes_the_simulator(tmp_path):
                   "--allow-partial")
     assert report["status"] == "ok" and report["partial"]["work_kept_pct"] > 99.0
     assert all(s["max_deviation_mm"] <= 0.1 for s in report["programs_simulated"].values())
+
+
+def test_coarse_raster_passes_its_own_check(tmp_path):
+    """Refused by the check: 'part penetrated by 0.101 mm ... in lead_in' (chord sag at 20 mm pitch)."""
+    report = _run(tmp_path, SAMPLES / "sphere.toml", "--set", "raster.step_over_mm=40", "--set", "raster.pitch_mm=20")
+    mc = report["motion_check"]
+    assert report["status"] == "ok" and mc["ok"] is True
+    assert mc["work_deviation_mm"] <= 0.1 and mc["max_penetration_mm"] <= 0.1

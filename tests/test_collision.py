@@ -255,3 +255,10 @@ def test_urdf_robots_use_their_own_collision_elements(tmp_path):
     d = dict(zip([w.pair_name(p) for p in w.pairs], w.pair_distances_mm(np.zeros(2))))
     l2 = next(k for k in d if k[1] == "ball" and "l2" in k[0])
     assert d[l2] == pytest.approx(1000.0 - 400.0 - 100.0 - 100.0, abs=1e-3)   # cylinder top at z = 500
+
+
+def test_missing_obstacle_mesh_is_named_at_load(tmp_path):
+    job = tmp_path / "job.toml"
+    job.write_text('[workpiece]\nfile = "part.stl"\n[[cell.obstacles]]\nname = "fix"\nmesh = "nothere.stl"\n')
+    with pytest.raises(BadInput, match=r"cell\.obstacles\[0\] \(fix\)\.mesh: file .*nothere\.stl not found"):
+        load_job(job)
