@@ -14,12 +14,22 @@ material (the face's orientation says which way).
 """
 from __future__ import annotations
 
+import logging
+import os
+import sys
+import tempfile
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
 from .errors import BadInput
+
+log = logging.getLogger("camtool.step")
+_fd_lock = threading.Lock()
 
 DEFLECTION_MM = 0.05    # largest distance of the tessellation from the B-rep surface
 ANGLE_RAD = 0.1         # largest angle between neighbouring triangles of one face
@@ -37,6 +47,25 @@ class StepFace:
     params: tuple
     vertices_mm: np.ndarray
     triangles: np.ndarray
+
+
+@contextmanager
+def _ocp_output_to_log() -> Iterator[None]:
+    """OpenCASCADE prints its reader's messages on the process's stdout (file descriptor 1), which
+    ``--json`` keeps for results: while it reads, fd 1 goes to a temporary file, logged at debug level."""
+    with _fd_lock, tempfile.TemporaryFile(mode="w+b") as sink:
+        sys.stdout.flush()
+        saved = os.dup(1)
+        os.dup2(sink.fileno(), 1)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+            sink.seek(0)
+            text = sink.read().decode("utf-8", errors="replace").strip()
+            if text:
+                log.debug("OpenCASCADE: %s", text[:2000])
 
 
 def _vec(p) -> np.ndarray:
@@ -60,10 +89,13 @@ def read_step_faces(path: Path) -> list[StepFace]:
         raise BadInput(f"{path}: STEP needs OCP: pip install cadquery-ocp-novtk (a camtool dependency; "
                        "reinstall camtool), or export the part as STL") from None
     reader = STEPControl_Reader()
-    if reader.ReadFile(str(path)) != IFSelect_RetDone or reader.TransferRoots() == 0:
+    with _ocp_output_to_log():
+        ok = reader.ReadFile(str(path)) == IFSelect_RetDone and reader.TransferRoots() > 0
+        shape = reader.OneShape() if ok else None
+        if ok:
+            BRepMesh_IncrementalMesh(shape, DEFLECTION_MM, False, ANGLE_RAD, True)
+    if not ok:
         raise BadInput(f"{path}: not a readable STEP file (OpenCASCADE could not transfer it); export it again")
-    shape = reader.OneShape()
-    BRepMesh_IncrementalMesh(shape, DEFLECTION_MM, False, ANGLE_RAD, True)
     faces = []
     explorer = TopExp_Explorer(shape, TopAbs_FACE)
     while explorer.More():

@@ -63,3 +63,12 @@ def test_not_a_step_file_is_bad_input(tmp_path):
     bad.write_text("ISO-10303-21;\nthis is not a part\n")
     with pytest.raises(BadInput, match="not a readable STEP file"):
         load_workpiece(bad)
+
+
+def test_opencascade_messages_stay_off_stdout(tmp_path):
+    from conftest import run_camtool
+
+    bad = tmp_path / "bad.step"
+    bad.write_text("ISO-10303-21;\nHEADER;\nthis is junk\n")
+    r = run_camtool("fit", bad, "--json")
+    assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1
