@@ -67,7 +67,7 @@ def trajectory_for(job):
 
 def measure(job_file: Path, overrides: list[str]) -> list[dict]:
     from camtool.job import load_job
-    from camtool.post import write_programs
+    from camtool.post import write_job_programs
 
     job = load_job(job_file, overrides)
     t0 = time.perf_counter()
@@ -79,7 +79,7 @@ def measure(job_file: Path, overrides: list[str]) -> list[dict]:
         for _ in range(3):  # best of 3, CPU time
             report: dict = {}
             t0 = time.process_time()
-            files = write_programs(trajectory, robot, job, Path(tmp), path=path, report=report)
+            files = write_job_programs(trajectory, robot, job, Path(tmp), path=path, report=report)
             t_post = min(t_post, time.process_time() - t0)
         sizes = {f.name: f.stat().st_size for f in files}
     for fmt, fig in report.items():

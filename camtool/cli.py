@@ -69,8 +69,11 @@ class CamtoolGroup(click.Group):
 @click.group(cls=CamtoolGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, "--version", prog_name="camtool")
 @click.option("--debug", is_flag=True, help="Show the Python traceback of an error.")
+@click.option("--no-plugins", is_flag=True,
+              help="Load no third-party post-processor, only the built-ins (also for batch children; "
+                   "CAMTOOL_PLUGINS=name,... allows only those named).")
 @click.pass_context
-def cli(ctx: click.Context, debug: bool) -> None:
+def cli(ctx: click.Context, debug: bool, no_plugins: bool) -> None:
     """camtool: offline CAM for robot surface work.
 
     A workpiece (mesh or point cloud) goes in; a fitted surface, an S-shaped
@@ -85,6 +88,10 @@ def cli(ctx: click.Context, debug: bool) -> None:
     available yet, 1 internal error.
     """
     ctx.meta[DEBUG_KEY] = debug
+    if no_plugins:
+        from .program.registry import disable_plugins
+
+        disable_plugins()
     if debug:  # library messages (loaders, plugins) through camtool's logger, on stderr
         logging.basicConfig(stream=sys.stderr, format="camtool: debug: %(name)s: %(message)s")
         logging.getLogger("camtool").setLevel(logging.DEBUG)

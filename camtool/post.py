@@ -1,18 +1,21 @@
 """The post stage: a timed Trajectory -> checked controller programs on disk.
 
-``write_programs(trajectory, robot, job, outdir)`` runs every format of
-``job.post.formats`` through its plugin (``postprocessors.base``), with the
-controller profile named in ``job.post.profiles`` or the shipped default.
-Plugins whose ``write`` takes ``process`` get a ``ProcessInfo`` (path
-tolerance, feed, job name and time, row labels). Programs are written into a
-temporary folder inside ``outdir``, every file is checked by its plugin
-(``plugin.check``; a plugin without one has its entry file read back and
-checked, ``postprocessors.check.read_back_check``), every program whose plugin
-can read it back move by move (``read_program``) is re-executed by the
-simulator (``camtool.simulate``) against the planned path, and only when all
-pass are they moved into place with ``os.replace``. Every plugin, built-in or
-not, goes through the same protocol. A failed check or simulation raises
-PlanInfeasible and leaves no program behind.
+Two steps:
+
+- ``preflight(robot, job, outdir)`` (before any planning) builds everything the post stage
+  needs from the job, once: the post settings (``PostSettings``: formats, tolerances, the
+  shortest move), each format's plugin and profile (``ResolvedPost``; the job's
+  ``post.profiles`` file or the shipped default, with the job's program name, tool, work
+  object and the options the plugin takes from the settings) and the process facts
+  (``ProcessInfo``: feed, job name and time). It also checks that the output folder can be
+  written, so bad input surfaces in seconds. Nothing after it reads the raw job.
+- ``write_programs(trajectory, robot, post_settings, profiles, outdir)`` writes every format
+  through its plugin (``camtool.program.plugin.PostProcessor``) into a temporary folder
+  inside ``outdir``, checks every file (``plugin.check``: the plugin's own, or its file read
+  back), re-executes every program its plugin reads back move by move (``read_program``) in
+  the simulator (``camtool.simulate``) against the planned path, and only when all pass
+  moves them into place with ``os.replace``. A failed check or simulation raises
+  PlanInfeasible and leaves no program behind.
 """
 from __future__ import annotations
 
@@ -20,33 +23,59 @@ import logging
 import os
 import shutil
 import tempfile
+import time
+from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 
 from .errors import BadInput, PlanInfeasible
-from .profiles import Profile, default_options, default_profile_path, load_profile
+from .profiles import Profile, default_profile_path
+from .program.check import check_file
+from .program.plugin import PostProcessor
+from .program.process import DATE_FORMAT, DEFAULT_ORI_TOL_DEG, DEFAULT_PATH_TOL_MM, ProcessInfo  # noqa: F401
+from .program.profiles import defaults_profile, load_profile
+from .program.registry import get_plugin
+from .settings import PostSettings, TimingSettings
 
 log = logging.getLogger("camtool.post")
 MAX_LISTED = 10
-DEFAULT_PATH_TOL_MM = 0.1   # post.path_tol_mm: the program's TCP within this of the planned path on work
-DEFAULT_ORI_TOL_DEG = 0.5   # post.ori_tol_deg: tool orientation of merged Cartesian moves
 
 
-def profile_for_job(fmt: str, plugin, robot, job) -> Profile:
+@dataclass(frozen=True)
+class ResolvedPost:
+    """One format of a job: its plugin and its profile, resolved once (``preflight``)."""
+
+    fmt: str
+    plugin: PostProcessor
+    profile: Profile
+
+
+@dataclass(frozen=True)
+class PostInputs:
+    """What the post stage takes from a job: settings, the formats' plugins and profiles (in
+    ``post.formats`` order), and the process facts (feed, job name and time, tolerances)."""
+
+    settings: PostSettings
+    profiles: dict
+    process: ProcessInfo
+
+
+def profile_for_job(fmt: str, plugin: PostProcessor, robot, job, post: PostSettings | None = None) -> Profile:
     """The profile of one format: the job's post.profiles entry (relative to the job
-    file), else the shipped default; then the job's program name and tool, and the
-    options the plugin takes from the job (``plugin.job_options(job)``, e.g. the CSV
-    angle unit)."""
-    given = job.post.profiles.get(fmt)
+    file), else the shipped default; then the job's program name and tool, the workpiece
+    as work object and the options the plugin takes from the post settings."""
+    post = post if post is not None else PostSettings.from_section(job.post)
+    given = post.profiles.get(fmt)
     if given is not None:
         if not isinstance(given, str):
             raise BadInput(f"{job.path}: post.profiles.{fmt}: expected a profile file name, found {given!r}")
-        profile = load_profile(job.resolve(given), robot.name, fmt, robot)
+        profile = load_profile(job.resolve(given), robot.name, fmt, robot, plugin)
     elif default_profile_path(robot.name, fmt) is not None:
-        profile = load_profile(None, robot.name, fmt, robot)
-    elif not getattr(plugin, "requires_profile", True):
-        profile = Profile("<defaults>", fmt, robot.name, options=default_options(fmt))
+        profile = load_profile(None, robot.name, fmt, robot, plugin)
+    elif not plugin.requires_profile:
+        profile = defaults_profile(fmt, robot.name, plugin)
     else:
         raise BadInput(f"post.formats: no {fmt} profile for robot {robot.name!r}: camtool ships none, so write "
                        f"one (docs/controllers.md) and name it in the job's post.profiles.{fmt}")
@@ -55,10 +84,10 @@ def profile_for_job(fmt: str, plugin, robot, job) -> Profile:
         tool["name"] = job.tool.name
     tool.update(tcp_xyz_mm=list(job.tool.tcp_xyz_mm), tcp_rpy_deg=list(job.tool.tcp_rpy_deg),
                 mass_kg=job.tool.mass_kg)
-    changes = {"program_name": job.post.program_name, "tool": tool, "wobj": workpiece_wobj(job, robot)}
-    job_options = getattr(plugin, "job_options", None)  # options a plugin takes from job keys
-    if job_options is not None:
-        changes["options"] = dict(job_options(job))
+    changes = {"program_name": post.program_name, "tool": tool, "wobj": workpiece_wobj(job, robot)}
+    options = plugin.post_options(post)
+    if options:
+        changes["options"] = dict(options)
     return profile.with_changes(**changes)
 
 
@@ -80,39 +109,56 @@ def workpiece_wobj(job, robot) -> dict:
             "rpy_deg": [float(round(v, 9)) + 0.0 for v in rpy]}
 
 
-def _job_value(section, key, default):
-    try:
-        value = section[key]
-    except (KeyError, TypeError):
-        return default
-    return default if value is None else value
-
-
-def process_for_job(job, trajectory, path=None):
-    """The ``ProcessInfo`` of a job: ``post.path_tol_mm``, ``post.ori_tol_deg``, the feed
-    ``timing.tcp_speed_mm_s``, the job file's name and modification time (UTC) and, with
-    the raster ``path``, a label per work row naming its segment."""
-    from datetime import datetime, timezone
-
-    from postprocessors.base import DATE_FORMAT, ProcessInfo
-
-    from .toolpath import WORK
-
+def process_for_job(job, post: PostSettings) -> ProcessInfo:
+    """The ``ProcessInfo`` of a job: the post tolerances, the feed ``timing.tcp_speed_mm_s``
+    and the job file's name and modification time (UTC)."""
     try:
         when = datetime.fromtimestamp(Path(job.path).stat().st_mtime, timezone.utc).strftime(DATE_FORMAT)
     except (OSError, TypeError, ValueError):
         when = None
-    labels = ()
-    if path is not None:
-        work = np.asarray(trajectory.zone) == WORK
-        first = np.flatnonzero(work & ~np.r_[False, work[:-1]])
-        pidx = np.asarray(trajectory.path_index)[first]
-        seg = np.asarray(path.segment)
-        labels = tuple(f"segment {int(seg[i])}" if 0 <= i < len(seg) else "" for i in pidx)
-    return ProcessInfo(path_tol_mm=float(_job_value(job.post, "path_tol_mm", DEFAULT_PATH_TOL_MM)),
-                       ori_tol_deg=float(_job_value(job.post, "ori_tol_deg", DEFAULT_ORI_TOL_DEG)),
-                       feed_mm_s=float(_job_value(job.timing, "tcp_speed_mm_s", 0.0)) or None,
-                       job_name=Path(str(job.path)).name, job_time=when, row_labels=labels)
+    feed = TimingSettings.from_section(job.timing).tcp_speed_mm_s
+    return ProcessInfo(path_tol_mm=post.path_tol_mm, ori_tol_deg=post.ori_tol_deg, feed_mm_s=float(feed) or None,
+                       job_name=Path(str(job.path)).name, job_time=when)
+
+
+_RESOLVED: dict = {}  # the last job's PostInputs, by the job object (kept alive here): resolved once
+
+
+def post_inputs(job, robot) -> PostInputs:
+    """Settings, resolved profiles and process facts of ``job`` for ``robot``: built once per
+    job object (``preflight`` builds them; later calls get the same object)."""
+    key = (id(job), robot.name, np.asarray(robot.base_T_mm, float).tobytes())
+    hit = _RESOLVED.get("value")
+    if hit is not None and _RESOLVED.get("key") == key and _RESOLVED.get("job") is job:
+        return hit
+    post = PostSettings.from_section(job.post)
+    profiles = {}
+    for fmt in post.formats:
+        plugin = get_plugin(fmt)
+        profiles[fmt] = ResolvedPost(fmt, plugin, profile_for_job(fmt, plugin, robot, job, post))
+    value = PostInputs(post, profiles, process_for_job(job, post))
+    _RESOLVED.clear()
+    _RESOLVED.update(key=key, job=job, value=value)
+    return value
+
+
+def preflight(robot, job, outdir) -> PostInputs:
+    """Before any work: every format's plugin and profile load and the output folder can be
+    written (bad input surfaces in seconds, not after planning). Returns the post inputs."""
+    inputs = post_inputs(job, robot)
+    _prepare_outdir(Path(outdir))
+    return inputs
+
+
+def row_labels(trajectory, path) -> tuple:
+    """A label per work row of ``trajectory`` naming its raster segment (``path.segment``)."""
+    from .toolpath import WORK
+
+    work = np.asarray(trajectory.zone) == WORK
+    first = np.flatnonzero(work & ~np.r_[False, work[:-1]])
+    pidx = np.asarray(trajectory.path_index)[first]
+    seg = np.asarray(path.segment)
+    return tuple(f"segment {int(seg[i])}" if 0 <= i < len(seg) else "" for i in pidx)
 
 
 def summary_lines(sim):
@@ -186,16 +232,6 @@ def thin_waypoints(trajectory, min_move_s: float):
     return replace(trajectory, **fields)
 
 
-def preflight(robot, job, outdir) -> None:
-    """Check, before any work, that every format's plugin and profile load and the
-    output folder can be written: bad input surfaces in seconds, not after planning."""
-    from postprocessors.base import get_plugin
-
-    for fmt in job.post.formats:
-        profile_for_job(fmt, get_plugin(fmt), robot, job)
-    _prepare_outdir(Path(outdir))
-
-
 PROGRAMS_MANIFEST = ".camtool-programs.json"
 
 
@@ -221,30 +257,29 @@ def _forget_stale_programs(outdir: Path, final: list[Path]) -> None:
     os.replace(tmp, manifest)
 
 
-def write_programs(trajectory, robot, job, outdir, path=None, report: dict | None = None) -> list[Path]:
-    """Write, check, simulate and place the programs of every ``job.post.formats`` entry.
+def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dict, outdir, *,
+                   process: ProcessInfo | None = None, path=None, report: dict | None = None) -> list[Path]:
+    """Write, check, simulate and place the programs of every format in ``profiles``.
 
-    Returns the final paths. ``path`` (the raster Path, optional) names the work rows in
-    the programs. ``report`` (optional dict) receives, per format, the simulator's figures
-    (``{format: {...}}``). Raises BadInput for an unknown format, a bad or missing
-    profile or an output folder that cannot be written, and PlanInfeasible (listing the
-    findings) when the trajectory leaves the joint limits, a written program fails the
-    checker or its simulation; then nothing is left behind.
+    ``profiles`` maps each format to its ``ResolvedPost`` (``post_inputs`` / ``preflight``);
+    ``post_settings`` gives the tolerances and the shortest move; ``process`` the feed and job
+    name and time (default: none, the settings' tolerances). ``path`` (the raster Path,
+    optional) names the work rows. ``report`` (optional dict) receives, per format, the
+    simulator's figures. Returns the final paths. Raises BadInput for an output folder that
+    cannot be written, and PlanInfeasible (listing the findings) when the trajectory leaves
+    the joint limits, a written program fails its check or its simulation; then nothing is
+    left behind.
     """
-    import time
+    from dataclasses import replace
 
-    from postprocessors.base import accepts_process, get_plugin
-    from postprocessors.check import check_file
-
-    from .transforms import matrix_from_xyz_rpy
+    from .program.plan import profile_tool
 
     outdir = Path(outdir)
-    process = process_for_job(job, trajectory, path)
-    # the simulator measures the job's TCP (the robot given may come without the job's tool)
-    tcp_robot = robot.with_placement(tool_T_mm=matrix_from_xyz_rpy(job.tool.tcp_xyz_mm, job.tool.tcp_rpy_deg))
-    trajectory = thin_waypoints(trajectory, job.post.min_move_ms / 1000.0)
-    plugins = {fmt: get_plugin(fmt) for fmt in job.post.formats}
-    profiles = {fmt: profile_for_job(fmt, p, robot, job) for fmt, p in plugins.items()}
+    process = process if process is not None else ProcessInfo(path_tol_mm=post_settings.path_tol_mm,
+                                                              ori_tol_deg=post_settings.ori_tol_deg)
+    if path is not None:
+        process = replace(process, row_labels=row_labels(trajectory, path))
+    trajectory = thin_waypoints(trajectory, post_settings.min_move_s)
     check_limits(trajectory, robot)
     _prepare_outdir(outdir)
     try:
@@ -255,12 +290,12 @@ def write_programs(trajectory, robot, job, outdir, path=None, report: dict | Non
         written: list[Path] = []
         findings: list[str] = []
         reference = None
-        for fmt, plugin in plugins.items():
+        for fmt, post in profiles.items():
+            plugin, profile = post.plugin, post.profile
+            # the simulator measures the job's TCP (the robot given may come without the job's tool)
+            tcp_robot = robot.with_placement(tool_T_mm=profile_tool(profile))
             t0 = time.perf_counter()
-            if accepts_process(plugin):
-                files = [Path(f) for f in plugin.write(trajectory, robot, profiles[fmt], tmp, process=process)]
-            else:
-                files = [Path(f) for f in plugin.write(trajectory, robot, profiles[fmt], tmp)]
+            files = [Path(f) for f in plugin.write(trajectory, robot, profile, tmp, process)]
             t_write = time.perf_counter() - t0
             for f in files:
                 if f.parent != tmp:
@@ -268,20 +303,19 @@ def write_programs(trajectory, robot, job, outdir, path=None, report: dict | Non
                 if f in written:
                     raise BadInput(f"post-processor {fmt!r} wrote {f.name}, which another format also wrote")
             written += files
-            # the plugin's own check for every file; without one, the entry file read back
             t0 = time.perf_counter()
             # a plugin whose check of the entry file follows every file it loads or calls says so
             # (``check_covers_calls``): its entry file alone is checked
-            covered = hasattr(plugin, "check") and getattr(plugin, "check_covers_calls", False)
-            for f in (files if hasattr(plugin, "check") and not covered else files[:1]):
-                findings += [s.replace(str(tmp), str(outdir)) for s in check_file(plugin, f, tcp_robot, profiles[fmt])]
+            # (``check_covers_calls``); a file read back (no own check) is the entry file alone
+            for f in (files[:1] if plugin.check_covers_calls or not plugin.own_check else files):
+                findings += [s.replace(str(tmp), str(outdir)) for s in check_file(plugin, f, tcp_robot, profile)]
             t_check = time.perf_counter() - t0
-            if hasattr(plugin, "read_program") and files and not findings:
+            if plugin.simulated and files and not findings:
                 t0 = time.perf_counter()
                 if reference is None:
                     from .simulate import reference_from_trajectory
                     reference = reference_from_trajectory(trajectory, tcp_robot, process.feed_mm_s)
-                sim = simulate_program(plugin, files[0], tcp_robot, profiles[fmt], trajectory, process, reference)
+                sim = simulate_program(plugin, files[0], tcp_robot, profile, trajectory, process, reference)
                 findings += [s.replace(str(tmp), str(outdir)) for s in sim.findings]
                 figures = sim.as_dict()
                 figures.pop("findings")
@@ -305,3 +339,10 @@ def write_programs(trajectory, robot, job, outdir, path=None, report: dict | Non
         return final
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def write_job_programs(trajectory, robot, job, outdir, path=None, report: dict | None = None) -> list[Path]:
+    """``write_programs`` with the job's post inputs (``post_inputs``): for callers that hold a job."""
+    inputs = post_inputs(job, robot)
+    return write_programs(trajectory, robot, inputs.settings, inputs.profiles, outdir, process=inputs.process,
+                          path=path, report=report)

@@ -202,7 +202,8 @@ class TimingSettings(_FromSection):
 
 @dataclass(frozen=True)
 class PostSettings(_FromSection):
-    """Post-processing: formats, program name, profiles, the shortest move (s)."""
+    """Post-processing: formats, program name, profiles, the shortest move (s), the programs'
+    path (mm) and orientation (deg) tolerances."""
 
     SECTION: ClassVar[str] = "post"
     formats: tuple[str, ...]
@@ -210,11 +211,14 @@ class PostSettings(_FromSection):
     profiles: dict
     min_move_s: float
     csv_angle_unit: str
+    path_tol_mm: float = 0.1
+    ori_tol_deg: float = 0.5
 
     @classmethod
     def from_section(cls, sec):
         return cls(formats=tuple(sec["formats"]), program_name=sec["program_name"], profiles=dict(sec["profiles"]),
-                   min_move_s=float(sec["min_move_ms"]) / 1000.0, csv_angle_unit=sec["csv_angle_unit"])
+                   min_move_s=float(sec["min_move_ms"]) / 1000.0, csv_angle_unit=sec["csv_angle_unit"],
+                   path_tol_mm=float(sec["path_tol_mm"]), ori_tol_deg=float(sec["ori_tol_deg"]))
 
 
 @dataclass(frozen=True)

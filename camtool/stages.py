@@ -30,7 +30,7 @@ from .plan.densify import densify_work
 from .plan.smooth import SmoothSettings, smooth_runs
 from .plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
 from .plan.strategy import ik_settings
-from .post import thin_waypoints, write_programs
+from .post import thin_waypoints, write_job_programs
 from .raster import raster_path
 from .report import plan_metrics, plot_joints, plot_unreachable, write_json_atomic, write_points_csv
 from .report_html import write_run_html
@@ -314,7 +314,7 @@ def post_checked(trajectory, robot, job: Job, outdir: Path, path=None, report: d
     findings = check_trajectory(trajectory, robot, samples=samples_for(trajectory, timing.check_dt_s))
     if findings:
         raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
-    return list(write_programs(trajectory, robot, job, outdir, path=path, report=report))
+    return list(write_job_programs(trajectory, robot, job, outdir, path=path, report=report))
 
 
 def timing_figures(trajectory, robot, job: Job) -> dict:

@@ -8,7 +8,7 @@ import pytest
 
 from camtool.errors import BadInput, PlanInfeasible
 from camtool.job import load_job
-from camtool.post import write_programs
+from camtool.post import write_job_programs
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory, with_q
 
@@ -51,7 +51,7 @@ def _job(tmp_path, robot="seed8", post="", extra=""):
 def test_all_three_formats_are_written_and_checked(tmp_path):
     r = get_robot("seed8")
     out = tmp_path / "out"
-    files = write_programs(rows_trajectory(r), r, _job(tmp_path, post='program_name = "Sphere"\n'), out)
+    files = write_job_programs(rows_trajectory(r), r, _job(tmp_path, post='program_name = "Sphere"\n'), out)
     assert sorted(f.name for f in files) == ["SPHERE.JBI", "Sphere.csv", "Sphere.mod", "Sphere.pgf"]
     assert all(f.parent == out and f.is_file() for f in files)
     left = sorted(p.name for p in out.iterdir() if p.name != ".camtool-programs.json")
@@ -62,7 +62,7 @@ def test_job_tool_and_csv_unit_reach_the_programs(tmp_path):
     r = get_robot("irb2400")
     job = _job(tmp_path, "irb2400", 'formats = ["rapid", "csv"]\ncsv_angle_unit = "rad"\n',
                '[tool]\nname = "spindle"\ntcp_xyz_mm = [0.0, 0.0, 120.0]\nmass_kg = 2.5\n')
-    files = {f.suffix: f for f in write_programs(rows_trajectory(r), r, job, tmp_path / "o")}
+    files = {f.suffix: f for f in write_job_programs(rows_trajectory(r), r, job, tmp_path / "o")}
     mod = files[".mod"].read_text()
     assert "PERS tooldata spindle:=[TRUE,[[0.000,0.000,120.000],[1.000000,0.000000,0.000000,0.000000]],[2.500," in mod
     assert ", spindle \\WObj:=camtool_wobj;" in mod
@@ -77,7 +77,7 @@ def test_profile_from_the_job_is_resolved_relative_to_the_job(tmp_path):
         + '[options]\nmax_zone = "z1"\n')
     job = _job(tmp_path, "irb2400", 'formats = ["rapid"]\nprofiles = { rapid = "cfg/irc5.toml" }\n')
     tr = rows_trajectory(r)
-    files = write_programs(tr, r, job, tmp_path / "o")
+    files = write_job_programs(tr, r, job, tmp_path / "o")
     text = files[1].read_text()
     assert set(re.findall(r", (fine|z\d+), camtool_tool", text)) <= {"fine", "z0", "z1"}
     j1 = float(text.split("MoveAbsJ [[")[1].split(",")[0])
@@ -91,7 +91,7 @@ def test_trajectory_outside_the_limits_is_refused_and_nothing_written(tmp_path):
     q[7, 2] = np.radians(170.0)  # j3's serial range ends at 165 deg (the coupled axis 3 at 65)
     out = tmp_path / "o"
     with pytest.raises(PlanInfeasible, match=r"sample 7 .*j3 = 170.0000 deg"):
-        write_programs(with_q(tr, q), r, _job(tmp_path, "irb2400", 'formats = ["rapid", "csv"]\n'), out)
+        write_job_programs(with_q(tr, q), r, _job(tmp_path, "irb2400", 'formats = ["rapid", "csv"]\n'), out)
     assert not out.exists() or not any(out.iterdir())
 
 
@@ -102,7 +102,7 @@ def test_failed_check_leaves_no_program(tmp_path):
     t[10:] -= 0.5  # the step into sample 10 (0.42 s) now takes a negative time: impossible
     out = tmp_path / "o"
     with pytest.raises(PlanInfeasible) as exc:
-        write_programs(with_q(tr, tr.q, t), r, _job(tmp_path, "irb2400", 'formats = ["rapid", "csv"]\n'), out)
+        write_job_programs(with_q(tr, tr.q, t), r, _job(tmp_path, "irb2400", 'formats = ["rapid", "csv"]\n'), out)
     assert exc.value.exit_code == 3
     findings = exc.value.report["findings"]
     assert any("CAMTOOL.csv:12: move duration" in f and "not positive" in f for f in findings)
@@ -117,19 +117,19 @@ def test_output_folder_that_cannot_be_created(tmp_path):
     blocker = tmp_path / "a_file"
     blocker.write_text("x")
     with pytest.raises(BadInput, match=r"a_file/sub: cannot create the output folder"):
-        write_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400", 'formats = ["csv"]\n'), blocker / "sub")
+        write_job_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400", 'formats = ["csv"]\n'), blocker / "sub")
 
 
 def test_output_folder_that_is_not_writable(tmp_path):
     r = get_robot("irb2400")
     with pytest.raises(BadInput, match=r"/proc"):
-        write_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400", 'formats = ["csv"]\n'), Path("/proc"))
+        write_job_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400", 'formats = ["csv"]\n'), Path("/proc"))
 
 
 def test_missing_default_profile_is_bad_input(tmp_path):
     r = get_robot("irb2400_paper")
     with pytest.raises(BadInput, match=r"no inform profile for robot 'irb2400_paper'.*post.profiles.inform"):
-        write_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400_paper", 'formats = ["inform"]\n'),
+        write_job_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400_paper", 'formats = ["inform"]\n'),
                        tmp_path / "o")
 
 
@@ -138,21 +138,21 @@ def test_profile_with_unknown_joint_names_the_file_and_key(tmp_path):
     (tmp_path / "p.toml").write_text('format = "rapid"\n[axes]\nj1 = { axis = "rax_1" }\nelbow = { axis = "rax_3" }\n')
     job = _job(tmp_path, "irb2400", 'formats = ["rapid"]\nprofiles = { rapid = "p.toml" }\n')
     with pytest.raises(BadInput, match=r"p.toml: axes.elbow: robot irb2400 has no joint 'elbow'"):
-        write_programs(smooth_trajectory(r, 5), r, job, tmp_path / "o")
+        write_job_programs(smooth_trajectory(r, 5), r, job, tmp_path / "o")
 
 
 def test_unknown_format_is_bad_input(tmp_path):
     r = get_robot("irb2400")
     with pytest.raises(BadInput, match="no post-processor 'gcode'"):
-        write_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400", 'formats = ["gcode"]\n'), tmp_path / "o")
+        write_job_programs(smooth_trajectory(r, 5), r, _job(tmp_path, "irb2400", 'formats = ["gcode"]\n'), tmp_path / "o")
 
 
 def test_same_input_gives_identical_files(tmp_path):
     r = get_robot("seed8")
     tr = rows_trajectory(r)
     job = _job(tmp_path)
-    a = {f.name: f.read_bytes() for f in write_programs(tr, r, job, tmp_path / "a")}
-    b = {f.name: f.read_bytes() for f in write_programs(tr, r, job, tmp_path / "b")}
+    a = {f.name: f.read_bytes() for f in write_job_programs(tr, r, job, tmp_path / "a")}
+    b = {f.name: f.read_bytes() for f in write_job_programs(tr, r, job, tmp_path / "b")}
     assert a == b and len(a) == 4
 
 
@@ -182,10 +182,10 @@ def test_a_rerun_with_fewer_parts_leaves_no_stale_part(tmp_path):
     assert "lines_per_job" in text
     prof.write_text(re.sub(r"lines_per_job\s*=\s*\d+", "lines_per_job = 80", text))
     job = _job(tmp_path, post=f'formats = ["inform"]\nprofiles = {{inform = "{prof}"}}\n')
-    many = write_programs(rows_trajectory(r, rows=6), r, job, out)
+    many = write_job_programs(rows_trajectory(r, rows=6), r, job, out)
     assert len(many) > 2
     (out / "notes.txt").write_text("mine")  # a user's file is never touched
-    few = write_programs(rows_trajectory(r, rows=2), r, job, out)
+    few = write_job_programs(rows_trajectory(r, rows=2), r, job, out)
     left = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
     assert left == sorted([f.name for f in few] + ["notes.txt"])
 
@@ -203,14 +203,14 @@ def test_post_has_no_format_of_its_own():
 
 def test_a_plugin_takes_options_from_the_job(tmp_path, monkeypatch):
     from camtool.post import profile_for_job
-    from postprocessors.base import get_plugin
+    from camtool.program.registry import get_plugin
 
     r = get_robot("irb2400")
     job = _job(tmp_path, "irb2400", 'formats = ["csv"]\ncsv_angle_unit = "rad"\n')
     assert profile_for_job("csv", get_plugin("csv"), r, job).options["angle_unit"] == "rad"
     rapid = get_plugin("rapid")
-    assert not hasattr(rapid, "job_options")
-    monkeypatch.setattr(type(rapid), "job_options", lambda self, job: {"zone": "z50"}, raising=False)
+    assert rapid.post_options(None) == {}  # the base's default: no options from the job
+    monkeypatch.setattr(type(rapid), "post_options", lambda self, post: {"zone": "z50"})
     assert profile_for_job("rapid", rapid, r, job).options["zone"] == "z50"
 
 
@@ -218,7 +218,7 @@ def test_the_run_simulates_every_program_and_reports_it(tmp_path):
     """write_programs simulates RAPID and INFORM programs (not CSV) and, asked, reports the figures."""
     r = get_robot("seed8")
     report = {}
-    files = write_programs(rows_trajectory(r), r, _job(tmp_path), tmp_path / "o", report=report)
+    files = write_job_programs(rows_trajectory(r), r, _job(tmp_path), tmp_path / "o", report=report)
     assert set(report) == {"rapid", "inform"} and len(files) == 4
     for fig in report.values():
         assert fig["rows"] == 3 and fig["exact_stops_on_surface"] == 0 and fig["part_switches_on_surface"] == 0
@@ -230,14 +230,14 @@ def test_the_run_simulates_every_program_and_reports_it(tmp_path):
 def test_a_program_that_leaves_the_path_is_not_placed(tmp_path, monkeypatch):
     """The simulator's findings stop the run like a check's: a program the controller would
     run off the planned path is never placed."""
-    import postprocessors.moves as moves
+    import camtool.program.plan as moves
 
     r = get_robot("seed8")
     monkeypatch.setattr(moves, "MERGE_SHARE", 30.0)  # a writer that merges far beyond the tolerance
     monkeypatch.setattr(moves, "_MERGED", {})
     out = tmp_path / "o"
     with pytest.raises(PlanInfeasible, match=r"from the planned path \(tolerance 0.1 mm\)"):
-        write_programs(rows_trajectory(r), r, _job(tmp_path, post='formats = ["rapid"]\n'), out)
+        write_job_programs(rows_trajectory(r), r, _job(tmp_path, post='formats = ["rapid"]\n'), out)
     assert not any(p.suffix in (".mod", ".pgf") for p in out.iterdir())
 
 
@@ -254,11 +254,11 @@ def test_the_job_names_the_rows_and_dates_the_programs(tmp_path):
     seg = np.zeros(n, int)
     seg[len(seg) // 2:] = 7
     path = ToolPath(np.tile(np.eye(4), (n, 1, 1)), seg, np.zeros(n, int), np.zeros(n, int))
-    files = {f.suffix: f for f in write_programs(tr, r, job, tmp_path / "o", path=path)}
+    files = {f.suffix: f for f in write_job_programs(tr, r, job, tmp_path / "o", path=path)}
     mod = files[".mod"].read_text()
     assert "! Job: job.toml; date 2023/11/14 22:13 UTC (options.date = job)." in mod
     assert "! Row 1 of 2: segment 0" in mod and "! Row 2 of 2: segment 7" in mod
     jbi = files[".JBI"].read_bytes().decode()
     assert "///DATE 2023/11/14 22:13\r\n///COMM camtool job.toml\r\n" in jbi
-    again = {f.suffix: f.read_bytes() for f in write_programs(tr, r, job, tmp_path / "p", path=path)}
+    again = {f.suffix: f.read_bytes() for f in write_job_programs(tr, r, job, tmp_path / "p", path=path)}
     assert again[".mod"] == files[".mod"].read_bytes() and again[".JBI"] == files[".JBI"].read_bytes()

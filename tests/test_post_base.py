@@ -1,4 +1,4 @@
-"""Plugin protocol and discovery: built-ins via entry points, a third-party package from outside."""
+"""Plugin base and registry: built-ins registered in code, a third-party package from outside."""
 import json
 import os
 import shutil
@@ -9,17 +9,19 @@ from pathlib import Path
 import pytest
 
 from camtool.errors import BadInput
-from postprocessors.base import PostProcessor, chunks, describe_plugins, discover, get_plugin, sanitise_name
+from camtool.program.plugin import PostProcessor
+from camtool.program.registry import describe_plugins, discover, get_plugin
+from camtool.program.text import chunks, sanitise_name
 
 PKG = Path(__file__).parent / "plugin_pkg"
 
 
-def test_builtins_are_discovered_through_entry_points():
+def test_builtins_are_registered_in_code():
     found = discover()
     for name, ext in (("rapid", ".mod"), ("inform", ".JBI"), ("csv", ".csv")):
         info = found[name]
         assert info.error == ""
-        assert info.source == "camtool"  # from camtool's own pyproject entry points
+        assert info.source == "camtool" and info.builtin  # registered in camtool.program.registry
         assert info.plugin.extension == ext
         assert isinstance(info.plugin, PostProcessor)
         for opt, spec in info.plugin.options_schema.items():
@@ -92,13 +94,13 @@ def test_third_party_plugin_runs_through_write_programs(tmp_path):
 import sys; sys.path.insert(0, {str(Path(__file__).parent)!r})
 from pathlib import Path
 from camtool.job import load_job
-from camtool.post import write_programs
+from camtool.post import write_job_programs
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory
 job_file = Path({str(tmp_path)!r}) / "job.toml"
 job_file.write_text('[workpiece]\\nfile = "x.stl"\\n[robot]\\nname = "irb2400"\\n[post]\\nformats = ["demo"]\\nprogram_name = "DEMO"\\n')
 r = get_robot("irb2400")
-print([p.name for p in write_programs(smooth_trajectory(r, 20), r, load_job(job_file), Path({str(tmp_path / 'out')!r}))])
+print([p.name for p in write_job_programs(smooth_trajectory(r, 20), r, load_job(job_file), Path({str(tmp_path / 'out')!r}))])
 """
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                          env={**os.environ, "PYTHONPATH": str(target)})
@@ -108,9 +110,9 @@ print([p.name for p in write_programs(smooth_trajectory(r, 20), r, load_job(job_
 
 
 def test_discovery_scans_the_entry_points_once_and_can_be_cleared(monkeypatch, tmp_path):
-    import postprocessors.base as base
+    import camtool.program.registry as base
     from camtool.job import load_job
-    from camtool.post import write_programs
+    from camtool.post import write_job_programs
     from camtool.robots import get_robot
     from test_post import rows_trajectory
 
@@ -122,7 +124,7 @@ def test_discovery_scans_the_entry_points_once_and_can_be_cleared(monkeypatch, t
         job_file = tmp_path / "job.toml"
         job_file.write_text('[workpiece]\nfile = "x.stl"\n[robot]\nname = "seed8"\n[post]\n')
         r = get_robot("seed8")
-        write_programs(rows_trajectory(r), r, load_job(job_file), tmp_path / "out")  # 3 formats
+        write_job_programs(rows_trajectory(r), r, load_job(job_file), tmp_path / "out")  # 3 formats
         describe_plugins()
         get_plugin("csv")
         assert len(scans) == 1
@@ -146,7 +148,7 @@ def test_dead_helper_is_gone():
     assert not hasattr(base, "joint_values_native")
 
 
-class _NoCheckPost:
+class _NoCheckPost(PostProcessor):
     """A plugin without ``check``: one line per waypoint, ``t q1 q2 ...``; ``spoil`` breaks row 3."""
 
     name = "nocheck"
@@ -157,7 +159,7 @@ class _NoCheckPost:
     def __init__(self, spoil=None):
         self.spoil = spoil
 
-    def write(self, trajectory, robot, profile, outdir):
+    def write(self, trajectory, robot, profile, outdir, process):
         rows = [[float(t), *map(float, q)] for t, q in zip(trajectory.t_s, trajectory.q)]
         if self.spoil is not None:
             rows[3][1] = self.spoil
@@ -174,32 +176,32 @@ class _NoCheckPost:
 @pytest.mark.parametrize("spoil,message", [(None, None), (float("nan"), "move 4: j1: value is not a finite number"),
                                            (9.0, "move 4: j1 = 515.6620 deg outside the limits")])
 def test_a_plugin_without_check_is_read_back_and_checked(spoil, message, monkeypatch, tmp_path):
-    import postprocessors.base as base
+    import camtool.post as post
     from camtool.errors import PlanInfeasible
     from camtool.job import load_job
-    from camtool.post import write_programs
+    from camtool.post import write_job_programs
     from camtool.robots import get_robot
     from post_fixtures import smooth_trajectory
 
     plugin = _NoCheckPost(spoil)
-    real = base.get_plugin
-    monkeypatch.setattr(base, "get_plugin", lambda name: plugin if name == "nocheck" else real(name))
+    real = post.get_plugin
+    monkeypatch.setattr(post, "get_plugin", lambda name: plugin if name == "nocheck" else real(name))
     job_file = tmp_path / "job.toml"
     job_file.write_text('[workpiece]\nfile = "x.stl"\n[robot]\nname = "irb2400"\n[post]\nformats = ["nocheck"]\n')
     r = get_robot("irb2400")
     out = tmp_path / "out"
     if message is None:
-        assert [f.name for f in write_programs(smooth_trajectory(r, 20), r, load_job(job_file), out)] == ["P.txt"]
+        assert [f.name for f in write_job_programs(smooth_trajectory(r, 20), r, load_job(job_file), out)] == ["P.txt"]
         return
     with pytest.raises(PlanInfeasible) as exc:
-        write_programs(smooth_trajectory(r, 20), r, load_job(job_file), out)
+        write_job_programs(smooth_trajectory(r, 20), r, load_job(job_file), out)
     assert any(message in f and str(out) in f for f in exc.value.report["findings"]), exc.value.report
     assert not (out / "P.txt").exists()
 
 
 def test_read_back_check_reports_a_reader_that_fails(tmp_path):
     from camtool.robots import get_robot
-    from postprocessors.check import check_file
+    from camtool.program.check import check_file
 
     f = tmp_path / "P.txt"
     f.write_text("not numbers\n")

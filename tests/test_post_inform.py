@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.profiles import load_profile
+from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory, with_q
-from postprocessors.base import ProcessInfo
+from camtool.program.process import ProcessInfo
 from postprocessors.yaskawa_inform import InformPost, job_name, parse_jbi, vj_percent
 from test_post import rows_trajectory
 
@@ -188,3 +188,38 @@ def test_same_trajectory_gives_identical_bytes(tmp_path):
     a = [f.read_bytes() for f in POST.write(tr, r, p, tmp_path / "a", process=process)]
     b = [f.read_bytes() for f in POST.write(with_q(tr, tr.q.copy()), r, p, tmp_path / "b", process=process)]
     assert a == b and len(a) > 2 and b"///DATE 2024/01/02 03:04\r\n" in a[1]
+
+
+def _movc(tmp_path, n_points=3, fpt=False):
+    """A sia20 Cartesian job whose first run of MOVL lines on a row is turned into MOVC
+    points (``n_points`` of them; with ``fpt``, FPT on the third)."""
+    r = get_robot("sia20")
+    p = load_profile(None, "sia20", "inform", r)
+    files = InformPost().write(rows_trajectory(r, rows=1), r, p, tmp_path)
+    lines = files[0].read_bytes().decode("ascii").split("\r\n")
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("MOVL") and lines[i + 1].startswith("MOVL")
+             and lines[i + 2].startswith("MOVL") and lines[i + 3].startswith("MOVL"))
+    for i in range(k, k + n_points):
+        lines[i] = lines[i].replace("MOVL", "MOVC", 1) + (" FPT" if fpt and i == k + 2 else "")
+    files[0].write_bytes("\r\n".join(lines).encode("ascii"))
+    return r, p, files[0], k
+
+
+def test_movc_is_read_checked_and_simulated(tmp_path):
+    """Three MOVC points: a linear move to the first, then one circular move through the
+    second to the third; the job checks clean and the simulator runs it on its circle."""
+    from camtool.simulate import simulate
+
+    r, p, f, _k = _movc(tmp_path)
+    assert InformPost().check(f, r, p) == []
+    prog = InformPost().read_program(f, r, p)
+    c = np.flatnonzero(prog.kind == "C")
+    assert len(c) == 1 and np.isfinite(prog.via[c[0]]).all() and prog.kind[c[0] - 1] == "L"
+    rep = simulate(prog, r)
+    assert rep.limit_violations == 0 and rep.speed_violations == 0
+
+
+@pytest.mark.parametrize("n,fpt", [(2, False), (4, True)])
+def test_an_arc_without_three_movc_points_is_a_finding(tmp_path, n, fpt):
+    r, p, f, _k = _movc(tmp_path, n_points=n, fpt=fpt)
+    assert any("fewer than three MOVC points" in x for x in InformPost().check(f, r, p))

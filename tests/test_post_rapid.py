@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.profiles import load_profile, parse_profile
+from camtool.profiles import parse_profile
+from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory
 from postprocessors.abb_rapid import RESERVED, RapidPost, fmt_t, parse_module, rapid_identifier
-from postprocessors.base import ProcessInfo
+from camtool.program.process import ProcessInfo
 from test_post import rows_trajectory
 
 POST = RapidPost()
@@ -28,7 +29,7 @@ def on_the_plan(q_read, dur, tr, robot, tol_deg=0.5e-4, tol_mm=0.5e-3):
     """Every target lies on the planned motion at the time the program reaches it: a waypoint,
     or a point of the trajectory's quintic pieces between two (a corner or a bowed chord needed
     it); to the written resolution plus what 1 ms of motion moves."""
-    from postprocessors.moves import hermite
+    from camtool.program.plan import hermite
 
     t = tr.t_s[0] + np.r_[0.0, np.cumsum(dur[1:])]
     k = np.clip(np.searchsorted(tr.t_s, t, side="right") - 1, 0, len(tr.t_s) - 2)
@@ -251,11 +252,11 @@ def test_rapidchecker_rejects_a_broken_module(tmp_path):
 
 
 def test_movec_is_read_and_simulated_on_its_circle(tmp_path):
-    """camtool does not write MoveC yet, but reads and simulates it: a MoveL turned into a
-    MoveC through a point just off the line checks clean and moves on the circle."""
+    """A MoveL turned into a MoveC through a point just off the line (a program written with
+    options.arcs = false) checks clean, is read back and moves on the circle."""
     from camtool.simulate import simulate
 
-    r, p = _setup("irb2400")
+    r, p = _setup("irb2400", arcs=False)
     files = POST.write(rows_trajectory(r, rows=1), r, p, tmp_path)
     lines = files[1].read_text().splitlines()
     k = next(i for i, ln in enumerate(lines) if ln.strip().startswith("MoveL") and i > 0

@@ -5,12 +5,13 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.profiles import Profile, default_options, load_profile
+from camtool.profiles import Profile
+from camtool.program.profiles import default_options, load_profile
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory, with_q
 from test_post import rows_trajectory
 from postprocessors.abb_rapid import RapidPost
-from postprocessors.check import check_program
+from camtool.program.check_program import check_program
 from postprocessors.csv_joint import CsvPost
 from postprocessors.yaskawa_inform import InformPost
 
@@ -199,9 +200,8 @@ def test_each_builtin_plugin_owns_its_check(cls):
 def test_the_check_helpers_import_no_plugin():
     import subprocess
     import sys
-    code = ("import sys, postprocessors.check; "
-            "print([m for m in ('postprocessors.abb_rapid', 'postprocessors.yaskawa_inform', "
-            "'postprocessors.csv_joint') if m in sys.modules])")
+    code = ("import sys, camtool.program.check, camtool.program.check_program; "
+            "print([m for m in sys.modules if m.startswith('postprocessors')])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 
@@ -269,7 +269,7 @@ def test_csv_non_finite_values_are_flagged(column, bad, tmp_path):
 
 
 def test_motion_with_non_finite_values_is_flagged():
-    from postprocessors.check import check_motion
+    from camtool.program.check import check_motion
     r = get_robot("irb2400")
     q = smooth_trajectory(r, 5).q
     where = [f"x:{k}" for k in range(5)]

@@ -7,12 +7,12 @@ import pytest
 from click.testing import CliRunner
 
 from camtool.cli import cli
-from camtool.profiles import load_profile
+from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
 from camtool.simulate import (Reference, move_durations, reference_from_trajectory, simulate, target_joints)
 from postprocessors.abb_rapid import RapidPost
-from postprocessors.base import ProcessInfo
-from postprocessors.program import ProgramMoves, empty_moves
+from camtool.program.process import ProcessInfo
+from camtool.program.moves import ProgramMoves, empty_moves
 from postprocessors.yaskawa_inform import InformPost
 from test_post import rows_trajectory
 
@@ -103,7 +103,7 @@ def test_a_zone_is_a_parabolic_blend_and_fine_a_stop(tmp_path):
 
 def test_circular_moves_follow_the_circle():
     """A MoveC-like move: the TCP on the circle through start, circle point and target."""
-    from camtool.simulate import _arc, _arc_point
+    from camtool.program.arcs import arc_point as _arc_point, circle_through as _arc
 
     P0 = np.array([[100.0, 0.0, 0.0]])
     Pv = np.array([[0.0, 100.0, 0.0]])
@@ -137,7 +137,8 @@ def test_reference_breaks_between_rows():
 
 
 def test_cli_check_simulate_against_the_csv(tmp_path):
-    from camtool.profiles import Profile, default_options
+    from camtool.profiles import Profile
+    from camtool.program.profiles import default_options
     from postprocessors.csv_joint import CsvPost
 
     r, p, post, tr, files = _program("rapid", "irb2400", tmp_path)

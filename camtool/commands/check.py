@@ -9,21 +9,15 @@ from ..robots import get_robot
 
 def _simulation(program: Path, robot, profile, fmt: str, against: Path | None, job, path_tol: float | None):
     """(report, None) of simulating PROGRAM, or (None, reason) when its plugin cannot."""
-    from postprocessors.base import get_plugin
-
     from ..errors import BadInput
+    from ..program.registry import get_plugin
     from ..simulate import reference_from_samples, reference_from_trajectory, simulate
 
     plugin = get_plugin(fmt)
-    if not hasattr(plugin, "read_program"):
+    if not plugin.simulated:
         return None, f"post-processor {fmt!r} cannot be simulated (it has no read_program)"
     prog = plugin.read_program(program, robot, profile)
-    feed = None
-    if job is not None:
-        try:
-            feed = float(job.timing["tcp_speed_mm_s"])
-        except (KeyError, TypeError, ValueError):
-            feed = None
+    feed = None if job is None else job.process.feed_mm_s
     reference = None
     if against is not None:
         if not Path(against).is_file():
@@ -34,11 +28,28 @@ def _simulation(program: Path, robot, profile, fmt: str, against: Path | None, j
             box = load_stage(against, expect=("Trajectory", "TimedTrajectory"))
             reference = reference_from_trajectory(box, robot, feed)
         else:
-            from postprocessors.csv_joint import CsvPost
-
-            t_s, q = CsvPost().read_trajectory(Path(against), robot)
+            t_s, q = get_plugin("csv").read_trajectory(Path(against), robot)
             reference = reference_from_samples(t_s, q, robot, feed)
     return simulate(prog, robot, reference, path_tol_mm=path_tol, profile=profile), None
+
+
+class _JobPost:
+    """What ``check --job`` takes from a job: its post settings, process facts (feed,
+    tolerance) and the profile of the checked format."""
+
+    def __init__(self, raw_job, robot):
+        from ..post import process_for_job
+        from ..settings import PostSettings
+
+        self._job, self._robot = raw_job, robot
+        self.settings = PostSettings.from_section(raw_job.post)
+        self.process = process_for_job(raw_job, self.settings)
+
+    def profile(self, fmt: str):
+        from ..post import profile_for_job
+        from ..program.registry import get_plugin
+
+        return profile_for_job(fmt, get_plugin(fmt), self._robot, self._job, self.settings)
 
 
 @click.command("check")
@@ -76,20 +87,20 @@ def command(program: Path, robot_name: str | None, profile_file: Path | None, fm
     Exit 0 when clean, 2 with one line per finding otherwise (with --json: the
     JSON object, and the same exit code).
     """
-    from postprocessors.base import get_plugin
-    from postprocessors.check import check_program, check_summary, format_of, profile_for_check
-
     from ..errors import BadInput
+    from ..program.check_program import check_program, check_summary, format_of, profile_for_check
+    from ..program.registry import get_plugin
 
-    job = None
+    job = None  # what the post stage takes from the job (settings, process facts, profiles)
     if job_file is not None:
         from ..job import load_job
         from ..stages import robot_for_job
 
-        job = load_job(job_file, [])
-        robot = robot_for_job(job)
+        raw_job = load_job(job_file, [])
+        robot = robot_for_job(raw_job)
         if robot_name is not None and get_robot(robot_name).name != robot.name:
             raise BadInput(f"--robot {robot_name} is not the job's robot {robot.name}")
+        job = _JobPost(raw_job, robot)
     elif robot_name is None:
         raise BadInput("give the robot: --robot NAME, or --job JOB")
     else:
@@ -97,18 +108,15 @@ def command(program: Path, robot_name: str | None, profile_file: Path | None, fm
     fmt = fmt or format_of(program)
     profile = profile_for_check(fmt, get_plugin(fmt), robot, profile_file)
     if job is not None and profile_file is None:
-        from ..post import profile_for_job
-
-        profile = profile_for_job(fmt, get_plugin(fmt), robot, job)
+        profile = job.profile(fmt)
     summary = check_summary(program, robot, profile, fmt) if as_json else None
     findings = summary["findings"] if as_json else check_program(program, robot, profile, fmt)
     sim_out, lines = None, []
     if run_sim and not findings:
-        from ..post import DEFAULT_PATH_TOL_MM, _job_value
+        from ..program.process import DEFAULT_PATH_TOL_MM
         from ..simulate import summary_lines
 
-        tol = float(_job_value(job.post, "path_tol_mm", DEFAULT_PATH_TOL_MM)) if job is not None \
-            else DEFAULT_PATH_TOL_MM
+        tol = job.process.path_tol_mm if job is not None else DEFAULT_PATH_TOL_MM
         rep, why = _simulation(program, robot, profile, fmt, against, job, tol)
         if rep is None:
             findings = findings + [f"{program}: {why}"]

@@ -4,7 +4,9 @@ A profile says which robot joint drives which controller axis (with sign,
 offset, unit, pulses per unit and maximum speed), the program name, tool and
 work-object data, and the plugin's options (zones, split thresholds, ...).
 Defaults for the built-in robots ship here as ``<robot>_<format>.toml``;
-docs/controllers.md describes every key. Layout::
+docs/controllers.md describes every key. This module holds the data and its
+validation only; ``camtool.program.profiles.load_profile`` loads a profile for a
+plugin (its options schema and ``validate_profile``). Layout::
 
     format = "rapid"                  # the post-processor this profile is for
     robot = "seed8"                   # optional: refuse other robots
@@ -215,42 +217,17 @@ def _table(raw, defaults: dict, where: str) -> dict:
     return out
 
 
-def load_profile(path: str | Path | None, robot_name: str, fmt: str, robot=None) -> Profile:
-    """Load and validate a controller profile.
-
-    ``path`` None takes the shipped default ``<robot_name>_<fmt>.toml``
-    (BadInput when there is none). Options are checked against the plugin of
-    ``fmt``; with ``robot`` given, the axis map is checked against its joints
-    and by the plugin's ``validate_profile`` when it has one.
-    """
-    if path is None:
-        path = default_profile_path(robot_name, fmt)
-        if path is None:
-            raise BadInput(f"no default {fmt} profile for robot {robot_name!r}: write one (docs/controllers.md) "
-                           f"and name it in the job's post.profiles.{fmt}")
+def read_profile_file(path: str | Path) -> dict:
+    """The parsed TOML of a profile file; BadInput naming the file when it cannot be read."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise BadInput(f"{path}: profile file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise BadInput(f"{path}: cannot read profile ({exc})") from None
     except tomllib.TOMLDecodeError as exc:
         raise BadInput(f"{path}: TOML syntax error: {exc}") from None
-    from postprocessors.base import get_plugin
-
-    plugin = get_plugin(fmt)
-    profile = parse_profile(data, str(path), fmt, robot, plugin.options_schema)
-    if robot is not None and hasattr(plugin, "validate_profile"):
-        plugin.validate_profile(profile, robot)
-    return profile
-
-
-def default_options(fmt: str) -> dict[str, Any]:
-    """The options of a format's plugin at their defaults."""
-    from postprocessors.base import get_plugin
-
-    return {k: d for k, (_t, d, _doc) in get_plugin(fmt).options_schema.items()}
 
 
 def require_full_map(profile: Profile, robot) -> None:

@@ -82,6 +82,26 @@ class Robot:
     def dof(self) -> int:
         return len(self.joint_names)
 
+    @property
+    def chain(self) -> "tuple[tuple[np.ndarray, ...], np.ndarray] | None":
+        """The kinematic chain as constant 4 x 4 placements in mm: (placement before each joint,
+        flange in the last joint), when every joint turns about / slides along its local z axis
+        (DH robots); None otherwise. Program writers, readers and the simulator share it."""
+        model = self.model
+        kinds = [model.joints[i].shortname() for i in range(1, model.njoints)]
+        if len(kinds) != self.dof or [k == "JointModelPZ" for k in kinds] != [bool(p) for p in self.prismatic] \
+                or any(k not in ("JointModelRZ", "JointModelPZ") for k in kinds):
+            return None
+        frame = model.frames[self.flange_frame_id]
+        if frame.parentJoint != model.njoints - 1:
+            return None
+
+        def mm(M):
+            T = np.eye(4)
+            T[:3, :3], T[:3, 3] = M.rotation, np.asarray(M.translation) * 1000.0
+            return T
+        return tuple(mm(model.jointPlacements[i]) for i in range(1, model.njoints)), mm(frame.placement)
+
     def with_placement(self, base_T_mm: np.ndarray | None = None, tool_T_mm: np.ndarray | None = None) -> "Robot":
         """A copy with another base placement and/or tool."""
         return replace(

@@ -3,14 +3,16 @@ from pathlib import Path
 
 import numpy as np
 
+from camtool.program.plugin import PostProcessor
 
-class DemoPost:
+
+class DemoPost(PostProcessor):
     name = "demo"
     extension = ".txt"
     requires_profile = False
     options_schema = {"separator": (str, " ", "Separator between values.")}
 
-    def write(self, trajectory, robot, profile, outdir):
+    def write(self, trajectory, robot, profile, outdir, process):
         sep = profile.options.get("separator", " ")
         rows = [sep.join(repr(float(v)) for v in (t, *q)) for t, q in zip(trajectory.t_s, trajectory.q)]
         path = Path(outdir) / f"{profile.program_name}.txt"

@@ -52,6 +52,8 @@ import numpy as np
 from camtool.errors import BadInput
 from camtool.toolpath import ZONE_CODE
 
+from .kinematics import Kinematics
+
 WORK = ZONE_CODE["work"]
 RETRACT = ZONE_CODE["retract"]
 FREE_ZONES = np.array([ZONE_CODE[z] for z in ("self_motion", "approach", "depart", "retract")])
@@ -63,201 +65,6 @@ JOINT_GUARD = 0.05      # rad (or 50 mm): larger chord deviations in joint space
 MIN_DEXTERITY = 0.05    # linear moves only where the Jacobian's singular values differ by less than 20x
 ZONE_DEG_PER_MM = 0.15  # a joint move's blend starts r mm of TCP travel or 0.15 r deg of joint travel early
 KIND_JOINT, KIND_LINEAR, KIND_CIRCULAR = "J", "L", "C"
-
-
-# --- kinematics -----------------------------------------------------------------------------
-
-def _model_chain(robot):
-    """(constant placements before each joint, flange placement in the last joint) as 4 x 4
-    in mm, from the robot's Pinocchio model, when every joint turns about / slides along its
-    local z axis (DH robots); None otherwise."""
-    model = robot.model
-    names = [model.joints[i].shortname() for i in range(1, model.njoints)]
-    if len(names) != robot.dof or any(n not in ("JointModelRZ", "JointModelPZ") for n in names):
-        return None
-    if [n == "JointModelPZ" for n in names] != [bool(p) for p in robot.prismatic]:
-        return None
-    frame = model.frames[robot.flange_frame_id]
-    if frame.parentJoint != model.njoints - 1:
-        return None
-
-    def mm(M):
-        T = np.eye(4)
-        T[:3, :3] = M.rotation
-        T[:3, 3] = np.asarray(M.translation) * 1000.0
-        return T
-    return [mm(model.jointPlacements[i]) for i in range(1, model.njoints)], mm(frame.placement)
-
-
-class Kinematics:
-    """Batch TCP poses and translational Jacobians of a robot in its **base** frame (mm).
-
-    DH robots use ``camtool.motion.BatchFK``'s chain with the joint axes collected on
-    the way (one pass); other robots fall back to Pinocchio (slow, correct).
-    """
-
-    def __init__(self, robot):
-        from camtool.motion.fk_batch import BatchFK
-
-        self.robot = robot
-        self.bfk = BatchFK(robot)  # for robots whose model is no z-axis chain
-        self.dof = robot.dof
-        self.prismatic = np.asarray(robot.prismatic, bool)
-        base = np.asarray(robot.base_T_mm, float)
-        self._inv_base_R = base[:3, :3].T
-        self._base_p = base[:3, 3]
-        chain = _model_chain(robot)
-        self.uses_chain = chain is not None
-        if chain is not None:
-            self._before, self._flange = chain
-            tool = np.asarray(robot.tool_T_mm, float)
-            self._tool_R, self._tool_p = tool[:3, :3], tool[:3, 3]
-
-    def _to_base(self, p, R):
-        return (p - self._base_p) @ self._inv_base_R.T, self._inv_base_R @ R
-
-    def pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """TCP positions (S, 3) and rotations (S, 3, 3) in the base frame."""
-        q = np.asarray(q, float)
-        if not self.uses_chain:
-            fk = self.bfk(q)
-            return self._to_base(fk.tcp, fk.tcp_R)
-        b = self
-        S = len(q)
-        # the rotation kept as its three columns (S, 3): each step is a few contiguous products,
-        # and the constant parts of a DH row are mostly 0 and +-1
-        x, y, z = (np.zeros((S, 3)) for _ in range(3))
-        x[:, 0] = y[:, 1] = z[:, 2] = 1.0
-        p = np.zeros((S, 3))
-
-        def combo(w, cols):
-            out = None
-            for c, col in zip(w, cols):
-                if abs(c) < 1e-15:
-                    continue
-                term = col if c == 1.0 else (-col if c == -1.0 else col * c)
-                out = term if out is None else out + term
-            return np.zeros((S, 3)) if out is None else out
-
-        for i, before in enumerate(b._before):
-            if np.any(before[:3, 3]):
-                p = p + combo(before[:3, 3], (x, y, z))
-            x, y, z = (combo(before[:3, j], (x, y, z)) for j in range(3))
-            if self.prismatic[i]:
-                p = p + z * q[:, i, None]
-            else:
-                c, s = np.cos(q[:, i])[:, None], np.sin(q[:, i])[:, None]
-                x, y = c * x + s * y, c * y - s * x
-        for v, C in ((b._flange[:3, 3], b._flange[:3, :3]), (b._tool_p, b._tool_R)):
-            if np.any(v):
-                p = p + combo(v, (x, y, z))
-            x, y, z = (combo(C[:, j], (x, y, z)) for j in range(3))
-        return p, np.stack([x, y, z], axis=2)  # the chain started at the base frame
-
-    def chain(self, q: np.ndarray):
-        """(tcp (S, 3), tcp_R (S, 3, 3), origins (S, dof, 3), axes (S, dof, 3)) in the **world**
-        frame for a z-axis chain: joint i turns about (slides along) ``axes[:, i]`` through
-        ``origins[:, i]``."""
-        q = np.asarray(q, float)
-        b = self
-        S = len(q)
-        R = np.broadcast_to(self._inv_base_R.T, (S, 3, 3)).copy()
-        p = np.broadcast_to(self._base_p, (S, 3)).copy()
-        axes = np.empty((S, self.dof, 3))
-        origins = np.empty((S, self.dof, 3))
-        for i, before in enumerate(b._before):
-            p += R @ before[:3, 3]
-            R = R @ before[:3, :3]
-            axes[:, i] = R[:, :, 2]
-            if self.prismatic[i]:
-                p += R[:, :, 2] * q[:, i, None]
-            else:
-                c, s = np.cos(q[:, i, None]), np.sin(q[:, i, None])
-                x, y = R[:, :, 0].copy(), R[:, :, 1].copy()
-                R[:, :, 0] = c * x + s * y
-                R[:, :, 1] = c * y - s * x
-            origins[:, i] = p
-        flange_p = p + R @ b._flange[:3, 3]
-        flange_R = R @ b._flange[:3, :3]
-        return flange_p + flange_R @ b._tool_p, flange_R @ b._tool_R, origins, axes
-
-    def pose_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(positions (S, 3), rotations (S, 3, 3), translational Jacobian (S, 3, dof)), base frame;
-        Jacobian columns in mm per rad (revolute) or mm per mm (prismatic)."""
-        q = np.asarray(q, float)
-        if not self.uses_chain:
-            p, R = self.pose(q)
-            J = np.empty((len(q), 3, self.dof))
-            for i in range(self.dof):
-                h = 1e-6 if not self.prismatic[i] else 1e-3
-                dq = q.copy()
-                dq[:, i] += h
-                J[:, :, i] = (self.pose(dq)[0] - p) / h
-            return p, R, J
-        tcp, tcp_R, origins, axes = self.chain(q)
-        lever = tcp[:, None, :] - origins
-        cols = np.where(self.prismatic[None, :, None], axes, np.cross(axes, lever))
-        J = np.einsum("ij,sjk->sik", self._inv_base_R, np.transpose(cols, (0, 2, 1)))
-        pb, Rb = self._to_base(tcp, tcp_R)
-        return pb, Rb, J
-
-    def dexterity(self, q: np.ndarray, lever_mm: float = 500.0) -> np.ndarray:
-        """(S,) smallest over largest singular value of the 6 x n TCP Jacobian (angular rows
-        times ``lever_mm``): near 0 at a singularity, where a straight TCP line can need
-        unbounded joint speeds."""
-        q = np.asarray(q, float)
-        if not self.uses_chain:
-            return np.ones(len(q))
-        tcp, _tR, origins, axes = self.chain(q)
-        lin = np.where(self.prismatic[None, :, None], axes, np.cross(axes, tcp[:, None, :] - origins))
-        ang = np.where(self.prismatic[None, :, None], 0.0, axes) * lever_mm
-        J = np.concatenate([np.transpose(lin, (0, 2, 1)), np.transpose(ang, (0, 2, 1))], axis=1)
-        sv = np.linalg.svd(J, compute_uv=False)
-        k = min(6, J.shape[2])
-        return sv[:, k - 1] / np.maximum(sv[:, 0], 1e-12)
-
-    def arm_configuration(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(rear, lower_arm) per configuration of a 6R arm with a spherical wrist (bool arrays):
-
-        - ``rear``: the wrist centre (on the last axis, nearest the 4th) lies behind
-          axis 1, seen from axis 2 (the side the arm reaches to at its zero position);
-        - ``lower_arm``: the wrist centre lies on the other side of the line from axis 2
-          to axis 3 than at the zero position (elbow down / backward).
-        """
-        q = np.asarray(q, float)
-        _t, _R, o, z = self.chain(q)
-        _t0, _R0, o0, z0 = self.chain(np.zeros((1, self.dof)))
-
-        def wrist(o, z):
-            # point on axis 6 closest to axis 4
-            p4, d4, p6, d6 = o[:, 3], z[:, 3], o[:, 5], z[:, 5]
-            w = p6 - p4
-            b_ = np.einsum("si,si->s", d4, d6)
-            d = np.einsum("si,si->s", d4, w)
-            e = np.einsum("si,si->s", d6, w)
-            den = 1 - b_ * b_
-            t6 = np.where(np.abs(den) > 1e-9, (b_ * d - e) / np.where(np.abs(den) > 1e-9, den, 1), 0.0)
-            return p6 + t6[:, None] * d6
-
-        def sides(o, z, wc):
-            a1 = z[:, 0]
-            reach = o[:, 1] - o[:, 0]
-            reach = reach - np.einsum("si,si->s", reach, a1)[:, None] * a1
-            n = np.linalg.norm(reach, axis=1, keepdims=True)
-            reach = np.where(n > 1e-9, reach / np.maximum(n, 1e-12), 0.0)
-            rel = wc - o[:, 0]
-            front = np.einsum("si,si->s", rel, reach)
-            elbow = np.einsum("si,si->s", np.cross(o[:, 2] - o[:, 1], wc - o[:, 1]), z[:, 1])
-            return front, elbow
-
-        wc = wrist(o, z)
-        front, elbow = sides(o, z, wc)
-        # "behind axis 1" in the frame the arm turns with: compare with the reach direction of
-        # the zero configuration turned by joint 1, i.e. the configuration's own axis-2 offset
-        _f0, elbow0 = sides(o0, z0, wrist(o0, z0))
-        rear = front < 0
-        lower = np.sign(elbow) != np.sign(elbow0[0] if elbow0[0] != 0 else 1.0)
-        return rear, lower
 
 
 # --- rows and anchors ---------------------------------------------------------------------------
@@ -500,7 +307,9 @@ class MovePlan:
     row of the move's target when the target lies on the surface (from the row's first
     to its last work point), else -1; ``row_start`` / ``row_end`` the move that reaches
     a row's first / last work point; ``free`` the target lies off the surface (outside
-    every row: free motion, leads, retracts; a part may end there); ``deviation_mm`` the largest deviation of the skipped waypoints.
+    every row: free motion, leads, retracts; a part may end there); ``deviation_mm`` the
+    largest deviation of the skipped waypoints; kind C (``camtool.program.steps.FitArcs``)
+    a circular move through ``via_P`` (with ``via_R``, ``via_q``).
     """
 
     wp: np.ndarray
@@ -516,6 +325,9 @@ class MovePlan:
     R: np.ndarray          # (n, 3, 3) TCP rotation of each target, base frame
     q: np.ndarray          # (n, dof) joint values of each target
     rows: int = 0
+    via_P: np.ndarray | None = None  # (n, 3) circle point of each circular move (kind C), NaN elsewhere
+    via_R: np.ndarray | None = None  # (n, 3, 3) its TCP rotation
+    via_q: np.ndarray | None = None  # (n, dof) its joint values
 
     def __len__(self) -> int:
         return len(self.wp)
@@ -822,6 +634,20 @@ def plan_moves(trajectory, robot, process, *, linear: bool, levels_mm, min_level
     return MovePlan(wp=origin[idx], kind=kind_moves, t=t[idx], level=level, row=row, row_start=row_start,
                     row_end=row_end, free=~on_surface, deviation_mm=dev, P=P[idx], R=R[idx],
                     q=q[idx], rows=len(first))
+
+
+def move_lengths(plan: MovePlan) -> np.ndarray:
+    """(n,) TCP path length of each move (mm): its line, or for a circular move its arc; 0 for
+    the first (from wherever the robot is)."""
+    from .arcs import circle_through
+
+    length = np.r_[0.0, np.linalg.norm(np.diff(plan.P, axis=0), axis=1)]
+    circ = np.flatnonzero(np.asarray(plan.kind) == KIND_CIRCULAR)
+    circ = circ[circ > 0]
+    if len(circ):
+        c, rad, n, r0, sweep, ok = circle_through(plan.P[circ - 1], plan.via_P[circ], plan.P[circ])
+        length[circ] = np.where(ok, rad * sweep, length[circ])
+    return length
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -1,7 +1,7 @@
-"""Format-agnostic program checking: shared helpers and the dispatch through the plugin registry.
+"""Format-agnostic program checking: what every plugin's check shares.
 
-Each post-processor checks its own files (``plugin.check(path, robot,
-profile)``, see ``postprocessors/base.py``); this module imports no plugin.
+Each post-processor checks its own files (``PostProcessor.check(path, robot,
+profile)``, see ``camtool/program/plugin.py``); this module imports no plugin.
 It holds what every check shares:
 
 - ``check_motion``: every joint value against the robot's position limits and
@@ -9,9 +9,8 @@ It holds what every check shares:
   using the program's own timing; non-finite values and durations are findings.
 - ``read_back_check``: the check of a plugin without ``check``: its ``read``
   must give back finite joint values and durations that pass ``check_motion``.
-- ``check_file`` (the plugin's own check, else the read-back check) and
-  ``check_program`` / ``check_summary`` (a file by path: its format from the
-  extensions of the installed plugins; ``camtool check``).
+- ``check_file``: the plugin's check (its own, or the read-back check), each
+  finding once. A file by path (``camtool check``): ``camtool.program.check_program``.
 
 Tolerances: the written resolution of each format (passed in as ``tol``) plus
 ``SPEED_REL_TOL`` (0.1 %) on speeds.
@@ -116,8 +115,8 @@ def read_back_check(plugin, path, robot, profile) -> list[str]:
         dur, q = plugin.read(path, robot, profile)
     except BadInput as exc:
         return [str(exc)]
-    except Exception as exc:  # a third-party reader's failure is a finding, not a crash
-        return [f"{path}: post-processor {getattr(plugin, 'name', '?')!r} cannot read it back "
+    except Exception as exc:  # noqa: BLE001 - a third-party reader's failure is a finding, not a crash
+        return [f"{path}: post-processor {plugin.name!r} cannot read it back "
                 f"({type(exc).__name__}: {exc})"]
     try:
         q = np.asarray(q, float).reshape(-1, robot.dof)
@@ -133,82 +132,36 @@ def read_back_check(plugin, path, robot, profile) -> list[str]:
 
 
 def check_file(plugin, path, robot, profile) -> list[str]:
-    """Findings for one written file: the plugin's own ``check`` when it has one, else
-    ``read_back_check``."""
-    if hasattr(plugin, "check"):
-        return dedupe(plugin.check(Path(path), robot, profile))
-    return dedupe(read_back_check(plugin, path, robot, profile))
+    """Findings for one written file: the plugin's ``check`` (by default ``read_back_check``)."""
+    return dedupe(plugin.check(Path(path), robot, profile))
 
 
-# --- a program file by path (camtool check) -----------------------------------------------------
+def arc_findings(prog, robot, q: np.ndarray, max_sweep_deg: float, min_chord_mm: float = 0.1) -> list[str]:
+    """Findings for the circular moves of a program read back (``ProgramMoves``) with target
+    joints ``q``: a circle point and target that define a circle with the move's start (not
+    on one line, at least ``min_chord_mm`` apart), and a sweep below the controller's limit
+    for one instruction (``max_sweep_deg``)."""
+    from .arcs import circle_through
+    from .targets import _target_poses
 
-def _extensions(plugin) -> tuple[str, ...]:
-    return tuple(e.lower() for e in getattr(plugin, "extensions", None) or (plugin.extension,))
-
-
-def format_of(path: Path) -> str:
-    """The format of a program file from its extension, as the installed plugins declare it
-    (``extensions``, else ``extension``); BadInput when none or several claim it."""
-    from .base import discover
-
-    ext = Path(path).suffix.lower()
-    known = {name: _extensions(info.plugin) for name, info in discover().items() if info.plugin is not None}
-    fmts = [name for name, exts in known.items() if ext in exts]
-    if not fmts:
-        every = sorted({e for exts in known.values() for e in exts})
-        raise BadInput(f"{path}: unknown program type {ext!r} (expected {', '.join(every)}; "
-                       "or name the format with --format)")
-    if len(fmts) > 1:
-        raise BadInput(f"{path}: {ext!r} files are written by several post-processors ({', '.join(fmts)}); "
-                       "name the format with --format")
-    return fmts[0]
-
-
-def profile_for_check(fmt: str, plugin, robot, profile_file=None):
-    """The profile to check a file with: the given file, else the shipped default for the
-    robot, else (for a plugin with ``requires_profile = False``) its option defaults."""
-    from camtool.profiles import Profile, default_options, default_profile_path, load_profile
-
-    if profile_file is None and default_profile_path(robot.name, fmt) is None \
-            and not getattr(plugin, "requires_profile", True):
-        return Profile("<defaults>", fmt, robot.name, options=default_options(fmt))
-    return load_profile(profile_file, robot.name, fmt, robot)
-
-
-def _program(path, robot, profile, fmt):
-    from .base import get_plugin
-
-    path = Path(path)
-    if not path.is_file():
-        raise BadInput(f"{path}: program file not found")
-    fmt = fmt or format_of(path)
-    plugin = get_plugin(fmt)
-    if profile is None:
-        profile = profile_for_check(fmt, plugin, robot)
-    return path, fmt, plugin, profile
-
-
-def check_program(path, robot, profile=None, fmt: str | None = None) -> list[str]:
-    """Findings for one program file (empty when clean). ``fmt`` None takes the format from
-    the file's extension; ``profile`` None the shipped default (``profile_for_check``)."""
-    path, fmt, plugin, profile = _program(path, robot, profile, fmt)
-    return check_file(plugin, path, robot, profile)
-
-
-def check_summary(path, robot, profile=None, fmt: str | None = None) -> dict:
-    """``check_program`` with a summary for scripts (``camtool check --json``): file, format,
-    robot, profile, ok, findings, moves and duration_s (from the plugin's ``read``; None
-    when the program cannot be read back)."""
-    path, fmt, plugin, profile = _program(path, robot, profile, fmt)
-    findings = check_file(plugin, path, robot, profile)
-    moves = duration = None
-    try:
-        dur, q = plugin.read(path, robot, profile)
-        dur = np.asarray(dur, float).reshape(-1)
-        moves = int(len(np.asarray(q).reshape(-1, robot.dof)))
-        total = float(np.nansum(dur)) if len(dur) else 0.0
-        duration = round(total, 6) if np.isfinite(total) else None
-    except Exception:  # the findings already say why it cannot be read
-        moves = duration = None
-    return {"file": str(path), "format": fmt, "robot": robot.name, "profile": profile.source,
-            "ok": not findings, "findings": findings, "moves": moves, "duration_s": duration}
+    circ = np.flatnonzero(np.asarray(prog.kind) == "C")
+    if not len(circ):
+        return []
+    out = []
+    P, _R = _target_poses(prog, robot, q)
+    first = circ[circ == 0]
+    out += [f"{prog.where[k]}: a circular move cannot be the first move (it has no start)" for k in first]
+    circ = circ[circ > 0]
+    via = prog.via[circ, :3, 3]
+    c, rad, n, r0, sweep, ok = circle_through(P[circ - 1], via, P[circ])
+    for i, k in enumerate(circ[:MAX_PER_KIND * 5]):
+        d = min(np.linalg.norm(via[i] - P[k - 1]), np.linalg.norm(P[k] - via[i]), np.linalg.norm(P[k] - P[k - 1]))
+        if not np.isfinite(d) or d < min_chord_mm:
+            out.append(f"{prog.where[k]}: the start, circle point and target of a circular move must be at least "
+                       f"{min_chord_mm:g} mm apart ({d:.4f} mm)")
+        elif not ok[i]:
+            out.append(f"{prog.where[k]}: the start, circle point and target of a circular move lie on one line")
+        elif np.degrees(sweep[i]) >= max_sweep_deg:
+            out.append(f"{prog.where[k]}: a circular move of {np.degrees(sweep[i]):.1f} deg; the controller takes "
+                       f"less than {max_sweep_deg:g} deg per instruction")
+    return out

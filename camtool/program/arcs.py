@@ -1,0 +1,33 @@
+"""Circles through three points: the geometry of circular moves (MoveC / MOVC)."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def circle_through(P0, Pv, P1):
+    """Circle through P0, Pv, P1 (each (K, 3)): centre, radius, unit axis, start vector, sweep (rad)."""
+    a, b = P0 - Pv, P1 - Pv
+    axb = np.cross(a, b)
+    den = 2 * np.einsum("ki,ki->k", axb, axb)
+    ok = den > 1e-12
+    den = np.where(ok, den, 1.0)
+    c = Pv + (np.cross(np.einsum("ki,ki->k", a, a)[:, None] * b - np.einsum("ki,ki->k", b, b)[:, None] * a, axb)
+              / den[:, None])
+    n = axb / np.maximum(np.linalg.norm(axb, axis=1, keepdims=True), 1e-12)
+    n = -n  # P0 -> Pv -> P1 turns positively about n
+    r0, r1, rv = P0 - c, P1 - c, Pv - c
+    rad = np.linalg.norm(r0, axis=1)
+
+    def ang(u, v):
+        return np.arctan2(np.einsum("ki,ki->k", np.cross(u, v), n), np.einsum("ki,ki->k", u, v)) % (2 * np.pi)
+    sweep = ang(r0, r1)
+    bad_dir = ang(r0, rv) > sweep  # via not between: go the other way round
+    n = np.where(bad_dir[:, None], -n, n)
+    sweep = np.where(bad_dir, 2 * np.pi - sweep, sweep)
+    return c, rad, n, r0, sweep, ok
+
+
+def arc_point(c, n, r0, sweep, s):
+    th = sweep * s
+    ct, st = np.cos(th)[:, None], np.sin(th)[:, None]
+    return c + r0 * ct + np.cross(n, r0) * st + n * np.einsum("ki,ki->k", n, r0)[:, None] * (1 - ct)

@@ -1,0 +1,267 @@
+"""Ordered steps on a program's move list (``MovePlan``), like noether's tool-path modifiers.
+
+``plan_moves`` (``camtool.program.plan``) makes the move list from a trajectory: the
+targets (simplify / merge), their blends, the rows. Each step here then takes a move list
+and returns a new one, and ``CompoundStep`` runs them in order. Every step keeps the
+contract (tests/test_program_steps.py runs it over every step): the first and last target,
+every row's first and last target and the row marks stay; times never decrease; kinds are
+J, L or C, and a C move has a circle point.
+
+- ``JoinNullLinear``: a linear move that goes nowhere (< 1 um) becomes a joint move.
+- ``FitArcs``: consecutive linear targets of one row that lie on a circle (within a share
+  of ``post.path_tol_mm``, the orientation within ``post.ori_tol_deg``) become circular
+  moves (MoveC / MOVC) of at most ``max_sweep_deg`` each; their end corners get the
+  largest blend level whose rounding stays within the tolerance.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .arcs import arc_point, circle_through
+from .plan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, MovePlan
+
+ARC_SHARE = 0.4     # share of the path tolerance the circle may leave the planned path by
+BLEND_SHARE = 0.4   # share of the tolerance a corner next to a circular move may cut
+MIN_ARC_MOVES = 2   # a circular move replaces at least this many linear ones
+
+
+@dataclass(frozen=True)
+class StepContext:
+    """What the steps measure with: the planned path's TCP at every trajectory waypoint
+    (``waypoint_P`` (W, 3), ``waypoint_R`` (W, 3, 3), base frame, mm), the tolerances, the
+    format's blend radii (mm, ascending) and the smallest level on the surface."""
+
+    waypoint_P: np.ndarray
+    waypoint_R: np.ndarray
+    path_tol_mm: float
+    ori_tol_deg: float
+    levels_mm: tuple = ()
+    min_level_on_surface: int = 0
+
+
+class MoveStep(ABC):
+    """One step on a move list: ``apply(plan, ctx)`` returns a new ``MovePlan``."""
+
+    @abstractmethod
+    def apply(self, plan: MovePlan, ctx: StepContext) -> MovePlan:
+        """The move list after this step."""
+
+
+@dataclass(frozen=True)
+class CompoundStep(MoveStep):
+    """Steps run in order."""
+
+    steps: tuple
+
+    def apply(self, plan: MovePlan, ctx: StepContext) -> MovePlan:
+        for step in self.steps:
+            plan = step.apply(plan, ctx)
+        return plan
+
+
+@dataclass(frozen=True)
+class JoinNullLinear(MoveStep):
+    """A linear move shorter than ``min_mm`` becomes a joint move (it goes nowhere)."""
+
+    min_mm: float = 1e-3
+
+    def apply(self, plan: MovePlan, ctx: StepContext) -> MovePlan:
+        kind = np.array(plan.kind)
+        length = np.r_[0.0, np.linalg.norm(np.diff(plan.P, axis=0), axis=1)]
+        kind[(kind == KIND_LINEAR) & (length < self.min_mm)] = KIND_JOINT
+        return replace(plan, kind=kind)
+
+
+def _angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """Rotation angles (rad) from each Ra to Rb."""
+    R = np.transpose(Ra, (0, 2, 1)) @ Rb
+    s = 0.5 * np.linalg.norm(np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
+                                       R[:, 1, 0] - R[:, 0, 1]], axis=1), axis=1)
+    c = (np.trace(R, axis1=1, axis2=2) - 1.0) / 2.0
+    return np.arctan2(s, c)
+
+
+def _slerp(Ra, Rb, s):
+    from scipy.spatial.transform import Rotation
+
+    rel = Rotation.from_matrix(Ra.T @ Rb).as_rotvec()
+    return Ra[None] @ Rotation.from_rotvec(rel[None] * np.asarray(s)[:, None]).as_matrix()
+
+
+def _on_circle(P0, Pv, P1, X, tol):
+    """(fits, sweep rad): every point of X (K, 3) within ``tol`` of the arc from P0 through Pv to
+    P1 and in its order along it; the arc's sweep."""
+    c, rad, n, r0, sweep, ok = circle_through(P0[None], Pv[None], P1[None])
+    if not ok[0] or rad[0] > 1e6:
+        return False, 0.0, None
+    c, n, r0, sw, R = c[0], n[0], r0[0], sweep[0], rad[0]
+    rel = X - c
+    h = rel @ n
+    inplane = rel - h[:, None] * n
+    dist = np.hypot(h, np.linalg.norm(inplane, axis=1) - R)
+    ang = np.arctan2(np.cross(r0, inplane) @ n, inplane @ r0) % (2 * np.pi)
+    ang = np.where(ang > sw + 0.5 * (2 * np.pi - sw), ang - 2 * np.pi, ang)  # just before the start: negative
+    fits = bool(np.all(dist <= tol)) and bool(np.all(np.diff(ang) >= -1e-9)) and ang[0] >= -1e-6 \
+        and ang[-1] <= sw + 1e-6
+    return fits, sw, (c, n, r0, sw, ang)
+
+
+def _blend_deviation(P_a, P_k, P_b, r: float) -> float:
+    """How far the corner blend of radius ``r`` at P_k (the simulator's model: a quadratic curve
+    from the point r before P_k to the point r after it, P_k its control point) leaves the two
+    paths. P_a, P_b (S, 3): dense points of the incoming / outgoing path, ordered."""
+    def at(path, dist_from_k):
+        d = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))]
+        return np.array([np.interp(dist_from_k, d, path[:, j]) for j in range(3)])
+    cut = min(r, 0.5 * _length(P_a), 0.5 * _length(P_b))  # equal times before and after, one feed
+    A, B = at(P_a[::-1], cut), at(P_b, cut)
+    u = np.linspace(0, 1, 21)[:, None]
+    curve = (1 - u) ** 2 * A + 2 * u * (1 - u) * P_k + u ** 2 * B
+    both = np.vstack([P_a, P_b])
+    return float(np.max(np.min(np.linalg.norm(curve[:, None] - both[None], axis=2), axis=1)))
+
+
+def _length(path) -> float:
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+
+
+@dataclass(frozen=True)
+class FitArcs(MoveStep):
+    """Consecutive linear targets of one row on a circle become circular moves (module doc).
+
+    ``max_sweep_deg``: the largest sweep of one circular move (the controller's limit, see
+    the format's dialect); ``min_chord_mm``: the start, circle point and target of a
+    circular move are at least this far apart (the controller refuses closer points).
+    """
+
+    max_sweep_deg: float
+    min_chord_mm: float = 0.1
+
+    def apply(self, plan: MovePlan, ctx: StepContext) -> MovePlan:
+        n = len(plan)
+        kind = np.array(plan.kind)
+        if n < 3 or not (kind == KIND_LINEAR).any():
+            return plan
+        tol = ARC_SHARE * ctx.path_tol_mm
+        ori_tol = np.radians(ctx.ori_tol_deg)
+        max_sweep = np.radians(self.max_sweep_deg)
+        WP = ctx.waypoint_P
+        P, R, wp = plan.P, plan.R, plan.wp
+        # a move k may join an arc when it is linear, inside one row, and no row starts at it
+        joinable = (kind == KIND_LINEAR) & (plan.row >= 0) & ~plan.row_start
+        joinable &= np.r_[False, plan.row[1:] == plan.row[:-1]]
+        keep = np.ones(n, bool)
+        arcs = []  # (a, m, b): start target, circle point, end target
+        a = 0
+        while a < n - 1:
+            best = None
+            b = a + MIN_ARC_MOVES
+            while b < n and joinable[a + 1:b + 1].all():
+                if plan.level[a + 1:b].min(initial=0) < 0 or plan.row_end[a + 1:b].any():
+                    break  # an exact stop or a row end inside: the arc ends before it
+                m = (a + b) // 2
+                if min(np.linalg.norm(P[m] - P[a]), np.linalg.norm(P[b] - P[m])) < self.min_chord_mm:
+                    b += 1
+                    continue
+                fits, sweep, geo = _on_circle(P[a], P[m], P[b], P[a:b + 1], tol)
+                if not fits or sweep > max_sweep:
+                    break
+                # the planned path between the targets (every waypoint) and its orientation
+                w = np.arange(wp[a], wp[b] + 1) if wp[a] >= 0 and wp[b] >= 0 else np.zeros(0, int)
+                if len(w) and not _on_circle(P[a], P[m], P[b], WP[w], tol)[0]:
+                    break
+                s = geo[4][1:-1] / sweep if sweep > 0 else np.zeros(0)
+                if len(s) and np.max(_angle(_slerp(R[a], R[b], s), R[a + 1:b])) > ori_tol:
+                    break
+                best = (a, m, b)
+                b += 1
+            if best is None:
+                a += 1
+                continue
+            arcs.append(best)
+            keep[best[0] + 1:best[2]] = False
+            a = best[2]
+        if not arcs:
+            return plan
+        via_P = np.full((n, 3), np.nan)
+        via_R = np.full((n, 3, 3), np.nan)
+        via_q = np.full((n, plan.q.shape[1]), np.nan)
+        for a, m, b in arcs:
+            kind[b] = KIND_CIRCULAR
+            via_P[b], via_R[b], via_q[b] = P[m], R[m], plan.q[m]
+        idx = np.flatnonzero(keep)
+        level = plan.level.copy()
+        new = replace(plan, wp=plan.wp[idx], kind=kind[idx], t=plan.t[idx], level=level[idx], row=plan.row[idx],
+                      row_start=plan.row_start[idx], row_end=plan.row_end[idx], free=plan.free[idx],
+                      deviation_mm=plan.deviation_mm[idx], P=P[idx], R=R[idx], q=plan.q[idx],
+                      via_P=via_P[idx], via_R=via_R[idx], via_q=via_q[idx])
+        return replace(new, level=self._corner_levels(new, ctx))
+
+    @staticmethod
+    def _path(plan: MovePlan, k: int, samples: int = 41) -> np.ndarray:
+        """Dense TCP points of move k (from target k-1 to k): its line or its arc."""
+        s = np.linspace(0, 1, samples)
+        if plan.kind[k] == KIND_CIRCULAR:
+            c, rad, n, r0, sweep, ok = circle_through(plan.P[k - 1][None], plan.via_P[k][None], plan.P[k][None])
+            if ok[0]:
+                return arc_point(np.repeat(c, samples, 0), np.repeat(n, samples, 0), np.repeat(r0, samples, 0),
+                                 np.repeat(sweep, samples), s)
+        return plan.P[k - 1] + s[:, None] * (plan.P[k] - plan.P[k - 1])
+
+    def _corner_levels(self, plan: MovePlan, ctx: StepContext) -> np.ndarray:
+        """Blend levels at the corners beside circular moves: the largest level (not above the
+        one planned) whose rounding stays within BLEND_SHARE of the tolerance, at least the
+        smallest level allowed on the surface."""
+        level = plan.level.copy()
+        levels = np.asarray(ctx.levels_mm, float)
+        if not len(levels):
+            return level
+        budget = BLEND_SHARE * ctx.path_tol_mm
+        circ = plan.kind == KIND_CIRCULAR
+        corners = np.flatnonzero((circ | np.r_[circ[1:], False]) & (level >= 0))
+        corners = corners[(corners > 0) & (corners < len(plan) - 1)]
+        for k in corners:
+            if plan.kind[k + 1] == KIND_JOINT or plan.kind[k] == KIND_JOINT:
+                continue
+            P_in, P_out = self._path(plan, k), self._path(plan, k + 1)
+            lv = int(level[k])
+            floor = ctx.min_level_on_surface if plan.row[k] >= 0 else 0
+            while lv > floor and _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget:
+                lv -= 1
+            level[k] = lv
+        return level
+
+
+def program_steps(*, arcs_max_sweep_deg: float | None) -> CompoundStep:
+    """The steps a writer runs on ``plan_moves``' move list, in order: null linear moves
+    become joint moves, then (with ``arcs_max_sweep_deg``) circles become circular moves."""
+    steps: tuple = (JoinNullLinear(),)
+    if arcs_max_sweep_deg is not None:
+        steps += (FitArcs(max_sweep_deg=arcs_max_sweep_deg),)
+    return CompoundStep(steps)
+
+
+def context_for(trajectory, robot, process, plan: MovePlan, levels_mm, min_level_on_surface: int) -> StepContext:
+    """The steps' context for a trajectory: its TCP at every waypoint (``robot``'s tool, base
+    frame), the process tolerances and the format's blend levels."""
+    from .kinematics import Kinematics
+
+    kin = Kinematics(robot)
+    P, R = kin.pose(np.asarray(trajectory.q, float)) if (plan.kind == KIND_LINEAR).any() \
+        else (np.zeros((0, 3)), np.zeros((0, 3, 3)))
+    return StepContext(waypoint_P=P, waypoint_R=R, path_tol_mm=float(process.path_tol_mm),
+                       ori_tol_deg=float(process.ori_tol_deg), levels_mm=tuple(levels_mm),
+                       min_level_on_surface=min_level_on_surface)
+
+
+def move_lengths_ok(plan: MovePlan) -> bool:
+    """True when every circular move of ``plan`` defines a circle (start, circle point and
+    target not on one line)."""
+    k = np.flatnonzero(plan.kind == KIND_CIRCULAR)
+    k = k[k > 0]
+    if not len(k):
+        return True
+    return bool(circle_through(plan.P[k - 1], plan.via_P[k], plan.P[k])[5].all())

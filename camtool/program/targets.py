@@ -1,0 +1,346 @@
+"""Joint values of a program's targets: what a controller does with a Cartesian target.
+
+A joint target is taken as written. A Cartesian target (MoveL / MOVL, MoveC / MOVC) is
+solved for the joints it leaves open by damped least squares, starting from the previous
+target (the controller keeps its configuration), and its configuration (ABB confdata,
+Yaskawa RCONF) is compared with the program's. The readers of every plugin and the
+simulator share this reading; it uses the robot's own chain (``Robot.chain``) and shares
+no code with the writers.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .moves import CONF_UNKNOWN
+
+class _Chain:
+    """Batch TCP pose and 6 x n Jacobian in the robot **base** frame, from the DH chain that
+    ``camtool.motion.BatchFK`` builds (Pinocchio one by one for other robots)."""
+
+    def __init__(self, robot):
+        from camtool.motion.fk_batch import BatchFK
+
+        self.robot = robot
+        self.bfk = BatchFK(robot)  # for robots whose model is no z-axis chain
+        self.prismatic = np.asarray(robot.prismatic, bool)
+        base = np.asarray(robot.base_T_mm, float)
+        self.Rb, self.pb = base[:3, :3], base[:3, 3]
+        chain = robot.chain
+        self.uses_chain = chain is not None
+        if chain is not None:
+            self._before, self._flange = chain
+            tool = np.asarray(robot.tool_T_mm, float)
+            self._tool_R, self._tool_p = tool[:3, :3], tool[:3, 3]
+
+    @staticmethod
+    def _combo(w, cols):
+        """sum_j w[j] cols[j] for a constant vector w (mostly 0 and +-1 in a DH chain)."""
+        out = None
+        for c, col in zip(w, cols):
+            if abs(c) < 1e-15:
+                continue
+            term = col if c == 1.0 else (-col if c == -1.0 else col * c)
+            out = term if out is None else out + term
+        return np.zeros_like(cols[0]) if out is None else out
+
+    def fk(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """TCP positions (S, 3) and rotations (S, 3, 3) in the base frame."""
+        q = np.asarray(q, float)
+        if not self.uses_chain:
+            f = self.bfk(q)
+            return (f.tcp - self.pb) @ self.Rb, np.einsum("ji,sjk->sik", self.Rb, f.tcp_R)
+        b = self
+        S = len(q)
+        # the rotation as its three columns (S, 3) each: every step is a few contiguous products
+        x = np.zeros((S, 3)); x[:, 0] = 1.0
+        y = np.zeros((S, 3)); y[:, 1] = 1.0
+        z = np.zeros((S, 3)); z[:, 2] = 1.0
+        p = np.zeros((S, 3))
+
+        combo = self._combo
+
+        def turn(C):
+            return tuple(combo(C[:, j], (x, y, z)) for j in range(3))
+
+        for i, before in enumerate(b._before):
+            if np.any(before[:3, 3]):
+                p = p + combo(before[:3, 3], (x, y, z))
+            x, y, z = turn(before[:3, :3])
+            if self.prismatic[i]:
+                p = p + z * q[:, i, None]
+            else:
+                c, s = np.cos(q[:, i])[:, None], np.sin(q[:, i])[:, None]
+                x, y = c * x + s * y, c * y - s * x
+        for T in (b._flange, None):
+            if T is None:
+                v, C = b._tool_p, b._tool_R
+            else:
+                v, C = T[:3, 3], T[:3, :3]
+            if np.any(v):
+                p = p + combo(v, (x, y, z))
+            x, y, z = turn(C)
+        return p, np.stack([x, y, z], axis=2)
+
+    def fk_jac(self, q):
+        q = np.asarray(q, float)
+        b = self
+        if not self.uses_chain:
+            p, R = self.fk(q)
+            n = q.shape[1]
+            J = np.zeros((len(q), 6, n))
+            for i in range(n):
+                h = 1e-3 if self.prismatic[i] else 1e-6
+                dq = q.copy()
+                dq[:, i] += h
+                p2, R2 = self.fk(dq)
+                J[:, :3, i] = (p2 - p) / h
+                J[:, 3:, i] = _rotvec(R2 @ np.transpose(R, (0, 2, 1))) / h
+            return p, R, J
+        S, n = q.shape
+        x, y, z = (np.zeros((S, 3)) for _ in range(3))
+        x[:, 0] = y[:, 1] = z[:, 2] = 1.0
+        p = np.zeros((S, 3))
+        zs = np.empty((S, n, 3))
+        os_ = np.empty((S, n, 3))
+        comb = self._combo
+        for i, before in enumerate(b._before):
+            if np.any(before[:3, 3]):
+                p = p + comb(before[:3, 3], (x, y, z))
+            x, y, z = (comb(before[:3, j], (x, y, z)) for j in range(3))
+            zs[:, i] = z
+            if self.prismatic[i]:
+                p = p + z * q[:, i, None]
+            else:
+                c, s = np.cos(q[:, i])[:, None], np.sin(q[:, i])[:, None]
+                x, y = c * x + s * y, c * y - s * x
+            os_[:, i] = p
+        for v, C in ((b._flange[:3, 3], b._flange[:3, :3]), (b._tool_p, b._tool_R)):
+            if np.any(v):
+                p = p + comb(v, (x, y, z))
+            x, y, z = (comb(C[:, j], (x, y, z)) for j in range(3))
+        tcp, tR = p, np.stack([x, y, z], axis=2)
+        J = np.zeros((S, 6, n))
+        lin = np.where(self.prismatic[None, :, None], zs, np.cross(zs, tcp[:, None, :] - os_))
+        J[:, :3] = np.transpose(lin, (0, 2, 1))
+        J[:, 3:] = np.transpose(np.where(self.prismatic[None, :, None], 0.0, zs), (0, 2, 1))
+        return tcp, tR, J
+
+
+def _rotvec(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors (S, 3) of rotations (S, 3, 3) (angles below pi)."""
+    w = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
+    sn = np.linalg.norm(w, axis=1)
+    ang = np.arctan2(sn, (np.trace(R, axis1=1, axis2=2) - 1.0) / 2.0)
+    scale = np.where(sn > 1e-12, ang / np.maximum(sn, 1e-300), 1.0)
+    return w * scale[:, None]
+
+
+def _slerp(Ra, Rb, s):
+    from scipy.spatial.transform import Rotation
+    rel = Rotation.from_matrix(np.transpose(Ra, (0, 2, 1)) @ Rb).as_rotvec()
+    return Ra @ Rotation.from_rotvec(rel * s[:, None]).as_matrix()
+
+
+MAX_IK_STEP = 0.2      # rad (or mm) per Newton step at most
+ORI_WEIGHT_MM = 500.0  # orientation error of 1 rad weighs like 500 mm in the IK
+
+
+def _ik_batch(chain, P, R, q0, free, iters=12):
+    """Joint values reaching TCP poses (P, R), base frame, from guesses q0, moving only the
+    joints ``free`` (bool, (dof,) or (S, dof)). Returns (q, position error mm, orientation
+    error rad). Each sample iterates until it is within 1e-5 mm / 1e-8 rad."""
+    q = np.array(q0, float)
+    mask = np.broadcast_to(np.asarray(free, bool), q.shape).astype(float)
+    lam2 = 1e-6
+    act = np.arange(len(q))
+    for _ in range(iters):
+        if not len(act):
+            break
+        p, Rc, J = chain.fk_jac(q[act])
+        ep = P[act] - p
+        eo = _rotvec(R[act] @ np.transpose(Rc, (0, 2, 1)))
+        going = (np.abs(ep).max(axis=1) >= 1e-5) | (np.abs(eo).max(axis=1) >= 1e-8)
+        act, ep, eo, J = act[going], ep[going], eo[going], J[going]
+        if not len(act):
+            break
+        e = np.concatenate([ep, eo * ORI_WEIGHT_MM], axis=1)
+        Jw = J * mask[act][:, None, :]
+        Jw[:, 3:] *= ORI_WEIGHT_MM
+        A = Jw @ np.transpose(Jw, (0, 2, 1)) + lam2 * np.eye(6)[None]
+        dq = np.einsum("sji,sj->si", Jw, np.linalg.solve(A, e[:, :, None])[:, :, 0])
+        big = np.abs(dq).max(axis=1, keepdims=True) / MAX_IK_STEP
+        q[act] += dq / np.maximum(big, 1.0)  # short steps: stay on the branch of the guess
+    p, Rc = chain.fk(q)
+    return q, np.linalg.norm(P - p, axis=1), np.linalg.norm(_rotvec(R @ np.transpose(Rc, (0, 2, 1))), axis=1)
+
+
+def _robot_for(prog, robot):
+    if prog.tool_T_mm is not None:
+        return robot.with_placement(tool_T_mm=np.asarray(prog.tool_T_mm, float))
+    return robot
+
+
+def _abb_axes(profile, robot):
+    """(joint index, sign, offset) of rax_1, rax_4, rax_5, rax_6 (identity on joints 1..6
+    without a profile)."""
+    out = {}
+    if profile is not None:
+        for a in profile.axes:
+            if a.axis in ("rax_1", "rax_4", "rax_5", "rax_6"):
+                out[a.axis] = (robot.joint_names.index(a.joint), a.sign, a.offset)
+    else:
+        out = {"rax_1": (0, 1, 0.0), "rax_4": (3, 1, 0.0), "rax_5": (4, 1, 0.0), "rax_6": (5, 1, 0.0)}
+    return out if len(out) == 4 else None
+
+
+def _abb_conf(q, ax) -> np.ndarray:
+    """(cf1, cf4, cf6, axis 5 negative) of joint values (rad), (S, 4)."""
+    def deg(name):
+        i, sign, off = ax[name]
+        return sign * np.degrees(q[:, i]) + off
+    return np.stack([np.floor(deg("rax_1") / 90), np.floor(deg("rax_4") / 90), np.floor(deg("rax_6") / 90),
+                     (deg("rax_5") < 0).astype(float)], axis=1)
+
+
+def _conf_seeds(seed, conf, ax):
+    """Seeds in the configuration a confdata asks for: axes 1, 4, 6 in their quadrants
+    (nearest the seed's turn) and axis 5 on its side; with and without a wrist flip."""
+    out = []
+    for flip in (False, True):
+        s = seed.copy()
+        if flip:
+            for name, d in (("rax_4", np.pi), ("rax_5", None), ("rax_6", np.pi)):
+                i, sign, _off = ax[name]
+                s[i] = -s[i] if d is None else s[i] + d
+        for name, cf in (("rax_1", conf[0]), ("rax_4", conf[1]), ("rax_6", conf[2])):
+            i, sign, off = ax[name]
+            want = ((cf + 0.5) * 90.0 - off) / sign  # joint degrees at the middle of the quadrant
+            cur = np.degrees(s[i])
+            if np.floor((sign * cur + off) / 90) != cf:
+                s[i] = np.radians(want)
+        i5, sign5, off5 = ax["rax_5"]
+        neg = (sign5 * np.degrees(s[i5]) + off5) < 0
+        if bool(conf[3] % 2) != neg:
+            s[i5] = -s[i5] if abs(s[i5]) > 1e-3 else np.radians(-10.0 if conf[3] % 2 else 10.0)
+        out.append(s)
+    return out
+
+
+CONF_EDGE_DEG = 0.01  # a joint this close to a quadrant boundary (or axis 5 to 0) matches either side
+
+
+def _conf_ok(q, want, ax) -> np.ndarray:
+    """(S,) True where joint values (S, dof) are in the configuration ``want`` (S, 4) asks for;
+    a joint within ``CONF_EDGE_DEG`` of a boundary matches either side."""
+    ok = np.ones(len(q), bool)
+    for col, name in ((0, "rax_1"), (1, "rax_4"), (2, "rax_6")):
+        i, sign, off = ax[name]
+        d = sign * np.degrees(q[:, i]) + off
+        ok &= (np.floor((d - CONF_EDGE_DEG) / 90) == want[:, col]) | (np.floor((d + CONF_EDGE_DEG) / 90) == want[:, col])
+    i, sign, off = ax["rax_5"]
+    d5 = sign * np.degrees(q[:, i]) + off
+    neg = (want[:, 3] % 2) == 1
+    ok &= np.where(neg, d5 < CONF_EDGE_DEG, d5 > -CONF_EDGE_DEG)
+    return ok
+
+
+def _conf_matches(q1, want, ax) -> bool:
+    return bool(_conf_ok(q1[None], np.asarray(want)[None], ax)[0])
+
+
+def target_joints(prog, robot, profile=None) -> np.ndarray:
+    """(M, dof) joint values of every target: joint targets as written; each Cartesian target
+    solved for the joints it leaves open, from the previous target's joints, in the
+    configuration the program asks for (ABB confdata: the quadrants of axes 1, 4, 6 and the
+    side of axis 5); NaN where no solution within 1e-3 mm / 1e-5 rad is found."""
+    robot = _robot_for(prog, robot)
+    q = np.array(prog.q, float)
+    cart = np.flatnonzero(prog.kind != "J")
+    if not len(cart):
+        return q
+    chain = _Chain(robot)
+    mid = (robot.limits.lower + robot.limits.upper) / 2
+    ax = _abb_axes(profile, robot) if prog.conf_convention == "abb" else None
+    known = np.isfinite(q[cart])
+    # seeds: the joints of the last joint target before each Cartesian one (the controller keeps its
+    # configuration); then, for any that misses, the solution of the target before it, then seeds in
+    # the asked configuration
+    last_joint = np.maximum.accumulate(np.where(prog.kind != "J", -1, np.arange(len(q))))
+    src = last_joint[cart]
+    seed = np.where(src[:, None] >= 0, q[np.maximum(src, 0)], mid[None, :])
+    seed = np.where(known, q[cart], seed)
+    done = np.zeros(len(cart), bool)
+    check = ax is not None and (prog.conf[cart] != CONF_UNKNOWN).all(axis=1) if ax is not None else \
+        np.zeros(len(cart), bool)
+    for attempt in range(4):
+        todo = np.flatnonzero(~done)
+        if not len(todo):
+            break
+        T = prog.pose[cart[todo]]
+        sol, ep, eo = _ik_batch(chain, T[:, :3, 3], T[:, :3, :3], seed[todo], ~known[todo], iters=80)
+        good = (ep < 1e-3) & (eo < 1e-5)
+        if ax is not None:
+            conf_ok = np.ones(len(todo), bool)
+            chk = check[todo] & good
+            if chk.any():
+                conf_ok[chk] = _conf_ok(sol[chk], prog.conf[cart[todo[chk]]], ax)
+            accept = good & conf_ok
+        else:
+            accept = good
+        q[cart[todo[accept]]] = sol[accept]
+        done[todo[accept]] = True
+        if attempt == 3:
+            # reached, but not in the asked configuration: configuration_findings says so
+            q[cart[todo[good & ~accept]]] = sol[good & ~accept]
+            break
+        # next seeds: the previous target's joints now known, else a configuration seed
+        for j, i in enumerate(todo):
+            if done[i]:
+                continue
+            k = cart[i]
+            prev = q[k - 1] if k > 0 and np.isfinite(q[k - 1]).all() else None
+            if attempt == 0 and prev is not None:
+                seed[i] = np.where(known[i], q[k], prev)
+            elif ax is not None and check[i]:
+                cs = _conf_seeds(sol[j] if good[j] else seed[i], prog.conf[k], ax)
+                seed[i] = np.where(known[i], q[k], cs[min(attempt - 1, 1)] if attempt >= 1 else cs[0])
+    return q
+
+
+def configuration_findings(prog, robot, q, profile=None) -> list[str]:
+    """Findings where a Cartesian target's solved joints are not in the configuration the
+    program asks for (ABB confdata: cf1, cf4, cf6 quadrants and the sign of axis 5)."""
+    if prog.conf_convention != "abb":
+        return []
+    out = []
+    cart = np.flatnonzero((prog.kind != "J") & np.isfinite(q).all(axis=1) & (prog.conf != CONF_UNKNOWN).all(axis=1))
+    if not len(cart):
+        return out
+    ax = _abb_axes(profile, robot)
+    if ax is None:
+        return out
+    c = _abb_conf(q[cart], ax)
+    got = c[:, :3]
+    flip_got = c[:, 3] == 1
+    bad = np.flatnonzero(~_conf_ok(q[cart], prog.conf[cart], ax))
+    for i in bad[:20]:
+        k = cart[i]
+        out.append(f"{prog.where[k]}: the target is reached in configuration "
+                   f"[{int(got[i, 0])},{int(got[i, 1])},{int(got[i, 2])},{'odd' if flip_got[i] else 'even'} cfx], "
+                   f"the program asks for {list(map(int, prog.conf[k]))}")
+    if len(bad) > 20:
+        out.append(f"{prog.where[0].rsplit(':', 1)[0]}: ... and {len(bad) - 20} more configuration mismatches")
+    return out
+
+
+def _target_poses(prog, robot, q):
+    chain = _Chain(robot)
+    ok = np.isfinite(q).all(axis=1)
+    P = np.full((len(q), 3), np.nan)
+    R = np.full((len(q), 3, 3), np.nan)
+    if ok.any():
+        P[ok], R[ok] = chain.fk(q[ok])
+    cart = prog.kind != "J"
+    P[cart] = prog.pose[cart, :3, 3]
+    R[cart] = prog.pose[cart, :3, :3]
+    return P, R

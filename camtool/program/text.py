@@ -1,0 +1,43 @@
+"""Text a program carries: controller-safe identifiers and small helpers the writers share.
+
+Each dialect has its own sanitiser for free text (comments, headers) in its ``dialect``
+module; ``sanitise_name`` makes identifiers (program, module, job, tool names).
+"""
+from __future__ import annotations
+
+import logging
+import re
+
+import numpy as np
+
+log = logging.getLogger("camtool.post")
+
+
+def sanitise_name(raw: str, *, max_len: int, reserved: frozenset[str] = frozenset(),
+                  upper: bool = False, what: str = "name") -> tuple[str, str]:
+    """A controller-safe identifier: letters, digits and ``_``, leading letter, at most
+    ``max_len`` characters, not in ``reserved`` (compared case-insensitively).
+
+    Returns ``(name, note)``; ``note`` is empty when ``raw`` was already valid.
+    """
+    s = raw.upper() if upper else raw
+    s = re.sub(r"[^A-Za-z0-9_]", "_", s.encode("ascii", "replace").decode("ascii"))
+    if not s or not s[0].isalpha():
+        s = ("P" if upper else "p") + s
+    s = s[:max_len]
+    if s.upper() in {r.upper() for r in reserved}:
+        s = (s[:max_len - 2] + "_1")
+    note = "" if s == raw else f"{what} {raw!r} is not valid for the controller; written as {s!r}"
+    if note:
+        log.warning(note)
+    return s, note
+
+
+def joint_values_edge(trajectory_q: np.ndarray, prismatic: np.ndarray) -> np.ndarray:
+    """Joint values in edge units: degrees for revolute joints, mm for prismatic."""
+    return np.where(prismatic[None, :], trajectory_q, np.degrees(trajectory_q))
+
+
+def chunks(n: int, size: int) -> list[range]:
+    """Split range(n) into consecutive ranges of at most ``size``."""
+    return [range(i, min(i + size, n)) for i in range(0, n, size)] or [range(0)]

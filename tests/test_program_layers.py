@@ -1,0 +1,54 @@
+"""The program wing's layers (issue #22): core never imports a plugin package, plugins never
+import the simulator, and nothing probes a plugin for optional capabilities."""
+import re
+from pathlib import Path
+
+from test_imports import import_graph
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+# the batch cache hashes the plugin packages' files (its code digest); it runs none of their code
+DIGEST_ONLY = {"camtool.batch.cache"}
+
+
+def test_no_camtool_module_imports_a_plugin_package():
+    """The built-ins are named as strings in camtool.program.registry and imported on use."""
+    graph = import_graph()
+    up = {m: sorted(t for t in ts if t.startswith("postprocessors")) for m, ts in graph.items()
+          if m.startswith("camtool") and m not in DIGEST_ONLY}
+    assert not {m: t for m, t in up.items() if t}
+
+
+def test_no_plugin_imports_the_simulator():
+    graph = import_graph()
+    found = {m: sorted(t for t in ts if t.startswith("camtool.simulate")) for m, ts in graph.items()
+             if m.startswith("postprocessors")}
+    assert not {m: t for m, t in found.items() if t}
+
+
+def test_the_program_model_imports_no_simulator():
+    graph = import_graph()
+    assert not {m for m, ts in graph.items() if m.startswith("camtool.program")
+                and any(t.startswith("camtool.simulate") for t in ts)}
+
+
+def test_no_capability_probes_of_plugins():
+    """camtool asks a plugin only what ``PostProcessor`` declares: no hasattr / getattr /
+    inspect.signature on plugin objects in the post stage, the registry or the commands."""
+    files = [ROOT / "camtool" / "post.py", *(ROOT / "camtool" / "program").glob("*.py"),
+             *(ROOT / "camtool" / "commands").glob("*.py"), *(ROOT / "postprocessors").rglob("*.py")]
+    probe = re.compile(r"\b(hasattr|getattr)\(\s*(plugin|p|info\.plugin|self)\b|inspect\.signature")
+    hits = [f"{f.relative_to(ROOT)}:{n}" for f in files for n, line in enumerate(f.read_text().splitlines(), 1)
+            if probe.search(line)]
+    assert not hits
+
+
+def test_write_programs_takes_no_job():
+    import inspect
+
+    from camtool.post import write_programs
+
+    params = list(inspect.signature(write_programs).parameters)
+    assert params[:5] == ["trajectory", "robot", "post_settings", "profiles", "outdir"]
+    assert "job" not in params

@@ -1,0 +1,81 @@
+"""The program steps (camtool.program.steps): one contract run over every step, and what
+each step does."""
+import numpy as np
+import pytest
+
+from camtool.program.kinematics import Kinematics
+from camtool.program.plan import plan_moves, profile_tool
+from camtool.program.process import ProcessInfo
+from camtool.program.profiles import load_profile
+from camtool.program.steps import (CompoundStep, FitArcs, JoinNullLinear, MoveStep, context_for, move_lengths_ok,
+                                   program_steps)
+from camtool.robots import get_robot
+from test_post import rows_trajectory
+
+LEVELS = (0.3, 1.0, 5.0, 10.0)
+STEPS = [JoinNullLinear(), FitArcs(max_sweep_deg=120.0), FitArcs(max_sweep_deg=10.0),
+         program_steps(arcs_max_sweep_deg=120.0), CompoundStep(())]
+
+
+@pytest.fixture(scope="module")
+def planned():
+    r = get_robot("irb2400")
+    p = load_profile(None, "irb2400", "rapid", r)
+    r = r.with_placement(tool_T_mm=profile_tool(p))
+    tr = rows_trajectory(r, rows=2)
+    process = ProcessInfo()
+    plan = plan_moves(tr, r, process, linear=True, levels_mm=LEVELS, min_level_on_surface=0)
+    return plan, context_for(tr, r, process, plan, LEVELS, 0), r
+
+
+@pytest.mark.parametrize("step", STEPS, ids=lambda s: type(s).__name__)
+def test_every_step_keeps_the_contract(planned, step):
+    plan, ctx, _r = planned
+    assert isinstance(step, MoveStep)
+    out = step.apply(plan, ctx)
+    n = len(out)
+    assert 2 <= n <= len(plan)
+    for name in ("wp", "kind", "t", "level", "row", "row_start", "row_end", "free", "P", "R", "q"):
+        assert len(getattr(out, name)) == n, name
+    assert np.allclose(out.P[[0, -1]], plan.P[[0, -1]]) and out.level[0] == -1 and out.level[-1] == -1
+    assert np.all(np.diff(out.t) >= 0)
+    assert out.row_start.sum() == plan.row_start.sum() and out.row_end.sum() == plan.row_end.sum()
+    # every row's first and last target stays, with its marks
+    for mark in ("row_start", "row_end"):
+        assert np.allclose(out.P[getattr(out, mark)], plan.P[getattr(plan, mark)])
+    assert set(np.unique(out.kind)) <= {"J", "L", "C"}
+    circ = out.kind == "C"
+    if circ.any():
+        assert np.isfinite(out.via_P[circ]).all() and np.isfinite(out.via_q[circ]).all()
+        assert move_lengths_ok(out)
+    assert np.all(out.level >= -1) and np.all(out.level < len(LEVELS))
+
+
+def test_fit_arcs_merges_rows_on_circles(planned):
+    plan, ctx, _r = planned
+    out = FitArcs(max_sweep_deg=120.0).apply(plan, ctx)
+    assert (out.kind == "C").sum() >= 1 and len(out) < len(plan)
+    assert len(FitArcs(max_sweep_deg=120.0).apply(out, ctx)) == len(out)  # nothing left to merge
+
+
+def test_fit_arcs_keeps_each_arc_within_its_sweep(planned):
+    from camtool.program.arcs import circle_through
+
+    plan, ctx, _r = planned
+    for limit in (120.0, 10.0):
+        out = FitArcs(max_sweep_deg=limit).apply(plan, ctx)
+        k = np.flatnonzero(out.kind == "C")
+        if len(k):
+            *_x, sweep, ok = circle_through(out.P[k - 1], out.via_P[k], out.P[k])
+            assert ok.all() and np.degrees(sweep).max() <= limit + 1e-9
+
+
+def test_join_null_linear_makes_a_linear_move_that_goes_nowhere_a_joint_move(planned):
+    from dataclasses import replace
+
+    plan, ctx, _r = planned
+    i = int(np.flatnonzero(plan.kind == "L")[0])
+    P = plan.P.copy()
+    P[i] = P[i - 1]
+    out = JoinNullLinear().apply(replace(plan, P=P), ctx)
+    assert out.kind[i] == "J" and (out.kind == "L").sum() == (plan.kind == "L").sum() - 1
