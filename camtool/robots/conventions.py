@@ -190,7 +190,7 @@ class ControllerConventions:
         for label, T in (("tool0", self.tool0_in_flange), ("robot frame", self.robot_frame_in_base)):
             parts.append(f"{label} = {'flange' if label == 'tool0' else 'base'}" if np.array_equal(T, np.eye(4))
                          else f"{label} at {_frame_text(T)} in the {'flange' if label == 'tool0' else 'base'}")
-        return "; ".join(parts)
+        return " / ".join(parts)
 
 
 def _frame_text(T: np.ndarray) -> str:

@@ -9,24 +9,20 @@ import numpy as np
 
 from camtool import __version__
 from camtool.program.convention import controller_axes, controller_pose_base
+from camtool.robots.confdata import yaskawa_rconf
 from camtool.program.kinematics import Kinematics
 from camtool.program.moves import JOINT
 from camtool.program.plan import KIND_LINEAR, plan_moves, profile_tool, split_parts
 from camtool.program.process import ProcessInfo, program_date
 
-from .dialect import (GROUPS, comment_text, V_STEP, _fmt_column, euler_xyz_deg, group_axes, job_name, to_pulses,
-                      validate_profile)
+from .dialect import (GROUPS, comment_text, V_STEP, _fmt_column, euler_xyz_deg, group_axes, job_name, pulse_free,
+                      to_pulses, validate_profile)
 
 
-def _rconf(kin: Kinematics, axes: dict, groups, q: np.ndarray, n_fields: int) -> list[str]:
-    """``///RCONF`` values (flip, lower arm, rear, R>=180, T>=180, S>=180, 0...) per target."""
-    rb = groups["RB1"]
-    val = {i + 1: axes[a.axis] for i, a in enumerate(rb)}
-    rear, lower = kin.arm_configuration(q)
-    flip = (val[5] < 0).astype(int)  # unverified: 'flip' taken as B < 0
-    big = [(np.abs(val[i]) >= 180).astype(int) for i in (4, 6, 1)]
-    rows = np.stack([flip, lower.astype(int), rear.astype(int), *big], axis=1)
-    return [",".join(str(int(v)) for v in r) + ",0" * (n_fields - 6) for r in rows]
+def _rconf(robot, q: np.ndarray, n_fields: int) -> list[str]:
+    """``///RCONF`` values (flip, lower arm, rear, R>=180, T>=180, S>=180, 0...) per target, from
+    the controller's axis values (robots/confdata.py; flip = B < 0 is unverified)."""
+    return [",".join(str(int(v)) for v in r) for r in yaskawa_rconf(robot, q, n_fields)]
 
 
 
@@ -83,22 +79,23 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
             written += 100 * g / vj
     # --- positions
     lin = kind == KIND_LINEAR
+    cart_pos = np.ones(n, bool) if pulse_free(profile) else lin   # no pulse factors: every position Cartesian
     pos_txt: dict[str, list[str]] = {}
     for g, pre in GROUPS.items():
         if g in pulses:
             pos_txt[pre] = [",".join(map(str, row)) for row in pulses[g].tolist()]
+    pos_txt.setdefault("C", [""] * n)
     rconf = [None] * n
-    if lin.any():
-        li = np.flatnonzero(lin)
-        P, R = controller_pose_base(profile, plan.P[li], plan.R[li])
+    if cart_pos.any():
+        li = np.flatnonzero(cart_pos)
+        P, R = controller_pose_base(profile, plan.P[li], plan.R[li], robot)  # in the robot frame
         ang = euler_xyz_deg(R)
         rb = groups["RB1"]
         extra = [axes[rb[6].axis][li]] if len(rb) == 7 else []
         cols = [P[:, 0], P[:, 1], P[:, 2], ang[:, 0], ang[:, 1], ang[:, 2], *extra]
         dec = [3, 3, 3, 4, 4, 4, 4]
         txt = [_fmt_column(c, d) for c, d in zip(cols, dec)]
-        rc = _rconf(Kinematics(robot), {a: v[li] for a, v in axes.items()}, groups, plan.q[li],
-                    o["rconf_fields"])
+        rc = _rconf(robot, plan.q[li], o["rconf_fields"])
         for j, i in enumerate(li):
             pos_txt["C"][i] = ",".join(t[j] for t in txt)
             rconf[i] = rc[j]
@@ -120,9 +117,12 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     notes = [f"'camtool {__version__} {comment_text(robot.name, 64)} {n} moves",
              f"'{n_lin} MOVL {n - n_lin} MOVJ {int((pl == 0).sum())} STOPS",
              f"'PATH TOL {process.path_tol_mm:g} MM",
+             f"'{comment_text(robot.conventions.source, 12).upper()} ROBOT {comment_text(robot.name, 24).upper()}",
+             "'" + comment_text("AXES " + " ".join(robot.conventions.controller_axis_names), 60),
+             ("'POSITIONS RECTAN ROBOT FRAME NO PULSE FACTORS" if pulse_free(profile) else "'PULSES FROM THE PROFILE"),
              (f"'PROCESS OUTPUT OT#({out_no})" if out_no else "'NO PROCESS OUTPUT CONFIGURED")]
     header = dict(tool=profile.tool["number"], date=date, group=",".join(groups), comm=comm,
-                  attr="SC,RW,RJ" if n_lin else "SC,RW", notes=notes)
+                  attr="SC,RW,RJ" if cart_pos.any() else "SC,RW", notes=notes)
     files: dict[str, list[str]] = {}
     job = dict(kind=kind, pos_txt=pos_txt, rconf=rconf, speed=speed, pl=pl, before=before, after=after,
                rconf_fields=o["rconf_fields"])
@@ -153,7 +153,7 @@ def _job(name, r: range, header, job) -> list[str]:
     lines += [f"///NPOS {counts[0]},{counts[1]},{counts[2]},0,0,0", f"///TOOL {header['tool']}"]
     state = None
     for i, k in enumerate(r):
-        want = ("rectan", rconf[k]) if kind[k] == KIND_LINEAR else ("pulse", None)
+        want = ("rectan", rconf[k]) if rconf[k] is not None else ("pulse", None)
         if want != state:
             if want[0] == "pulse":
                 lines += ["///POSTYPE PULSE", "///PULSE"]
