@@ -285,7 +285,7 @@ def target_joints(prog, robot, profile=None) -> np.ndarray:
     if len(pose_only):
         from camtool.robots.confdata import yaskawa_rconf
         from camtool.robots.ik_common import nearest_equivalent
-        starts = np.random.default_rng(0).uniform(robot.limits.lower, robot.limits.upper, (16, robot.dof))
+        starts = np.random.default_rng(0).uniform(robot.limits.lower, robot.limits.upper, (48, robot.dof))
     for i in pose_only:
         k = cart[i]
         ref = q[k - 1] if k > 0 and np.isfinite(q[k - 1]).all() else mid
