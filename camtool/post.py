@@ -191,6 +191,16 @@ def check_limits(trajectory, robot) -> None:
         more = f"; and {len(bad) - MAX_LISTED} more" if len(bad) > MAX_LISTED else ""
         raise PlanInfeasible(f"the trajectory leaves the joint limits of {robot.name}, no program written: "
                              + "; ".join(lines) + more)
+    # the axes the controller limits (the IRB2400's axis 3 is j2 + j3): a program must not need
+    # a configuration the controller refuses
+    conv = robot.conventions
+    bad = np.argwhere(conv.controller_limit_violations(conv.controller_from_model(q)))
+    if len(bad):
+        lines = [f"sample {k} (t = {trajectory.t_s[k]:.3f} s): " + conv.check_controller_limits(
+            conv.controller_from_model(q[k]))[0] for k in dict.fromkeys(int(k) for k, _ in bad[:MAX_LISTED])]
+        more = f"; and {len(bad) - MAX_LISTED} more" if len(bad) > MAX_LISTED else ""
+        raise PlanInfeasible(f"the trajectory leaves the controller's axis limits of {robot.name}, no program "
+                             "written: " + "; ".join(lines) + more)
 
 
 def _prepare_outdir(outdir: Path) -> None:

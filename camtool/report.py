@@ -45,6 +45,8 @@ def plan_metrics(path: Path, jp: JointPath, robot, method: str, jump_threshold_d
     seconds = float(ev.get("plan_seconds", 0.0))
     return {
         "robot": robot.name,
+        "robot_conventions": {"source": robot.conventions.source, "summary": robot.conventions.summary(),
+                              "reference": robot.conventions.reference},
         "method": method,
         "points_total": int(len(path)),
         "points_work": int(np.count_nonzero(path.zone == WORK)),

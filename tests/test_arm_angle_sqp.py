@@ -1,4 +1,4 @@
-"""Arm-angle SQP planner (seed 002) and the sequential_reach job kind."""
+"""Arm-angle SQP planner (seed 002, on the paper's table sia20_paper) and the sequential_reach job kind."""
 import json
 
 import numpy as np
@@ -27,7 +27,7 @@ def _targets(points_mm):
 @pytest.fixture(scope="module")
 def small_task():
     pts = [(x, 500.0, z) for z in (450.0, 550.0, 650.0) for x in (-100.0, 0.0, 100.0)]
-    robot = get_robot("sia20")
+    robot = get_robot("sia20_paper")
     return robot, _targets(pts), optimise_arm_angles(robot, _targets(pts))
 
 
@@ -63,7 +63,7 @@ def test_fixed_arm_angle_is_the_start_value(small_task):
 
 def test_plan_arm_angle_sqp_gives_a_joint_path(small_task):
     robot, targets, _ = small_task
-    job = load_job(SAMPLES / "sia20_wall.toml", ["task.plane=job", "task.plane_point_mm=[0, 600, 0]",
+    job = load_job(SAMPLES / "sia20_paper_wall.toml", ["task.plane=job", "task.plane_point_mm=[0, 600, 0]",
                                                  "task.grid_columns=3", "task.grid_rows=2"])
     point, normal = target_plane(job)
     path = reach_path(job, point, normal, job.cell.base_xyz_mm)
@@ -76,14 +76,14 @@ def test_plan_arm_angle_sqp_gives_a_joint_path(small_task):
 
 
 def test_unreachable_target_is_named():
-    robot = get_robot("sia20")
+    robot = get_robot("sia20_paper")
     with pytest.raises(PlanInfeasible, match="target 1: .*out of reach"):
         optimise_arm_angles(robot, _targets([(0.0, 500.0, 500.0), (350.0, 600.0, 950.0)]))
 
 
 def test_reach_job_from_the_cli_vertical_route(tmp_path):
     out = tmp_path / "v"
-    r = run_camtool("run", SAMPLES / "sia20_wall.toml", "-o", out, "--set", "task.route=vertical")
+    r = run_camtool("run", SAMPLES / "sia20_paper_wall.toml", "-o", out, "--set", "task.route=vertical")
     assert r.returncode == 0, r.stderr
     report = json.loads((out / "report.json").read_text())
     fam = report["arm_angle_sqp"]["families"]
@@ -91,20 +91,21 @@ def test_reach_job_from_the_cli_vertical_route(tmp_path):
     assert abs(report["task"]["plane_point_mm"][1] - 600.0) < 1.0   # the RANSAC plane of wall.ply
     best = fam[report["arm_angle_sqp"]["best_family_number"] - 1]
     assert best["optimised_feasible"] or best["fixed_feasible"]
-    assert (out / "SIAWALL.JBI").is_file() and "arm_angle_families.txt" in r.stdout
+    assert (out / "SIAWALL.csv").is_file() and "arm_angle_families.txt" in r.stdout
     table = (out / "arm_angle_families.txt").read_text()
     assert "kept" in table and len(table.splitlines()) == 9
 
 
 def test_reach_job_horizontal_small_grid_and_paper_placement(tmp_path):
-    r = run_camtool("run", SAMPLES / "sia20_wall.toml", "-o", tmp_path / "h", "--set", "task.grid_columns=3",
+    r = run_camtool("run", SAMPLES / "sia20_paper_wall.toml", "-o", tmp_path / "h", "--set", "task.grid_columns=3",
                     "--set", "task.grid_rows=2", "--set", "task.start_mm=[0, 600, 800]")
     assert r.returncode == 0, r.stderr
     report = json.loads((tmp_path / "h" / "report.json").read_text())
     assert report["task"]["route"] == "horizontal" and report["task"]["poses"] == 7
     # the paper's placement (base at the world origin): the corner is out of reach -> exit 3, clear line
-    r = run_camtool("run", SAMPLES / "sia20_wall.toml", "-o", tmp_path / "p", "--set", "cell.base_xyz_mm=[0, 0, 0]")
+    r = run_camtool("run", SAMPLES / "sia20_paper_wall.toml", "-o", tmp_path / "p", "--set", "cell.base_xyz_mm=[0, 0, 0]")
     assert r.returncode == 3 and "out of reach" in r.stderr and "target 0" in r.stderr
+    assert (tmp_path / "h" / "SIAWALL.csv").is_file()   # the paper's table has no controller: joint values only
 
 
 def test_raster_job_with_arm_angle_sqp_is_bad_input(tmp_path):

@@ -21,8 +21,10 @@ def test_fk_seed8_home_json(cli):
 
 
 def test_fk_degrees(cli):
-    r = cli("fk", "sia20", 90, 0, 0, 0, 0, 0, 0, "--deg", "--json")
+    r = cli("fk", "sia20_paper", 90, 0, 0, 0, 0, 0, 0, "--deg", "--json")
     assert np.allclose(json.loads(r.output)["position_mm"], [0, 0, 1291])
+    r = cli("fk", "sia20", 90, 0, 0, 0, 0, 0, 0, "--deg", "--json")   # the SIA20D: 410 + 490 + 420 + 180
+    assert np.allclose(json.loads(r.output)["position_mm"], [0, 0, 1500])
 
 
 def test_fk_negative_values_and_wrong_count(cli):
@@ -31,10 +33,10 @@ def test_fk_negative_values_and_wrong_count(cli):
     assert r.exit_code == 2 and "has 6 joints" in r.output
 
 
-def test_robots_json_lists_four_with_limits(cli):
+def test_robots_json_lists_five_with_limits(cli):
     r = cli("robots", "--json")
     robots = {d["name"]: d for d in json.loads(r.output)}
-    assert set(robots) == {"seed8", "irb2400", "irb2400_paper", "sia20"}
+    assert set(robots) == {"seed8", "irb2400", "irb2400_paper", "sia20", "sia20_paper"}
     seed8 = robots["seed8"]
     assert seed8["dof"] == 8 and seed8["joints"][0]["type"] == "prismatic"
     assert seed8["joints"][0]["lower"] == -1000 and seed8["joints"][1]["upper"] == pytest.approx(170)

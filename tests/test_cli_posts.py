@@ -8,7 +8,7 @@ from camtool.cli import cli
 from camtool.profiles import default_profile_path
 from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
-from post_fixtures import smooth_trajectory
+from post_fixtures import profile_for_tests, smooth_trajectory
 from postprocessors.abb_rapid import RapidPost
 from postprocessors.yaskawa_inform import InformPost
 
@@ -30,7 +30,7 @@ def test_posts_json():
 
 def _program(tmp_path, fmt, robot_name):
     r = get_robot(robot_name)
-    p = load_profile(None, robot_name, fmt, r)
+    p = profile_for_tests(robot_name, fmt, r, tmp_path)
     post = RapidPost() if fmt == "rapid" else InformPost()
     return post.write(smooth_trajectory(r, 20), r, p, tmp_path)[0]
 

@@ -46,12 +46,16 @@ def test_numerical_ik_finds_nothing_the_closed_form_misses(irb):
     rng = np.random.default_rng(3)
     cwln = CwlnSolver(robot, IkSettings(max_iterations=300))
     matched = 0
-    for _ in range(2):
+    for _ in range(3):  # 3 poses: with the serial j3 box (coupled limits) fewer random starts converge
         q = rng.uniform(0.8 * robot.limits.lower, 0.8 * robot.limits.upper)
+        while not robot.within_limits(q):  # a configuration the controller takes (coupled axis 3 = j2 + j3)
+            q = rng.uniform(0.8 * robot.limits.lower, 0.8 * robot.limits.upper)
         T = robot.fk(q)
         sols = ik.solve(T)
         for _start in range(50):
             q0 = rng.uniform(robot.limits.lower, robot.limits.upper)
+            while not robot.within_limits(q0):
+                q0 = rng.uniform(robot.limits.lower, robot.limits.upper)
             res = cwln.solve(T, q0)
             if res.converged:
                 assert any(_same_mod_2pi(s.q, res.q) for s in sols), res.q

@@ -88,9 +88,9 @@ def test_trajectory_outside_the_limits_is_refused_and_nothing_written(tmp_path):
     r = get_robot("irb2400")
     tr = smooth_trajectory(r, 20)
     q = tr.q.copy()
-    q[7, 2] = np.radians(70.0)  # j3 upper limit is 65 deg
+    q[7, 2] = np.radians(170.0)  # j3's serial range ends at 165 deg (the coupled axis 3 at 65)
     out = tmp_path / "o"
-    with pytest.raises(PlanInfeasible, match=r"sample 7 .*j3 = 70.0000 deg"):
+    with pytest.raises(PlanInfeasible, match=r"sample 7 .*j3 = 170.0000 deg"):
         write_job_programs(with_q(tr, q), r, _job(tmp_path, "irb2400", 'formats = ["rapid", "csv"]\n'), out)
     assert not out.exists() or not any(out.iterdir())
 

@@ -8,7 +8,7 @@ import pytest
 from camtool.program.process import ProcessInfo
 from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
-from post_fixtures import smooth_trajectory
+from post_fixtures import profile_for_tests, smooth_trajectory
 from postprocessors.inform import InformPost
 from postprocessors.inform.dialect import CODE_IN_COMMENT_RE as INFORM_CODE
 from postprocessors.inform.dialect import comment_text as inform_comment
@@ -49,7 +49,9 @@ def test_long_text_is_truncated_visibly():
 
 def _write(post, robot_name, fmt, tmp_path, job_name):
     r = get_robot(robot_name)
-    p = load_profile(None, robot_name, fmt, r)
+    p = profile_for_tests(robot_name, fmt, r, tmp_path)  # sia20 INFORM: with test pulse factors
+    if fmt == "inform":   # joint moves: the fixture's sinusoid passes the SIA20D's straight-arm singularity
+        p = p.with_changes(options={"motion": "joint"})
     files = post.write(smooth_trajectory(r, 20), r, p, tmp_path, ProcessInfo(job_name=job_name))
     return r, p, files
 

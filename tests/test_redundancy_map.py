@@ -21,7 +21,7 @@ from plan_fixtures import sphere_rows
 # each robot on a small sphere patch it reaches; the irb2400's tool is tilted and offset so that a spin
 # about tool z moves the wrist (with the tool on the joint-6 axis every spin is just joint 6)
 CASES = {
-    "sia20": ("arm_angle", (1100.0, 0.0, 300.0), None),
+    "sia20_paper": ("arm_angle", (1100.0, 0.0, 300.0), None),   # the sphere sits where seed 002's table reaches it
     "seed8": ("track", (1000.0, 0.0, 100.0), None),
     "irb2400": ("tool_spin", (1400.0, 0.0, 300.0), ([60.0, 0.0, 150.0], [0.0, 30.0, 0.0])),
 }
@@ -142,7 +142,7 @@ def test_robots_without_closed_form_families_are_not_mapped():
     robot = get_robot("irb2400_paper")           # no spherical wrist
     assert redundancy_kind(robot) is None
     with pytest.raises(BadInput, match="closed-form"):
-        redundancy_map(_path("sia20"), robot)
+        redundancy_map(_path("sia20_paper"), robot)
 
 
 def test_failing_poses_are_included_but_bounded():

@@ -5,8 +5,9 @@ import pytest
 
 from camtool.errors import BadInput
 from camtool.robots import BUILTIN_ROBOTS, get_robot
+from camtool.robots.library import robot_toml_data
 from camtool.robots.urdf import robot_from_urdf, urdf_from_robot
-from camtool.transforms import rotation_angle_rad
+from camtool.transforms import matrix_from_xyz_rpy, rotation_angle_rad
 
 
 def dh_product(robot, q):
@@ -22,7 +23,8 @@ def dh_product(robot, q):
         else:
             A = np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [0, sa, ca, d], [0, 0, 0, 1]])
         T = T @ A
-    return T
+    flange = robot_toml_data(robot.name).get("flange", {})  # the manufacturer robots' flange is the controller's tool0
+    return T @ matrix_from_xyz_rpy(flange.get("xyz_mm", [0, 0, 0]), flange.get("rpy_deg", [0, 0, 0]))
 
 
 def random_q(robot, rng, n):

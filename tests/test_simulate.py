@@ -11,6 +11,7 @@ from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
 from camtool.simulate import (Reference, move_durations, reference_from_trajectory, simulate, target_joints)
 from postprocessors.abb_rapid import RapidPost
+from post_fixtures import profile_for_tests
 from camtool.program.process import ProcessInfo
 from camtool.program.moves import ProgramMoves, empty_moves
 from postprocessors.yaskawa_inform import InformPost
@@ -19,7 +20,7 @@ from test_post import rows_trajectory
 
 def _program(fmt, robot_name, tmp_path, rows=2, **options):
     r = get_robot(robot_name)
-    p = load_profile(None, robot_name, fmt, r)
+    p = profile_for_tests(robot_name, fmt, r, tmp_path)
     if options:
         p = p.with_changes(options=options)
     post = RapidPost() if fmt == "rapid" else InformPost()

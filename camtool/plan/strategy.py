@@ -131,8 +131,8 @@ class AnalyticSeeds:
             else:
                 for sol in self.ik.solve(T):
                     eq = limit_equivalents(sol.q, L.lower, L.upper, ~self.robot.prismatic)
-                    if eq is not None:
-                        out += [np.array(c) for c in islice(product(*eq), 16)]
+                    if eq is not None:  # inside the controller's axis limits too (coupled J3)
+                        out += [q for q in map(np.array, islice(product(*eq), 16)) if self.robot.within_limits(q)]
             if out or not self.varies:
                 return out
         return []

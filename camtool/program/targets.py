@@ -248,6 +248,13 @@ def _conf_matches(q1, want, ax) -> bool:
     return bool(_conf_ok(q1[None], np.asarray(want)[None], ax)[0])
 
 
+def cartesian_targets(prog) -> np.ndarray:
+    """(M,) True for targets stated as a pose: linear and circular moves, and joint moves to a
+    Cartesian position (a Yaskawa MOVJ to a ///RECTAN position, written without pulse factors)."""
+    pose_only = np.isfinite(prog.pose).all(axis=(1, 2)) & ~np.isfinite(prog.q).all(axis=1)
+    return (prog.kind != "J") | pose_only
+
+
 def target_joints(prog, robot, profile=None) -> np.ndarray:
     """(M, dof) joint values of every target: joint targets as written; each Cartesian target
     solved for the joints it leaves open, from the previous target's joints, in the
@@ -255,7 +262,8 @@ def target_joints(prog, robot, profile=None) -> np.ndarray:
     side of axis 5); NaN where no solution within 1e-3 mm / 1e-5 rad is found."""
     robot = _robot_for(prog, robot)
     q = np.array(prog.q, float)
-    cart = np.flatnonzero(prog.kind != "J")
+    stated = cartesian_targets(prog)
+    cart = np.flatnonzero(stated)
     if not len(cart):
         return q
     chain = _Chain(robot)
@@ -265,11 +273,39 @@ def target_joints(prog, robot, profile=None) -> np.ndarray:
     # seeds: the joints of the last joint target before each Cartesian one (the controller keeps its
     # configuration); then, for any that misses, the solution of the target before it, then seeds in
     # the asked configuration
-    last_joint = np.maximum.accumulate(np.where(prog.kind != "J", -1, np.arange(len(q))))
+    last_joint = np.maximum.accumulate(np.where(stated, -1, np.arange(len(q))))
     src = last_joint[cart]
     seed = np.where(src[:, None] >= 0, q[np.maximum(src, 0)], mid[None, :])
     seed = np.where(known, q[cart], seed)
     done = np.zeros(len(cart), bool)
+    # joint moves to Cartesian positions with no joint target before them (a job written without
+    # pulse factors): the controller moves from where it is, so each is solved from the one before
+    # (Yaskawa: in the configuration its ///RCONF asks for, the turn nearest the previous target)
+    pose_only = np.flatnonzero((src < 0) & (prog.kind[cart] == "J"))
+    if len(pose_only):
+        from camtool.robots.confdata import yaskawa_rconf
+        from camtool.robots.ik_common import nearest_equivalent
+        starts = np.random.default_rng(0).uniform(robot.limits.lower, robot.limits.upper, (48, robot.dof))
+    for i in pose_only:
+        k = cart[i]
+        ref = q[k - 1] if k > 0 and np.isfinite(q[k - 1]).all() else mid
+        seeds = np.vstack([ref, starts])
+        seeds = np.where(known[i][None], q[k][None], seeds)
+        T = np.repeat(prog.pose[k][None], len(seeds), axis=0)
+        sol, ep, eo = _ik_batch(chain, T[:, :3, 3], T[:, :3, :3], seeds, np.repeat(~known[i][None], len(seeds), 0),
+                                iters=80)
+        cands = []
+        for c in sol[(ep < 1e-3) & (eo < 1e-5)]:
+            w = nearest_equivalent(c, ref, robot.limits.lower, robot.limits.upper, ~robot.prismatic)
+            if w is None:
+                continue
+            if (prog.conf[k] != CONF_UNKNOWN).all() and robot.dof == len(robot.conventions.axis_joints) >= 6:
+                rc = yaskawa_rconf(robot, w[None], 6)[0]
+                if [rc[0], rc[1], rc[2], rc[3] * 4 + rc[4] * 2 + rc[5]] != list(prog.conf[k]):
+                    continue
+            cands.append(w)
+        if cands:
+            q[k], done[i] = min(cands, key=lambda w: float(np.sum((w - ref) ** 2))), True
     check = ax is not None and (prog.conf[cart] != CONF_UNKNOWN).all(axis=1) if ax is not None else \
         np.zeros(len(cart), bool)
     for attempt in range(4):
@@ -304,6 +340,16 @@ def target_joints(prog, robot, profile=None) -> np.ndarray:
             elif ax is not None and check[i]:
                 cs = _conf_seeds(sol[j] if good[j] else seed[i], prog.conf[k], ax)
                 seed[i] = np.where(known[i], q[k], cs[min(attempt - 1, 1)] if attempt >= 1 else cs[0])
+    # a revolute joint the controller solves turns to the 2*pi-equivalent inside its limits nearest
+    # the previous target (a numerical solution may land a turn away)
+    from camtool.robots.ik_common import nearest_equivalent
+    rev = ~robot.prismatic
+    for k in cart:
+        if np.isfinite(q[k]).all() and not robot.within_limits(q[k]):
+            ref = q[k - 1] if k > 0 and np.isfinite(q[k - 1]).all() else mid
+            w = nearest_equivalent(q[k], ref, robot.limits.lower, robot.limits.upper, rev)
+            if w is not None:
+                q[k] = w
     return q
 
 

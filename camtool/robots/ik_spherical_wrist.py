@@ -22,6 +22,7 @@ inside the limits, trying the 2*pi-equivalents of joints whose range exceeds
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import islice, product
 
 import numpy as np
 
@@ -79,6 +80,8 @@ class SphericalWristIK:
         L = robot.limits
         self.lower, self.upper = L.lower, L.upper
         self.revolute = ~robot.prismatic
+        # the controller's axis limits (the IRB2400's coupled axis 3 = j2 + j3), besides the joint box
+        self.controller_ok = robot.conventions.within_limits
 
     def solve(self, T_flange_mm: np.ndarray) -> list[IkSolution]:
         """Every closed-form solution of a flange pose (base frame, mm); [] if unreachable."""
@@ -113,7 +116,8 @@ class SphericalWristIK:
                 M = (R3 @ ch.P[3][:3, :3]).T @ R6
                 for q4, q5, q6, g3 in spherical_group(M, ch.P[4][:3, :3], ch.P[5][:3, :3]):
                     q = wrap_pi(np.array([q1, q2, q3, q4, q5, q6]))
-                    ok = limit_equivalents(q, self.lower, self.upper, self.revolute) is not None
+                    eq = limit_equivalents(q, self.lower, self.upper, self.revolute)
+                    ok = eq is not None and any(self.controller_ok(np.array(c)) for c in islice(product(*eq), 64))
                     out.append(IkSolution(q, (g1, g2, g3), ok))
         return out
 
@@ -126,7 +130,7 @@ class SphericalWristIK:
         cands = []
         for s in self.solve(T_flange_mm):
             q = nearest_equivalent(s.q, q_ref, self.lower, self.upper, self.revolute)
-            if q is not None:
+            if q is not None and self.controller_ok(q):
                 cands.append(q)
         if not cands:
             raise PlanInfeasible(f"{self.robot.name}: pose has no closed-form IK solution inside the joint limits")

@@ -21,6 +21,21 @@ Robot TOML format (the built-ins in ``robots/data/`` use it too)::
     [flange]                     # optional constant flange offset after the last joint
     xyz_mm = [0, 0, 0]
     rpy_deg = [0, 0, 0]
+    [controller]                 # optional: how the robot's controller sees the joints
+    source = "user"              # "paper" | "manufacturer" | "user"
+    reference = "where the numbers come from"
+    [[controller.axis]]          # one per controller axis, in the controller's order
+    name = "rax_1"
+    joint = "j1"                 # the joint driving it
+    plus = []                    # coupled joints added to it (ABB parallel linkage: ["j2"] on axis 3)
+    direction = 1                # 1 or -1
+    zero_offset = 0              # deg (mm for a prismatic joint)
+    lower = -170                 # the controller's limits of this axis, deg or mm
+    upper = 170
+    [controller.tool0_in_flange]     # the controller's tool0 in the flange (xyz_mm, rpy_deg)
+    [controller.robot_frame_in_base] # the controller's robot frame in the base (xyz_mm, rpy_deg)
+
+    Without [controller] the controller's axes are the joints (``conventions.py``).
 
 Every value is checked before Pinocchio sees it; each problem is one BadInput
 line naming the file and the key: an unknown key (with the closest known key
@@ -41,14 +56,15 @@ import numpy as np
 
 from ..errors import BadInput
 from ..transforms import matrix_from_xyz_rpy
+from .conventions import conventions_from_table
 from .dh import MAX_LENGTH_MM, DHRow, build_pinocchio_model
 from .model import Limits, Robot
 
-BUILTIN_ROBOTS = ("seed8", "irb2400", "irb2400_paper", "sia20")
+BUILTIN_ROBOTS = ("seed8", "irb2400", "irb2400_paper", "sia20", "sia20_paper")
 
 _JOINT_KEYS = {"name", "type", "a_mm", "alpha_deg", "d_mm", "theta_deg", "lower", "upper",
                "velocity", "acceleration", "jerk"}
-_TOP_KEYS = {"name", "convention", "notes", "params", "joint", "flange"}
+_TOP_KEYS = {"name", "convention", "notes", "params", "joint", "flange", "controller"}
 _FLANGE_KEYS = {"xyz_mm", "rpy_deg"}
 _LENGTH_KEYS = ("a_mm", "d_mm")
 
@@ -234,15 +250,19 @@ def robot_from_toml(data: dict, source: str, params: dict | None = None) -> Robo
                 raise BadInput(f"{where}.{k}: expected a value > 0, found {j[k]!r}")
     flange_T = _flange_matrix(data.get("flange", {}), source)
     model, fid = build_pinocchio_model(rows, convention, flange_T, names, name)
+    limits = Limits(*(np.array(lim[k]) for k in ("lower", "upper", "velocity", "acceleration", "jerk")))
+    conventions = conventions_from_table(data.get("controller"), name, names, prismatic, limits.lower, limits.upper,
+                                         source, "paper" if source.startswith("builtin:") else "user")
     return Robot(
         name=name,
         joint_names=tuple(names),
         prismatic=np.array(prismatic),
-        limits=Limits(*(np.array(lim[k]) for k in ("lower", "upper", "velocity", "acceleration", "jerk"))),
+        limits=limits,
         model=model,
         flange_frame_id=fid,
         convention=convention,
         dh=tuple(rows),
         source=source,
         notes=data.get("notes", ""),
+        conventions=conventions,
     )

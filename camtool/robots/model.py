@@ -15,6 +15,7 @@ import threading
 import numpy as np
 import pinocchio as pin
 
+from .conventions import ControllerConventions, identity
 from .dh import MM_TO_M, DHRow
 
 # Pinocchio's Data is a mutable work buffer: it belongs to whoever computes, not to the
@@ -40,6 +41,9 @@ class Robot:
     ``base_T_mm`` places the robot base in the world (cell) frame and
     ``tool_T_mm`` the tool centre point in the flange frame; both come from the
     job. ``fk`` gives the flange, ``fk_tcp`` the TCP, both in the base frame.
+    ``conventions`` say how the robot's controller sees the joints and frames
+    (``robots/conventions.py``); a robot without controller data gets identity
+    conventions, declared ``source = "user"``.
     """
 
     name: str
@@ -54,6 +58,13 @@ class Robot:
     base_T_mm: np.ndarray = field(default_factory=lambda: np.eye(4))
     tool_T_mm: np.ndarray = field(default_factory=lambda: np.eye(4))
     notes: str = ""
+    conventions: ControllerConventions | None = field(default=None, repr=False)
+
+    def __post_init__(self):
+        if self.conventions is None:
+            object.__setattr__(self, "conventions", identity(
+                self.name, self.joint_names, self.prismatic, self.limits.lower, self.limits.upper, "user",
+                "none given: the controller's axes are the robot's joints, unchanged"))
 
     @property
     def _q_scale(self) -> np.ndarray:
@@ -143,8 +154,10 @@ class Robot:
         return np.where(self.prismatic, q, np.degrees(q))
 
     def within_limits(self, q, tol: float = 1e-9) -> bool:
+        """True if q is inside the joint limits and inside the controller's axis limits (the coupled J3)."""
         q = np.asarray(q)
-        return bool(np.all(q >= self.limits.lower - tol) and np.all(q <= self.limits.upper + tol))
+        return bool(np.all(q >= self.limits.lower - tol) and np.all(q <= self.limits.upper + tol)
+                    and self.conventions.within_limits(q, tol))
 
     def describe(self) -> dict:
         """Name, dof, joint types and limits in degrees / mm (for ``camtool robots``)."""
@@ -164,4 +177,4 @@ class Robot:
                 "jerk_per_s3": edge(L.jerk, i),
             })
         return {"name": self.name, "dof": self.dof, "convention": self.convention,
-                "source": self.source, "joints": joints}
+                "source": self.source, "joints": joints, "controller": self.conventions.describe()}

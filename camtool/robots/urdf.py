@@ -213,7 +213,12 @@ def urdf_from_robot(robot: Robot, flange_T_mm: np.ndarray | None = None) -> str:
                   f'    <limit lower="{L.lower[i] * s:.12g}" upper="{L.upper[i] * s:.12g}" '
                   f'velocity="{L.velocity[i] * s:.12g}" effort="1000"/>', '  </joint>']
         parent = child
-    flange = pending @ (np.eye(4) if flange_T_mm is None else flange_T_mm)
+    if flange_T_mm is None:  # the model's own flange frame (the controller's tool0 on the manufacturer robots)
+        M = robot.model.frames[robot.flange_frame_id].placement
+        flange = np.eye(4)
+        flange[:3, :3], flange[:3, 3] = M.rotation, M.translation / MM_TO_M
+    else:
+        flange = pending @ flange_T_mm
     lines += ['  <link name="flange"/>', '  <joint name="flange_fixed" type="fixed">',
               f'    <parent link="{parent}"/><child link="flange"/>', f'    {_origin(flange)}',
               '  </joint>', '</robot>', '']

@@ -10,7 +10,7 @@ from camtool.errors import BadInput
 from camtool.program.check import arc_findings, check_motion
 from camtool.program.durations import move_durations
 from camtool.program.moves import JOINT
-from camtool.program.targets import target_joints
+from camtool.program.targets import cartesian_targets, target_joints
 
 from .dialect import ARC_LIMIT_DEG, GROUPS, group_axes, job_name
 from .parser import job_files, read_program
@@ -70,7 +70,7 @@ def check(path: Path, robot, profile) -> list[str]:
         prog = read_program(path, robot, profile)
     except BadInput as exc:
         return out + [f"{path}: {exc}"]
-    if (prog.kind != JOINT).any():
+    if cartesian_targets(prog).any():
         q = target_joints(prog, robot, profile)
         bad = np.flatnonzero(~np.isfinite(q).all(axis=1))
         if len(bad):
@@ -82,7 +82,7 @@ def check(path: Path, robot, profile) -> list[str]:
     tol = np.zeros(robot.dof)
     for a in (a for ax in groups.values() for a in ax):
         i = robot.joint_names.index(a.joint)
-        step = 1.0 / a.pulses
+        step = 0.0 if a.pulses is None else 1.0 / a.pulses   # Cartesian positions only: the term below
         tol[i] = step if robot.prismatic[i] else np.radians(step)
     if (prog.kind != JOINT).any():
         tol = tol + np.where(robot.prismatic, 1e-3, np.radians(1e-4))  # Cartesian positions: 0.001 mm / deg

@@ -135,8 +135,9 @@ def validate_profile(profile, robot) -> None:
         where = f"{profile.source}: axes.{a.joint}"
         if not AXIS_RE.match(a.axis):
             raise BadInput(f"{where}.axis: expected RB1:n, BS1:n or ST1:n, found {a.axis!r}")
-        if a.pulses is None:
-            raise BadInput(f"{where}.pulses: missing (pulses per {a.unit} of this axis, from the controller's parameters)")
+        if a.pulses is None and not a.axis.startswith("RB1:"):
+            raise BadInput(f"{where}.pulses: missing (pulses per {a.unit} of this axis, from the controller's "
+                           "parameters; a base or station axis has no Cartesian position)")
         if a.max_speed is None:
             raise BadInput(f"{where}.max_speed: missing (the axis's maximum speed in {a.unit}/s, needed for VJ)")
     groups = group_axes(profile)
@@ -173,13 +174,26 @@ def validate_profile(profile, robot) -> None:
     if o["motion"] == "cartesian" and (set(groups) != {"RB1"} or len(groups["RB1"]) not in (6, 7)):
         raise BadInput(f"{profile.source}: options.motion = 'cartesian' needs the robot group RB1 alone with "
                        "6 or 7 axes (the controller's own kinematics); use 'joint'")
+    # without the controller's pulse factors camtool writes no pulse position (never made-up
+    # pulses): every robot position is Cartesian (///RECTAN, MOVJ and MOVL alike), which needs
+    # the controller's kinematics for the robot group alone
+    missing = [a for a in groups["RB1"] if a.pulses is None]
+    if missing and (set(groups) != {"RB1"} or len(groups["RB1"]) not in (6, 7) or len(missing) != len(groups["RB1"])):
+        raise BadInput(f"{profile.source}: axes.{missing[0].joint}.pulses: missing (pulses per {missing[0].unit} "
+                       "from the controller's parameters); without pulse factors camtool writes Cartesian "
+                       "positions only, which needs every RB1 axis without them and RB1 alone with 6 or 7 axes")
 
 
 def to_pulses(profile, robot, q_native: np.ndarray) -> dict[str, np.ndarray]:
     """Pulses (int64, M x n) per group for joint values (rad / mm)."""
     axes = controller_axes(profile, robot, q_native)
     return {g: np.stack([np.round(axes[a.axis] * a.pulses).astype(np.int64) + a.zero_pulses for a in ax], axis=1)
-            for g, ax in group_axes(profile).items()}
+            for g, ax in group_axes(profile).items() if all(a.pulses is not None for a in ax)}
+
+
+def pulse_free(profile) -> bool:
+    """True if the profile has no pulse factors for the robot group: every position is Cartesian."""
+    return any(a.pulses is None for a in group_axes(profile).get("RB1", []))
 
 def from_pulses(profile, robot, pulses: dict[str, np.ndarray]) -> np.ndarray:
     """Joint values (rad / mm) from pulses per group."""

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from camtool.errors import BadInput
-from camtool.program.convention import base_pose, controller_axes, model_joints
+from camtool.program.convention import base_pose, controller_axes, model_joints, robot_frame
 from camtool.program.durations import move_durations
 from camtool.program.moves import CIRCULAR, JOINT, LINEAR, ProgramMoves, empty_moves
-from camtool.program.targets import target_joints
+from camtool.program.targets import cartesian_targets, target_joints
 
 from .dialect import (CIRCLE_POINT, CALL_RE, CODE_IN_COMMENT_RE, DATE_RE, DOUT_RE, FLOAT_RE, GROUPS, INT64, INTS_RE, LONG_RE, MOVE_RE, PL_MM, POS_RE,
                       ROW_END_RE, ROW_RE, group_axes, matrix_xyz_deg)
@@ -457,7 +457,7 @@ def _read_program(path: Path, robot, profile) -> ProgramMoves:
             T = np.broadcast_to(np.eye(4), (len(rect), 4, 4)).copy()
             T[:, :3, :3] = matrix_xyz_deg(arr[:, 3:6])
             T[:, :3, 3] = arr[:, :3]
-            kw["pose"][rect] = base_pose(np.eye(4), T)  # positions in the robot base frame
+            kw["pose"][rect] = base_pose(robot_frame(robot), T)  # positions in the robot frame
             if len(ax) == 7:
                 values[ax[6].axis][rect] = arr[:, 6]
             for k in rect:
@@ -472,7 +472,7 @@ def _read_program(path: Path, robot, profile) -> ProgramMoves:
                 V = np.eye(4)
                 V[:3, :3] = matrix_xyz_deg(np.array(vp[1][3:6], float)[None])[0]
                 V[:3, 3] = vp[1][:3]
-                kw["via"][k] = base_pose(np.eye(4), V)
+                kw["via"][k] = base_pose(robot_frame(robot), V)
     kw["q"] = model_joints(profile, robot, values)
     if M > 1:
         V = np.stack([values[a.axis] for a in order], axis=1)
@@ -488,13 +488,13 @@ def _read_program(path: Path, robot, profile) -> ProgramMoves:
     # a joint move after a Cartesian one: VJ needs the axis values of the Cartesian target
     need = np.flatnonzero((prog.kind == JOINT) & np.isnan(prog.duration_s))
     need = need[(need > 0)]
-    if len(need) and (prog.kind != JOINT).any():
+    if len(need) and cartesian_targets(prog).any():   # MOVJ to a ///RECTAN position too
         q = target_joints(prog, robot, profile)
         ax = controller_axes(profile, robot, np.nan_to_num(q))
         vals = np.stack([ax[a.axis] for a2 in groups.values() for a in a2], axis=1)
         for k in need:
             mv = moves[k]
-            if mv.vj > 0 and np.isfinite(q[k - 1]).all():
+            if mv.vj > 0 and np.isfinite(q[k - 1]).all() and np.isfinite(q[k]).all():
                 prog.duration_s[k] = float(np.max(np.abs(vals[k] - vals[k - 1]) / vmax)) * 100.0 / mv.vj
     return prog
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from camtool import __version__
 from camtool.program.convention import controller_axes, controller_pose_base
+from camtool.robots.confdata import yaskawa_rconf
 from camtool.program.kinematics import Kinematics
 from camtool.program.moves import JOINT
 from camtool.program.plan import KIND_CIRCULAR, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
@@ -16,18 +17,13 @@ from camtool.program.steps import context_for, program_steps
 from camtool.program.process import ProcessInfo, program_date
 
 from .dialect import (comment_text, euler_xyz_deg, _fmt_column, group_axes, GROUPS, job_name, MAX_ARC_DEG,
-                      to_pulses, V_STEP, validate_profile)
+                      pulse_free, to_pulses, V_STEP, validate_profile)
 
 
-def _rconf(kin: Kinematics, axes: dict, groups, q: np.ndarray, n_fields: int) -> list[str]:
-    """``///RCONF`` values (flip, lower arm, rear, R>=180, T>=180, S>=180, 0...) per target."""
-    rb = groups["RB1"]
-    val = {i + 1: axes[a.axis] for i, a in enumerate(rb)}
-    rear, lower = kin.arm_configuration(q)
-    flip = (val[5] < 0).astype(int)  # unverified: 'flip' taken as B < 0
-    big = [(np.abs(val[i]) >= 180).astype(int) for i in (4, 6, 1)]
-    rows = np.stack([flip, lower.astype(int), rear.astype(int), *big], axis=1)
-    return [",".join(str(int(v)) for v in r) + ",0" * (n_fields - 6) for r in rows]
+def _rconf(robot, q: np.ndarray, n_fields: int) -> list[str]:
+    """``///RCONF`` values (flip, lower arm, rear, R>=180, T>=180, S>=180, 0...) per target, from
+    the controller's axis values (robots/confdata.py; flip = B < 0 is unverified)."""
+    return [",".join(str(int(v)) for v in r) for r in yaskawa_rconf(robot, q, n_fields)]
 
 
 
@@ -114,9 +110,12 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
              f"'{n_lin} MOVL {n_circ} ARCS {n - n_lin - n_circ} MOVJ {int((pl == 0).sum())} STOPS" if n_circ else
              f"'{n_lin} MOVL {n - n_lin} MOVJ {int((pl == 0).sum())} STOPS",
              f"'PATH TOL {process.path_tol_mm:g} MM",
+             f"'{comment_text(robot.conventions.source, 12).upper()} ROBOT {comment_text(robot.name, 24).upper()}",
+             "'" + comment_text("AXES " + " ".join(robot.conventions.controller_axis_names), 60),
+             ("'POSITIONS RECTAN ROBOT FRAME NO PULSE FACTORS" if pulse_free(profile) else "'PULSES FROM THE PROFILE"),
              (f"'PROCESS OUTPUT OT#({out_no})" if out_no else "'NO PROCESS OUTPUT CONFIGURED")]
     header = dict(tool=profile.tool["number"], date=date, group=",".join(groups), comm=comm,
-                  attr="SC,RW,RJ" if n_lin + n_circ else "SC,RW", notes=notes)
+                  attr="SC,RW,RJ" if any(r is not None for r in rconf) else "SC,RW", notes=notes)
     files: dict[str, list[str]] = {}
     job = dict(kind=kind, pos_txt=pos_txt, rconf=rconf, speed=speed, pl=pl, before=before, after=after,
                rconf_fields=o["rconf_fields"], via_txt=via_txt, via_rconf=via_rconf)
@@ -146,21 +145,24 @@ def _positions(robot, profile, groups, P, R, q, cart, rconf_fields: int) -> tupl
     (mm, Rx Ry Rz deg, the 7th axis), with its RCONF."""
     pulses = to_pulses(profile, robot, q)
     axes = controller_axes(profile, robot, q)
+    if pulse_free(profile):  # no pulse factors: every position Cartesian, never made-up pulses
+        cart = np.ones(len(q), bool)
     pos_txt: dict[str, list[str]] = {}
     for g, pre in GROUPS.items():
         if g in pulses:
             pos_txt[pre] = [",".join(map(str, row)) for row in pulses[g].tolist()]
+    pos_txt.setdefault("C", [""] * len(q))
     rconf = [None] * len(q)
     if np.any(cart):
         li = np.flatnonzero(cart)
-        Pb, Rb = controller_pose_base(profile, P[li], R[li])
+        Pb, Rb = controller_pose_base(profile, P[li], R[li], robot)  # in the robot frame
         ang = euler_xyz_deg(Rb)
         rb = groups["RB1"]
         extra = [axes[rb[6].axis][li]] if len(rb) == 7 else []
         cols = [Pb[:, 0], Pb[:, 1], Pb[:, 2], ang[:, 0], ang[:, 1], ang[:, 2], *extra]
         dec = [3, 3, 3, 4, 4, 4, 4]
         txt = [_fmt_column(c, d) for c, d in zip(cols, dec)]
-        rc = _rconf(Kinematics(robot), {a: v[li] for a, v in axes.items()}, groups, q[li], rconf_fields)
+        rc = _rconf(robot, q[li], rconf_fields)
         for j, i in enumerate(li):
             pos_txt["C"][i] = ",".join(t[j] for t in txt)
             rconf[i] = rc[j]
@@ -183,7 +185,7 @@ def _instructions(r: range, job) -> list[dict]:
                             rconf=job["rconf"][k], fpt=nxt == KIND_CIRCULAR, **common))
             continue
         word = "MOVJ" if kind[k] == JOINT else ("MOVC" if nxt == KIND_CIRCULAR else "MOVL")
-        out.append(dict(word=word, pos={pre: pos_txt[pre][k] for pre in pos_txt}, rect=kind[k] != JOINT,
+        out.append(dict(word=word, pos={pre: pos_txt[pre][k] for pre in pos_txt}, rect=job["rconf"][k] is not None,
                         rconf=job["rconf"][k], fpt=False, **common))
     return out
 

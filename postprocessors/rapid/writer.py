@@ -9,6 +9,7 @@ import numpy as np
 
 from camtool import __version__
 from camtool.program.convention import controller_axes, controller_pose
+from camtool.robots.confdata import abb_confdata
 from camtool.program.kinematics import Kinematics
 from camtool.program.plan import KIND_CIRCULAR, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
 from camtool.program.steps import context_for, program_steps
@@ -128,6 +129,7 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
               f"! Job: {comment_text(process.job_name or 'unknown', 60)}; date {comment_text(date, 16)} UTC "
               f"(options.date = {comment_text(o['date'], 16)}).",
               f"! Profile: {comment_text(Path(profile.source).name, 60)}. Units: mm, deg, s; 9E9 = axis not connected.",
+              f"! Conventions: {comment_text(robot.conventions.summary(), 200)}.",
               f"! Moves merged and corners blended within {process.path_tol_mm:g} mm of the planned path "
               "(post.path_tol_mm).",
               (f"! Process: SetDO {sig}, 1 before each row's first work point, 0 after its last one."
@@ -163,10 +165,10 @@ def _robtargets(robot, profile, P, R, q, eax_txt) -> list[str]:
     quadrants and cfx from the arm configuration."""
     Pw, Rw = controller_pose(profile, P, R)
     Q = _quat_column(Rw)
-    axes = controller_axes(profile, robot, q)
-    rear, lower = Kinematics(robot).arm_configuration(q)
-    cf = np.stack([np.floor(axes[a] / 90.0) for a in ("rax_1", "rax_4", "rax_6")], axis=1)
-    cfx = 4 * rear + 2 * lower + (axes["rax_5"] < 0)
+    # cf1, cf4, cf6, cfx from the controller's axis values (robots/confdata.py: the coupled
+    # axis 3 and the controller's directions, not camtool's joints)
+    conf = abb_confdata(robot, q)
+    cf, cfx = conf[:, :3], conf[:, 3]
     px = [fmt_column(Pw[:, j], 3) for j in range(3)]
     qx = [fmt_column(Q[:, j], 6) for j in range(4)]
     return [f"[[{px[0][j]},{px[1][j]},{px[2][j]}],[{qx[0][j]},{qx[1][j]},{qx[2][j]},{qx[3][j]}],"
