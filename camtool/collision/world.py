@@ -70,6 +70,7 @@ class CollisionWorld:
         self.bodies: tuple[Body, ...] = self.robot_bodies + tuple(cell.obstacles)
         self.acm = (acm or robot_acm(robot, self.robot_bodies)).overridden(cell.allow, cell.check,
                                                                            [b.name for b in self.robot_bodies])
+        self.acm = _with_tool_neighbour(self.acm, self.robot_bodies, cell.check)
         self.geometry = [b.coal_geometry() for b in self.bodies]
         n_robot = len(self.robot_bodies)
         pairs = []
@@ -171,3 +172,27 @@ class WorldChecker:
 
     def __getattr__(self, name):   # the inner checker's figures (calls, mesh, ...)
         return getattr(self.inner, name)
+
+
+def _with_tool_neighbour(acm: AllowedCollisions, bodies, check=()) -> AllowedCollisions:
+    """The tool is adjacent to the link body before the one it is mounted on (the wrist's other side).
+
+    The link capsules end in half-spheres round the joint origins; round a
+    spherical wrist the forearm's end sphere is the wrist housing the tool is
+    bolted next to, and a wrist bend of 60-90 deg brings a tool cylinder into
+    it though no real wrist collides there. ``cell.check_collision`` measures
+    the pair anyway.
+    """
+    tools = [b for b in bodies if b.kind == "tool"]
+    links = [b for b in bodies if b.kind == "link"]
+    if not tools or not links:
+        return acm
+    tool = tools[0]
+    before = [b for b in links if b.parent < tool.parent]
+    if not before:
+        return acm
+    neighbour = max(before, key=lambda b: b.parent)
+    pair = frozenset((tool.name, neighbour.name))
+    if any(frozenset(c) == pair for c in check):
+        return acm
+    return AllowedCollisions({**acm.reasons, pair: "adjacent (wrist)"}, acm.samples, acm.geometry_hash)

@@ -94,7 +94,9 @@ def lift_and_reconfigure(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: n
             continue
         down = down[::-1]
         if valid is not None and not (valid(up[-1]) and valid(down[0])):
-            touches.append(f"at {height:g} mm above the surface the arm still touches the part")
+            hit = _world_hit(world, [up[-1], down[0]]) if world is not None else None
+            touches.append(f"at {height:g} mm above the surface " + (
+                f"{hit}" if hit is not None else "the arm still touches the part"))
             continue
         hit = _world_hit(world, np.concatenate([up, down])) if world is not None else None
         if hit is not None:
