@@ -10,6 +10,14 @@
 Messages are one line a process engineer can act on.
 """
 
+import difflib
+
+
+def closest(word: str, known) -> str:
+    """ "; did you mean X?" for the closest known name, or "" (for unknown-key messages)."""
+    match = difflib.get_close_matches(word, list(known), n=1, cutoff=0.6)
+    return f"; did you mean {match[0]!r}?" if match else ""
+
 
 class CamtoolError(Exception):
     """Base class of every error camtool raises on purpose."""

@@ -11,7 +11,6 @@ Errors name the file, the key path, what was expected and what was found::
 """
 from __future__ import annotations
 
-import difflib
 import math
 import re
 import tomllib
@@ -19,17 +18,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from .errors import BadInput
+from .errors import BadInput, closest
 
 
 MAX_LENGTH_MM = 1e6   # no length of a robot cell is longer than 1 km
 MAX_ANGLE_DEG = 3600.0  # no angle of a job is more than ten turns
 
 
-def _closest(word: str, known) -> str:
-    """ "; did you mean X?" for the closest known name, or ""."""
-    match = difflib.get_close_matches(word, list(known), n=1, cutoff=0.6)
-    return f"; did you mean {match[0]!r}?" if match else ""
+_closest = closest  # moved to errors.py so collision/spec.py can use it without importing job
 
 
 @dataclass(frozen=True)
@@ -257,7 +253,18 @@ class Job:
         return p if p.is_absolute() else self.dir / p
 
     def as_dict(self) -> dict:
-        return {name: dict(sec) for name, sec in self.sections.items()}
+        """The sections as plain dicts, keys left unset (None, e.g. cell.floor_z_mm) omitted:
+        TOML has no null, and an omitted key reads back as the same default."""
+        return {name: {k: _drop_none(v) for k, v in sec.items() if v is not None}
+                for name, sec in self.sections.items()}
+
+
+def _drop_none(value):
+    if isinstance(value, dict):
+        return {k: _drop_none(v) for k, v in value.items() if v is not None}
+    if isinstance(value, list):
+        return [_drop_none(v) for v in value]
+    return value
 
 
 def _describe(value) -> str:

@@ -329,7 +329,8 @@ def test_cli_maps_disk_errors_to_exit_2(tmp_path, monkeypatch):
     def full(*a, **k):
         raise OSError(errno.ENOSPC, "No space left on device", "/out/x")
 
-    monkeypatch.setattr("camtool.commands.run.run_job", full)
+    # run imports run_job when called (the speed branch's lazy imports): patch it where it lives
+    monkeypatch.setattr("camtool.pipeline.run_job", full)
     r = CliRunner().invoke(cli_module.cli, ["run", str(SPHERE), "-o", str(tmp_path / "o")])
     assert r.exit_code == 2 and "the disk is full" in r.output and "please report" not in r.output
 

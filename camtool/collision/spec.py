@@ -11,7 +11,7 @@ import math
 import re
 from dataclasses import dataclass
 
-from ..errors import BadInput
+from ..errors import BadInput, closest
 
 SHAPE_KEYS = ("mesh", "box_mm", "cylinder_mm", "sphere_mm")
 OBSTACLE_KEYS = ("name",) + SHAPE_KEYS + ("units", "xyz_mm", "rpy_deg", "frame")
@@ -66,8 +66,7 @@ def parse_obstacles(value, where: str) -> list[dict]:
         w = f"{where}[{i}]"
         for k in entry:
             if k not in OBSTACLE_KEYS:
-                from ..job import _closest
-                raise BadInput(f"{w}.{k}: unknown key{_closest(k, OBSTACLE_KEYS)} (expected one of "
+                raise BadInput(f"{w}.{k}: unknown key{closest(k, OBSTACLE_KEYS)} (expected one of "
                                f"{', '.join(OBSTACLE_KEYS)})")
         name = entry.get("name")
         if not isinstance(name, str) or not NAME_RE.match(name):

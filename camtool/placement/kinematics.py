@@ -88,13 +88,15 @@ def _spin_stack(n: int) -> np.ndarray:
     return S
 
 
-def best_of(cands: np.ndarray, lower: np.ndarray, upper: np.ndarray, revolute: np.ndarray):
+def best_of(cands: np.ndarray, lower: np.ndarray, upper: np.ndarray, revolute: np.ndarray, controller_ok=None):
     """Best candidate per pose by joint-limit margin.
 
     ``cands`` (C, K, n), NaN rows = no solution. Returns (K, n) q (each revolute
     joint at its 2*pi-equivalent nearest mid-range, which is the one farthest
     inside its limits), (K,) margin (``-inf``: no candidate inside the limits)
-    and (K,) any-solution flags.
+    and (K,) any-solution flags. ``controller_ok`` (optional, (..., n) -> (...)
+    bool, e.g. ``robot.conventions.within_limits``) also refuses candidates beyond
+    the controller's axis limits (the IRB2400's coupled axis 3 = j2 + j3).
     """
     span = upper - lower
     mid = 0.5 * (lower + upper)
@@ -104,7 +106,11 @@ def best_of(cands: np.ndarray, lower: np.ndarray, upper: np.ndarray, revolute: n
         m = (0.5 * span - np.abs(dev)) / span
         m = m.min(axis=-1)
     valid = ~np.isnan(m)
-    m = np.where(valid & (m >= 0.0), m, -np.inf)
+    ok = valid & (m >= 0.0)
+    if controller_ok is not None:
+        with np.errstate(invalid="ignore"):
+            ok &= np.asarray(controller_ok(np.nan_to_num(mid + dev)), bool).reshape(m.shape)
+    m = np.where(ok, m, -np.inf)
     c = np.argmax(m, axis=0)
     K = cands.shape[1]
     return mid + dev[c, np.arange(K)], m[c, np.arange(K)], valid.any(axis=0)
@@ -119,6 +125,8 @@ class ClosedForm:
         L = robot.limits
         self.lower, self.upper = np.asarray(L.lower, float), np.asarray(L.upper, float)
         self.revolute = ~np.asarray(robot.prismatic, bool)
+        # the controller's axis limits (the IRB2400's coupled axis 3), besides the joint box
+        self.controller_ok = None if robot.conventions.identity else robot.conventions.within_limits
         self.tool_inv = np.linalg.inv(robot.tool_T_mm)
         self.tool = np.asarray(robot.tool_T_mm, float)
         self.shift = track_shift
@@ -266,7 +274,8 @@ class ClosedForm:
     def _best(self, T, chunk, light):
         qs, ms, hs = [], [], []
         for a in range(0, len(T), chunk):
-            q, m, h = best_of(self.candidates(T[a:a + chunk], light), self.lower, self.upper, self.revolute)
+            q, m, h = best_of(self.candidates(T[a:a + chunk], light), self.lower, self.upper, self.revolute,
+                              self.controller_ok)
             qs.append(q), ms.append(m), hs.append(h)
         return np.concatenate(qs), np.concatenate(ms), np.concatenate(hs)
 
