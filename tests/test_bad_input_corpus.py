@@ -125,7 +125,15 @@ class Workspace:
             np.savez_compressed(fh, **arrays)
         return f
 
-    def program(self, fmt: str, robot_name: str) -> Path:
+    def sia20_pulses_profile(self) -> Path:
+        """The shipped sia20 INFORM profile plus test pulse factors (positions written as pulses)."""
+        from test_post_inform import sia20_profile_with_pulses
+
+        d = self.root / "profiles"
+        d.mkdir(exist_ok=True)
+        return sia20_profile_with_pulses(d)
+
+    def program(self, fmt: str, robot_name: str, profile_path: Path | None = None) -> Path:
         """A clean program of a smooth trajectory, as the post-processor writes it (CAMTOOL.*)."""
         from post_fixtures import smooth_trajectory
 
@@ -138,16 +146,17 @@ class Workspace:
 
         r = get_robot(robot_name)
         profile = (Profile("<t>", "csv", options=default_options("csv")) if fmt == "csv"
-                   else load_profile(None, robot_name, fmt, r))
+                   else load_profile(profile_path, robot_name, fmt, r))
         post = {"rapid": RapidPost(), "inform": InformPost(), "csv": CsvPost()}[fmt]
-        d = self.root / "programs"
+        d = self.root / ("programs" if profile_path is None else "programs_" + profile_path.stem)
         d.mkdir(exist_ok=True)
         files = post.write(smooth_trajectory(r, 8), r, profile, d)
         return next(f for f in files if f.suffix.lower() in (".mod", ".jbi", ".csv"))
 
-    def damaged(self, fmt: str, robot_name: str, change: Callable[[str], str]) -> Path:
+    def damaged(self, fmt: str, robot_name: str, change: Callable[[str], str],
+                profile_path: Path | None = None) -> Path:
         """A clean program with ``change`` applied to its text (same name, so the module name still fits)."""
-        p = self.program(fmt, robot_name)
+        p = self.program(fmt, robot_name, profile_path)
         text = p.read_bytes().decode("ascii")
         p.write_bytes(change(text).encode("ascii"))
         return p
@@ -190,10 +199,12 @@ def _jbi_cut(text: str) -> str:
 
 def _jbi_pulse_beyond_int64(text: str) -> str:
     lines = text.split("\r\n")
-    i = next(i for i, ln in enumerate(lines) if ln.startswith("C00001="))
-    values = lines[i].split("=", 1)[1].split(",")
+    # the first position stated in pulses (MOVL positions are ///RECTAN poses)
+    i = next(i for i, ln in enumerate(lines) if re.fullmatch(r"C\d{5}=-?\d+(,-?\d+)*", ln))
+    name, rest = lines[i].split("=", 1)
+    values = rest.split(",")
     values[0] = "99999999999999999999"  # > 2**63
-    lines[i] = "C00001=" + ",".join(values)
+    lines[i] = name + "=" + ",".join(values)
     return "\r\n".join(lines)
 
 
@@ -499,7 +510,9 @@ CHECK = [
     C("check-jbi-truncated", lambda w: ["check", w.damaged("inform", "sia20", _jbi_cut), "--robot", "sia20"],
       "END", finding=True),
     C("check-jbi-pulse-beyond-int64",
-      lambda w: ["check", w.damaged("inform", "sia20", _jbi_pulse_beyond_int64), "--robot", "sia20"],
+      # pulse positions need pulse factors: the shipped sia20 profile has none (///RECTAN poses)
+      lambda w: ["check", w.damaged("inform", "sia20", _jbi_pulse_beyond_int64, w.sia20_pulses_profile()),
+                 "--robot", "sia20", "--profile", w.sia20_pulses_profile()],
       "int64", finding=True, sub=True),
     C("check-csv-cut-mid-row",
       lambda w: ["check", w.damaged("csv", "irb2400", _csv_cut_mid_row), "--robot", "irb2400"], finding=True),

@@ -1,6 +1,7 @@
 """`camtool check`: exit codes, --json, --format, and bad files that are findings, not crashes."""
 import json
 import re
+from dataclasses import replace
 
 import pytest
 from click.testing import CliRunner
@@ -10,34 +11,58 @@ from camtool.profiles import Profile
 from camtool.program.profiles import default_options, load_profile
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory
-from test_post import rows_trajectory
+from test_post import CENTRES, rows_trajectory
 from postprocessors.abb_rapid import RapidPost
 from postprocessors.csv_joint import CsvPost
 from postprocessors.yaskawa_inform import InformPost
+from test_post_inform import sia20_profile_with_pulses
 
 
-def _program(tmp_path, fmt, robot_name, n=20):
+def _load_profile(tmp_path, robot_name, fmt, r, pulses=False):
+    """The shipped profile; with ``pulses`` for the sia20's INFORM, the shipped one plus test pulse
+    factors (the shipped one has none: every position is a ///RECTAN pose, so no position is in
+    pulses)."""
+    if pulses and (robot_name, fmt) == ("sia20", "inform"):
+        return load_profile(sia20_profile_with_pulses(tmp_path), robot_name, fmt, r)
+    return load_profile(None, robot_name, fmt, r)
+
+
+def _smooth(r, n):
+    """``smooth_trajectory``, moved for the sia20 to a posture away from its singularities
+    (``CENTRES``): about mid-range the SIA20D is near straight, axes S and T nearly in line, where
+    joint values read back by IK from ///RECTAN poses at 0.001 mm are ill-posed."""
+    tr = smooth_trajectory(r, n)
+    if r.name == "sia20":
+        mid = (r.limits.lower + r.limits.upper) / 2
+        tr = replace(tr, q=tr.q - mid + r.q_from_edge(CENTRES[r.name]))
+    return tr
+
+
+def _program(tmp_path, fmt, robot_name, n=20, pulses=False):
     r = get_robot(robot_name)
     if fmt == "csv":
         p = Profile("<t>", "csv", options=default_options("csv"))
     else:
-        p = load_profile(None, robot_name, fmt, r)
+        p = _load_profile(tmp_path, robot_name, fmt, r, pulses)
     post = {"rapid": RapidPost(), "inform": InformPost(), "csv": CsvPost()}[fmt]
-    return post.write(smooth_trajectory(r, n), r, p, tmp_path)[0]
+    return post.write(_smooth(r, n), r, p, tmp_path)[0]
 
 
 def _process_program(tmp_path, fmt, robot_name, **options):
     """A program of a raster-like trajectory (rows, leads, free motion)."""
     r = get_robot(robot_name)
-    p = load_profile(None, robot_name, fmt, r)
+    p = _load_profile(tmp_path, robot_name, fmt, r)
     if options:
         p = p.with_changes(options=options)
     post = {"rapid": RapidPost(), "inform": InformPost()}[fmt]
     return post.write(rows_trajectory(r, rows=2), r, p, tmp_path)[0]
 
 
-def _check(*args):
-    return CliRunner().invoke(cli, ["check", *map(str, args)])
+def _check(f, *args):
+    """``camtool check``, with the test-pulse profile a program beside it was written with."""
+    prof = f.parent / "sia20_pulses_inform.toml"
+    extra = ["--profile", prof] if prof.exists() and "--profile" not in args else []
+    return CliRunner().invoke(cli, ["check", *map(str, (f, *args, *extra))])
 
 
 @pytest.mark.parametrize("fmt,robot_name,moves", [("rapid", "seed8", 20), ("inform", "sia20", 20),
@@ -51,6 +76,9 @@ def test_json_of_a_clean_program(fmt, robot_name, moves, tmp_path):
     if fmt != "csv":  # moves merged, or the planned motion followed closer: count what the program holds
         text = "".join(g.read_text() for g in sorted(f.parent.glob("*.mod" if fmt == "rapid" else "*.JBI")))
         moves = len(re.findall(r"^\s*(?:MoveAbsJ|MoveL|MOVJ|MOVL) ", text, flags=re.M))
+        # a run of MOVC lines is a move to the first, then an arc per circle point and end point
+        moves += sum(1 + (len(run.splitlines()) - 1) // 2
+                     for run in re.findall(r"(?:^MOVC [^\n]*\n?)+", text, flags=re.M))
     assert out["ok"] is True and out["findings"] == [] and out["moves"] == moves
     # the first move (from wherever the robot is) has no duration: the steps of the 8 s trajectory
     assert out["duration_s"] == pytest.approx(8.0, rel=0.01 if fmt == "inform" else 1e-3)
@@ -69,8 +97,12 @@ def test_json_with_findings_exits_2(tmp_path):
 
 
 def test_json_of_an_unreadable_program_has_null_figures(tmp_path):
-    f = _program(tmp_path, "inform", "sia20")
-    f.write_bytes(re.sub(rb"C00004=(-?\d+),", b"C00004=99999999999999999999,", f.read_bytes()))
+    f = _program(tmp_path, "inform", "sia20", pulses=True)
+    # the first position stated in pulses (the MOVL positions are ///RECTAN poses)
+    raw = f.read_bytes()
+    spoilt = re.sub(rb"(?m)^(C\d{5})=-?\d+,", rb"\1=99999999999999999999,", raw, count=1)
+    assert spoilt != raw
+    f.write_bytes(spoilt)
     res = _check(f, "--robot", "sia20", "--json")
     assert res.exit_code == 2
     out = json.loads(res.stdout)

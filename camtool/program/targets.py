@@ -308,6 +308,30 @@ def target_joints(prog, robot, profile=None) -> np.ndarray:
             q[k], done[i] = min(cands, key=lambda w: float(np.sum((w - ref) ** 2))), True
     check = ax is not None and (prog.conf[cart] != CONF_UNKNOWN).all(axis=1) if ax is not None else \
         np.zeros(len(cart), bool)
+
+    def from_previous(i) -> bool:
+        """Solve target ``cart[i]`` from the joints of the target before it; True if accepted."""
+        k = cart[i]
+        if k == 0 or not np.isfinite(q[k - 1]).all():
+            return False
+        s0 = np.where(known[i], q[k], q[k - 1])[None]
+        T = prog.pose[[k]]
+        sol, ep, eo = _ik_batch(chain, T[:, :3, 3], T[:, :3, :3], s0, ~known[i][None], iters=400)
+        if not (ep[0] < 1e-3 and eo[0] < 1e-5):
+            return False
+        if ax is not None and check[i] and not _conf_ok(sol, prog.conf[[k]], ax)[0]:
+            if not np.isfinite(q[k]).all():
+                q[k] = sol[0]  # reached, but not in the asked configuration: configuration_findings says so
+            return False
+        q[k], done[i] = sol[0], True
+        return True
+
+    # Cartesian targets with no joint target before them (a Yaskawa job written without pulse
+    # factors): the controller moves on from the target before, keeping its configuration, so each
+    # is solved in run order from the joints of the one before it (a batch solve from the middle of
+    # the limits lands on other branches: the joints would jump between neighbouring targets)
+    for i in np.flatnonzero(~done & (src < 0)):
+        from_previous(i)
     for attempt in range(4):
         todo = np.flatnonzero(~done)
         if not len(todo):
@@ -340,6 +364,10 @@ def target_joints(prog, robot, profile=None) -> np.ndarray:
             elif ax is not None and check[i]:
                 cs = _conf_seeds(sol[j] if good[j] else seed[i], prog.conf[k], ax)
                 seed[i] = np.where(known[i], q[k], cs[min(attempt - 1, 1)] if attempt >= 1 else cs[0])
+    # a run of targets the batch missed: each in run order from the one before it (the passes above
+    # reseed a target from its predecessor only once, which leaves all but the first of a run unsolved)
+    for i in np.flatnonzero(~done):
+        from_previous(i)
     # a revolute joint the controller solves turns to the 2*pi-equivalent inside its limits nearest
     # the previous target (a numerical solution may land a turn away)
     from camtool.robots.ik_common import nearest_equivalent
