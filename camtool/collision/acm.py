@@ -13,7 +13,7 @@ Samples are uniform within the joint limits from a fixed seed, so the matrix
 is deterministic. The tool is not in the matrix: it is measured against every
 link except the one it is mounted on, whatever the tool. Built-in robots ship
 their matrix as data (``camtool/collision/data/acm_<robot>.json``, written by
-``python -m camtool.collision.acm``); it is used when the bodies it was made
+``python scripts/rebuild_acms.py``); it is used when the bodies it was made
 for (a hash of their shapes) are the robot's bodies, and made again otherwise.
 A job overrides it with ``cell.allow_collision`` and ``cell.check_collision``.
 """
@@ -168,18 +168,16 @@ def robot_acm(robot, bodies) -> AllowedCollisions:
     return acm
 
 
-def main(argv=None) -> None:
-    """Write the shipped matrices of the built-in robots (camtool/collision/data/acm_<robot>.json)."""
+def write_shipped_acms() -> dict[str, int]:
+    """Write the shipped matrices of the built-in robots (camtool/collision/data/acm_<robot>.json);
+    returns the number of allowed pairs per robot (``scripts/rebuild_acms.py`` prints them)."""
     from ..robots import BUILTIN_ROBOTS, get_robot
     from .shapes import robot_bodies
 
+    counts = {}
     for name in BUILTIN_ROBOTS:
         robot = get_robot(name)
-        bodies = robot_bodies(robot, 25.0)
-        acm = compute_acm(robot, bodies)
+        acm = compute_acm(robot, robot_bodies(robot, 25.0))
         (DATA_DIR / f"acm_{name}.json").write_text(_to_json(acm, name))
-        print(name, len(acm.reasons), "allowed pairs")
-
-
-if __name__ == "__main__":
-    main()
+        counts[name] = len(acm.reasons)
+    return counts
