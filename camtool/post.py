@@ -282,8 +282,6 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
     """
     from dataclasses import replace
 
-    from .program.plan import profile_tool
-
     outdir = Path(outdir)
     process = process if process is not None else ProcessInfo(path_tol_mm=post_settings.path_tol_mm,
                                                               ori_tol_deg=post_settings.ori_tol_deg)
@@ -301,40 +299,22 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
         findings: list[str] = []
         reference = None
         for fmt, post in profiles.items():
-            plugin, profile = post.plugin, post.profile
-            # the simulator measures the job's TCP (the robot given may come without the job's tool)
-            tcp_robot = robot.with_placement(tool_T_mm=profile_tool(profile))
-            t0 = time.perf_counter()
-            files = [Path(f) for f in plugin.write(trajectory, robot, profile, tmp, process)]
-            t_write = time.perf_counter() - t0
-            for f in files:
-                if f.parent != tmp:
-                    raise BadInput(f"post-processor {fmt!r} wrote {f} outside its output folder")
-                if f in written:
-                    raise BadInput(f"post-processor {fmt!r} wrote {f.name}, which another format also wrote")
+            files, found = [], []
+            for scale in MERGE_RETRY_SCALES:
+                for f in files:   # the previous attempt's files, inside the private folder
+                    f.unlink(missing_ok=True)
+                if scale < 1.0:
+                    log.info("%s: the simulated program leaves the planned path; written again with targets "
+                             "merged within %.3g mm", fmt, process.path_tol_mm * scale)
+                writing = replace(process, path_tol_mm=process.path_tol_mm * scale)
+                files, found, figures, reference = _write_checked(fmt, post, trajectory, robot, (tmp, outdir),
+                                                                  written, process, writing, reference)
+                if not (found and all(DEVIATION_FINDING in x for x in found)):
+                    break   # written within the tolerance, or a finding merging closer cannot mend
             written += files
-            t0 = time.perf_counter()
-            # a plugin whose check of the entry file follows every file it loads or calls says so
-            # (``check_covers_calls``): its entry file alone is checked
-            # (``check_covers_calls``); a file read back (no own check) is the entry file alone
-            for f in (files[:1] if plugin.check_covers_calls or not plugin.own_check else files):
-                findings += [s.replace(str(tmp), str(outdir)) for s in check_file(plugin, f, tcp_robot, profile)]
-            t_check = time.perf_counter() - t0
-            if plugin.simulated and files and not findings:
-                t0 = time.perf_counter()
-                if reference is None:
-                    from .simulate import reference_from_trajectory
-                    reference = reference_from_trajectory(trajectory, tcp_robot, process.feed_mm_s)
-                sim = simulate_program(plugin, files[0], tcp_robot, profile, trajectory, process, reference)
-                findings += [s.replace(str(tmp), str(outdir)) for s in sim.findings]
-                figures = sim.as_dict()
-                figures.pop("findings")
-                figures.update(write_s=round(t_write, 4), check_s=round(t_check, 4),
-                               simulate_s=round(time.perf_counter() - t0, 4),
-                               bytes=sum(f.stat().st_size for f in files), path_tol_mm=process.path_tol_mm)
-                if report is not None:
-                    report[fmt] = figures
-                log.info("%s: %s", fmt, "; ".join(summary_lines(sim)))
+            findings += found
+            if figures is not None and report is not None:
+                report[fmt] = figures
         findings = list(dict.fromkeys(findings))  # each once, in order
         if findings:
             more = f" (and {len(findings) - MAX_LISTED} more)" if len(findings) > MAX_LISTED else ""
@@ -349,6 +329,55 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
         return final
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+MERGE_RETRY_SCALES = (1.0, 0.6, 0.36)   # a program its simulator finds off the path is written again,
+                                        # its moves merged within this share of post.path_tol_mm
+DEVIATION_FINDING = "from the planned path"
+
+
+def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], written: list, process, writing,
+                   reference):
+    """Write one format into the private folder with ``writing`` (the process, its tolerance perhaps
+    tightened), check its files and simulate them against ``process``' tolerance; findings name the
+    output folder. Returns (files, findings, figures or None, reference)."""
+    from .program.plan import profile_tool
+
+    tmp, outdir = folders
+    plugin, profile = post.plugin, post.profile
+    # the simulator measures the job's TCP (the robot given may come without the job's tool)
+    tcp_robot = robot.with_placement(tool_T_mm=profile_tool(profile))
+    t0 = time.perf_counter()
+    files = [Path(f) for f in plugin.write(trajectory, robot, profile, tmp, writing)]
+    t_write = time.perf_counter() - t0
+    for f in files:
+        if f.parent != tmp:
+            raise BadInput(f"post-processor {fmt!r} wrote {f} outside its output folder")
+        if f in written:
+            raise BadInput(f"post-processor {fmt!r} wrote {f.name}, which another format also wrote")
+    findings: list[str] = []
+    t0 = time.perf_counter()
+    # a plugin whose check of the entry file follows every file it loads or calls says so
+    # (``check_covers_calls``): its entry file alone is checked; a file read back (no own
+    # check) is the entry file alone
+    for f in (files[:1] if plugin.check_covers_calls or not plugin.own_check else files):
+        findings += [s.replace(str(tmp), str(outdir)) for s in check_file(plugin, f, tcp_robot, profile)]
+    t_check = time.perf_counter() - t0
+    figures = None
+    if plugin.simulated and files and not findings:
+        t0 = time.perf_counter()
+        if reference is None:
+            from .simulate import reference_from_trajectory
+            reference = reference_from_trajectory(trajectory, tcp_robot, process.feed_mm_s)
+        sim = simulate_program(plugin, files[0], tcp_robot, profile, trajectory, process, reference)
+        findings += [s.replace(str(tmp), str(outdir)) for s in sim.findings]
+        figures = sim.as_dict()
+        figures.pop("findings")
+        figures.update(write_s=round(t_write, 4), check_s=round(t_check, 4),
+                       simulate_s=round(time.perf_counter() - t0, 4),
+                       bytes=sum(f.stat().st_size for f in files), path_tol_mm=process.path_tol_mm)
+        log.info("%s: %s", fmt, "; ".join(summary_lines(sim)))
+    return files, findings, figures, reference
 
 
 def write_job_programs(trajectory, robot, job, outdir, path=None, report: dict | None = None) -> list[Path]:

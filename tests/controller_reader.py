@@ -182,7 +182,24 @@ def plan_from_csv(csv: Path, robot_obj) -> tuple[np.ndarray, np.ndarray]:
     """(model joint values (N, dof) rad, planned TCP poses (N, 4, 4)) from camtool's trajectory CSV."""
     data = np.loadtxt(csv, delimiter=",", skiprows=1)
     q = np.radians(data[:, 1:])
-    return q, np.array([robot_obj.fk_tcp(x) for x in q])
+    T = np.array([robot_obj.fk_tcp(x) for x in q])
+    # The CSV samples the trajectory every 20 ms: a fast free move steps 30+ mm between rows, and the
+    # chord of such a step is not the planned path. Rows are refined in joint space (the trajectory is
+    # a joint-space curve) until the TCP steps <= 0.25 mm, so the polyline is the path to ~1e-3 mm.
+    step = np.linalg.norm(np.diff(T[:, :3, 3], axis=0), axis=1)
+    n = np.maximum(1, np.ceil(step / 0.25).astype(int))
+    if n.max() == 1:
+        return q, T
+    qs, Ts = [q[:1]], [T[:1]]
+    for i, m in enumerate(n):
+        if m > 1:
+            f = (np.arange(1, m) / m)[:, None]
+            qi = q[i] + f * (q[i + 1] - q[i])
+            qs.append(qi)
+            Ts.append(np.array([robot_obj.fk_tcp(x) for x in qi]))
+        qs.append(q[i + 1:i + 2])
+        Ts.append(T[i + 1:i + 2])
+    return np.concatenate(qs), np.concatenate(Ts)
 
 
 def check_program(robot: str, targets: list[Target], q_plan: np.ndarray, T_plan: np.ndarray,

@@ -127,3 +127,22 @@ def test_bad_method_and_home():
         plan_path(path, get_robot("seed8"), PlannerSettings.make(method="magic"))
     with pytest.raises(BadInput, match="home_deg"):
         plan_path(path, get_robot("seed8"), PlannerSettings.make(q_home=[0, 0]))
+
+
+def test_irb2400_plans_inside_the_coupled_axis_3_or_says_which_axis():
+    """CWLN clamps the joint box; the IRB2400's controller limits axis 3 = j2 + j3. A plan never
+    keeps a pose beyond it: a low plate close to the robot (its forearm would point 100 deg down)
+    is refused naming rax_3, and a reachable one plans inside every controller limit."""
+    robot = get_robot("irb2400")
+    assert robot.conventions.coupled and not get_robot("sia20").conventions.coupled
+    low = load_job(SAMPLES / "irb2400_plate.toml", ["raster.step_over_mm=60", "raster.pitch_mm=10",
+                                                    "cell.workpiece_xyz_mm=[850.0, 0.0, 450.0]"])
+    path = path_for_job(low, surface_for_job(low, workpiece_for_job(low)))
+    with pytest.raises(PlanInfeasible) as info:
+        plan_path(path, robot_for_job(low), PlannerSettings.make(reverse_samples=5))
+    assert "rax_3" in str(info.value) and "beyond its limits" in str(info.value)
+    assert "rax_3" in info.value.report["unreachable"][0]["reason"]
+    ok = load_job(SAMPLES / "irb2400_plate.toml", ["raster.step_over_mm=60", "raster.pitch_mm=10"])
+    jp = plan_path(path_for_job(ok, surface_for_job(ok, workpiece_for_job(ok))), robot_for_job(ok),
+                   PlannerSettings.make())
+    assert np.all(robot.conventions.within_limits(jp.q))

@@ -262,3 +262,27 @@ def test_the_job_names_the_rows_and_dates_the_programs(tmp_path):
     assert "///DATE 2023/11/14 22:13\r\n///COMM camtool job.toml\r\n" in jbi
     again = {f.suffix: f.read_bytes() for f in write_job_programs(tr, r, job, tmp_path / "p", path=path)}
     assert again[".mod"] == files[".mod"].read_bytes() and again[".JBI"] == files[".JBI"].read_bytes()
+
+
+def test_a_program_its_simulator_finds_off_the_path_is_written_again_closer(tmp_path, monkeypatch):
+    """The writer merges moves within post.path_tol_mm; where the simulated program still leaves the
+    planned path (a finding "from the planned path"), the format is written again with its moves
+    merged within a tighter share, and only the last attempt's files are placed."""
+    import camtool.post as post_mod
+
+    calls, real = [], post_mod.simulate_program
+
+    def simulate(plugin, file, robot, profile, trajectory, process, reference):
+        sim = real(plugin, file, robot, profile, trajectory, process, reference)
+        calls.append(file.read_text(encoding="latin-1").count("\n"))
+        if len(calls) == 1:   # the first attempt: as if it were 0.2 mm off
+            sim.findings.append(f"{file}:9: the simulated TCP is 0.200 mm from the planned path "
+                                "(tolerance 0.1 mm) at t = 1.000 s")
+        return sim
+
+    monkeypatch.setattr(post_mod, "simulate_program", simulate)
+    r = get_robot("seed8")
+    files = write_job_programs(rows_trajectory(r), r, _job(tmp_path, post='formats = ["rapid"]\n'), tmp_path / "o")
+    assert len(calls) == 2 and calls[1] >= calls[0]      # written twice, the second no shorter
+    assert sorted(f.name for f in files) == ["CAMTOOL.mod", "CAMTOOL.pgf"]
+    assert "within 0.06 mm" in files[0].read_text() or "within 0.06 mm" in files[1].read_text()

@@ -79,3 +79,17 @@ def test_join_null_linear_makes_a_linear_move_that_goes_nowhere_a_joint_move(pla
     P[i] = P[i - 1]
     out = JoinNullLinear().apply(replace(plan, P=P), ctx)
     assert out.kind[i] == "J" and (out.kind == "L").sum() == (plan.kind == "L").sum() - 1
+
+
+def test_no_circular_move_through_a_point_next_to_its_chord():
+    """A circle point within MIN_ARC_BOW_MM of its chord could read back as three points on one
+    line once written to 0.001 mm: such targets stay linear moves."""
+    from camtool.program.steps import MIN_ARC_BOW_MM, _on_circle
+
+    P0, P1 = np.array([0.0, 0.0, 0.0]), np.array([100.0, 0.0, 0.0])
+    X = np.array([[25.0, 0.0, 0.0], [50.0, 0.5 * MIN_ARC_BOW_MM, 0.0], [75.0, 0.0, 0.0]])
+    assert not _on_circle(P0, X[1], P1, X, 1.0)[0]
+    X[1, 1] = 2.0   # a real bow: a circle
+    r = 0.5 * (50.0 ** 2 + 2.0 ** 2) / 2.0
+    X[[0, 2], 1] = np.sqrt(r ** 2 - 25.0 ** 2) - (r - 2.0)
+    assert _on_circle(P0, X[1], P1, X, 1e-6)[0]

@@ -94,9 +94,10 @@ def lift_and_reconfigure(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: n
             continue
         down = down[::-1]
         if valid is not None and not (valid(up[-1]) and valid(down[0])):
-            hit = _world_hit(world, [up[-1], down[0]]) if world is not None else None
+            beyond = _beyond_limits(robot, [up[-1], down[0]])
+            hit = _world_hit(world, [up[-1], down[0]]) if world is not None and beyond is None else None
             touches.append(f"at {height:g} mm above the surface " + (
-                f"{hit}" if hit is not None else "the arm still touches the part"))
+                beyond or hit or "the arm still touches the part"))
             continue
         hit = _world_hit(world, np.concatenate([up, down])) if world is not None else None
         if hit is not None:
@@ -125,6 +126,21 @@ def lift_and_reconfigure(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: n
     info["straight_from"] = len(up)  # rows from here to the first descent row are reached by straight joint moves
     info["straight_to"] = len(up) + len(middle)
     return np.concatenate([up, middle, down]), info
+
+
+def _beyond_limits(robot: Robot, rows) -> str | None:
+    """'<axis> = v deg is beyond its limits [..]' for the first row outside the joint or controller limits."""
+    for q in rows:
+        if robot.within_limits(q):
+            continue
+        lines = robot.conventions.check_controller_limits(robot.conventions.controller_from_model(q))
+        if lines:
+            return lines[0]
+        k = int(np.argmax(np.maximum(robot.limits.lower - q, q - robot.limits.upper)))
+        v = robot.q_to_edge(q)[k]
+        lo, hi = robot.q_to_edge(robot.limits.lower)[k], robot.q_to_edge(robot.limits.upper)[k]
+        return f"joint {robot.joint_names[k]} = {v:.2f} is beyond its limits [{lo:g}, {hi:g}]"
+    return None
 
 
 def _world_hit(world, rows) -> str | None:

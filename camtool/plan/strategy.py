@@ -174,6 +174,7 @@ class Planner:
         self.rng = np.random.default_rng(st.seed)
         self.thr = np.where(robot.prismatic, st.jump_threshold_mm, st.jump_threshold_rad)
         self.q_home = q_home
+        self.coupled = robot.conventions.coupled
         self.seeds = None
         if st.ik_seeds != "random":
             buf = self.solver.buffer
@@ -196,10 +197,19 @@ class Planner:
         self.reached[k] = res.converged
 
     def ik(self, k, q0, max_iterations=None) -> IkResult:
-        """CWLN for pose k from q0: the compiled kernel when the robot has one."""
+        """CWLN for pose k from q0: the compiled kernel when the robot has one.
+
+        CWLN clamps the joint box; on a robot whose controller couples axes (the IRB2400's
+        axis 3 = j2 + j3) a solution beyond a coupled axis' limits is not reached: the
+        strategy then looks for another configuration, as for any pose it loses.
+        """
         if self.kernel is None:
-            return self.solver.solve(self.targets[k], q0, max_iterations)
-        return IkResult(*self.kernel.solve(self.targets[k], q0, max_iterations))
+            res = self.solver.solve(self.targets[k], q0, max_iterations)
+        else:
+            res = IkResult(*self.kernel.solve(self.targets[k], q0, max_iterations))
+        if self.coupled and res.converged and not self.robot.conventions.within_limits(res.q):
+            res = replace(res, converged=False)
+        return res
 
     def gp(self, k, q, q_ref, iterations=200) -> IkResult:
         """Gradient-projection self-motion at pose k from q towards q_ref (kernel when available)."""
@@ -291,6 +301,9 @@ class Planner:
             if self.kernel is not None and self.reached[k - 1]:
                 # fast path: compiled CWLN until the first pose that jumps or fails
                 stop, qs, pe, oe = self.kernel.run(self.targets[k:b + 1], q_prev)
+                if self.coupled and stop:   # up to the first pose beyond a coupled controller axis
+                    inside = self.robot.conventions.within_limits(qs[:stop])
+                    stop = int(np.argmin(inside)) if not inside.all() else stop
                 for m in range(stop):
                     self.keep(k + m, IkResult(qs[m], pe[m], oe[m], True, 0))
                 k += stop
@@ -497,10 +510,16 @@ def plan_path(path: Path, robot: Robot, settings: PlannerSettings) -> JointPath:
                         "xyz_mm": [round(float(x), 3) for x in path.poses_mm[i][:3, 3]],
                         "position_error_mm": round(float(jp.position_error_mm[m]), 3)}
                        for i, m in zip(k, missed)]
+        conv = robot.conventions
+        for entry, m in zip(unreachable, missed):   # on the tool, but beyond a coupled controller axis
+            beyond = conv.check_controller_limits(conv.controller_from_model(jp.q[m])) if conv.coupled else []
+            if beyond and entry["position_error_mm"] < 0.01:
+                entry["reason"] = beyond[0]
         first = unreachable[0]
+        why = f"; there {first['reason']}" if "reason" in first else ""
         raise PlanInfeasible(
             f"{len(unreachable)} of {len(path)} path poses are out of reach of {robot.name} "
             f"(first: pose {first['index']}, segment {first['segment']}, point {first['point']}, "
-            f"at {first['xyz_mm']} mm); see report.json",
+            f"at {first['xyz_mm']} mm{why}); see report.json",
             report={"unreachable": unreachable, "joint_path": jp})
     return jp

@@ -91,12 +91,17 @@ def _slerp(Ra, Rb, s):
     return Ra[None] @ Rotation.from_rotvec(rel[None] * np.asarray(s)[:, None]).as_matrix()
 
 
+MIN_ARC_BOW_MM = 0.05   # a circle point this close to its chord makes no circular move (50 x the write resolution)
+
+
 def _on_circle(P0, Pv, P1, X, tol):
     """(fits, sweep rad): every point of X (K, 3) within ``tol`` of the arc from P0 through Pv to
     P1 and in its order along it; the arc's sweep."""
     c, rad, n, r0, sweep, ok = circle_through(P0[None], Pv[None], P1[None])
-    if not ok[0] or rad[0] > 1e6:
-        return False, 0.0, None
+    chord = P1 - P0
+    bow = np.linalg.norm(np.cross(Pv - P0, chord)) / max(float(np.linalg.norm(chord)), 1e-12)
+    if not ok[0] or rad[0] > 1e6 or bow < MIN_ARC_BOW_MM:
+        return False, 0.0, None   # an arc that written to 0.001 mm may read back as a line: lines there
     c, n, r0, sw, R = c[0], n[0], r0[0], sweep[0], rad[0]
     rel = X - c
     h = rel @ n

@@ -89,6 +89,12 @@ class ControllerConventions:
                 and not np.any(self.offset) and np.array_equal(self.tool0_in_flange, np.eye(4))
                 and np.array_equal(self.robot_frame_in_base, np.eye(4)))
 
+    @property
+    def coupled(self) -> bool:
+        """True if a controller axis is a sum of model joints (ABB's parallel linkage): its limits are
+        then not a box in the model's joints, and a solver clamping the joint box can leave them."""
+        return bool(np.any(np.count_nonzero(self.matrix, axis=1) > 1))
+
     def controller_from_model(self, q_rad) -> np.ndarray:
         """Controller axis values (rad / mm, controller order) from model joint values (..., n_model)."""
         q = np.asarray(q_rad, float)
