@@ -12,7 +12,7 @@ demo: setup
 	$(PY) -m camtool.cli run samples/sphere.toml -o out/sphere
 
 test: setup
-	$(PY) -m pytest
+	$(PY) -m pytest -n 2 --dist loadfile
 
 bench: setup
 	$(PY) -m pip install -q -e '.[bench,design]'   # the anchors: pyransac3d, roboticstoolbox, toppra, pymoo

@@ -102,20 +102,33 @@ def _grid(t_s: np.ndarray, dt_s: float) -> np.ndarray:
 def _hermite(t_s, q, qd, qdd, t):
     """(q, qd, qdd, qddd) at times ``t`` of the quintic Hermite pieces through the waypoints."""
     k = np.clip(np.searchsorted(t_s, t, side="right") - 1, 0, len(t_s) - 2)
+    return quintic_at(t_s, q, qd, qdd, k, t, derivatives=3)
+
+
+def quintic_at(t_s, q, qd, qdd, k, tt, derivatives: int = 0):
+    """The timed motion at times ``tt`` inside steps ``k`` (waypoint k to k+1): its quintic Hermite
+    piece's joint values, or with ``derivatives`` = 1..3 the tuple (q, qd[, qdd[, qddd]]). The one
+    evaluation of the planned motion: sampling, the writers' merging and the simulator's reference
+    all read the motion through it. A step of zero duration has zero derivatives."""
     h = (t_s[k + 1] - t_s[k])[:, None]
-    s = ((t - t_s[k])[:, None]) / np.where(h > 0, h, 1.0)
+    s = ((tt - t_s[k])[:, None]) / np.where(h > 0, h, 1.0)
     c = quintic_coefficients(q[k], qd[k] * h, qdd[k] * h**2, q[k + 1], qd[k + 1] * h, qdd[k + 1] * h**2)
-    p = np.zeros_like(q[k]); v = np.zeros_like(p); a = np.zeros_like(p); j = np.zeros_like(p)
+    p = np.zeros_like(q[k])
     for n in range(5, -1, -1):
         p = p * s + c[n]
-    for n in range(5, 0, -1):
-        v = v * s + n * c[n]
-    for n in range(5, 1, -1):
-        a = a * s + n * (n - 1) * c[n]
-    for n in range(5, 2, -1):
-        j = j * s + n * (n - 1) * (n - 2) * c[n]
+    if not derivatives:
+        return p
     hs = np.where(h > 0, h, np.inf)
-    return p, v / hs, a / hs**2, j / hs**3
+    out = [p]
+    for order in range(1, derivatives + 1):
+        d = np.zeros_like(p)
+        for n in range(5, order - 1, -1):
+            f = 1
+            for m in range(order):
+                f *= n - m
+            d = d * s + f * c[n]
+        out.append(d / hs ** order)
+    return tuple(out)
 
 
 SAMPLE_CHUNK_WAYPOINTS = 20000  # sample_trajectory resamples this many waypoints at a time (bounded memory)

@@ -75,3 +75,27 @@ def test_time_stamps_and_finite_values(bad):
     out = check_trajectory(make(t, q, np.zeros(3), np.zeros(3)), ROBOT, 0.004)
     assert len(out) == 1
     assert ("not strictly increasing" in out[0]) if bad == "time" else ("non-finite" in out[0])
+
+
+def test_irb2400_axis_3_speed_is_the_coupled_speed():
+    """j2 and j3 each at 140 deg/s (inside their 150) but the same way: the controller's axis 3
+    (j2 + j3) turns at 280 deg/s, beyond its 150; the opposite way it stands still."""
+    from camtool.robots import get_robot
+
+    irb = get_robot("irb2400")
+    t = np.linspace(0, 0.1, 6)
+    w = np.radians(140.0)
+
+    def traj(sign):
+        q = np.tile(np.radians([0.0, 10.0, 20.0, 0.0, 45.0, 0.0]), (6, 1))
+        qd = np.zeros((6, 6))
+        q[:, 1] += w * t
+        q[:, 2] += sign * w * t
+        qd[:, 1], qd[:, 2] = w, sign * w
+        return Trajectory("irb2400", irb.joint_names, irb.prismatic, t, q, qd, np.zeros((6, 6)),
+                          np.zeros(6, int), np.full(6, -1))
+
+    same = check_trajectory(traj(1.0), irb, 0.004)
+    assert any("rax_3 (controller axis)" in x and "280" in x and "150" in x for x in same), same
+    assert not any("joint j2:" in x or "joint j3:" in x for x in same)
+    assert check_trajectory(traj(-1.0), irb, 0.004) == []

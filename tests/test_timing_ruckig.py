@@ -176,3 +176,26 @@ def test_inserted_samples_and_thinning():
     assert np.array_equal(th.t_s[th.path_index >= 0], TR.t_s[poses])
     work_th = (th.zone == ZONE_CODE["work"]).sum()
     assert work_th <= 2 * surface_poses
+
+
+def test_free_moves_keep_the_irb2400_axis_3_within_its_speed():
+    """A phase-synchronised free move turning j2 and j3 the same way: each joint alone may run at
+    150 deg/s, but the controller's axis 3 (j2 + j3) may not either; the move is timed so that
+    |q2' + q3'|, |q2'' + q3''| stay within axis 3's limits. Turning them opposite ways is not slowed."""
+    from camtool.robots import get_robot
+    from camtool.timing.ruckig_moves import AxisCoupling, RuckigMover, rest_to_rest_chain
+
+    irb = get_robot("irb2400")
+    mover = RuckigMover(irb.limits, coupling=AxisCoupling.of(irb))
+    q0 = np.radians([0.0, 0.0, 0.0, 0.0, 45.0, 0.0])
+    same = rest_to_rest_chain(mover, np.array([q0, q0 + np.radians([0, 40, 40, 0, 0, 0])]))
+    t, q, qd, qdd = same[:4]
+    axis3 = qd[:, 1] + qd[:, 2]
+    assert np.degrees(np.abs(axis3).max()) <= 150.0 + 1e-6
+    assert np.abs(qdd[:, 1] + qdd[:, 2]).max() <= irb.limits.acceleration[2] + 1e-6
+    plain = rest_to_rest_chain(RuckigMover(irb.limits), np.array([q0, q0 + np.radians([0, 40, 40, 0, 0, 0])]))
+    assert same[0][-1] > plain[0][-1] * 1.2      # slower than serial limits alone would allow
+    opp = rest_to_rest_chain(mover, np.array([q0, q0 + np.radians([0, 40, -40, 0, 0, 0])]))
+    ref = rest_to_rest_chain(RuckigMover(irb.limits), np.array([q0, q0 + np.radians([0, 40, -40, 0, 0, 0])]))
+    assert abs(opp[0][-1] - ref[0][-1]) < 1e-9
+    assert AxisCoupling.of(get_robot("sia20")) is None

@@ -19,6 +19,7 @@ import numpy as np
 
 from .acm import AllowedCollisions, robot_acm
 from .shapes import BASE, WORLD, Body, obstacle_bodies, robot_bodies
+from .validity import Validity, valid_rows
 
 MM_PER_M = 1000.0
 
@@ -159,7 +160,7 @@ class CollisionWorld:
                 "allowed_collisions": self.acm.describe()}
 
 
-class WorldChecker:
+class WorldChecker(Validity):
     """A planner validity check ``valid(q) -> bool``: another check (the part) and the collision world."""
 
     def __init__(self, inner, world: CollisionWorld):
@@ -169,6 +170,14 @@ class WorldChecker:
         if self.inner is not None and not self.inner(q):
             return False
         return self.world.valid(q)
+
+    def valid_many(self, Q) -> np.ndarray:
+        """The inner check on all rows at once, then the world on the rows it passes."""
+        Q = np.asarray(Q, float)
+        ok = valid_rows(self.inner, Q) if self.inner is not None else np.ones(len(Q), bool)
+        for i in np.flatnonzero(ok):
+            ok[i] = self.world.valid(Q[i])
+        return ok
 
     def __getattr__(self, name):   # the inner checker's figures (calls, mesh, ...)
         return getattr(self.inner, name)

@@ -30,16 +30,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..collision.validity import Validity, valid_rows
 from ..errors import BadInput, PlanInfeasible
 from ..robots.ik_common import Chain
 from ..toolpath import ZONE_CODE, Path
 from ..trajectory import JointPath
 
 
+EDGE_BATCH = 32       # edge samples checked in one batch (one distance query)
 EXACT_BAND_MM = 50.0  # clearances below this are exact; larger ones may be reported as this lower bound
 
 
-class _LinkCapsules:
+class _LinkCapsules(Validity):
     """Link capsules of a robot (segments between joint-frame origins, flange and TCP) and their clearance.
 
     ``exempt``: balls ((x, y, z) mm world, radius mm) whose link points are not
@@ -112,6 +114,34 @@ class _LinkCapsules:
         if not self.robot.within_limits(q):
             return False
         return self.clearance_mm(q) >= self.clearance
+
+    def valid_many(self, Q) -> np.ndarray:
+        """``__call__`` for every row of Q, with one distance query for all their link points."""
+        Q = np.asarray(Q, float)
+        self.calls += len(Q)
+        ok = np.array([self.robot.within_limits(q) for q in Q], bool)
+        rows = np.flatnonzero(ok)
+        if len(rows):
+            ok[rows] = self.clearances_mm(Q[rows]) >= self.clearance
+        return ok
+
+    def clearances_mm(self, Q) -> np.ndarray:
+        """``clearance_mm`` of every row of Q, with one distance query for all their link points."""
+        Q = np.asarray(Q, float)
+        clear = self._per_row_min([self.link_points(q) for q in Q], -self.radius)
+        if self.tip_exempt > 0:
+            clear = np.minimum(clear, self._per_row_min([self._tcp(q) for q in Q], 0.0))
+        return clear
+
+    def _per_row_min(self, points: list, shift: float) -> np.ndarray:
+        """Per list entry, the smallest distance of its points (plus ``shift``); inf for none."""
+        sizes = np.array([len(p) for p in points], int)
+        out = np.full(len(points), np.inf)
+        if sizes.sum():
+            d = self.distances(np.concatenate([p for p in points if len(p)])) + shift
+            has = sizes > 0
+            out[has] = np.minimum.reduceat(d, np.r_[0, np.cumsum(sizes[has])[:-1]])
+        return out
 
 
 class CapsuleChecker(_LinkCapsules):
@@ -253,7 +283,12 @@ class _Tree:
 def edge_valid(qa, qb, valid, resolution_rad: float, w) -> bool:
     """Every point of the straight joint-space edge, at ``resolution_rad`` steps, is valid."""
     n = max(int(np.ceil(np.linalg.norm((qb - qa) * w) / resolution_rad)), 1)
-    return all(valid(qa + s * (qb - qa)) for s in np.linspace(0.0, 1.0, n + 1)[1:])
+    s = np.linspace(0.0, 1.0, n + 1)[1:]
+    for k in range(0, n, EDGE_BATCH):   # in order, a batch at a time: the first invalid batch ends it
+        part = s[k:k + EDGE_BATCH]
+        if not valid_rows(valid, qa[None] + part[:, None] * (qb - qa)[None]).all():
+            return False
+    return True
 
 
 def rrt_connect(q_start, q_goal, valid, lower, upper, step_rad: float = 0.3, resolution_rad: float = 0.03,
@@ -345,8 +380,8 @@ def time_and_verify(robot, waypoints: list, valid, dt_s: float = 0.004, max_spli
         jp, path = _joint_path(robot, q)
         tr = time_trajectory(jp, path, robot, TimingSettings.make(**{"method": "ruckig", **timing}))
         t, qs, *_ = tr.sample(dt_s)
-        bad = [k for k, x in enumerate(qs) if not valid(x)]
-        if not bad:
+        bad = np.flatnonzero(~valid_rows(valid, qs))
+        if not len(bad):
             return tr, q
         seg = set(np.clip(np.searchsorted(tr.t_s, t[bad], side="right") - 1, 0, len(tr.t_s) - 2))
         rows = sorted({int(tr.path_index[k]) for k in seg if tr.path_index[k] >= 0})
@@ -401,7 +436,7 @@ def free_move(robot, q_start, q_goal, valid, seed: int = 0, track_scale_mm: floa
             "validity_checks": getattr(valid, "calls", 0) - calls0}
     if hasattr(valid, "clearance_mm"):
         _t, qs, *_ = tr.sample(0.004)
-        info["min_clearance_mm"] = round(min(valid.clearance_mm(x) for x in qs), 3)
+        info["min_clearance_mm"] = round(float(np.min(valid.clearances_mm(qs))), 3)
     return q, info
 
 

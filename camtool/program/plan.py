@@ -448,25 +448,10 @@ def _with_samples(kin, st: dict, steps: np.ndarray, times: np.ndarray, process, 
 
 def hermite(t_s, q, qd, qdd, k, tt, derivatives: bool = False):
     """Joint values (and, with ``derivatives``, speeds and accelerations) at times ``tt``
-    inside steps ``k`` (waypoint k to k+1) of a timed trajectory (its quintic Hermite pieces)."""
-    from camtool.trajectory import quintic_coefficients
+    inside steps ``k`` (waypoint k to k+1) of a timed trajectory (``trajectory.quintic_at``)."""
+    from camtool.trajectory import quintic_at
 
-    h = (t_s[k + 1] - t_s[k])[:, None]
-    hs = np.where(h > 0, h, 1.0)
-    s = (tt - t_s[k])[:, None] / hs
-    c = quintic_coefficients(q[k], qd[k] * h, qdd[k] * h ** 2, q[k + 1], qd[k + 1] * h, qdd[k + 1] * h ** 2)
-    p = np.zeros_like(q[k])
-    for coef in c[::-1]:
-        p = p * s + coef
-    if not derivatives:
-        return p
-    v = np.zeros_like(p)
-    a = np.zeros_like(p)
-    for n in range(5, 0, -1):
-        v = v * s + n * c[n]
-    for n in range(5, 1, -1):
-        a = a * s + n * (n - 1) * c[n]
-    return p, v / hs, a / hs ** 2
+    return quintic_at(t_s, q, qd, qdd, k, tt, derivatives=2 if derivatives else 0)
 
 
 DENSIFY_SHARE = 0.3  # a chord farther than this share of the tolerance from the planned motion is split

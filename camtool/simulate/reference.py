@@ -39,16 +39,11 @@ REF_SAG_MM = 0.005  # the planned motion's curve is kept where it bows more than
 
 
 def _hermite(t_s, q, qd, qdd, k, tt):
-    """Joint values at times ``tt`` inside steps ``k`` (waypoint k to k+1) of the timed motion."""
-    from camtool.trajectory import quintic_coefficients
+    """Joint values at times ``tt`` inside steps ``k`` (waypoint k to k+1) of the timed motion
+    (``trajectory.quintic_at``: the plan's own definition of its motion, not a writer's)."""
+    from camtool.trajectory import quintic_at
 
-    h = (t_s[k + 1] - t_s[k])[:, None]
-    s = (tt - t_s[k])[:, None] / np.where(h > 0, h, 1.0)
-    c = quintic_coefficients(q[k], qd[k] * h, qdd[k] * h ** 2, q[k + 1], qd[k + 1] * h, qdd[k + 1] * h ** 2)
-    out = np.zeros_like(q[k])
-    for coef in c[::-1]:
-        out = out * s + coef
-    return out
+    return quintic_at(t_s, q, qd, qdd, k, tt)
 
 
 def reference_from_trajectory(trajectory, robot, feed_mm_s: float | None = None) -> Reference:

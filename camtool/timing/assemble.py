@@ -23,7 +23,7 @@ from ..toolpath import SURFACE_ZONES, ZONES, ZONE_CODE, row_segments, run_bounds
 from ..trajectory import quintic_coefficients
 from .flow import corner_poses, flow_chain, hard_steps
 from .quintic import MARGIN
-from .ruckig_moves import RuckigMover, rest_to_rest_chain
+from .ruckig_moves import AxisCoupling, RuckigMover, rest_to_rest_chain
 from .ruckig_through import on_grid, through_pieces
 from .runs import RunsTiming, run_leads, time_runs
 
@@ -319,7 +319,7 @@ def surface_run(a: int, b: int, surface: SurfaceTiming, joint_path) -> Piece:
 
 def timeline_pieces(joint_path, robot, layout: RunLayout, surface: SurfaceTiming, zones: str) -> list[Piece]:
     """The pieces in JointPath order: the free chain before each run (if any), the run, and the tail."""
-    mover = RuckigMover(robot.limits)
+    mover = RuckigMover(robot.limits, coupling=AxisCoupling.of(robot))
     pieces: list[Piece] = []
     prev_end = 0
     for a, b in layout.runs():

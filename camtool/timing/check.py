@@ -120,4 +120,19 @@ def check_trajectory(trajectory: Trajectory, robot, dt_s: float | None = None,
                 findings += _limit_lines(names[j], prism[j], t, v, L.upper[j], kind, 0, lower=L.lower[j])
             else:
                 findings += _limit_lines(names[j], prism[j], t, v, limit_of[kind][j], kind, order_of[kind])
-    return findings
+    return findings + _coupled_axis_speeds(tr, robot, samples, t_all, order)
+
+
+def _coupled_axis_speeds(tr: Trajectory, robot, samples: TrajectorySamples, t_all, order) -> list[str]:
+    """Speed findings of the controller axes that sum joints (the IRB2400's axis 3 = j2 + j3): the
+    controller limits that axis' speed, |q2' + q3'|, at the speed of the joint driving it."""
+    conv = robot.conventions
+    if not conv.coupled:
+        return []
+    out = []
+    speeds = np.concatenate([tr.qd, samples.qd])[order]
+    for k in np.flatnonzero(np.count_nonzero(conv.matrix, axis=1) > 1):
+        j = conv.axis_joints[k]
+        out += _limit_lines(f"{conv.controller_axis_names[k]} (controller axis)", bool(robot.prismatic[j]), t_all,
+                            speeds @ conv.matrix[k], robot.limits.velocity[j], "speed", 1)
+    return out

@@ -8,6 +8,8 @@ waypoints dense enough for controllers.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization
 from ruckig import Trajectory as RuckigTrajectory
@@ -19,18 +21,72 @@ FREE_SAMPLE_S = 0.010     # sample step of free moves
 RUCKIG_SHARE = 0.98       # share of each limit given to ruckig
 
 
-class RuckigMover:
-    """Reusable ruckig instance for one robot's dof and limits (scaled by ``share``)."""
+@dataclass(frozen=True)
+class AxisCoupling:
+    """Controller axes that sum joints (the IRB2400's axis 3 = j2 + j3): ``rows`` (K, dof) of the
+    map from joints to those axes, and each axis' speed, acceleration and jerk limits (K,)."""
 
-    def __init__(self, limits, share: float = RUCKIG_SHARE):
+    rows: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray
+
+    @staticmethod
+    def of(robot) -> "AxisCoupling | None":
+        """The robot's coupled controller axes, limited as the joints that drive them; None if none."""
+        conv = robot.conventions
+        if not conv.coupled:
+            return None
+        k = np.flatnonzero(np.count_nonzero(conv.matrix, axis=1) > 1)
+        j = np.asarray(conv.axis_joints)[k]
+        L = robot.limits
+        return AxisCoupling(conv.matrix[k], L.velocity[j], L.acceleration[j], L.jerk[j])
+
+    def factors(self, d: np.ndarray, limits) -> tuple[float, float, float]:
+        """For a straight move along d (phase-synchronised: every joint and axis follows one
+        profile, scaled by its share of d), the factors (<= 1) on the joints' speed, acceleration
+        and jerk limits that keep the coupled axes within theirs too."""
+        c = np.abs(self.rows @ d)
+        a = np.abs(d)
+        out = []
+        for joint_lim, axis_lim in ((limits.velocity, self.velocity), (limits.acceleration, self.acceleration),
+                                    (limits.jerk, self.jerk)):
+            by_joint = np.min(joint_lim[a > 0] / a[a > 0]) if (a > 0).any() else np.inf
+            by_axis = np.min(axis_lim[c > 0] / c[c > 0]) if (c > 0).any() else np.inf
+            out.append(min(1.0, by_axis / by_joint) if np.isfinite(by_joint) else 1.0)
+        return out[0], out[1], out[2]
+
+
+    def independent_factors(self, limits) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-joint factors (<= 1) for moves whose joints move independently (time-synchronised):
+        the joints of a coupled axis share its limit in proportion to their own (the IRB2400's j2
+        and j3 at half speed each), so the axis stays within it whatever their signs."""
+        out = []
+        for joint_lim, axis_lim in ((limits.velocity, self.velocity), (limits.acceleration, self.acceleration),
+                                    (limits.jerk, self.jerk)):
+            f = np.ones(len(joint_lim))
+            for row, lim in zip(self.rows, axis_lim):
+                on = row != 0
+                f[on] = np.minimum(f[on], min(1.0, lim / float(np.sum(np.abs(row[on]) * joint_lim[on]))))
+            out.append(f)
+        return out[0], out[1], out[2]
+
+
+class RuckigMover:
+    """Reusable ruckig instance for one robot's dof and limits (scaled by ``share``); with a
+    ``coupling``, phase-synchronised moves keep the coupled controller axes within their limits."""
+
+    def __init__(self, limits, share: float = RUCKIG_SHARE, coupling: AxisCoupling | None = None):
         self.dof = len(limits.velocity)
         self.otg = Ruckig(self.dof)
         self.inp = InputParameter(self.dof)
         self.traj = RuckigTrajectory(self.dof)
+        self.share = share
         self.inp.max_velocity = list(share * limits.velocity)
         self.inp.max_acceleration = list(share * limits.acceleration)
         self.inp.max_jerk = list(share * limits.jerk)
         self.limits = limits
+        self.coupling = coupling
         self.lower = limits.lower
         self.upper = limits.upper
 
@@ -57,6 +113,12 @@ class RuckigMover:
         inp.target_acceleration = z if a1 is None else list(a1)
         inp.synchronization = Synchronization.Phase if phase else Synchronization.Time
         inp.minimum_duration = min_duration_s
+        if self.coupling is not None:
+            L, c = self.limits, self.coupling
+            f = c.factors(np.asarray(q1, float) - np.asarray(q0, float), L) if phase else c.independent_factors(L)
+            inp.max_velocity = list(self.share * f[0] * L.velocity)
+            inp.max_acceleration = list(self.share * f[1] * L.acceleration)
+            inp.max_jerk = list(self.share * f[2] * L.jerk)
         try:
             result = self.otg.calculate(inp, self.traj)
         except RuntimeError:
@@ -114,7 +176,7 @@ def rest_to_rest_chain(mover: RuckigMover, qs: np.ndarray, dt_s: float = FREE_SA
     """``_chain`` with a check of the sampled pieces; retried with lower ruckig limits if needed."""
     share = RUCKIG_SHARE
     for _ in range(6):
-        out = _chain(mover if share == RUCKIG_SHARE else RuckigMover(mover.limits, share), qs, dt_s)
+        out = _chain(mover if share == RUCKIG_SHARE else RuckigMover(mover.limits, share, mover.coupling), qs, dt_s)
         if not mover.breaks_limits(out[0], out[1], out[2], out[3]).any():
             return out
         share *= 0.9
