@@ -103,7 +103,7 @@ def test_screen_flags_the_high_patch_and_is_batch_independent(high):
 
 def test_nearest_feasible_shift_plans(high):
     job, robot, st, wp, path = high
-    shift = nearest_feasible_shift(job, st, robot, path, budget_s=10.0)
+    shift = nearest_feasible_shift(job, st, robot, path)
     assert shift is not None and not shift["already_reachable"]
     assert 0 < shift["distance_mm"] < 150
     d = np.linalg.norm([shift["dx_mm"], shift["dy_mm"], shift["dz_mm"]])

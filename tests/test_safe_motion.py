@@ -15,19 +15,7 @@ from conftest import SAMPLES, run_camtool
 COARSE = ["--set", "raster.step_over_mm=40", "--set", "raster.pitch_mm=8", "--set", 'post.formats=["csv"]']
 
 
-def test_a_forced_reconfiguration_job_is_safe_and_says_so(tmp_path):
-    # #24: with posture_gain = 0 the least-norm drift folds seed8's forearm through its column and carriage
-    # (self-collision, refused naming j6-j7 and the carriage); this test is about the reconfigurations
-    # off the part, so those two pairs are allowed here
-    r = run_camtool("run", SAMPLES / "sphere.toml", "-o", tmp_path, *COARSE, "--set", "planner.track_scale_mm=1",
-                    "--set", "planner.posture_gain=0", "--set",
-                    'cell.allow_collision=[["carriage", "j6-j7"], ["track-j2", "j6-j7"]]', "-q")
-    assert r.returncode == 0, r.stderr
-    report = json.loads((tmp_path / "report.json").read_text())
-    m = report["motion_check"]
-    assert m["ok"] and m["max_penetration_mm"] <= 0.1 and m["work_deviation_mm"] <= 0.1
-    assert m["min_clearance_mm"] >= 5.0
-    assert len(report["lifted_connectors"]) >= 3
+# the forced-reconfiguration job's motion check: tests/test_connectors.py (one plan for both)
 
 
 def test_a_raster_too_coarse_for_the_controller_is_refused_with_the_place(tmp_path):

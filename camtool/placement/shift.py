@@ -42,7 +42,11 @@ def directions(n_extra: int = 72) -> np.ndarray:
     return d / np.linalg.norm(d, axis=1)[:, None]
 
 
-def nearest_feasible_shift(job, settings, robot, path, budget_s: float = 10.0, *, max_mm: float = 600.0,
+SHIFT_BUDGET = 3000      # screens a search may spend: an offset's subsample screen counts 1, a full screen 10
+FULL_SCREEN_COST = 10
+
+
+def nearest_feasible_shift(job, settings, robot, path, budget: int = SHIFT_BUDGET, *, max_mm: float = 600.0,
                            step_mm: float = 25.0, reach_margin: float = 0.02, joint_margin: float = 0.02,
                            yaws_deg=YAWS_DEG) -> dict | None:
     """The smallest translation (then yaw) of the workpiece that the screen finds reachable (module doc).
@@ -50,7 +54,8 @@ def nearest_feasible_shift(job, settings, robot, path, budget_s: float = 10.0, *
     ``job`` gives the workpiece placement (the yaw pivot), ``settings`` the job's
     ``JobSettings`` (or None), ``path`` the world-frame path at that placement.
     Returns None when the robot has no closed-form families or nothing is
-    found within ``max_mm`` and the time budget; else a dict::
+    found within ``max_mm`` and the work ``budget`` (screens, counted, so that the answer
+    does not depend on the machine's speed or load); else a dict::
 
         {"dx_mm", "dy_mm", "dz_mm", "dyaw_deg", "distance_mm",
          "workpiece_xyz_mm", "workpiece_rpy_deg",     # the new cell.workpiece_* values
@@ -72,8 +77,14 @@ def nearest_feasible_shift(job, settings, robot, path, budget_s: float = 10.0, *
     pivot = np.asarray(job.cell.workpiece_xyz_mm, float)
     geom = PathGeometry.build(path, model, robot, pivot, st)
 
+    spent = [0]
+
+    def screen(offsets, full=False):
+        spent[0] += len(offsets) * (FULL_SCREEN_COST if full else 1)
+        return screen_batch(model, geom, offsets, st, full=full)
+
     def out_of_time():
-        return time.perf_counter() - t0 > budget_s
+        return spent[0] > budget
 
     def good(r):
         return r.feasible and r.reach_used <= 1.0 - reach_margin and r.joint_margin >= joint_margin
@@ -84,12 +95,12 @@ def nearest_feasible_shift(job, settings, robot, path, budget_s: float = 10.0, *
             if out_of_time():
                 return None
             if good(r):
-                f = screen_batch(model, geom, [r.offset], st, full=True)[0]
+                f = screen([r.offset], full=True)[0]
                 if good(f):
                     return f
         return None
 
-    here = screen_batch(model, geom, [(0.0, 0.0, 0.0, 0.0)], st)[0]
+    here = screen([(0.0, 0.0, 0.0, 0.0)])[0]
     already = bool(here.feasible)
     if good(here):
         f = confirm([here])
@@ -104,7 +115,7 @@ def nearest_feasible_shift(job, settings, robot, path, budget_s: float = 10.0, *
                 break
             offs = [(*(r_mm * d), yaw) for d in (dirs if r_mm > 0 else dirs[:1])]
             offs = [tuple(round(float(v), 3) for v in o) for o in offs]
-            rs = [r for r in screen_batch(model, geom, offs, st) if good(r)]
+            rs = [r for r in screen(offs) if good(r)]
             rs.sort(key=lambda r: (round(r.reach_used, 4), r.offset))
             f = confirm(rs)
             if f is not None:
@@ -126,7 +137,7 @@ def nearest_feasible_shift(job, settings, robot, path, budget_s: float = 10.0, *
                 break
             mid = 0.5 * (lo + hi)
             o = tuple(round(float(v), 3) for v in (*(mid * u), f.offset[3]))
-            g = screen_batch(model, geom, [o], st)[0]
+            g = screen([o])[0]
             if good(g):
                 best, hi = g, mid
             else:

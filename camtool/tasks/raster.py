@@ -62,8 +62,8 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
             log.done("raster", path)  # the part of the raster that is programmed
     except PlanInfeasible as exc:
         shift = None
-        if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, ~10 s of search
-            shift = nearest_feasible_shift(job, settings, robot, path, budget_s=10.0)
+        if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, a bounded search
+            shift = nearest_feasible_shift(job, settings, robot, path)
         report_unreachable(exc, path, robot, job, outdir, wp, surface, shift=shift)
         if shift is not None and not shift["already_reachable"]:
             raise PlanInfeasible(f"{exc}; {shift['message']}", report=exc.report) from None
