@@ -85,8 +85,12 @@ def main() -> None:
              ["planner.track_scale_mm=1", "planner.posture_gain=0"]),
             ("sphere 100 mm higher", SAMPLES / "sphere.toml", ["cell.workpiece_xyz_mm=[1000.0, 0.0, 200.0]"]),
             ("seed8, azimuth +-75 deg", job_file(tmp, "wide", wide, "seed8", (1000, 0, 100)), []),
-            ("irb2400, 300 mm sphere", job_file(tmp, "irb", small, "irb2400", (1150, 0, 700),
-                                                '[tool]\ntcp_xyz_mm = [0.0, 0.0, 120.0]\n'), []),
+            # at (1150, 0, 700) the forearm would point 73-86 deg down: beyond the IRB2400's coupled axis 3
+            # (-60..65 deg on the controller, #23), refused naming rax_3; (1250, 0, 900) is inside it
+            ("irb2400, 300 mm sphere at (1150, 0, 700)", job_file(tmp, "irb", small, "irb2400", (1150, 0, 700),
+                                                                  '[tool]\ntcp_xyz_mm = [0.0, 0.0, 120.0]\n'), []),
+            ("irb2400, 300 mm sphere at (1250, 0, 900)", job_file(tmp, "irb_up", small, "irb2400", (1250, 0, 900),
+                                                                  '[tool]\ntcp_xyz_mm = [0.0, 0.0, 120.0]\n'), []),
             ("plate_hole, forced retracts", SAMPLES / "plate_hole.toml",
              ["planner.jump_threshold_deg=0.15", "planner.reverse_samples=1"]),
         ]

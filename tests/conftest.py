@@ -27,3 +27,16 @@ def run_camtool(*args, cwd=None, env=None):
     """Run camtool as a separate process (as a user would)."""
     return subprocess.run([sys.executable, "-m", "camtool.cli", *map(str, args)],
                           capture_output=True, text=True, cwd=cwd, env=env)
+
+
+# The files with the longest runs (full jobs end to end), in the order `make test`'s two workers
+# should start them: the longest first, so the short files fill the gaps at the end.
+LONGEST_FIRST = ("test_cli_batch.py", "test_cell_samples.py", "test_connectors.py", "test_pipeline.py",
+                 "test_cli_place.py", "test_arm_angle_sqp.py", "test_safe_motion.py", "test_cli_stages.py",
+                 "test_output.py", "test_faces.py", "test_controller_truth.py", "test_cli_check.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Longest files first (a stable sort: the order within a file is kept)."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(Path(str(item.fspath)).name, len(rank)))

@@ -83,11 +83,13 @@ def test_unreachable_target_is_named():
 
 def test_reach_job_from_the_cli_vertical_route(tmp_path):
     out = tmp_path / "v"
-    r = run_camtool("run", SAMPLES / "sia20_paper_wall.toml", "-o", out, "--set", "task.route=vertical")
+    # a 4 x 4 corner of the sample's 8 x 8 wall grid (100 mm apart)
+    r = run_camtool("run", SAMPLES / "sia20_paper_wall.toml", "-o", out, "--set", "task.route=vertical",
+                    "--set", "task.grid_columns=4", "--set", "task.grid_rows=4")
     assert r.returncode == 0, r.stderr
     report = json.loads((out / "report.json").read_text())
     fam = report["arm_angle_sqp"]["families"]
-    assert len(fam) == 8 and report["task"]["route"] == "vertical" and report["task"]["targets"] == 64
+    assert len(fam) == 8 and report["task"]["route"] == "vertical" and report["task"]["targets"] == 16
     assert abs(report["task"]["plane_point_mm"][1] - 600.0) < 1.0   # the RANSAC plane of wall.ply
     best = fam[report["arm_angle_sqp"]["best_family_number"] - 1]
     assert best["optimised_feasible"] or best["fixed_feasible"]
