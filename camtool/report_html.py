@@ -285,12 +285,16 @@ def _verdict_rows(report: dict) -> list[tuple[str, str]]:
                                                      f"{mc.get('tcp_min_clearance_mm', float('nan')):.1f} mm; deepest "
                                                      f"{mc.get('max_penetration_mm', float('nan')):.3f} mm behind the surface"))
     pairs = [p for p in mc.get("cell_pairs") or () if isinstance(p, dict) and p.get("min_distance_mm") is not None]
-    if pairs:  # the collision world's pairs (obstacles, floor, links)
-        best = min(pairs, key=lambda p: p["min_distance_mm"])
-        rows.append(("Closest approach to the cell", f"{best['min_distance_mm']:.1f} mm ({best.get('a', '?')} x "
-                                                     f"{best.get('b', '?')}, {len(pairs)} pairs checked)"))
-    else:
-        rows.append(("Closest approach to the cell", "no cell obstacles in the check"))
+    # the collision world's pairs: robot and tool against the cell (obstacles, floor), and link against link
+    for label, kind, none in (("Closest approach to the cell", "environment", "no cell obstacles in the check"),
+                              ("Closest approach between links", "self", "no link pair checked")):
+        of_kind = [p for p in pairs if p.get("kind", "environment") == kind]
+        if of_kind:
+            best = min(of_kind, key=lambda p: p["min_distance_mm"])
+            rows.append((label, f"{best['min_distance_mm']:.1f} mm ({best.get('a', '?')} x {best.get('b', '?')}, "
+                                f"{len(of_kind)} pairs checked)"))
+        else:
+            rows.append((label, none))
     pm = report.get("process_map") or {}
     if pm.get("mean") is not None:
         rows.append(("Process uniformity", f"{100 * pm['uniformity_within_5pct']:.1f} % of the worked area within ±5 % "

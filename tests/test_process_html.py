@@ -36,3 +36,8 @@ def test_verdict_rows_say_what_failed():
     cell = dict(_verdict_rows({"status": "ok", "motion_check": {"cell_pairs": [
         {"a": "forearm", "b": "table", "min_distance_mm": 42.0}, {"a": "tool", "b": "floor", "min_distance_mm": 80.0}]}}))
     assert cell["Closest approach to the cell"].startswith("42.0 mm (forearm x table")
+    # link against link is its own row: a self pair is never shown as the approach to the cell
+    mixed = dict(_verdict_rows({"status": "ok", "motion_check": {"cell_pairs": [
+        {"a": "carriage", "b": "j6-j7", "kind": "self", "min_distance_mm": 23.7}]}}))
+    assert mixed["Closest approach to the cell"].startswith("no cell")
+    assert mixed["Closest approach between links"].startswith("23.7 mm (carriage x j6-j7, 1 pairs")

@@ -4,9 +4,7 @@ from pathlib import Path
 import click
 
 from ..console import echo_json
-from ..faces import faces_png, segment_job, select_faces, segmented
 from ..job import load_job
-from ..stages import workpiece_for_job
 
 PNG_FILE = "faces.png"
 
@@ -26,6 +24,9 @@ def command(job_file: Path, overrides: tuple[str, ...], outdir: Path | None, as_
     and RMS residual; `selected` marks the faces the job's selection takes.
     Settings: [faces] and fit.threshold_mm, fit.seed (docs/faces.md).
     """
+    from ..faces import faces_png, segment_job, select_faces, segmented   # heavy: only when the command runs
+    from ..stages import workpiece_for_job
+
     job = load_job(job_file, list(overrides))
     wp = workpiece_for_job(job)
     for w in wp.warnings:
