@@ -119,3 +119,25 @@ def test_tip_exemption_measures_the_tcp_as_a_point():
     assert tip.clearance_mm(q) == pytest.approx(25.0, abs=0.5) and tip(q)
     lower = CapsuleChecker(robot, plate_ahead(3.0), radius_mm=60.0, clearance_mm=5.0, tip_exempt_mm=100.0)
     assert not lower(q)   # the TCP 3 mm above the plate: the point itself breaks the clearance
+
+
+def test_a_timed_move_that_grazes_between_checked_points_is_rerouted():
+    """A thin wall (0.02 rad) between the edge check's points (every 0.03 rad): the straight move
+    passes the edge check, its 4 ms timed samples do not. Splitting a straight joint move keeps its
+    path, so time_and_verify routes that move around the wall instead, and every timed sample of
+    the result is valid."""
+    from camtool.plan.rrt import edge_valid, time_and_verify
+
+    robot = get_robot("irb2400")
+    q0 = np.radians([0.0, 10.0, 20.0, 0.0, 45.0, 0.0])
+    q1 = q0.copy()
+    q1[0] = 0.6
+
+    def valid(q):
+        return not (abs(q[0] - 0.315) < 0.01 and abs(q[1] - q0[1]) < 0.2)
+
+    assert edge_valid(q0, q1, valid, 0.03, np.ones(6))          # the coarse check passes the line
+    tr, q = time_and_verify(robot, [q0, q1], valid)
+    _t, qs, *_ = tr.sample(0.004)
+    assert all(valid(x) for x in qs)
+    assert len(q) > 2 and np.abs(q[:, 1] - q0[1]).max() >= 0.2   # it went round the wall

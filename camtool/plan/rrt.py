@@ -370,27 +370,50 @@ def _joint_path(robot, q: np.ndarray) -> tuple[JointPath, Path]:
                      ~f, {}), path
 
 
-def time_and_verify(robot, waypoints: list, valid, dt_s: float = 0.004, max_splits: int = 6, **timing):
-    """Time waypoints with the timing stage; split moves whose timed samples are invalid. (trajectory, q)."""
+REROUTE_RESOLUTION_SHARE = 0.25   # a move re-routed after its timed samples broke validity is searched
+                                  # with edges checked this much finer
+
+
+def time_and_verify(robot, waypoints: list, valid, dt_s: float = 0.004, max_splits: int = 6,
+                    resolution_rad: float = 0.03, weights=None, seed: int = 0, **timing):
+    """Time waypoints with the timing stage; mend moves whose timed samples are invalid. (trajectory, q).
+
+    Each move between waypoints is a straight joint-space line (phase-synchronised ruckig), so
+    splitting it keeps its path: a move whose timed samples break validity although its edge
+    passed at ``resolution_rad`` grazes something between the checked points. It is re-routed
+    by RRT-Connect with edges checked ``REROUTE_RESOLUTION_SHARE`` as finely; a move whose
+    line is valid at that resolution too is split at its middle (a rest there).
+    """
     from ..settings import TimingSettings
     from ..timing import time_trajectory
 
     q = np.array(waypoints)
-    for _ in range(max_splits + 1):
+    w = np.ones(q.shape[1]) if weights is None else np.asarray(weights, float)
+    fine = resolution_rad * REROUTE_RESOLUTION_SHARE
+    for attempt in range(max_splits + 1):
         jp, path = _joint_path(robot, q)
         tr = time_trajectory(jp, path, robot, TimingSettings.make(**{"method": "ruckig", **timing}))
         t, qs, *_ = tr.sample(dt_s)
         bad = np.flatnonzero(~valid_rows(valid, qs))
         if not len(bad):
             return tr, q
-        seg = set(np.clip(np.searchsorted(tr.t_s, t[bad], side="right") - 1, 0, len(tr.t_s) - 2))
-        rows = sorted({int(tr.path_index[k]) for k in seg if tr.path_index[k] >= 0})
+        # the move each bad sample lies on: the last waypoint (path_index >= 0) at or before it; the
+        # timing inserts its own samples (path_index -1) inside every move
+        at = np.flatnonzero(np.asarray(tr.path_index) >= 0)
+        start = np.clip(np.searchsorted(tr.t_s[at], t[bad], side="right") - 1, 0, len(at) - 1)
+        rows = {int(tr.path_index[at[i]]) for i in start}
         new = [q[0]]
         for k in range(1, len(q)):
             if (k - 1) in rows:
-                new.append(0.5 * (q[k - 1] + q[k]))
+                if edge_valid(q[k - 1], q[k], valid, fine, w):
+                    new.append(0.5 * (q[k - 1] + q[k]))
+                else:   # the line itself grazes: another route, checked finely
+                    detour = rrt_connect(q[k - 1], q[k], valid, robot.limits.lower, robot.limits.upper,
+                                         resolution_rad=fine, seed=seed + attempt, weights=w)
+                    new.extend(shortcut(detour, valid, fine, 50, seed + attempt, w)[1:-1])
             new.append(q[k])
         q = np.array(new)
+        fine *= REROUTE_RESOLUTION_SHARE
     raise PlanInfeasible("free move: the timed trajectory keeps breaking the validity check")
 
 
@@ -430,7 +453,7 @@ def free_move(robot, q_start, q_goal, valid, seed: int = 0, track_scale_mm: floa
     raw = rrt_connect(q_start, q_goal, valid, robot.limits.lower, robot.limits.upper, step_rad, resolution_rad,
                       max_iterations, seed, w, stats)
     smooth = shortcut(raw, valid, resolution_rad, shortcut_iterations, seed, w)
-    tr, q = time_and_verify(robot, smooth, valid)
+    tr, q = time_and_verify(robot, smooth, valid, resolution_rad=resolution_rad, weights=w, seed=seed)
     info = {"rrt_nodes": stats["nodes"], "rrt_waypoints": len(raw), "smoothed_waypoints": len(smooth), "timed_waypoints": len(q),
             "path_length_rad": round(path_length(q, w), 6), "duration_s": round(float(tr.t_s[-1] - tr.t_s[0]), 4),
             "validity_checks": getattr(valid, "calls", 0) - calls0}
