@@ -37,8 +37,36 @@ def segment_settings(job: Job) -> SegmentSettings:
                            simplify_mm=float(fit.simplify_mm))
 
 
+_LAST: dict = {}   # the last segmentation of this process: the fit stage's, read again by the report
+
+
 def segment_job(job: Job, workpiece) -> Segmentation:
-    """The faces of the job's placed workpiece; a STEP part's analytic faces are taken exactly."""
+    """The faces of the job's placed workpiece; a STEP part's analytic faces are taken exactly.
+    The last result is kept for the same workpiece object and settings (the fit stage segments,
+    the report shows the same faces without segmenting again)."""
+    key = (id(workpiece), str(job.resolve(job.workpiece.file)), segment_settings(job), placement_mm(job).tobytes())
+    if _LAST.get("key") == key and _LAST.get("workpiece") is workpiece:
+        return _LAST["value"]
+    value = _segment_job(job, workpiece)
+    _LAST.clear()
+    _LAST.update(key=key, workpiece=workpiece, value=value)
+    return value
+
+
+def faces_report(job: Job, workpiece) -> dict:
+    """report.json's ``faces``: the selection and every face's ``camtool faces --json`` entry, with
+    ``selected``, plus each workpiece point's face (``labels``, -1 for none; for report.html only)."""
+    seg = segment_job(job, workpiece)
+    chosen = {f.index for f in select_faces(seg, job.faces.select, workpiece, str(job.path))}
+    labels = np.full(seg.n_points, -1, int)
+    for f in seg.faces:
+        labels[f.inliers] = f.index
+    return {"select": job.faces.select, "unassigned_points": int(seg.unassigned),
+            "dropped_faces": int(seg.dropped_faces),
+            "faces": [{**f.summary(), "selected": f.index in chosen} for f in seg.faces], "labels": labels}
+
+
+def _segment_job(job: Job, workpiece) -> Segmentation:
     file = job.resolve(job.workpiece.file)
     if file.suffix.lower() in (".step", ".stp"):
         return step_segmentation(file, workpiece, placement_mm(job), segment_settings(job))

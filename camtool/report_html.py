@@ -35,18 +35,20 @@ ZONE_COLORS = {"work": "#1f77b4", "self_motion": "#ff7f0e", "lead_in": "#2ca02c"
                "approach": "#8c564b", "depart": "#e377c2", "retract": "#d62728"}
 PLOTLY_CONFIG = {"displaylogo": False, "responsive": True}
 PROCESS_DIV = "camtool-process-map"  # only when the job has a [process]
+FACES_DIV = "camtool-faces"           # only when the job works faces of a segmented part
 DIV = {"scene": "camtool-scene", "feed": "camtool-feed", "joint_use": "camtool-joint-use",
        "redundancy": "camtool-redundancy"}
 FAILING_NAME = "unreachable or failing poses"
 
 
 def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,
-                      trajectory=None, failing_indices=(), redundancy=None) -> FsPath:
+                      trajectory=None, failing_indices=(), redundancy=None, faces=None) -> FsPath:
     """Write the interactive report of a run (or of a failed plan) to ``file``; returns its path.
 
     Only ``report`` and ``robot`` are required: a failed job passes its path
     and ``failing_indices`` (path indices; ``report['unreachable']`` entries
-    are marked too). ``redundancy`` is a ``RedundancyMap``.
+    are marked too). ``redundancy`` is a ``RedundancyMap``; ``faces`` the job's
+    ``faces.faces_report`` (a segmented part: its faces, numbered, the worked ones marked).
     """
     file = FsPath(file)
     feed = _feed(robot, trajectory) if trajectory is not None else None
@@ -54,6 +56,9 @@ def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None
     process = _process_section(report, surface)
     if process is not None:
         sections.append(process)
+    if faces is not None and workpiece is not None:
+        sections.append(("Faces of the part", _FACES_NOTE, _faces_table(faces)
+                         + fig_html(_faces_figure(faces, workpiece), FACES_DIV)))
     scene = _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices)
     sections.append(("Workpiece, path and robot", _SCENE_NOTE, fig_html(scene, DIV["scene"])))
     if trajectory is not None:
@@ -95,7 +100,7 @@ def write_html_page(file, title: str, sections: list[tuple[str, str, str]]) -> F
 
 
 def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,
-                   trajectory=None, failing_indices=()) -> list[FsPath]:
+                   trajectory=None, failing_indices=(), faces=None) -> list[FsPath]:
     """``OUTDIR/report.html`` and, for robots with closed-form IK, ``OUTDIR/plots/redundancy_map.png``.
 
     The redundancy map is computed here (``redundancy_map``, failing poses
@@ -116,8 +121,54 @@ def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None,
             files.append(plot_redundancy_map_png(rmap, outdir / "plots" / "redundancy_map.png"))
     html_file = write_report_html(outdir / "report.html", report=report, robot=robot, workpiece=workpiece,
                                   surface=surface, path=path, joint_path=joint_path, trajectory=trajectory,
-                                  failing_indices=failing_indices, redundancy=rmap)
+                                  failing_indices=failing_indices, redundancy=rmap, faces=faces)
     return [html_file, *files]
+
+
+FACE_POINTS_DRAWN = 2000   # points drawn per face (a random subset, seeded)
+_FACES_NOTE = ('<p class="note">The workpiece split into faces (planes, spheres, cylinders), numbered largest '
+               'first as <code>camtool faces</code> numbers them and <code>[faces] select</code> names them; '
+               "the faces this job works are marked. Each face's points in its own colour (at most "
+               f'{FACE_POINTS_DRAWN} a face drawn); grey: points no face took.</p>')
+
+
+def _faces_table(faces: dict) -> str:
+    """The faces as a table: number, model, area, radius, inliers, RMS, worked."""
+    rows = []
+    for f in faces["faces"]:
+        radius = f.get("radius_mm")
+        rows.append(f"<tr><td>{int(f['index'])}</td><td>{html.escape(str(f['model']))}</td>"
+                    f"<td>{f['area_mm2'] / 100.0:.1f}</td><td>{'' if radius is None else f'{radius:.2f}'}</td>"
+                    f"<td>{int(f.get('inliers', 0))}</td><td>{f.get('rms_mm', float('nan')):.3f}</td>"
+                    f"<td>{'worked' if f['selected'] else ''}</td></tr>")
+    head = ("<tr><th>face</th><th>model</th><th>area cm²</th><th>radius mm</th><th>points</th>"
+            "<th>RMS mm</th><th></th></tr>")
+    return f'<table class="verdict">{head}{"".join(rows)}</table>'
+
+
+def _faces_figure(faces: dict, workpiece):
+    """3-D scatter of the workpiece points coloured by face, each face named in the legend."""
+    import plotly.graph_objects as go
+
+    P = np.asarray(workpiece.points_mm, float)
+    labels = np.asarray(faces["labels"])
+    rng = np.random.default_rng(0)
+    fig = go.Figure()
+    groups = [(-1, "no face", False)] + [(int(f["index"]), f"face {f['index']}: {f['model']}", f["selected"])
+                                         for f in faces["faces"]]
+    for k, name, worked in groups:
+        idx = np.flatnonzero(labels == k)
+        if not len(idx):
+            continue
+        if len(idx) > FACE_POINTS_DRAWN:
+            idx = np.sort(rng.choice(idx, FACE_POINTS_DRAWN, replace=False))
+        Q = P[idx]
+        marker = dict(size=2, color="#bbbbbb") if k < 0 else dict(size=3 if worked else 2)
+        fig.add_trace(go.Scatter3d(x=Q[:, 0], y=Q[:, 1], z=Q[:, 2], mode="markers", marker=marker,
+                                   name=name + (" (worked)" if worked else "")))
+    fig.update_layout(scene=dict(aspectmode="data", xaxis_title="x mm", yaxis_title="y mm", zaxis_title="z mm"),
+                      height=520, margin=dict(l=0, r=0, t=30, b=0), legend=dict(itemsizing="constant"))
+    return fig
 
 
 # ----------------------------------------------------------------------------- helpers

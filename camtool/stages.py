@@ -424,7 +424,7 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
     log.outputs["report"] = report
     html = write_run_html(outdir, report=report, robot=robot, workpiece=log.outputs.get("workpiece"),
                           surface=log.outputs.get("fit"), path=path, joint_path=joint_path,
-                          trajectory=next(iter(trajectories.values())))
+                          trajectory=next(iter(trajectories.values())), faces=log.outputs.get("faces"))
     log.lap("report_html")
     report["stage_seconds"], report["stage_cpu_seconds"] = stage_seconds(log.seconds), stage_seconds(log.cpu_seconds)
     write_json_atomic(report, outdir / "report.json")  # again, with the page's own time (11 kB)

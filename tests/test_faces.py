@@ -105,6 +105,12 @@ def test_cylinder_job_end_to_end_passes_the_motion_check(tmp_path):
     report = json.loads((out / "report.json").read_text())
     assert report["status"] == "ok" and report["motion_check"]["ok"]
     assert (out / "PIPE.mod").is_file()
+    # report.json and report.html show the part's faces, numbered as `camtool faces` numbers them
+    faces = report["faces"]
+    assert faces["select"] == [0] and [f["selected"] for f in faces["faces"]] == [True] + [False] * 5
+    assert faces["faces"][0]["model"] == "cylinder" and "labels" not in faces
+    page = (out / "report.html").read_text()
+    assert "Faces of the part" in page and 'id="camtool-faces"' in page and "face 0: cylinder (worked)" in page
     raster = run_camtool("raster", SAMPLES / "pipe_half.toml", "--json")
     assert raster.returncode == 0 and json.loads(raster.stdout)["coverage"] >= 0.995
 

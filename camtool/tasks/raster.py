@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import BadInput, PlanInfeasible
+from ..faces import faces_report, segmented
 from ..job import Job
 from ..process.outputs import process_outputs
 from ..process.dwell import check_target_inputs, retime_for_target
@@ -92,6 +93,9 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
         report["partial"] = partial
     report["motion_check"] = motion
     report["programs_simulated"] = simulated
+    if segmented(job):   # the faces of the part and which the job works (the fit stage's segmentation)
+        faces = log.outputs["faces"] = faces_report(job, wp)
+        report["faces"] = {k: v for k, v in faces.items() if k != "labels"}
     report["limits_ok"] = True  # post_checked passed the independent check
     report["status"] = "ok"
     process, process_files = process_outputs(job, settings, trajectory, robot, surface, outdir,

@@ -56,7 +56,6 @@ class AxisCoupling:
             out.append(min(1.0, by_axis / by_joint) if np.isfinite(by_joint) else 1.0)
         return out[0], out[1], out[2]
 
-
     def independent_factors(self, limits) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-joint factors (<= 1) for moves whose joints move independently (time-synchronised):
         the joints of a coupled axis share its limit in proportion to their own (the IRB2400's j2
