@@ -9,7 +9,9 @@ speed), its blend radius (0 = exact stop), the program part (module, job) it
 lives in, and where the process (the tool on the surface) starts and stops.
 ``camtool.simulate`` re-executes it the way the controller interpolates it.
 
-This module holds data only; it shares no code with the writers.
+This module holds data and the controller's zone convention for joint moves
+(``joint_travel``), which the writers' blend model and the simulator both use;
+it imports no writer.
 """
 from __future__ import annotations
 
@@ -19,6 +21,14 @@ import numpy as np
 
 JOINT, LINEAR, CIRCULAR = "J", "L", "C"
 CONF_UNKNOWN = -99  # conf value of a target that asks for no configuration
+ZONE_DEG_PER_MM = 0.15  # a joint move's blend starts r mm of TCP travel or 0.15 r deg of joint travel early
+
+
+def joint_travel(dq: np.ndarray, prismatic: np.ndarray) -> np.ndarray:
+    """A joint move's length for blending, in TCP-equivalent mm: its largest joint travel
+    (deg / ``ZONE_DEG_PER_MM``, or mm for prismatic joints); rows of dq are moves."""
+    dq = np.abs(np.atleast_2d(dq))
+    return np.where(prismatic[None, :], dq, np.degrees(dq) / ZONE_DEG_PER_MM).max(axis=1)
 
 
 @dataclass

@@ -53,6 +53,7 @@ from camtool.errors import BadInput
 from camtool.toolpath import ZONE_CODE
 
 from .kinematics import Kinematics
+from .moves import joint_travel  # the controller's zone convention for joint moves
 
 WORK = ZONE_CODE["work"]
 RETRACT = ZONE_CODE["retract"]
@@ -63,7 +64,6 @@ BLEND_SHARE = 0.9       # share of the tolerance a corner may cut: a chord devia
 FREE_TOL_FACTOR = 10.0  # free motion (off the surface) may deviate this many path tolerances
 JOINT_GUARD = 0.05      # rad (or 50 mm): larger chord deviations in joint space are never linearised
 MIN_DEXTERITY = 0.05    # linear moves only where the Jacobian's singular values differ by less than 20x
-ZONE_DEG_PER_MM = 0.15  # a joint move's blend starts r mm of TCP travel or 0.15 r deg of joint travel early
 KIND_JOINT, KIND_LINEAR, KIND_CIRCULAR = "J", "L", "C"
 
 
@@ -237,12 +237,6 @@ def slerp_deviation(Ra, Rb, Rk, s) -> np.ndarray:
 
 
 # --- blending -----------------------------------------------------------------------------------
-
-def joint_travel(dq: np.ndarray, prismatic: np.ndarray) -> np.ndarray:
-    """A joint move's length for blending, in TCP-equivalent mm: its largest joint travel
-    (deg / ``ZONE_DEG_PER_MM``, or mm for prismatic joints)."""
-    dq = np.abs(np.atleast_2d(dq))
-    return np.where(prismatic[None, :], dq, np.degrees(dq) / ZONE_DEG_PER_MM).max(axis=1)
 
 
 def corner_deviation(m: np.ndarray, d_in: np.ndarray, d_out: np.ndarray) -> np.ndarray:

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from camtool.program.arcs import arc_point, circle_through
+from camtool.program.moves import joint_travel
 from camtool.program.targets import _ik_batch, _slerp
 
-ZONE_DEG_PER_MM = 0.15     # the joint travel of 1 mm of blend, for joint moves (deg)
 
 
 @dataclass(frozen=True)
@@ -26,10 +26,6 @@ class Samples:
     total: float
     findings: tuple
 
-
-def _joint_travel(dq, prismatic):
-    dq = np.abs(np.atleast_2d(dq))
-    return np.where(prismatic[None, :], dq, np.degrees(dq) / ZONE_DEG_PER_MM).max(axis=1)
 
 
 def interpolate(prog, robot, chain, q_t, P_t, R_t, dur, dt_s: float) -> Samples:
@@ -61,7 +57,7 @@ def interpolate(prog, robot, chain, q_t, P_t, R_t, dur, dt_s: float) -> Samples:
     L = np.r_[0.0, np.linalg.norm(np.diff(P_t, axis=0), axis=1)]
     for k, (c_, n_, r0_, sw_) in arc.items():
         L[k] = float(np.linalg.norm(r0_) * sw_)  # a circular move's length is its arc's
-    Lj = np.r_[0.0, _joint_travel(np.diff(q_t, axis=0), chain.prismatic)] if M > 1 else np.zeros(1)
+    Lj = np.r_[0.0, joint_travel(np.diff(q_t, axis=0), chain.prismatic)] if M > 1 else np.zeros(1)
     Leq = np.where(cart, L, np.maximum(L, Lj))
     r = np.array(prog.blend_mm, float)
     r[0] = r[-1] = 0.0
