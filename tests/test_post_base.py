@@ -207,3 +207,34 @@ def test_read_back_check_reports_a_reader_that_fails(tmp_path):
     f.write_text("not numbers\n")
     found = check_file(_NoCheckPost(), f, get_robot("irb2400"), None)
     assert len(found) == 1 and "'nocheck' cannot read it back (ValueError" in found[0]
+
+
+def test_a_packaged_post_delegates_to_its_modules():
+    """PackagedPost: a plugin that names its dialect, writer, parser and checker modules gets
+    validate_profile, write, read, read_program and check from them, and counts as simulated and
+    self-checking; the built-ins are such plugins."""
+    from types import SimpleNamespace
+
+    from camtool.program.plugin import PackagedPost
+    from camtool.program.registry import get_plugin
+
+    calls = []
+    mod = SimpleNamespace(validate_profile=lambda p, r: calls.append("validate"),
+                          write=lambda *a: calls.append("write") or [],
+                          read=lambda *a: calls.append("read") or (None, None),
+                          read_program=lambda *a: calls.append("read_program"),
+                          check=lambda *a: calls.append("check") or [])
+
+    class Toy(PackagedPost):
+        name, extension = "toy", ".toy"
+        dialect = writer = parser = checker = mod
+
+    t = Toy()
+    t.validate_profile(None, None)
+    t.write(None, None, None, None, None)
+    t.read(None, None, None)
+    t.read_program(None, None, None)
+    t.check(None, None, None)
+    assert calls == ["validate", "write", "read", "read_program", "check"]
+    assert t.simulated and t.own_check
+    assert all(isinstance(get_plugin(n), PackagedPost) for n in ("rapid", "inform"))

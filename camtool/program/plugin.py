@@ -89,3 +89,30 @@ class PostProcessor(ABC):
     def own_check(self) -> bool:
         """True when the plugin checks its files itself (else they are read back)."""
         return type(self).check is not PostProcessor.check
+
+
+class PackagedPost(PostProcessor):
+    """A post-processor laid out as a package of modules, as the built-ins are: ``dialect``
+    (``validate_profile``), ``writer`` (``write``), ``parser`` (``read``, ``read_program``) and
+    ``checker`` (``check``). The class names its modules; the methods delegate to them, so each
+    plugin writes none of this glue again (docs/plugins.md)."""
+
+    dialect = None
+    writer = None
+    parser = None
+    checker = None
+
+    def validate_profile(self, profile, robot) -> None:
+        self.dialect.validate_profile(profile, robot)
+
+    def write(self, trajectory, robot, profile, outdir: Path, process: ProcessInfo | None = None) -> list[Path]:
+        return self.writer.write(trajectory, robot, profile, outdir, process)
+
+    def read_program(self, path: Path, robot, profile) -> ProgramMoves:
+        return self.parser.read_program(path, robot, profile)
+
+    def read(self, path: Path, robot, profile) -> tuple[np.ndarray, np.ndarray]:
+        return self.parser.read(path, robot, profile)
+
+    def check(self, path: Path, robot, profile) -> list[str]:
+        return self.checker.check(path, robot, profile)

@@ -40,19 +40,13 @@ The package: ``dialect`` (tables, names, pulses, options, profile check), ``writ
 """
 from __future__ import annotations
 
-from pathlib import Path
+from camtool.program.plugin import PackagedPost
 
-import numpy as np
-
-from camtool.program.moves import ProgramMoves
-from camtool.program.plugin import PostProcessor
-from camtool.program.process import ProcessInfo
-
-from . import checker, parser, writer
-from .dialect import OPTIONS, from_pulses, to_pulses, validate_profile
+from . import checker, dialect, parser, writer
+from .dialect import OPTIONS, from_pulses, to_pulses
 
 
-class InformPost(PostProcessor):
+class InformPost(PackagedPost):
     """Yaskawa INFORM writer, reader and checker (see module doc)."""
 
     name = "inform"
@@ -63,18 +57,4 @@ class InformPost(PostProcessor):
     options_schema = OPTIONS
     to_pulses = staticmethod(to_pulses)
     from_pulses = staticmethod(from_pulses)
-
-    def validate_profile(self, profile, robot) -> None:
-        validate_profile(profile, robot)
-
-    def write(self, trajectory, robot, profile, outdir: Path, process: ProcessInfo | None = None) -> list[Path]:
-        return writer.write(trajectory, robot, profile, outdir, process)
-
-    def read_program(self, path: Path, robot, profile) -> ProgramMoves:
-        return parser.read_program(path, robot, profile)
-
-    def read(self, path: Path, robot, profile) -> tuple[np.ndarray, np.ndarray]:
-        return parser.read(path, robot, profile)
-
-    def check(self, path: Path, robot, profile) -> list[str]:
-        return checker.check(path, robot, profile)
+    dialect, writer, parser, checker = dialect, writer, parser, checker

@@ -32,19 +32,13 @@ The package: ``dialect`` (tables, formats, options, profile check), ``writer``,
 """
 from __future__ import annotations
 
-from pathlib import Path
+from camtool.program.plugin import PackagedPost
 
-import numpy as np
-
-from camtool.program.moves import ProgramMoves
-from camtool.program.plugin import PostProcessor
-from camtool.program.process import ProcessInfo
-
-from . import checker, parser, writer
-from .dialect import OPTIONS, validate_profile
+from . import checker, dialect, parser, writer
+from .dialect import OPTIONS
 
 
-class RapidPost(PostProcessor):
+class RapidPost(PackagedPost):
     """ABB RAPID writer, reader and checker (see module doc)."""
 
     name = "rapid"
@@ -53,18 +47,4 @@ class RapidPost(PostProcessor):
     requires_profile = True
     check_covers_calls = True  # checking the entry file checks every module it loads
     options_schema = OPTIONS
-
-    def validate_profile(self, profile, robot) -> None:
-        validate_profile(profile, robot)
-
-    def write(self, trajectory, robot, profile, outdir: Path, process: ProcessInfo | None = None) -> list[Path]:
-        return writer.write(trajectory, robot, profile, outdir, process)
-
-    def read_program(self, path: Path, robot, profile) -> ProgramMoves:
-        return parser.read_program(path, robot, profile)
-
-    def read(self, path: Path, robot, profile) -> tuple[np.ndarray, np.ndarray]:
-        return parser.read(path, robot, profile)
-
-    def check(self, path: Path, robot, profile) -> list[str]:
-        return checker.check(path, robot, profile)
+    dialect, writer, parser, checker = dialect, writer, parser, checker
