@@ -194,7 +194,15 @@ def test_unknown_file_type_is_bad_input(tmp_path):
 
 @pytest.mark.parametrize("cls", [RapidPost, InformPost, CsvPost])
 def test_each_builtin_plugin_owns_its_check(cls):
-    assert "check" in vars(cls)  # defined on the class itself, next to its writer and reader
+    """Each built-in checks its files itself, with the checker of its own package (next to its
+    writer and reader): defined on the class, or its PackagedPost checker module."""
+    from camtool.program.plugin import PackagedPost
+
+    assert cls().own_check
+    if issubclass(cls, PackagedPost):
+        assert cls.checker.__name__ == f"{cls.__module__}.checker" and callable(cls.checker.check)
+    else:
+        assert "check" in vars(cls)
 
 
 def test_the_check_helpers_import_no_plugin():
