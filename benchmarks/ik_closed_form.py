@@ -37,7 +37,9 @@ def per_call_us(fn, items):
 def main():
     robot = get_robot("irb2400")
     rng = np.random.default_rng(0)
-    qs = rng.uniform(robot.limits.lower, robot.limits.upper, (N, 6))
+    # configurations the controller takes: inside the joint box and the coupled axis 3 (j2 + j3)
+    draw = rng.uniform(robot.limits.lower, robot.limits.upper, (4 * N, 6))
+    qs = draw[robot.conventions.within_limits(draw)][:N]
     poses = [robot.fk(q) for q in qs]
     ik = SphericalWristIK(robot)
     us, sols = per_call_us(ik.solve, poses)
