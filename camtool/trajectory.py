@@ -39,6 +39,30 @@ class JointPath:
     def __post_init__(self):
         freeze_arrays(self)
 
+    def with_rows_inserted(self, inserts: dict, step_zone: dict, events: dict) -> "JointPath":
+        """A new joint path with rows inserted: ``inserts[r]`` (k, dof) after row r, in the zone
+        ``step_zone[r]``; inserted rows have path_index -1, zero errors and are reached."""
+        count = np.zeros(len(self.q), int)
+        count[list(inserts)] = [len(v) for v in inserts.values()]
+        src = np.repeat(np.arange(len(self.q)), 1 + count)  # each row, then its step's inserted rows
+        new = np.ones(len(src), bool)
+        new[np.cumsum(1 + count) - 1 - count] = False
+        order = sorted(inserts)
+        q = self.q[src].copy()
+        q[new] = np.concatenate([inserts[r] for r in order])
+        zone = np.asarray(self.zone)[src].copy()
+        zone[new] = np.concatenate([np.full(len(inserts[r]), step_zone[r]) for r in order])
+
+        def spread(a, fill):
+            out = np.asarray(a)[src].copy()
+            out[new] = fill
+            return out
+        return JointPath(q=q, path_index=spread(self.path_index, -1), zone=zone,
+                         position_error_mm=spread(self.position_error_mm, 0.0),
+                         orientation_error_rad=spread(self.orientation_error_rad, 0.0), jump=spread(self.jump, False),
+                         reverse_planned=spread(self.reverse_planned, False), retract=spread(self.retract, False),
+                         singular=spread(self.singular, False), reached=spread(self.reached, True), events=events)
+
 
 @dataclass(frozen=True)
 class Trajectory:

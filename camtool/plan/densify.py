@@ -103,28 +103,9 @@ def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSo
                                                "chord_tol_mm": tol_mm}}
     if not inserts:
         return replace(jp, events=events)
-    count = np.zeros(len(jp.q), int)
-    count[list(inserts)] = [len(v) for v in inserts.values()]
-    src = np.repeat(np.arange(len(jp.q)), 1 + count)  # each row, then its step's inserted rows
-    new = np.ones(len(src), bool)
-    new[np.cumsum(1 + count) - 1 - count] = False
-    q = jp.q[src].copy()
-    q[new] = np.concatenate([inserts[r] for r in sorted(inserts)])
-
-    def spread(a, fill):
-        out = np.asarray(a)[src].copy()
-        out[new] = fill
-        return out
-
     # an inserted row takes the zone of its step, except across a run end: a step between a lead and the
     # self-motion zone lies in the self-motion zone (in the run it would bend the run's spline off the surface)
     zone = np.asarray(jp.zone)
     sm = ZONE_CODE["self_motion"]
     step_zone = {r: (sm if sm in (zone[r], zone[r + 1]) else zone[r]) for r in inserts}
-    new_zone = zone[src].copy()
-    new_zone[new] = np.concatenate([np.full(len(inserts[r]), step_zone[r]) for r in sorted(inserts)])
-    return JointPath(q=q, path_index=spread(jp.path_index, -1), zone=new_zone,
-                     position_error_mm=spread(jp.position_error_mm, 0.0),
-                     orientation_error_rad=spread(jp.orientation_error_rad, 0.0), jump=spread(jp.jump, False),
-                     reverse_planned=spread(jp.reverse_planned, False), retract=spread(jp.retract, False),
-                     singular=spread(jp.singular, False), reached=spread(jp.reached, True), events=events)
+    return jp.with_rows_inserted(inserts, step_zone, events)

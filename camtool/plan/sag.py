@@ -95,30 +95,8 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
                                          "sag_tol_mm": tol}}
     if not inserts:
         return replace(jp, events=events)
-    src, new = [], []
-    for r in range(len(jp.q)):
-        src.append(r)
-        new.append(False)
-        for _ in inserts.get(r, ()):
-            src.append(r)
-            new.append(True)
-    src, new = np.array(src), np.array(new)
-    q = jp.q[src].copy()
-    q[new] = np.concatenate([inserts[r] for r in sorted(inserts)])
-
-    def spread(a, fill):
-        out = np.asarray(a)[src].copy()
-        out[new] = fill
-        return out
-
     # an inserted row of a step between work and a lead lies in the lead: the work ends at its last work pose
     # (past the part's edge a lead pose on the arc is behind the edge's tangent plane, not work)
     zone = np.asarray(jp.zone)
     step_zone = {r: (zone[r + 1] if zone[r] == WORK else zone[r]) for r in inserts}
-    new_zone = zone[src].copy()
-    new_zone[new] = np.concatenate([np.full(len(inserts[r]), step_zone[r]) for r in sorted(inserts)])
-    return JointPath(q=q, path_index=spread(jp.path_index, -1), zone=new_zone,
-                     position_error_mm=spread(jp.position_error_mm, 0.0),
-                     orientation_error_rad=spread(jp.orientation_error_rad, 0.0), jump=spread(jp.jump, False),
-                     reverse_planned=spread(jp.reverse_planned, False), retract=spread(jp.retract, False),
-                     singular=spread(jp.singular, False), reached=spread(jp.reached, True), events=events)
+    return jp.with_rows_inserted(inserts, step_zone, events)
