@@ -90,10 +90,15 @@ class ControllerConventions:
                 and np.array_equal(self.robot_frame_in_base, np.eye(4)))
 
     @property
+    def coupled_axes(self) -> np.ndarray:
+        """Indices of the controller axes that are sums of model joints (ABB's parallel linkage)."""
+        return np.flatnonzero(np.count_nonzero(self.matrix, axis=1) > 1)
+
+    @property
     def coupled(self) -> bool:
-        """True if a controller axis is a sum of model joints (ABB's parallel linkage): its limits are
-        then not a box in the model's joints, and a solver clamping the joint box can leave them."""
-        return bool(np.any(np.count_nonzero(self.matrix, axis=1) > 1))
+        """True if a controller axis is a sum of model joints: its limits are then not a box in the
+        model's joints, and a solver clamping the joint box can leave them."""
+        return bool(len(self.coupled_axes))
 
     def controller_from_model(self, q_rad) -> np.ndarray:
         """Controller axis values (rad / mm, controller order) from model joint values (..., n_model)."""

@@ -131,7 +131,7 @@ def _coupled_axis_speeds(tr: Trajectory, robot, samples: TrajectorySamples, t_al
         return []
     out = []
     speeds = np.concatenate([tr.qd, samples.qd])[order]
-    for k in np.flatnonzero(np.count_nonzero(conv.matrix, axis=1) > 1):
+    for k in conv.coupled_axes:
         j = conv.axis_joints[k]
         out += _limit_lines(f"{conv.controller_axis_names[k]} (controller axis)", bool(robot.prismatic[j]), t_all,
                             speeds @ conv.matrix[k], robot.limits.velocity[j], "speed", 1)

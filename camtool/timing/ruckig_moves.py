@@ -37,7 +37,7 @@ class AxisCoupling:
         conv = robot.conventions
         if not conv.coupled:
             return None
-        k = np.flatnonzero(np.count_nonzero(conv.matrix, axis=1) > 1)
+        k = conv.coupled_axes
         j = np.asarray(conv.axis_joints)[k]
         L = robot.limits
         return AxisCoupling(conv.matrix[k], L.velocity[j], L.acceleration[j], L.jerk[j])
