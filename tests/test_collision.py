@@ -120,10 +120,19 @@ def test_seed8_bodies_come_from_its_parameters(robot):
 
 
 def test_bodies_of_every_dh_robot_enclose_their_links():
-    for name in ("irb2400", "sia20"):
+    for name in ("irb2400_paper", "sia20_paper"):
         r = get_robot(name)
         links = [b for b in robot_bodies(r, 25.0) if b.kind == "link"]
-        assert len(links) >= 3 and all(40.0 <= b.size_mm[0] <= 100.0 for b in links)
+        assert len(links) >= 3 and all(b.shape == "capsule" and 40.0 <= b.size_mm[0] <= 100.0 for b in links)
+
+
+def test_manufacturer_robots_use_their_ros_industrial_meshes():
+    for name, links in (("irb2400", ["link_1", "link_2", "link_3", "link_4", "link_5", "link_6"]),
+                        ("sia20", ["link_s", "link_l", "link_e", "link_u", "link_r", "link_b", "link_t"])):
+        bodies = robot_bodies(get_robot(name), 25.0)
+        assert [b.name for b in bodies if b.kind == "link"] == links
+        assert [b.name for b in bodies if b.kind == "base"] == ["base_link"]
+        assert all(b.shape == "convex" for b in bodies if b.kind != "tool")
 
 
 def test_motion_bound_holds_for_every_body_point(robot):

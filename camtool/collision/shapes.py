@@ -19,7 +19,9 @@ Robot bodies (``robot_bodies``), sized from the robot's own geometry:
   ``check.tool_radius_mm`` from the flange to the TCP.
 
 Why hand-sized shapes: seed8 and the DH robots have no meshes; these shapes
-are documented and enclose the joint axes with the radii above.
+are documented and enclose the joint axes with the radii above. The
+manufacturer robots (IRB2400, SIA20) use their ROS-Industrial collision meshes
+instead (``reference_links.py``), URDF robots their own collision elements.
 """
 from __future__ import annotations
 
@@ -162,8 +164,16 @@ def joint_offsets(robot) -> list[np.ndarray]:
 
 def robot_bodies(robot, tool_radius_mm: float, tool_points_mm: np.ndarray | None = None) -> tuple[Body, ...]:
     """The link, carriage and tool bodies of a robot (module docstring); a URDF robot's own
-    collision elements when it has any (``urdf_bodies``)."""
-    bodies = urdf_bodies(robot) if robot.convention == "urdf" else []
+    collision elements when it has any (``urdf_bodies``), a manufacturer robot's vendored
+    ROS-Industrial collision meshes (``reference_links``)."""
+    from .reference_links import has_reference_links, reference_link_bodies
+
+    if robot.convention == "urdf":
+        bodies = urdf_bodies(robot)
+    elif has_reference_links(robot):
+        bodies = reference_link_bodies(robot)
+    else:
+        bodies = []
     if bodies:
         return tuple(bodies) + _tool_bodies(robot, tool_radius_mm, tool_points_mm)
     names = list(robot.joint_names)

@@ -1,0 +1,122 @@
+"""The manufacturer robots' own link shapes: the vendored ROS-Industrial collision meshes.
+
+A robot whose controller data names a vendored ROS-Industrial description
+(``[controller.urdf]``: the IRB2400, the SIA20) is a DH model whose joint
+frames are not the URDF's link frames. Its bodies are the URDF's
+``<collision>`` meshes, each as the convex hull of its vertices (mm), moved
+into the model's joint frame that carries the same link:
+
+    local_T = inv(model joint frame k at q) @ URDF mesh placement at urdf_from_model(q)
+
+with the URDF's base_link = the model's base. The link is rigid, so the
+product does not depend on ``q``; ``tests/test_reference_links.py`` checks it
+over random configurations. Convex hulls enclose the meshes (never thinner
+than the robot) and keep coal's GJK queries fast (docs/motion-check.md).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import BadInput
+from .shapes import BASE, MM_PER_M, Body, hull_points
+
+REFERENCE_Q_FRACTION = 0.37   # the configuration the placements are taken at (any one works: links are rigid)
+_MEMO: dict = {}               # (URDF, model chain) -> bodies: the meshes are read once a process
+
+
+def _se3_mm(M) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = M.rotation
+    T[:3, 3] = np.asarray(M.translation) * MM_PER_M
+    return T
+
+
+def has_reference_links(robot) -> bool:
+    """True if the robot's controller data names a vendored ROS-Industrial description."""
+    conv = robot.conventions
+    return conv is not None and conv.urdf_path is not None and conv.urdf_matrix is not None
+
+
+def reference_link_bodies(robot, q_rad: np.ndarray | None = None) -> list[Body]:
+    """The URDF's collision meshes as convex bodies on the model's joint frames (module docstring)."""
+    conv = robot.conventions
+    key = (str(conv.urdf_path), conv.urdf_joint_names, conv.urdf_matrix.tobytes(),
+           b"".join(np.asarray(M.homogeneous).tobytes() for M in robot.model.jointPlacements),
+           None if q_rad is None else np.asarray(q_rad, float).tobytes())
+    if key not in _MEMO:
+        _MEMO[key] = tuple(_read_bodies(robot, q_rad))
+    return list(_MEMO[key])
+
+
+def _read_bodies(robot, q_rad) -> list[Body]:
+    import pinocchio as pin
+
+    conv = robot.conventions
+    path = Path(conv.urdf_path)
+    try:
+        um = pin.buildModelFromUrdf(str(path))
+        gm = pin.buildGeomFromUrdf(um, str(path), pin.GeometryType.COLLISION,
+                                   package_dirs=[str(path.parents[2]), str(path.parents[1])])
+    except Exception as exc:  # a mesh that cannot be found or read: one line for the user
+        raise BadInput(f"{path}: cannot read its collision meshes ({(str(exc).splitlines() or [''])[0]})") from None
+    if q_rad is None:
+        lo, hi = robot.limits.lower, robot.limits.upper
+        q_rad = lo + REFERENCE_Q_FRACTION * (hi - lo)
+    q_model = np.asarray(q_rad, float)
+    frames = _model_joint_frames(robot, q_model)
+    q_urdf = np.zeros(um.nq)
+    urdf_q = conv.urdf_from_model(q_model)
+    joint_of_urdf = {}
+    for k, name in enumerate(conv.urdf_joint_names):
+        jid = um.getJointId(name)
+        if jid >= um.njoints:
+            raise BadInput(f"{path}: has no joint {name!r} ([controller.urdf] joints)")
+        q_urdf[um.joints[jid].idx_q] = urdf_q[k]
+        joint_of_urdf[jid] = k + 1
+    ud = um.createData()
+    gd = pin.GeometryData(gm)
+    pin.forwardKinematics(um, ud, q_urdf)
+    pin.updateGeometryPlacements(um, ud, gm, gd)
+    out = []
+    for k, go in enumerate(gm.geometryObjects):
+        if not go.meshPath:
+            continue
+        pts = hull_points(_vertices_m(go.meshPath) * np.asarray(go.meshScale) * MM_PER_M)
+        T_world = _se3_mm(gd.oMg[k])
+        parent = _moving_parent(um, go.parentJoint, joint_of_urdf)
+        name = um.frames[go.parentFrame].name if go.parentFrame < len(um.frames) else go.name
+        if parent == BASE:
+            out.append(Body(name, "base", BASE, "convex", (), T_world, pts))
+        else:
+            local = np.linalg.inv(frames[parent - 1]) @ T_world
+            out.append(Body(name, "link", parent, "convex", (), local, pts))
+    return out
+
+
+def _vertices_m(mesh_path: str) -> np.ndarray:
+    """The vertices (m) of a vendored mesh. trimesh, not the workpiece loader: the ROS-I meshes
+    carry denormal coordinates (1e-33 m) that the loader rightly refuses in a workpiece, and
+    that are harmless in a hull."""
+    import trimesh
+
+    mesh = trimesh.load(mesh_path, force="mesh", process=False)
+    return np.asarray(mesh.vertices, float)
+
+
+def _moving_parent(um, jid: int, joint_of_urdf: dict) -> int:
+    """The model joint (1..dof) that moves URDF joint ``jid``'s link, BASE for the fixed base."""
+    while jid > 0 and jid not in joint_of_urdf:
+        jid = um.parents[jid]
+    return joint_of_urdf.get(jid, BASE)
+
+
+def _model_joint_frames(robot, q_rad: np.ndarray) -> np.ndarray:
+    """(dof, 4, 4) joint frames of the model (mm, base frame) at q."""
+    import pinocchio as pin
+
+    data = robot.model.createData()
+    scale = np.where(np.asarray(robot.prismatic, bool), 1e-3, 1.0)
+    pin.forwardKinematics(robot.model, data, q_rad * scale)
+    return np.stack([_se3_mm(data.oMi[j]) for j in range(1, robot.model.njoints)])
