@@ -9,7 +9,8 @@ the same bytes. What is displayed is decimated (workpiece <= 20k points, path
 Shown: the summary figures of report.json; a 3-D scene with the workpiece, the
 fitted surface's boundary, the path coloured by zone (work poses by TCP feed
 when a trajectory is given), reverse plans, retracts, singular, not-reached
-and failing poses, and the robot as a stick figure on a slider along the path;
+and failing poses, the cell's obstacles, and the robot (its joint origins and the link
+shapes the motion check measures) on a slider along the path;
 TCP feed along the path length; joint use as a share of the limits (one heat
 map, joint x time); and the redundancy map (``camtool.redundancy_map``).
 """
@@ -21,7 +22,7 @@ from pathlib import Path as FsPath
 import numpy as np
 
 from .collision.plot import obstacle_traces
-
+from .errors import BadInput
 from .robots.dh import MM_TO_M
 from .toolpath import WORK, ZONES
 
@@ -29,6 +30,7 @@ MAX_WORKPIECE_POINTS = 20_000
 MAX_PATH_POINTS = 20_000
 MAX_MARKERS = 5_000
 ROBOT_FRAMES = 40
+DEFAULT_TOOL_RADIUS_MM = 25.0   # the tool drawn when no motion check measured one (check.tool_radius_mm's default)
 MAX_FEED_POINTS = 8_000
 MAX_HEAT_COLUMNS = 1_500
 ZONE_COLORS = {"work": "#1f77b4", "self_motion": "#ff7f0e", "lead_in": "#2ca02c", "lead_out": "#9467bd",
@@ -107,7 +109,6 @@ def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None,
     included as columns); robots without closed-form families get none.
     Returns the files written.
     """
-    from .errors import BadInput
     from .redundancy_map import plot_redundancy_map_png, redundancy_kind, redundancy_map
 
     outdir = FsPath(outdir)
@@ -445,8 +446,9 @@ def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, fai
         traces += _path_traces(go, path, feed)
     traces += _event_traces(go, report, robot, path, joint_path, failing_indices)
     traces += obstacle_traces(go, report)   # the cell's obstacles (camtool.collision)
-    robot_trace, steps = _robot_traces(go, robot, path, joint_path)
-    traces.append(robot_trace)
+    robot_traces, steps = _robot_traces(go, robot, path, joint_path, _robot_shapes(report, robot))
+    first_robot = len(traces)
+    traces += robot_traces
     fig = go.Figure()
     fig.update_layout(height=780, margin={"l": 0, "r": 0, "t": 30, "b": 0},
                       legend={"itemsizing": "constant", "x": 0.0, "y": 1.0, "bgcolor": "rgba(255,255,255,0.7)"},
@@ -454,7 +456,8 @@ def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, fai
                              "zaxis_title": "z [mm]"}, uirevision="scene")
     if steps:
         fig.update_layout(sliders=[{"active": 0, "currentvalue": {"prefix": "robot at "}, "pad": {"t": 10},
-                                    "steps": [dict(s, args=[s["args"][0], [len(traces) - 1]]) for s in steps]}])
+                                    "steps": [dict(s, args=[s["args"][0], list(range(first_robot, len(traces)))])
+                                              for s in steps]}])
     return _with_traces(fig, traces)
 
 
@@ -515,28 +518,53 @@ def _event_traces(go, report, robot, path, joint_path, failing_indices) -> list:
     return traces
 
 
-def _robot_traces(go, robot, path, joint_path):
-    """The stick figure (first slider pose) and the slider's restyle steps."""
+def _robot_shapes(report: dict, robot):
+    """The robot's bodies as the motion check measured them (its tool from report.json's cell bodies)."""
+    from .collision.plot import RobotShapes
+    from .collision.shapes import robot_bodies
+
+    cell = (report.get("motion_check") or {}).get("cell") or {}
+    tool = next((b for b in cell.get("bodies", []) if b.get("kind") == "tool"), None)
+    radius = float(tool["size_mm"][0]) if tool and tool.get("shape") == "cylinder" else DEFAULT_TOOL_RADIUS_MM
+    points = np.asarray(tool["points_mm"], float) if tool and tool.get("points_mm") else None
+    try:
+        return RobotShapes(robot, robot_bodies(robot, radius, points))
+    except BadInput:   # a URDF robot whose meshes cannot be read: the stick figure alone
+        return None
+
+
+def _robot_traces(go, robot, path, joint_path, shapes=None):
+    """The stick figure and the link shapes (first slider pose), and the slider's restyle steps."""
     line = {"color": "#222222", "width": 7}
     marker = {"size": 3, "color": "#222222"}
     ok = np.flatnonzero(joint_path.reached) if joint_path is not None else np.zeros(0, int)
     if not len(ok):
         q0 = np.clip(np.zeros(robot.dof), robot.limits.lower, robot.limits.upper)
-        return _trace("scatter3d", mode="lines+markers", name="robot (zero joint values; no plan)",
-                            **_xyz(joint_origins(robot, q0)), line=line, marker=marker), []
+        traces = [_trace("scatter3d", mode="lines+markers", name="robot (zero joint values; no plan)",
+                         **_xyz(joint_origins(robot, q0)), line=line, marker=marker)]
+        if shapes is not None:
+            traces.append(shapes.trace(go, q0, "robot link shapes (zero joint values)"))
+        return traces, []
     rows = ok[subsample(len(ok), ROBOT_FRAMES)]   # reached rows only
     steps = []
     first = None
     for k in rows:
         pts = _xyz(joint_origins(robot, joint_path.q[k]))
         first = first or pts
+        args = {a: [pts[a]] for a in "xyz"}
+        if shapes is not None:
+            V = np.round(shapes.vertices_mm(joint_path.q[k]), 1)
+            for c, a in enumerate("xyz"):
+                args[a].append(V[:, c].tolist())
         i = int(joint_path.path_index[k])
         zone = ZONES[joint_path.zone[k]]
         label = f"pose {i} ({zone})" if i >= 0 else f"row {int(k)} ({zone})"
-        steps.append({"method": "restyle", "label": label,
-                      "args": [{"x": [pts["x"]], "y": [pts["y"]], "z": [pts["z"]]}]})
-    return _trace("scatter3d", mode="lines+markers", name="robot (slider below)", **first, line=line, marker=marker,
-                        hoverinfo="skip"), steps
+        steps.append({"method": "restyle", "label": label, "args": [args]})
+    traces = [_trace("scatter3d", mode="lines+markers", name="robot joints (slider below)", **first, line=line,
+                     marker=marker, hoverinfo="skip")]
+    if shapes is not None:
+        traces.append(shapes.trace(go, joint_path.q[rows[0]], "robot link shapes (slider below)"))
+    return traces, steps
 
 
 # ----------------------------------------------------------------------------- feed, joint use
@@ -656,8 +684,9 @@ _CSS = ("body{font-family:system-ui,sans-serif;margin:1.2em;color:#222}h1{font-s
 _SCENE_NOTE = ('<p class="note">World frame, mm. Workpiece points decimated for display; the path coloured by zone, '
                'work poses by TCP feed when the run was timed. Markers: reverse planned (diamond), retract '
                '(square), singular (x), not reached (open circle), unreachable or failing (red cross). '
-               'The slider moves the robot stick figure (base, joint frame origins, flange, TCP) along the '
-               'path. Click a legend entry to hide or show it.</p>')
+               'Obstacles in orange. The slider moves the robot along the path: its joint origins (base, joint '
+               'frames, flange, TCP) and, in blue, the link and tool shapes the motion check measures (hulls drawn '
+               'from at most 64 of their vertices). Click a legend entry to hide or show it.</p>')
 _FEED_NOTE = ('<p class="note">TCP speed from forward kinematics of the timed waypoints (distance / time), '
               'against the length the TCP has travelled; work zones in blue. Long runs show the lowest '
               'feed per display bin, so slowdowns stay visible.</p>')

@@ -86,7 +86,8 @@ def test_ok_run_is_self_contained_and_shows_every_part(job, tmp_path):
     assert f.stat().st_size <= MAX_BYTES
     for div in DIV.values():
         assert f'id="{div}"' in text
-    assert '"sliders"' in text and "robot (slider below)" in text       # stick figure on a slider
+    assert '"sliders"' in text and "robot joints (slider below)" in text       # joints on a slider
+    assert "robot link shapes (slider below)" in text     # and the link shapes the check measures
     assert "work: TCP feed" in text and "TCP path length [mm]" in text
     assert "share of limit" in text and "track position [mm]" in text
     assert "max_position_error_mm" in text and "slowdowns" in text     # the summary table
@@ -131,7 +132,7 @@ def test_failed_job_marks_the_failing_poses(job, tmp_path):
                         jp.reverse_planned, jp.retract, jp.singular, reached, jp.events)
     text = write_report_html(tmp_path / "partial.html", report=report, robot=robot, path=path, joint_path=partial,
                              failing_indices=failing).read_text()
-    assert "not reached (IK) (2)" in text and "robot (slider below)" in text
+    assert "not reached (IK) (2)" in text and "robot joints (slider below)" in text
 
 
 def test_write_run_html_adds_the_redundancy_png(job, tmp_path):

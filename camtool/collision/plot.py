@@ -1,10 +1,13 @@
-"""Plotly traces of the cell's obstacles for report.html (from report.json's ``motion_check.cell.bodies``)."""
+"""Plotly traces of the cell for report.html: the obstacles (from report.json's
+``motion_check.cell.bodies``) and the robot's own link shapes at a configuration."""
 from __future__ import annotations
 
 import numpy as np
 
 OBSTACLE_COLOR = "#d9822b"
+ROBOT_COLOR = "#5b7fa6"
 FLOOR_HALF_MM = 1500.0
+DRAWN_HULL_VERTICES = 64   # a hull is drawn from at most this many of its vertices (display only)
 
 
 def _box(size):
@@ -23,11 +26,78 @@ def _mesh(shape: str, size, points):
         m = trimesh.creation.cylinder(radius=size[0], height=size[1], sections=24)
     elif shape == "sphere":
         m = trimesh.creation.icosphere(subdivisions=2, radius=size[0])
+    elif shape == "capsule":
+        m = trimesh.creation.capsule(height=size[1], radius=size[0], count=[10, 10])
     elif shape == "convex":
-        m = trimesh.convex.convex_hull(np.asarray(points, float))
+        m = trimesh.convex.convex_hull(_spread(np.asarray(points, float), DRAWN_HULL_VERTICES))
     else:
         return None
     return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def _spread(points: np.ndarray, n: int) -> np.ndarray:
+    """At most n of the points, spread by farthest-point sampling from the first (deterministic)."""
+    if len(points) <= n:
+        return points
+    chosen = [0]
+    d = np.linalg.norm(points - points[0], axis=1)
+    for _ in range(n - 1):
+        k = int(np.argmax(d))
+        chosen.append(k)
+        d = np.minimum(d, np.linalg.norm(points - points[k], axis=1))
+    return points[chosen]
+
+
+class RobotShapes:
+    """The robot's link, base and tool bodies as one triangle mesh to draw at any configuration.
+
+    Hulls are drawn from at most ``DRAWN_HULL_VERTICES`` of their vertices:
+    a picture of the shapes the check measures, not the measure itself.
+    """
+
+    def __init__(self, robot, bodies):
+        self.robot = robot
+        parts, faces, self.parent, self.body, n = [], [], [], [], 0
+        for index, b in enumerate(bodies):
+            mesh = _mesh(b.shape, b.size_mm, b.points_mm)
+            if mesh is None:
+                continue
+            V, F = mesh
+            parts.append(V @ b.local_T_mm[:3, :3].T + b.local_T_mm[:3, 3])
+            faces.append(F + n)
+            self.parent += [b.parent] * len(V)
+            self.body += [index] * len(V)     # which body each vertex draws
+            n += len(V)
+        self.local = np.vstack(parts) if parts else np.zeros((0, 3))
+        self.faces = np.vstack(faces) if faces else np.zeros((0, 3), int)
+        self.parent, self.body = np.asarray(self.parent, int), np.asarray(self.body, int)
+
+    def vertices_mm(self, q) -> np.ndarray:
+        """(N, 3) world vertices at joint values q (rad / mm)."""
+        import pinocchio as pin
+
+        robot = self.robot
+        data = robot.model.createData()
+        scale = np.where(np.asarray(robot.prismatic, bool), 1e-3, 1.0)
+        pin.forwardKinematics(robot.model, data, np.asarray(q, float) * scale)
+        base = np.asarray(robot.base_T_mm, float)
+        out = np.empty_like(self.local)
+        for p in np.unique(self.parent):
+            sel = self.parent == p
+            T = base.copy()
+            if p > 0:
+                M = data.oMi[int(p)]
+                J = np.eye(4)
+                J[:3, :3], J[:3, 3] = M.rotation, np.asarray(M.translation) * 1000.0
+                T = base @ J
+            out[sel] = self.local[sel] @ T[:3, :3].T + T[:3, 3]
+        return out
+
+    def trace(self, go, q, name: str):
+        V = np.round(self.vertices_mm(q), 1)
+        return go.Mesh3d(x=V[:, 0], y=V[:, 1], z=V[:, 2], i=self.faces[:, 0], j=self.faces[:, 1],
+                         k=self.faces[:, 2], name=name, showlegend=True, color=ROBOT_COLOR, opacity=0.45,
+                         flatshading=True, hoverinfo="name")
 
 
 def obstacle_traces(go, report: dict) -> list:

@@ -105,7 +105,7 @@ class Body:
              "xyz_mm": [round(float(x), 3) for x in self.local_T_mm[:3, 3]]}
         if self.points_mm is not None:
             d["hull_points"] = int(len(self.points_mm))
-        if self.kind == "obstacle":   # enough to draw it (report.html)
+        if self.kind in ("obstacle", "tool"):   # enough to draw it (report.html)
             d["T_mm"] = np.round(self.local_T_mm, 4).tolist()
             if self.points_mm is not None:
                 d["points_mm"] = np.round(self.points_mm, 2).tolist()
