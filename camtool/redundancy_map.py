@@ -21,7 +21,11 @@ largest joint-limit margin: the smallest distance of any joint to its nearer
 limit as a share of that joint's range (0 at a limit, 0.5 at mid-range). Cell
 codes: ``NO_IK`` (the pose is out of reach or the arm angle is undefined),
 ``OUTSIDE_LIMITS`` (solutions exist, none inside the joint limits),
-``REACHABLE``. Reachable cells also carry the manipulability
+``REACHABLE``, and, given the job's collision world (``camtool.collision``),
+``IN_COLLISION``: the best solution is inside the limits but a robot or tool
+body comes closer than ``cell.clearance_mm`` to an obstacle, the floor or
+another link (self-collision). Only the best solution is checked: another
+family may be clear there. Reachable cells also carry the manipulability
 sqrt(det(J J^T)) of the TCP Jacobian (mm / rad rows, whole robot) at the
 best solution, normalised by the largest over the map.
 
@@ -41,10 +45,12 @@ from .robots.ik_srs import track_shift
 from .toolpath import WORK, Path
 from . import safe_io
 
-NO_IK, OUTSIDE_LIMITS, REACHABLE = 0, 1, 2
-CODE_NAMES = {NO_IK: "no IK solution", OUTSIDE_LIMITS: "outside joint limits", REACHABLE: "reachable"}
+NO_IK, OUTSIDE_LIMITS, REACHABLE, IN_COLLISION = 0, 1, 2, 3
+CODE_NAMES = {NO_IK: "no IK solution", OUTSIDE_LIMITS: "outside joint limits", REACHABLE: "reachable",
+              IN_COLLISION: "in collision (cell or self)"}
 KIND_LABELS = {"arm_angle": "arm angle [deg]", "track": "track position [mm]", "tool_spin": "tool spin about z [deg]"}
 TWO_PI = 2.0 * np.pi
+BAD_COLORS = ["#555555", "#f4b6b6", "#f0a030"]   # no IK, outside the limits, in collision
 
 
 @dataclass(frozen=True)
@@ -138,10 +144,12 @@ def _spread(n: int, m: int) -> np.ndarray:
 
 
 def redundancy_map(path: Path, robot, joint_path=None, settings: RedundancySettings | None = None, *,
-                   include=()) -> RedundancyMap:
+                   include=(), world=None) -> RedundancyMap:
     """The redundancy map of ``path`` for ``robot`` (see the module doc).
 
     ``include``: path indices that must be columns (e.g. failing poses).
+    ``world``: the job's ``CollisionWorld``; with it, reachable cells whose best solution collides
+    become ``IN_COLLISION``.
     Raises BadInput for a robot without closed-form families.
     """
     st = settings or RedundancySettings()
@@ -163,6 +171,13 @@ def redundancy_map(path: Path, robot, joint_path=None, settings: RedundancySetti
         y = np.arange(-180.0, 180.0, st.spin_step_deg)
         best_q, best_m, has_ik = _sweep_tool_spin(robot, targets, tool_inv, np.radians(y))
     code = np.where(~has_ik, NO_IK, np.where(best_m >= -1e-9, REACHABLE, OUTSIDE_LIMITS)).astype(np.int8)
+    notes = ()
+    if world is not None and world.pairs:
+        cells = np.argwhere(code == REACHABLE)
+        free = world.valid_many(best_q[cells[:, 0], cells[:, 1]])
+        code[cells[~free, 0], cells[~free, 1]] = IN_COLLISION
+        notes += (f"collision layer: {int(np.count_nonzero(~free))} of {len(cells)} reachable cells collide "
+                  f"with the cell or the robot itself (best solution only)",)
     reach = code == REACHABLE
     margin = np.where(reach, np.clip(best_m, 0.0, None), np.nan)
     manip = np.full(code.shape, np.nan)
@@ -173,11 +188,10 @@ def redundancy_map(path: Path, robot, joint_path=None, settings: RedundancySetti
     planned = np.full(len(x), np.nan)
     if joint_path is not None:
         planned = _planned_values(kind, robot, joint_path, x, targets)
-    notes = ()
     if kind == "tool_spin" and not path.free_spin:
-        notes = ("the path fixes the tool spin: only y = 0 is what the program asks",)
+        notes = ("the path fixes the tool spin: only y = 0 is what the program asks",) + notes
     if kind == "track":
-        notes = (f"best of {st.track_arm_angles} arm angles per cell",)
+        notes = (f"best of {st.track_arm_angles} arm angles per cell",) + notes
     return RedundancyMap(robot.name, kind, x, y, code, margin, manip, planned, mmax, notes)
 
 
@@ -416,7 +430,7 @@ def plot_redundancy_map_png(rmap: RedundancyMap, file) -> FsPath:
     """The map as a PNG (matplotlib, Agg): joint-limit margin and manipulability side by side.
 
     Unreachable cells are dark grey (no IK) or light red (outside the joint
-    limits); the planned curve is drawn in black.
+    limits), colliding ones orange; the planned curve is drawn in black.
     """
     import matplotlib
 
@@ -429,10 +443,11 @@ def plot_redundancy_map_png(rmap: RedundancyMap, file) -> FsPath:
     xe = _edges(rmap.x.astype(float))
     ye = _edges(rmap.y.astype(float))
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.8), sharey=True)
-    bad = np.where(rmap.code == NO_IK, 0.0, np.where(rmap.code == OUTSIDE_LIMITS, 1.0, np.nan))
+    bad = np.select([rmap.code == NO_IK, rmap.code == OUTSIDE_LIMITS, rmap.code == IN_COLLISION],
+                    [0.0, 1.0, 2.0], np.nan)
     for ax, z, title, vmax in ((axes[0], rmap.margin, "joint-limit margin [share of range]", 0.5),
                                (axes[1], rmap.manipulability, "manipulability [normalised]", 1.0)):
-        ax.pcolormesh(xe, ye, bad, cmap=ListedColormap(["#555555", "#f4b6b6"]), vmin=0, vmax=1, shading="flat")
+        ax.pcolormesh(xe, ye, bad, cmap=ListedColormap(BAD_COLORS), vmin=0, vmax=2, shading="flat")
         im = ax.pcolormesh(xe, ye, z, cmap="viridis", vmin=0, vmax=vmax, shading="flat")
         fig.colorbar(im, ax=ax, fraction=0.05)
         if np.isfinite(rmap.planned).any():
@@ -441,7 +456,8 @@ def plot_redundancy_map_png(rmap: RedundancyMap, file) -> FsPath:
         ax.set_title(title, fontsize=10)
         ax.set_xlabel("path index (work poses)")
     axes[0].set_ylabel(rmap.y_label)
-    fig.suptitle(f"{rmap.robot}: redundancy map (grey: no IK, red: outside joint limits)", fontsize=11)
+    fig.suptitle(f"{rmap.robot}: redundancy map (grey: no IK, red: outside joint limits, orange: in collision)",
+                 fontsize=11)
     fig.tight_layout()
     safe_io.save_figure(fig, file, dpi=90)
     plt.close(fig)

@@ -102,11 +102,12 @@ def write_html_page(file, title: str, sections: list[tuple[str, str, str]]) -> F
 
 
 def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,
-                   trajectory=None, failing_indices=(), faces=None) -> list[FsPath]:
+                   trajectory=None, failing_indices=(), faces=None, world=None) -> list[FsPath]:
     """``OUTDIR/report.html`` and, for robots with closed-form IK, ``OUTDIR/plots/redundancy_map.png``.
 
     The redundancy map is computed here (``redundancy_map``, failing poses
-    included as columns); robots without closed-form families get none.
+    included as columns, its collision layer from ``world``, the job's
+    ``CollisionWorld``); robots without closed-form families get none.
     Returns the files written.
     """
     from .redundancy_map import plot_redundancy_map_png, redundancy_kind, redundancy_map
@@ -115,7 +116,7 @@ def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None,
     files, rmap = [], None
     if path is not None and len(path) and redundancy_kind(robot) is not None:
         try:
-            rmap = redundancy_map(path, robot, joint_path, include=failing_indices)
+            rmap = redundancy_map(path, robot, joint_path, include=failing_indices, world=world)
         except BadInput:
             rmap = None
         if rmap is not None:
@@ -628,10 +629,12 @@ def _joint_use_figure(robot, trajectory):
 def _redundancy_figure(rmap):
     import plotly.graph_objects as go
 
-    from .redundancy_map import NO_IK, OUTSIDE_LIMITS
+    from .redundancy_map import BAD_COLORS, IN_COLLISION, NO_IK, OUTSIDE_LIMITS
 
     x, y = _list(rmap.x, 0), _list(rmap.y, 2)
-    bad = np.where(rmap.code == NO_IK, 0.0, np.where(rmap.code == OUTSIDE_LIMITS, 1.0, np.nan))
+    bad = np.select([rmap.code == NO_IK, rmap.code == OUTSIDE_LIMITS, rmap.code == IN_COLLISION],
+                    [0.0, 1.0, 2.0], np.nan)
+    grey, red, orange = BAD_COLORS
     planned = np.asarray(rmap.planned, float).copy()
     if rmap.kind != "track":  # no line across the +-180 deg wrap
         jump = np.flatnonzero(np.abs(np.diff(planned)) > 180.0)
@@ -640,9 +643,9 @@ def _redundancy_figure(rmap):
     else:
         xs = rmap.x.astype(float)
     traces = [
-        _trace("heatmap", x=x, y=y, z=[_list(r, 0) for r in bad], zmin=0, zmax=1, showscale=False, name="unreachable",
-                   colorscale=[[0, "#555555"], [0.5, "#555555"], [0.5, "#f4b6b6"], [1, "#f4b6b6"]],
-                   hovertemplate="pose %{x}<br>%{y}<br>%{z}<extra>0 no IK, 1 outside limits</extra>"),
+        _trace("heatmap", x=x, y=y, z=[_list(r, 0) for r in bad], zmin=0, zmax=2, showscale=False, name="unreachable",
+                   colorscale=[[0, grey], [1 / 3, grey], [1 / 3, red], [2 / 3, red], [2 / 3, orange], [1, orange]],
+                   hovertemplate="pose %{x}<br>%{y}<br>%{z}<extra>0 no IK, 1 outside limits, 2 in collision</extra>"),
         _trace("heatmap", x=x, y=y, z=[_list(r, 3) for r in rmap.margin], zmin=0, zmax=0.5, colorscale="Viridis",
                    name="joint-limit margin", colorbar={"title": {"text": "margin"}},
                    hovertemplate="pose %{x}<br>%{y}<br>margin %{z}<extra></extra>"),
@@ -693,7 +696,8 @@ _FEED_NOTE = ('<p class="note">TCP speed from forward kinematics of the timed wa
 _JOINT_NOTE = ('<p class="note">Each joint\'s position as a share of its range: -1 at the lower limit, 0 at '
                'mid-range, +1 at the upper limit. The top strip marks work zones.</p>')
 _REDUNDANCY_NOTE = ('<p class="note">Columns: work poses (subsampled); rows: the robot\'s redundant parameter. '
-                    'Grey: no IK solution; red: solutions only outside the joint limits; coloured: reachable, '
+                    'Grey: no IK solution; red: solutions only outside the joint limits; orange: the best solution '
+                    'collides with the cell or the robot itself; coloured: reachable, '
                     'by joint-limit margin (share of range, 0.5 = every joint mid-range) or normalised '
                     'manipulability (buttons). The black curve is the planned solution. '
                     'See docs/report-html.md.</p>')

@@ -378,7 +378,7 @@ def run_report(path, joint_path, trajectory, robot, job: Job, method: str) -> di
 
 
 def report_unreachable(exc: PlanInfeasible, path, robot, job: Job, outdir: Path, workpiece=None,
-                       surface=None, shift: dict | None = None) -> None:
+                       surface=None, shift: dict | None = None, world=None) -> None:
     """Write report.json, report.html (failing poses marked, with the redundancy map) and a PNG map of
     unreachable poses for an infeasible plan."""
     unreachable = exc.report.get("unreachable", [])
@@ -395,23 +395,25 @@ def report_unreachable(exc: PlanInfeasible, path, robot, job: Job, outdir: Path,
         report["unreachable_map"] = str(plot_unreachable(path, unreachable, Path(outdir) / "plots" / "unreachable.png"))
     write_json_atomic(report, Path(outdir) / "report.json")
     write_run_html(outdir, report=report, robot=robot, workpiece=workpiece, surface=surface, path=path,
-                   joint_path=exc.report.get("joint_path"), failing_indices=[u["index"] for u in unreachable])
+                   joint_path=exc.report.get("joint_path"), failing_indices=[u["index"] for u in unreachable],
+                   world=world)
 
 
 def report_failure(exc: PlanInfeasible, path, joint_path, robot, job: Job, outdir: Path, workpiece=None,
-                   surface=None) -> None:
+                   surface=None, world=None) -> None:
     """report.json (status "unsafe", the reason and the motion-check figures) and report.html for a plan
     that failed a check after planning; no program is written."""
     report = {"robot": robot.name, "method": job.planner.method, "status": "unsafe", "reason": str(exc),
               "points_total": len(path), **exc.report}
     write_json_atomic(report, Path(outdir) / "report.json")
     write_run_html(outdir, report=report, robot=robot, workpiece=workpiece, surface=surface, path=path,
-                   joint_path=joint_path)
+                   joint_path=joint_path, world=world)
 
 
 def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, trajectories: dict, outdir: Path,
-               extra_files=()) -> RunResult:
-    """Write the plots, points.csv and report.json of a successful run; the RunResult lists every file."""
+               extra_files=(), world=None) -> RunResult:
+    """Write the plots, points.csv and report.json of a successful run; the RunResult lists every file.
+    ``world``: the job's collision world (the redundancy map's collision layer)."""
     outdir = Path(outdir)
     log.lap("report")
     plots = plot_joints(trajectories, robot, outdir / "plots")
@@ -424,7 +426,8 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
     log.outputs["report"] = report
     html = write_run_html(outdir, report=report, robot=robot, workpiece=log.outputs.get("workpiece"),
                           surface=log.outputs.get("fit"), path=path, joint_path=joint_path,
-                          trajectory=next(iter(trajectories.values())), faces=log.outputs.get("faces"))
+                          trajectory=next(iter(trajectories.values())), faces=log.outputs.get("faces"),
+                          world=world)
     log.lap("report_html")
     report["stage_seconds"], report["stage_cpu_seconds"] = stage_seconds(log.seconds), stage_seconds(log.cpu_seconds)
     write_json_atomic(report, outdir / "report.json")  # again, with the page's own time (11 kB)

@@ -153,3 +153,29 @@ def test_failing_poses_are_included_but_bounded():
     m = redundancy_map(path, robot, settings=settings, include=range(0, len(path), 3))
     assert len(m.x) <= 20 and np.isin(0, m.x)
     assert m.code.dtype == np.int8 and set(np.unique(m.code)) <= {0, 1, REACHABLE}
+
+
+def test_collision_layer_marks_the_cells_an_obstacle_blocks(planned):
+    """An obstacle at the planned elbow blocks cells near the planned curve and nothing else changes;
+    an obstacle far away changes nothing."""
+    from camtool.collision import CellSettings, CollisionWorld
+    from camtool.collision.shapes import WORLD, Body
+    from camtool.redundancy_map import IN_COLLISION
+
+    name, robot, path, jp, plain = planned
+    alone = redundancy_map(path, robot, jp, SETTINGS, world=CollisionWorld(robot))   # self-collision only
+    assert np.all((alone.code == plain.code) | ((plain.code == REACHABLE) & (alone.code == IN_COLLISION)))
+    plain = alone
+    work = np.flatnonzero(jp.path_index >= 0)
+    q = jp.q[work[len(work) // 2]]
+    elbow = CollisionWorld(robot).joint_frames_mm(q)[robot.dof // 2][:3, 3]   # a mid-chain joint origin
+    for centre, blocks in ((elbow, True), (elbow + [0.0, 0.0, 5000.0], False)):
+        T = np.eye(4)
+        T[:3, 3] = centre
+        world = CollisionWorld(robot, CellSettings(obstacles=(Body("ball", "obstacle", WORLD, "sphere", (120.0,), T),)))
+        m = redundancy_map(path, robot, jp, SETTINGS, world=world)
+        changed = m.code != plain.code
+        assert np.all(plain.code[changed] == REACHABLE) and np.all(m.code[changed] == IN_COLLISION)
+        assert changed.any() == blocks and (m.code == REACHABLE).any()
+        if blocks:
+            assert any("collision layer" in n for n in m.notes)

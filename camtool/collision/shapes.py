@@ -80,6 +80,19 @@ class Body:
             return float(np.linalg.norm(pts, axis=1).max())
         return np.inf
 
+    @property
+    def ball_mm(self) -> tuple[np.ndarray, float]:
+        """(centre in the body's own frame, radius) of a ball holding the whole body (mm); the
+        halfspace gets an infinite one. The world's broad phase skips pairs whose balls are apart."""
+        s = self.size_mm
+        if self.shape == "convex":
+            P = np.asarray(self.points_mm, float)
+            c = 0.5 * (P.min(axis=0) + P.max(axis=0))
+            return c, float(np.linalg.norm(P - c, axis=1).max())
+        radius = {"capsule": lambda: s[1] / 2.0 + s[0], "cylinder": lambda: np.hypot(s[0], s[1] / 2.0),
+                  "box": lambda: 0.5 * np.linalg.norm(s), "sphere": lambda: s[0]}.get(self.shape, lambda: np.inf)()
+        return np.zeros(3), float(radius)
+
     def coal_geometry(self):
         """The coal shape (mm)."""
         import coal

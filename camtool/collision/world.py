@@ -93,6 +93,17 @@ class CollisionWorld:
         self._q_scale = np.where(np.asarray(robot.prismatic, bool), 1.0 / MM_PER_M, 1.0)
         self._data = robot.model.createData()
         self.calls = 0
+        self._fixed_poses = np.array([b.local_T_mm if b.parent == WORLD else base @ b.local_T_mm
+                                      for b in self.bodies])   # moving bodies' rows are overwritten
+        self._moving = np.array([b.parent > BASE for b in self.bodies], bool)
+        self._moving_frame = np.array([b.parent - 1 for b in self.bodies if b.parent > BASE], int)
+        self._moving_local = np.array([b.local_T_mm for b in self.bodies if b.parent > BASE]).reshape(-1, 4, 4)
+        balls = [b.ball_mm for b in self.bodies]
+        self._ball_centre = np.array([c for c, _ in balls])
+        self._ball_radius = np.array([r for _, r in balls])
+        self._pair_a = np.array([p.a for p in self.pairs], int)
+        self._pair_b = np.array([p.b for p in self.pairs], int)
+        self.skipped = 0   # pair queries the broad phase left out
 
     @property
     def has_obstacles(self) -> bool:
@@ -106,25 +117,27 @@ class CollisionWorld:
         import pinocchio as pin
 
         pin.forwardKinematics(self.robot.model, self._data, np.asarray(q, float) * self._q_scale)
-        F = np.empty((self.robot.dof, 4, 4))
-        for j in range(1, self.robot.model.njoints):
-            M = self._data.oMi[j]
-            F[j - 1] = np.eye(4)
-            F[j - 1, :3, :3] = M.rotation
-            F[j - 1, :3, 3] = np.asarray(M.translation) * MM_PER_M
+        oMi = self._data.oMi
+        F = np.array([oMi[j].homogeneous for j in range(1, self.robot.model.njoints)])
+        F[:, :3, 3] *= MM_PER_M
         return self._base @ F
 
     def body_poses_mm(self, frames: np.ndarray) -> list[np.ndarray]:
         """World pose (mm) of every body for these joint frames (``joint_frames_mm``)."""
-        out = []
-        for b in self.bodies:
-            if b.parent == WORLD:
-                out.append(b.local_T_mm)
-            elif b.parent == BASE:
-                out.append(self._base @ b.local_T_mm)
-            else:
-                out.append(frames[b.parent - 1] @ b.local_T_mm)
-        return out
+        return list(self._poses(frames))
+
+    def _poses(self, frames: np.ndarray) -> np.ndarray:
+        poses = self._fixed_poses.copy()
+        poses[self._moving] = frames[self._moving_frame] @ self._moving_local
+        return poses
+
+    def _ball_gaps_mm(self, poses) -> np.ndarray:
+        """(P,) the distance between each pair's bounding balls (a lower bound of the pair's distance)."""
+        centres = np.einsum("bij,bj->bi", poses[:, :3, :3], self._ball_centre) + poses[:, :3, 3]
+        apart = np.linalg.norm(centres[self._pair_a] - centres[self._pair_b], axis=1)
+        with np.errstate(invalid="ignore"):
+            gap = apart - self._ball_radius[self._pair_a] - self._ball_radius[self._pair_b]
+        return np.where(np.isnan(gap), -np.inf, gap)
 
     def pair_distances_mm(self, q, pairs=None) -> np.ndarray:
         """coal distance (mm, negative = overlap) of each pair at configuration q."""
@@ -150,8 +163,30 @@ class CollisionWorld:
         return float(d[k]), self.pairs[k]
 
     def valid(self, q) -> bool:
-        """Every pair keeps ``clearance_mm``."""
-        return not self.pairs or self.clearance_mm_at(q)[0] >= self.clearance_mm
+        """Every pair keeps ``clearance_mm``. A broad phase first: pairs whose bounding balls are at
+        least the clearance apart cannot fail and are not queried (the answer is the same)."""
+        import coal
+
+        if not self.pairs:
+            return True
+        self.calls += 1
+        poses = self._poses(self.joint_frames_mm(q))
+        near = np.flatnonzero(self._ball_gaps_mm(poses) < self.clearance_mm)
+        self.skipped += len(self.pairs) - len(near)
+        req, res = coal.DistanceRequest(), coal.DistanceResult()
+        for k in near:
+            p = self.pairs[k]
+            Ta, Tb = poses[p.a], poses[p.b]
+            res.clear()
+            d = coal.distance(self.geometry[p.a], coal.Transform3s(Ta[:3, :3].copy(), Ta[:3, 3].copy()),
+                              self.geometry[p.b], coal.Transform3s(Tb[:3, :3].copy(), Tb[:3, 3].copy()), req, res)
+            if d < self.clearance_mm:
+                return False
+        return True
+
+    def valid_many(self, Q) -> np.ndarray:
+        """(K,) ``valid`` of each row of Q."""
+        return np.array([self.valid(q) for q in np.asarray(Q, float)], bool)
 
     def describe(self) -> dict:
         return {"bodies": [b.describe() for b in self.bodies], "clearance_mm": self.clearance_mm,

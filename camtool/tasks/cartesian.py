@@ -33,6 +33,7 @@ from ..errors import BadInput, PlanInfeasible
 from ..job import Job
 from ..plan.cwln import CwlnSolver, IkSettings
 from ..robots.ik_spherical_wrist import SphericalWristIK
+from ..collision.stage import collision_world
 from ..settings import JobSettings
 from ..stages import RunResult, StageLog, finish_run, post_checked, run_report, time_for_job
 from ..toolpath import ZONE_CODE, Path
@@ -280,4 +281,5 @@ def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: 
                            "path_tol_mm": job.task.path_tol_mm, "rounds": history,
                            "max_deviation_mm": float(max(history[-1]["max_deviation_mm"])),
                            "ik": ik_method(robot)}
-    return finish_run(log, programs, report, path, jp, robot, {"cartesian": trajectory}, outdir)
+    return finish_run(log, programs, report, path, jp, robot, {"cartesian": trajectory}, outdir,
+                      world=collision_world(settings, robot))

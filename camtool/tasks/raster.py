@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..collision.stage import collision_world
 from ..errors import BadInput, PlanInfeasible
 from ..faces import faces_report, segmented
 from ..job import Job
@@ -65,7 +66,8 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
         shift = None
         if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, a bounded search
             shift = nearest_feasible_shift(job, settings, robot, path)
-        report_unreachable(exc, path, robot, job, outdir, wp, surface, shift=shift)
+        report_unreachable(exc, path, robot, job, outdir, wp, surface, shift=shift,
+                           world=collision_world(settings, robot))
         if shift is not None and not shift["already_reachable"]:
             raise PlanInfeasible(f"{exc}; {shift['message']}", report=exc.report) from None
         raise
@@ -76,7 +78,7 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     try:
         motion = log.done("check", motion_check(settings, trajectory, robot, wp, path, surface))
     except PlanInfeasible as exc:
-        report_failure(exc, path, joint_path, robot, job, outdir, wp, surface)
+        report_failure(exc, path, joint_path, robot, job, outdir, wp, surface, world=collision_world(settings, robot))
         raise
     simulated: dict = {}
     programs = log.done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated))
@@ -112,4 +114,5 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
             report["compare"] = run_report(path, jp2, tr2, robot, job, other)
         except PlanInfeasible as exc:
             report["compare"] = {"method": other, "status": "infeasible", "reason": str(exc)}
-    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir, extra_files=(feed_png, *process_files))
+    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir,
+                      extra_files=(feed_png, *process_files), world=collision_world(settings, robot))

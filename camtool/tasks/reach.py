@@ -27,6 +27,7 @@ from ..errors import BadInput, PlanInfeasible
 from ..job import Job
 from ..plan.arm_angle_sqp import plan_arm_angle_sqp
 from ..report import write_json_atomic
+from ..collision.stage import collision_world
 from ..settings import JobSettings
 from ..stages import (RunResult, StageLog, finish_run, lift_connectors, motion_check, part_for_checks, post_checked,
                       report_failure, run_report, surface_for_job, time_for_job, workpiece_for_job)
@@ -147,7 +148,8 @@ def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: 
         try:
             motion = done("check", motion_check(settings, trajectory, robot, wp, path, surface))
         except PlanInfeasible as exc:
-            report_failure(exc, path, joint_path, robot, job, outdir, wp, surface)
+            report_failure(exc, path, joint_path, robot, job, outdir, wp, surface,
+                           world=collision_world(settings, robot))
             raise
     simulated: dict = {}
     programs = done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated))
@@ -170,4 +172,4 @@ def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: 
     table = outdir / FAMILY_TABLE_FILE
     table.write_text(family_table_text(res))
     return finish_run(log, programs, report, path, joint_path, robot, {job.planner.method: trajectory}, outdir,
-                      [table])
+                      [table], world=collision_world(settings, robot))
