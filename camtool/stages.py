@@ -227,11 +227,11 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
     ``workpiece``: the part the free motion keeps clear of (``part_for_checks``)."""
     planner = settings.planner if method is None else settings.planner.with_method(method)
     solver = CwlnSolver(robot, ik_settings(planner), free_spin=path.free_spin)  # lifts and densified poses
-    joint_path = plan_path(path, robot, planner)
+    world = collision_world(settings, robot)
+    joint_path = plan_path(path, robot, planner, world)
     if planner.smooth_runs:
         smooth = SmoothSettings(feed_mm_s=settings.timing.tcp_speed_mm_s)
         joint_path = smooth_runs(joint_path, path, robot, solver, smooth)
-    world = collision_world(settings, robot)
     joint_path = lift_connectors(planner, workpiece, path, robot, joint_path,
                                  link_radius_mm=settings.check.link_radius_mm,
                                  clearance_mm=settings.check.clearance_mm, solver=solver, world=world,

@@ -146,3 +146,48 @@ def test_irb2400_plans_inside_the_coupled_axis_3_or_says_which_axis():
     jp = plan_path(path_for_job(ok, surface_for_job(ok, workpiece_for_job(ok))), robot_for_job(ok),
                    PlannerSettings.make())
     assert np.all(robot.conventions.within_limits(jp.q))
+
+
+def _ball(centre, radius_mm):
+    from camtool.collision.shapes import WORLD, Body
+
+    T = np.eye(4)
+    T[:3, 3] = centre
+    return Body("ball", "obstacle", WORLD, "sphere", (float(radius_mm),), T)
+
+
+def test_an_obstacle_at_the_elbow_is_planned_around_with_another_arm_angle():
+    """The sia20's planned elbow is where a ball is put; with the cell the planner takes other
+    configurations, every work pose reached and clear of the ball (measured by the world itself)."""
+    from camtool.collision import CellSettings, CollisionWorld
+
+    robot = get_robot("sia20")
+    path = sphere_rows(center=(1000.0, 0.0, 400.0), radius=300.0, rows=3, pitch_mm=20.0, el_deg=(-10, 30),
+                       az_deg=(-30, 30))
+    plain = plan_path(path, robot, PlannerSettings.make())
+    work = np.flatnonzero(plain.path_index >= 0)
+    elbow = CollisionWorld(robot).joint_frames_mm(plain.q[work[len(work) // 2]])[3][:3, 3]
+    world = CollisionWorld(robot, CellSettings(obstacles=(_ball(elbow, 100.0),)))
+    assert not world.valid_many(plain.q[work]).all()      # the plain plan runs the elbow through the ball
+    jp = plan_path(path, robot, PlannerSettings.make(), world)
+    runs = np.zeros(len(path), bool)   # work rows and their leads (connectors are the lift stage's)
+    for a, b in split_runs(path):
+        runs[a:b + 1] = True
+    work = np.flatnonzero((jp.path_index >= 0) & runs[np.maximum(jp.path_index, 0)])
+    assert jp.reached[work].all() and world.valid_many(jp.q[work]).all()
+    assert all(world.clearance_mm_at(q)[0] >= world.clearance_mm for q in jp.q[work[::5]])
+
+
+def test_a_pose_every_configuration_of_which_collides_is_refused_naming_the_bodies():
+    from camtool.collision import CellSettings, CollisionWorld
+
+    robot = get_robot("sia20")
+    path = sphere_rows(center=(1000.0, 0.0, 400.0), radius=300.0, rows=2, pitch_mm=20.0, el_deg=(-10, 30),
+                       az_deg=(-30, 30))
+    tcp = path.poses_mm[np.flatnonzero(path.zone == ZONE_CODE["work"])[0]][:3, 3]
+    world = CollisionWorld(robot, CellSettings(obstacles=(_ball(tcp, 40.0),)))   # round the first work pose
+    with pytest.raises(PlanInfeasible) as exc:
+        plan_path(path, robot, PlannerSettings.make(), world)
+    first = exc.value.report["unreachable"][0]
+    assert "every configuration tried collides" in first["reason"] and "ball" in first["reason"]
+    assert "every configuration tried collides" in str(exc.value)

@@ -185,8 +185,43 @@ class CollisionWorld:
         return True
 
     def valid_many(self, Q) -> np.ndarray:
-        """(K,) ``valid`` of each row of Q."""
-        return np.array([self.valid(q) for q in np.asarray(Q, float)], bool)
+        """(K,) ``valid`` of each row of Q, the broad phase over all rows at once."""
+        import coal
+
+        Q = np.asarray(Q, float).reshape(-1, self.robot.dof)
+        ok = np.ones(len(Q), bool)
+        if not self.pairs or not len(Q):
+            return ok
+        self.calls += len(Q)
+        frames = np.array([self.joint_frames_mm(q) for q in Q])                      # (K, dof, 4, 4)
+        poses = np.repeat(self._fixed_poses[None], len(Q), axis=0)
+        poses[:, self._moving] = frames[:, self._moving_frame] @ self._moving_local
+        centres = np.einsum("kbij,bj->kbi", poses[..., :3, :3], self._ball_centre) + poses[..., :3, 3]
+        apart = np.linalg.norm(centres[:, self._pair_a] - centres[:, self._pair_b], axis=2)
+        with np.errstate(invalid="ignore"):
+            gap = apart - self._ball_radius[self._pair_a] - self._ball_radius[self._pair_b]
+        near = ~(gap >= self.clearance_mm)                                            # NaN (a floor): query
+        self.skipped += int(near.size - np.count_nonzero(near))
+        req, res = coal.DistanceRequest(), coal.DistanceResult()
+        for k, n in zip(*np.nonzero(near)):
+            if not ok[k]:
+                continue
+            p = self.pairs[n]
+            Ta, Tb = poses[k, p.a], poses[k, p.b]
+            res.clear()
+            d = coal.distance(self.geometry[p.a], coal.Transform3s(Ta[:3, :3].copy(), Ta[:3, 3].copy()),
+                              self.geometry[p.b], coal.Transform3s(Tb[:3, :3].copy(), Tb[:3, 3].copy()), req, res)
+            ok[k] = d >= self.clearance_mm
+        return ok
+
+    def closest_pair_text(self, q) -> str:
+        """'<a> and <b> are d mm apart (< cell.clearance_mm c mm)' for the closest pair at q ('' if clear)."""
+        d, pair = self.clearance_mm_at(q)
+        if pair is None or d >= self.clearance_mm:
+            return ""
+        a, b = self.pair_name(pair)
+        what = f"overlap by {-d:.1f} mm" if d < 0 else f"are {d:.1f} mm apart"
+        return f"{a} and {b} {what} (< cell.clearance_mm {self.clearance_mm:g} mm)"
 
     def describe(self) -> dict:
         return {"bodies": [b.describe() for b in self.bodies], "clearance_mm": self.clearance_mm,
@@ -210,8 +245,8 @@ class WorldChecker(Validity):
         """The inner check on all rows at once, then the world on the rows it passes."""
         Q = np.asarray(Q, float)
         ok = valid_rows(self.inner, Q) if self.inner is not None else np.ones(len(Q), bool)
-        for i in np.flatnonzero(ok):
-            ok[i] = self.world.valid(Q[i])
+        rows = np.flatnonzero(ok)
+        ok[rows] = self.world.valid_many(Q[rows])
         return ok
 
     def __getattr__(self, name):   # the inner checker's figures (calls, mesh, ...)

@@ -155,8 +155,10 @@ def split_runs(path: Path) -> list[tuple[int, int]]:
 class Planner:
     """Plans one Path for one robot; holds the per-pose arrays while it works."""
 
-    def __init__(self, path: Path, robot: Robot, st: PlannerSettings):
+    def __init__(self, path: Path, robot: Robot, st: PlannerSettings, world=None):
         ik = ik_settings(st)
+        self.world = world if world is not None and world.pairs else None
+        self._world_on = True   # off while connector poses are planned: the lift stage re-routes those
         q_home = None if st.q_home is None else np.asarray(st.q_home, float)
         self.path, self.robot, self.st = path, robot, st
         self.solver = CwlnSolver(robot, ik, free_spin=path.free_spin)
@@ -201,21 +203,30 @@ class Planner:
 
         CWLN clamps the joint box; on a robot whose controller couples axes (the IRB2400's
         axis 3 = j2 + j3) a solution beyond a coupled axis' limits is not reached: the
-        strategy then looks for another configuration, as for any pose it loses.
+        strategy then looks for another configuration, as for any pose it loses. So is a
+        solution that brings a body into the cell or into the robot itself (``world``).
         """
         if self.kernel is None:
             res = self.solver.solve(self.targets[k], q0, max_iterations)
         else:
             res = IkResult(*self.kernel.solve(self.targets[k], q0, max_iterations))
-        if self.coupled and res.converged and not self.robot.conventions.within_limits(res.q):
-            res = replace(res, converged=False)
-        return res
+        return self._screened(res)
 
     def gp(self, k, q, q_ref, iterations=200) -> IkResult:
         """Gradient-projection self-motion at pose k from q towards q_ref (kernel when available)."""
         if self.kernel is None:
-            return self.solver.self_motion(self.targets[k], q, q_ref, iterations)
-        return IkResult(*self.kernel.self_motion(self.targets[k], q, q_ref, iterations))
+            res = self.solver.self_motion(self.targets[k], q, q_ref, iterations)
+        else:
+            res = IkResult(*self.kernel.self_motion(self.targets[k], q, q_ref, iterations))
+        return self._screened(res)
+
+    def _screened(self, res: IkResult) -> IkResult:
+        """``res``, not converged when it is beyond a coupled controller axis or in collision (``ik``)."""
+        if self.coupled and res.converged and not self.robot.conventions.within_limits(res.q):
+            return replace(res, converged=False)
+        if self.world is not None and self._world_on and res.converged and not self.world.valid(res.q):
+            return replace(res, converged=False)   # a link or the tool in the cell or in the robot itself
+        return res
 
     def random_q(self) -> np.ndarray:
         lo, hi = self.solver.lo + self.solver.buffer, self.solver.hi - self.solver.buffer
@@ -304,6 +315,9 @@ class Planner:
                 if self.coupled and stop:   # up to the first pose beyond a coupled controller axis
                     inside = self.robot.conventions.within_limits(qs[:stop])
                     stop = int(np.argmin(inside)) if not inside.all() else stop
+                if self.world is not None and self._world_on and stop:   # up to the first pose in collision
+                    clear = self.world.valid_many(qs[:stop])
+                    stop = int(np.argmin(clear)) if not clear.all() else stop
                 for m in range(stop):
                     self.keep(k + m, IkResult(qs[m], pe[m], oe[m], True, 0))
                 k += stop
@@ -393,7 +407,17 @@ class Planner:
 
     # -- connectors ------------------------------------------------------
     def plan_connector(self, idx, q_from, q_to):
-        """Connector poses idx (in order) from q_from towards q_to, spreading the change."""
+        """Connector poses idx (in order) from q_from towards q_to, spreading the change.
+
+        Not screened against the cell: the lift stage (``connectors.lift_connectors``) checks every
+        connector against the part and the cell and routes it round what it would hit."""
+        self._world_on = False
+        try:
+            self._plan_connector(idx, q_from, q_to)
+        finally:
+            self._world_on = True
+
+    def _plan_connector(self, idx, q_from, q_to):
         prev = q_from
         m = len(idx)
         for i, k in enumerate(idx):
@@ -490,9 +514,11 @@ def ik_settings(settings: PlannerSettings) -> IkSettings:
                       posture_gain=settings.posture_gain if settings.method == "seed" else 0.0)
 
 
-def plan_path(path: Path, robot: Robot, settings: PlannerSettings) -> JointPath:
+def plan_path(path: Path, robot: Robot, settings: PlannerSettings, world=None) -> JointPath:
     """Plan joint values (rad / mm) for every pose of ``path``.
 
+    ``world``: the job's ``CollisionWorld``; a configuration that brings a robot or tool body
+    closer than its clearance to an obstacle, the floor or another link is not taken.
     Raises PlanInfeasible (with a report listing them) when poses cannot be reached.
     """
     if settings.method not in ("seed", "general"):
@@ -500,7 +526,7 @@ def plan_path(path: Path, robot: Robot, settings: PlannerSettings) -> JointPath:
     if settings.q_home is not None and len(settings.q_home) != robot.dof:
         raise BadInput(f"robot.home_deg: {robot.name} needs {robot.dof} values, found {len(settings.q_home)}")
     t0 = time.perf_counter()
-    jp = Planner(path, robot, settings).plan()
+    jp = Planner(path, robot, settings, world).plan()
     jp = replace(jp, events={**jp.events, "plan_seconds": time.perf_counter() - t0})
     missed = np.flatnonzero((jp.path_index >= 0) & ~jp.reached)
     if len(missed):
@@ -515,6 +541,10 @@ def plan_path(path: Path, robot: Robot, settings: PlannerSettings) -> JointPath:
             beyond = conv.check_controller_limits(conv.controller_from_model(jp.q[m])) if conv.coupled else []
             if beyond and entry["position_error_mm"] < 0.01:
                 entry["reason"] = beyond[0]
+            elif world is not None and entry["position_error_mm"] < 0.01:
+                hit = world.closest_pair_text(jp.q[m])   # on the tool, but every configuration tried collides
+                if hit:
+                    entry["reason"] = f"every configuration tried collides: {hit}"
         first = unreachable[0]
         why = f"; there {first['reason']}" if "reason" in first else ""
         raise PlanInfeasible(
