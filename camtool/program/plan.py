@@ -63,7 +63,12 @@ BLEND_SHARE = 0.9       # share of the tolerance a corner may cut: a chord devia
                         # at its target, and between them both fall off about quadratically
 FREE_TOL_FACTOR = 10.0  # free motion (off the surface) may deviate this many path tolerances
 JOINT_GUARD = 0.05      # rad (or 50 mm): larger chord deviations in joint space are never linearised
-MIN_DEXTERITY = 0.05    # linear moves only where the Jacobian's singular values differ by less than 20x
+MIN_DEXTERITY = 0.01    # linear moves only where the Jacobian's singular values differ by less than 100x:
+                        # nearer a singularity a straight line needs joint speeds that grow without bound.
+                        # Above it the simulator runs every linear move through the controller's IK and
+                        # checks each joint's speed and limits on 4 ms samples (camtool.simulate), so a row
+                        # passing near a wrist singularity stays linear (the irb2400 sphere job: 432 -> 64
+                        # moves on work); 0.05 wrote 389 joint moves on its 12 rows that pass near one
 KIND_JOINT, KIND_LINEAR, KIND_CIRCULAR = "J", "L", "C"
 
 
