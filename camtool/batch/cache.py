@@ -44,10 +44,15 @@ def code_digest() -> str:
     """Digest of camtool's own code and data (the package, its robots and profiles, and
     the built-in post-processors): a changed source tree invalidates the cache even
     when the version number stays the same."""
-    import postprocessors
+    import importlib.util
 
+    # the built-in plugins' folder, found without importing it (core code never imports the plugins)
+    spec = importlib.util.find_spec("postprocessors")
+    roots = [Path(__file__).resolve().parents[1]]
+    if spec is not None and spec.submodule_search_locations:
+        roots += [Path(p).resolve() for p in spec.submodule_search_locations]
     h = hashlib.sha256()
-    for root in (Path(__file__).resolve().parents[1], Path(postprocessors.__file__).resolve().parent):
+    for root in roots:
         for f in sorted(root.rglob("*")):
             if f.suffix in (".py", ".toml") and "__pycache__" not in f.parts:
                 h.update(str(f.relative_to(root)).encode())

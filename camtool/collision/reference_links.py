@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadInput
-from .shapes import BASE, MM_PER_M, Body, hull_points
+from .body import BASE, MM_PER_M, Body, hull_points
 
 REFERENCE_Q_FRACTION = 0.37   # the configuration the placements are taken at (any one works: links are rigid)
 _MEMO: dict = {}               # (URDF, model chain) -> bodies: the meshes are read once a process
