@@ -230,7 +230,7 @@ def test_the_run_simulates_every_program_and_reports_it(tmp_path):
 def test_a_program_that_leaves_the_path_is_not_placed(tmp_path, monkeypatch):
     """The simulator's findings stop the run like a check's: a program the controller would
     run off the planned path is never placed."""
-    import camtool.program.plan as moves
+    import camtool.program.candidates as moves
 
     r = get_robot("seed8")
     monkeypatch.setattr(moves, "MERGE_SHARE", 30.0)  # a writer that merges far beyond the tolerance

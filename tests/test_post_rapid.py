@@ -29,7 +29,7 @@ def on_the_plan(q_read, dur, tr, robot, tol_deg=0.5e-4, tol_mm=0.5e-3):
     """Every target lies on the planned motion at the time the program reaches it: a waypoint,
     or a point of the trajectory's quintic pieces between two (a corner or a bowed chord needed
     it); to the written resolution plus what 1 ms of motion moves."""
-    from camtool.program.plan import hermite
+    from camtool.program.candidates import hermite
 
     t = tr.t_s[0] + np.r_[0.0, np.cumsum(dur[1:])]
     k = np.clip(np.searchsorted(tr.t_s, t, side="right") - 1, 0, len(tr.t_s) - 2)

@@ -7,13 +7,14 @@ from camtool.program.kinematics import Kinematics
 from camtool.program.plan import plan_moves, profile_tool
 from camtool.program.process import ProcessInfo
 from camtool.program.profiles import load_profile
-from camtool.program.steps import (CompoundStep, FitArcs, JoinNullLinear, MoveStep, context_for, move_lengths_ok,
-                                   program_steps)
+from camtool.program.steps import (CompoundStep, ExactStops, FitArcs, JoinNullLinear, MoveStep, context_for,
+                                   move_lengths_ok, program_steps)
 from camtool.robots import get_robot
 from test_post import rows_trajectory
 
 LEVELS = (0.3, 1.0, 5.0, 10.0)
-STEPS = [JoinNullLinear(), FitArcs(max_sweep_deg=120.0), FitArcs(max_sweep_deg=10.0),
+STEPS = [ExactStops(), ExactStops(min_level_on_surface=1, max_level=2), JoinNullLinear(),
+         FitArcs(max_sweep_deg=120.0), FitArcs(max_sweep_deg=10.0),
          program_steps(arcs_max_sweep_deg=120.0), CompoundStep(())]
 
 
@@ -93,3 +94,17 @@ def test_no_circular_move_through_a_point_next_to_its_chord():
     r = 0.5 * (50.0 ** 2 + 2.0 ** 2) / 2.0
     X[[0, 2], 1] = np.sqrt(r ** 2 - 25.0 ** 2) - (r - 2.0)
     assert _on_circle(P0, X[1], P1, X, 1e-6)[0]
+
+
+def test_exact_stops_only_where_one_is_meant(planned):
+    from dataclasses import replace
+
+    plan, ctx, _r = planned
+    loose = replace(plan, level=np.full(len(plan), -1))          # a stop at every target
+    out = ExactStops(min_level_on_surface=1).apply(loose, ctx)
+    stops = np.flatnonzero(out.level == -1)
+    touches = np.flatnonzero(plan.row_start & plan.row_end)
+    assert set(stops) == {0, len(plan) - 1, *touches}            # no retract in this plan
+    assert np.all(out.level[(plan.row >= 0) & (out.level >= 0)] >= 1)
+    capped = ExactStops(max_level=0).apply(replace(plan, level=np.full(len(plan), 3)), ctx)
+    assert np.all(capped.level[1:-1] <= 0)

@@ -7,6 +7,9 @@ contract (tests/test_program_steps.py runs it over every step): the first and la
 every row's first and last target and the row marks stay; times never decrease; kinds are
 J, L or C, and a C move has a circle point.
 
+- ``ExactStops``: where the program stops (``plan_moves`` runs it): the first and last move,
+  a row of one point (a touch) and the top of every retract; no stop elsewhere, and on the
+  surface at least ``min_level_on_surface``; levels capped at ``max_level``.
 - ``JoinNullLinear``: a linear move that goes nowhere (< 1 um) becomes a joint move.
 - ``FitArcs``: consecutive linear targets of one row that lie on a circle (within a share
   of ``post.path_tol_mm``, the orientation within ``post.ori_tol_deg``) become circular
@@ -21,7 +24,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .arcs import arc_point, circle_through
-from .plan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, MovePlan
+from .candidates import RETRACT, runs
+from .moveplan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, MovePlan
 
 ARC_SHARE = 0.4     # share of the path tolerance the circle may leave the planned path by
 BLEND_SHARE = 0.4   # share of the tolerance a corner next to a circular move may cut
@@ -60,6 +64,34 @@ class CompoundStep(MoveStep):
         for step in self.steps:
             plan = step.apply(plan, ctx)
         return plan
+
+
+@dataclass(frozen=True)
+class ExactStops(MoveStep):
+    """Exact stops (level -1) only where one is meant: the first and last move, a row of one
+    point and the top of every retract (the pose farthest from where the retract starts);
+    elsewhere at least level 0, on the surface at least ``min_level_on_surface``, and never
+    above ``max_level``."""
+
+    min_level_on_surface: int = 0
+    max_level: int | None = None
+
+    def apply(self, plan: MovePlan, ctx: StepContext | None = None) -> MovePlan:
+        level = np.array(plan.level, int)
+        if self.max_level is not None:
+            level = np.minimum(level, self.max_level)
+        on_surface = np.asarray(plan.row) >= 0
+        level[on_surface & (level < self.min_level_on_surface)] = self.min_level_on_surface
+        level[level < 0] = 0
+        level[0] = -1
+        level[-1] = -1
+        level[plan.row_start & plan.row_end] = -1
+        if plan.zone is not None:
+            for a0, b0 in zip(*runs(np.asarray(plan.zone) == RETRACT)):
+                seg = np.arange(a0, b0 + 1)
+                start = plan.P[max(a0 - 1, 0)]
+                level[seg[np.argmax(np.linalg.norm(plan.P[seg] - start, axis=1))]] = -1
+        return replace(plan, level=level)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,44 @@
+"""camtool.program.blend: corners blended within the tolerance, rows marked."""
+import numpy as np
+import pytest
+
+from camtool.program.blend import BLEND_SHARE, BlendCorners
+from camtool.program.candidates import merged_candidates
+from camtool.program.plan import profile_tool
+from camtool.program.process import ProcessInfo
+from camtool.program.profiles import load_profile
+from camtool.robots import get_robot
+from test_post import rows_trajectory
+
+LEVELS = (0.3, 1.0, 5.0, 10.0)
+
+
+@pytest.fixture(scope="module")
+def merged():
+    r = get_robot("irb2400")
+    r = r.with_placement(tool_T_mm=profile_tool(load_profile(None, "irb2400", "rapid", r)))
+    return merged_candidates(rows_trajectory(r, rows=2), r, ProcessInfo(), linear=True)
+
+
+def test_targets_rows_and_kinds(merged):
+    plan = BlendCorners(LEVELS).plan(merged)
+    assert len(plan) == int(merged.keep.sum())
+    assert plan.rows == 2 and plan.row_start.sum() == 2 and plan.row_end.sum() == 2
+    assert np.all(plan.free == (plan.row < 0)) and set(np.unique(plan.kind)) <= {"J", "L"}
+    assert plan.kind[0] == "J" and np.all(np.diff(plan.t) >= 0)
+    assert np.all(plan.level[1:-1] >= -1) and np.all(plan.level < len(LEVELS))
+
+
+def test_surface_corners_get_at_least_the_level_asked_or_shorter_moves(merged):
+    loose = BlendCorners(LEVELS, 0).plan(merged)
+    tight = BlendCorners(LEVELS, 3).plan(merged)       # 10 mm on the surface: moves beside corners shortened
+    on_row = tight.row >= 0
+    inner = np.flatnonzero(on_row)[1:-1]
+    assert len(tight) >= len(loose)
+    assert np.all(tight.level[inner] >= 0)
+
+
+def test_blending_never_adds_deviation_beyond_the_tolerance(merged):
+    plan = BlendCorners(LEVELS).plan(merged)
+    tol = merged.process.path_tol_mm
+    assert np.all(plan.deviation_mm[plan.row >= 0] <= tol + 1e-9) and BLEND_SHARE <= 1.0
