@@ -36,3 +36,20 @@ def test_flat_steps_have_no_sag():
     b[:3, 3] = [20.0, 0, 0]
     T, sag = arc_midpose(a, b)
     assert sag == 0.0 and np.allclose(T[:3, 3], [10.0, 0, 0])
+
+
+def test_batched_sags_are_the_midpose_sags():
+    """The batched screen (chord_sags_mm) gives each step's own arc_midpose sag: convex, concave,
+    flat and opposite tool axes."""
+    from camtool.plan.sag import arc_midpose, chord_sags_mm
+    from camtool.transforms import matrix_from_xyz_rpy
+
+    rng = np.random.default_rng(4)
+    Ta = np.array([matrix_from_xyz_rpy(rng.normal(0, 300, 3), rng.uniform(-180, 180, 3)) for _ in range(40)])
+    Tb = np.array([a @ matrix_from_xyz_rpy(rng.normal(0, 20, 3), rng.normal(0, 5, 3)) for a in Ta])
+    Tb[0] = Ta[0]                                   # no step
+    Tb[1] = Ta[1].copy()
+    Tb[1][:3, 3] += [5.0, 0.0, 0.0]                 # flat: parallel tool axes
+    sags = chord_sags_mm(Ta, Tb)
+    assert np.allclose(sags, [arc_midpose(a, b)[1] for a, b in zip(Ta, Tb)], rtol=1e-9, atol=1e-7)   # arccos of near-parallel axes: ~1e-8 mm
+    assert sags[0] == 0.0 and sags[1] < 1e-7 and (sags[2:] > 1e-3).all()
