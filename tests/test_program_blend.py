@@ -40,3 +40,12 @@ def test_blending_never_adds_deviation_beyond_the_tolerance(merged):
     plan = BlendCorners(LEVELS).plan(merged)
     tol = merged.process.path_tol_mm
     assert np.all(plan.deviation_mm[plan.row >= 0] <= tol + 1e-9) and BLEND_SHARE <= 1.0
+
+
+def test_a_level_no_corner_can_get_does_not_grow_the_plan_without_bound(merged):
+    """10 mm on the surface is more than these corners allow: the shorter moves stop growing (it
+    doubled every round, 511,806 targets from 94); the simulator then finds what the corner cuts."""
+    from camtool.program.blend import MAX_GROWTH
+
+    plan = BlendCorners(LEVELS, 3).plan(merged)
+    assert len(plan) <= 2 * MAX_GROWTH * int(merged.keep.sum()) + 2

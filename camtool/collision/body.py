@@ -6,6 +6,7 @@ bodies, ``reference_links`` the manufacturer robots' meshes, ``world`` measures 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -114,3 +115,12 @@ def hull_points(points_mm: np.ndarray) -> np.ndarray:
         return P[ConvexHull(P).vertices]
     except Exception as exc:  # qhull: flat or degenerate point sets
         raise BadInput(f"the mesh is flat or degenerate, no convex hull ({str(exc).splitlines()[0]})") from None
+
+
+def mesh_points(path: Path, units: str) -> np.ndarray:
+    """Vertices (mm) of a mesh file (the workpiece loader: every format and check it has)."""
+    from ..workpiece import load_workpiece
+
+    wp = load_workpiece(Path(path), units=units, sample_points=100)
+    pts = wp.vertices_mm if wp.vertices_mm is not None else wp.points_mm
+    return np.asarray(pts, float)

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadInput
-from .body import BASE, MM_PER_M, Body, hull_points
+from .body import BASE, MM_PER_M, Body, hull_points, mesh_points
 
 REFERENCE_Q_FRACTION = 0.37   # the configuration the placements are taken at (any one works: links are rigid)
 _MEMO: dict = {}               # (URDF, model chain) -> bodies: the meshes are read once a process
@@ -57,8 +57,9 @@ def _read_bodies(robot, q_rad) -> list[Body]:
     path = Path(conv.urdf_path)
     try:
         um = pin.buildModelFromUrdf(str(path))
+        # package://<pkg>/... resolves against the folders above the URDF (<pkg>/urdf/<robot>.urdf)
         gm = pin.buildGeomFromUrdf(um, str(path), pin.GeometryType.COLLISION,
-                                   package_dirs=[str(path.parents[2]), str(path.parents[1])])
+                                   package_dirs=[str(p) for p in list(path.resolve().parents)[:3]])
     except Exception as exc:  # a mesh that cannot be found or read: one line for the user
         raise BadInput(f"{path}: cannot read its collision meshes ({(str(exc).splitlines() or [''])[0]})") from None
     if q_rad is None:
@@ -95,13 +96,20 @@ def _read_bodies(robot, q_rad) -> list[Body]:
     return out
 
 
+VENDORED = Path(__file__).resolve().parents[1] / "robots" / "data" / "ros-industrial"
+
+
 def _vertices_m(mesh_path: str) -> np.ndarray:
-    """The vertices (m) of a vendored mesh. trimesh, not the workpiece loader: the ROS-I meshes
-    carry denormal coordinates (1e-33 m) that the loader rightly refuses in a workpiece, and
-    that are harmless in a hull."""
+    """The vertices (m) of a collision mesh. A vendored one is read by trimesh: the ROS-I meshes
+    carry denormal coordinates (1e-33 m) that the workpiece loader rightly refuses in a part, and
+    that are harmless in a hull. Any other file (a user's description) goes through the workpiece
+    loader, with its checks (no links followed, no special files, bounded size)."""
+    path = Path(mesh_path)
+    if not path.resolve().is_relative_to(VENDORED):
+        return mesh_points(path, "m") / MM_PER_M   # the path as given: the loader refuses a link
     import trimesh
 
-    mesh = trimesh.load(mesh_path, force="mesh", process=False)
+    mesh = trimesh.load(str(path), force="mesh", process=False)
     return np.asarray(mesh.vertices, float)
 
 

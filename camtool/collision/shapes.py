@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import BadInput
 from ..transforms import matrix_from_xyz_rpy
-from .body import BASE, MM_PER_M, WORLD, Body, convex_hull, hull_points  # noqa: F401 (re-exported)
+from .body import BASE, MM_PER_M, WORLD, Body, convex_hull, hull_points, mesh_points  # noqa: F401 (re-exported)
 
 LINK_RADIUS_FRACTION = 0.15
 LINK_RADIUS_MIN_MM, LINK_RADIUS_MAX_MM = 40.0, 100.0
@@ -178,12 +178,3 @@ def obstacle_bodies(specs, workpiece_T_mm: np.ndarray, base_dir, floor_z_mm: flo
     if floor_z_mm is not None:
         bodies.append(Body("floor", "obstacle", WORLD, "halfspace", (float(floor_z_mm),), np.eye(4)))
     return tuple(bodies)
-
-
-def mesh_points(path: Path, units: str) -> np.ndarray:
-    """Vertices (mm) of a mesh file (the workpiece loader: every format and check it has)."""
-    from ..workpiece import load_workpiece
-
-    wp = load_workpiece(Path(path), units=units, sample_points=100)
-    pts = wp.vertices_mm if wp.vertices_mm is not None else wp.points_mm
-    return np.asarray(pts, float)

@@ -22,6 +22,8 @@ from .moves import joint_travel  # the controller's zone convention for joint mo
 BLEND_SHARE = 0.9       # share of the tolerance a corner may cut: a chord deviates most mid-move, a corner
                         # at its target, and between them both fall off about quadratically
 ROUNDS = 8               # rounds of shorter moves beside corners that no level fits
+MAX_GROWTH = 4.0         # ... while the targets stay within this many times the merged ones: a level no
+                         # corner can get would double them every round (the simulator then finds the cut)
 
 
 def corner_deviation(m: np.ndarray, d_in: np.ndarray, d_out: np.ndarray) -> np.ndarray:
@@ -154,6 +156,7 @@ class BlendCorners:
         levels = np.asarray(self.levels_mm, float)
         min_level_on_surface = self.min_level_on_surface
         kin, st, ratio_exact, keep, origin = cand.kin, cand.st, cand.ratio_exact, cand.keep.copy(), cand.origin
+        most = MAX_GROWTH * max(int(keep.sum()), 2)
         for round_ in range(ROUNDS + 1):
             t, q, zone, P, J = st["t"], st["q"], st["zone"], st["P"], st["J"]
             first, last = runs(zone == WORK)
@@ -178,7 +181,7 @@ class BlendCorners:
                 on_row[i0:i1 + 1] = True
             bad = c[lv < np.where(on_row[c], max(min_level_on_surface, 0), 0)]
             level[c] = lv
-            if not len(bad) or round_ == ROUNDS:
+            if not len(bad) or round_ == ROUNDS or m > most:
                 break
             added = False
             steps, times = [], []
