@@ -81,3 +81,27 @@ def test_forearm_folded_onto_the_base_collides_and_straight_arm_is_free():
     folded = world.pair_distances_mm(np.radians([0.0, -100.0, 165.0, 0.0, 0.0, 0.0]))
     names = {world.pair_name(p) for p, d in zip(world.pairs, folded) if d <= 0.0}
     assert ("base_link", "link_4") in names and all("link_4" in (a, b) for a, b in names)
+
+
+def test_a_users_copy_of_the_description_gives_the_same_hulls(tmp_path):
+    """A user robot whose [controller.urdf] names its own copy of the ROS-I package: the meshes are read
+    through the workpiece loader (no link followed; ROS-I's denormal coordinates dropped) and give the
+    vendored robot's hulls."""
+    import shutil
+    import tomllib
+
+    from camtool.robots.library import robot_from_toml
+
+    src = ROSI / "abb_irb2400_support"
+    shutil.copytree(src, tmp_path / "abb_irb2400_support")
+    data = tomllib.loads((ROSI.parent / "irb2400.toml").read_text())
+    data["name"] = "my_irb2400"
+    data["controller"]["source"] = "user"
+    data["controller"]["urdf"]["file"] = "abb_irb2400_support/urdf/irb2400.urdf"
+    mine = robot_from_toml(data, str(tmp_path / "my_irb2400.toml"))
+    assert has_reference_links(mine) and str(mine.conventions.urdf_path).startswith(str(tmp_path))
+    theirs, ours = reference_link_bodies(mine), reference_link_bodies(get_robot("irb2400"))
+    assert [b.name for b in theirs] == [b.name for b in ours]
+    for a, b in zip(theirs, ours):
+        assert np.allclose(a.local_T_mm, b.local_T_mm, atol=1e-9)
+        assert cKDTree(b.points_mm).query(a.points_mm)[0].max() < 1e-3   # float32 STL read two ways

@@ -117,10 +117,12 @@ def hull_points(points_mm: np.ndarray) -> np.ndarray:
         raise BadInput(f"the mesh is flat or degenerate, no convex hull ({str(exc).splitlines()[0]})") from None
 
 
-def mesh_points(path: Path, units: str) -> np.ndarray:
-    """Vertices (mm) of a mesh file (the workpiece loader: every format and check it has)."""
+def mesh_points(path: Path, units: str, drop_damaged: bool = False) -> np.ndarray:
+    """Vertices (mm) of a mesh file (the workpiece loader: every format and check it has).
+    ``drop_damaged``: leave out triangles with non-finite or denormal coordinates (robot meshes:
+    ROS-Industrial's carry 1e-33 m values) instead of refusing the file."""
     from ..workpiece import load_workpiece
 
-    wp = load_workpiece(Path(path), units=units, sample_points=100)
+    wp = load_workpiece(Path(path), units=units, sample_points=100, drop_nonfinite=drop_damaged)
     pts = wp.vertices_mm if wp.vertices_mm is not None else wp.points_mm
     return np.asarray(pts, float)

@@ -106,7 +106,7 @@ def _vertices_m(mesh_path: str) -> np.ndarray:
     loader, with its checks (no links followed, no special files, bounded size)."""
     path = Path(mesh_path)
     if not path.resolve().is_relative_to(VENDORED):
-        return mesh_points(path, "m") / MM_PER_M   # the path as given: the loader refuses a link
+        return mesh_points(path, "m", drop_damaged=True) / MM_PER_M   # the path as given: no link followed
     import trimesh
 
     mesh = trimesh.load(str(path), force="mesh", process=False)

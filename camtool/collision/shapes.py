@@ -139,7 +139,7 @@ def urdf_bodies(robot) -> list[Body]:
         elif isinstance(g, coal.Sphere):
             out.append(Body(name, "link", go.parentJoint, "sphere", (g.radius * MM_PER_M,), T))
         elif go.meshPath:
-            pts = mesh_points(Path(go.meshPath), "m") * np.asarray(go.meshScale)
+            pts = mesh_points(Path(go.meshPath), "m", drop_damaged=True) * np.asarray(go.meshScale)
             out.append(Body(name, "link", go.parentJoint, "convex", (), T, hull_points(pts)))
     return [b if b.parent > 0 else Body(b.name, "base", BASE, b.shape, b.size_mm, b.local_T_mm, b.points_mm)
             for b in out]
