@@ -175,15 +175,15 @@ def test_lead_lengths_skip_a_run_the_time_law_cannot_take():
 
 
 def test_feed_plot_envelope_keeps_every_low_and_high():
-    from camtool.timing.feed import _envelope
+    from camtool.timing.feed import display_envelope
 
     x = np.arange(100_000) / 1000.0
     v = np.full(100_000, 100.0)
     v[12_345], v[70_000] = 37.0, 140.0
     v[50_000:50_010] = np.nan
-    xe, ve = _envelope(x, v, bins=1000)
+    xe, ve = display_envelope(x, v, bins=1000)
     assert len(xe) == len(ve) == 2000
     assert np.nanmin(ve) == 37.0 and np.nanmax(ve) == 140.0
     assert xe[0] >= x[0] and xe[-1] <= x[-1] and np.all(np.diff(xe) >= 0)
-    xs, vs = _envelope(x[:500], v[:500], bins=1000)  # short profiles as they are
+    xs, vs = display_envelope(x[:500], v[:500], bins=1000)  # short profiles as they are
     assert np.array_equal(vs, v[:500])

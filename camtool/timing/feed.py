@@ -159,7 +159,7 @@ def feed_statistics(profile: FeedProfile, feed_mm_s: float) -> dict:
 PLOT_BINS = 3000  # feed PNG: more intervals than this are drawn as the min and max of this many bins
 
 
-def _envelope(x: np.ndarray, v: np.ndarray, bins: int = PLOT_BINS) -> tuple[np.ndarray, np.ndarray]:
+def display_envelope(x: np.ndarray, v: np.ndarray, bins: int = PLOT_BINS) -> tuple[np.ndarray, np.ndarray]:
     """(x, v) for display: as given up to ``2 * bins`` points, else per bin of consecutive intervals its
     lowest and highest feed at the bin's middle (slowdowns and spikes stay visible; NaN where a bin
     has none, so gaps stay gaps)."""
@@ -174,7 +174,7 @@ def _envelope(x: np.ndarray, v: np.ndarray, bins: int = PLOT_BINS) -> tuple[np.n
 
 def plot_feed(profile: FeedProfile, feed_mm_s: float, png_path, title: str = "") -> "Path":
     """PNG of TCP feed against TCP path length; work intervals highlighted, commanded feed dashed
-    (long profiles drawn as a min / max envelope, ``_envelope``)."""
+    (long profiles drawn as a min / max envelope, ``display_envelope``)."""
     from pathlib import Path
 
     import matplotlib
@@ -188,8 +188,8 @@ def plot_feed(profile: FeedProfile, feed_mm_s: float, png_path, title: str = "")
     v = profile.feed_mm_s
     vw = np.where(profile.work, v, np.nan)
     top = np.nanmax(v) if np.isfinite(v).any() else feed_mm_s
-    x_all, v_all = _envelope(x, v)
-    x_work, v_work = _envelope(x, vw)
+    x_all, v_all = display_envelope(x, v)
+    x_work, v_work = display_envelope(x, vw)
     fig, ax = plt.subplots(figsize=(12, 4), dpi=110)
     ax.plot(x_all, v_all, color="#bbbbbb", lw=0.6, label="all zones")
     ax.plot(x_work, v_work, color="#1f77b4", lw=1.0, label="work")
