@@ -235,19 +235,11 @@ def _best(cands: np.ndarray, lower: np.ndarray, upper: np.ndarray, revolute: np.
     return best_x[c, np.arange(K)], m[c, np.arange(K)], valid.any(axis=0)
 
 
-def _prepare(ik, T):
-    try:
-        return ik.prepare(T)
-    except PlanInfeasible:
-        return None
-
-
-def _srs_candidates(ik, preps: list, angles: np.ndarray) -> np.ndarray:
-    """(8 * len(angles), len(preps), 7): every family at every arm angle for stacked poses."""
+def _srs_candidates(ik, st: dict, angles: np.ndarray) -> np.ndarray:
+    """(8 * len(angles), n, 7): every family at every arm angle for n stacked poses (``prepare_batch``)."""
     from .robots.ik_srs import FAMILIES
 
-    st = ik.stack(preps)
-    n, A = len(preps), len(angles)
+    n, A = len(st["u"]), len(angles)
     tiled = {"u": np.tile(st["u"], (A, 1)), "R7": np.tile(st["R7"], (A, 1, 1)),
              "q4": {g: np.tile(v, A) for g, v in st["q4"].items()},
              "R3ref": {g: np.tile(v, (A, 1, 1)) for g, v in st["R3ref"].items()}}
@@ -266,10 +258,9 @@ def _sweep_arm_angle(robot, flanges: np.ndarray, psi: np.ndarray):
     best_q = np.zeros((ny, nx, 7))
     best_m = np.full((ny, nx), -np.inf)
     has = np.zeros((ny, nx), bool)
-    preps = [_prepare(ik, T) for T in flanges]
-    ok = [i for i, p in enumerate(preps) if p is not None]
-    if ok:
-        st = ik.stack([preps[i] for i in ok])
+    st, prepared = ik.prepare_batch(flanges)
+    ok = np.flatnonzero(prepared)
+    if len(ok):
         tiled = {"u": np.tile(st["u"], (ny, 1)), "R7": np.tile(st["R7"], (ny, 1, 1)),
                  "q4": {g: np.tile(v, ny) for g, v in st["q4"].items()},
                  "R3ref": {g: np.tile(v, (ny, 1, 1)) for g, v in st["R3ref"].items()}}
@@ -294,23 +285,25 @@ def _sweep_track(robot, flanges: np.ndarray, tracks: np.ndarray, n_angles: int):
     best_q = np.zeros((ny, nx, robot.dof))
     best_m = np.full((ny, nx), -np.inf)
     has = np.zeros((ny, nx), bool)
-    cells, preps, solvers = [], [], {}
-    for iy, t in enumerate(tracks):
-        if shift is None:
-            ik = solvers.setdefault(iy, SrsIK(robot, [t]))
-        for ix, T in enumerate(flanges):
-            if shift is not None:  # the track moves the arm: move the target instead
-                T = T.copy()
-                T[:3, 3] -= (t - t_mid) * shift
-                ik = ik0
-            p = _prepare(ik, T)
-            if p is not None:
-                cells.append((iy, ix))
-                preps.append(p)
-    if not cells:
+    if shift is not None:   # the track moves the arm: move the targets instead, all cells in one batch
+        T = np.repeat(np.asarray(flanges, float)[None], ny, axis=0)
+        T[:, :, :3, 3] -= (tracks - t_mid)[:, None, None] * shift
+        st, prepared = ik0.prepare_batch(T.reshape(-1, 4, 4))
+        cells = np.argwhere(prepared.reshape(ny, nx))
+    else:                   # one solver per track value
+        parts, cell_parts = [], []
+        for iy, t in enumerate(tracks):
+            st_t, prepared = SrsIK(robot, [t]).prepare_batch(flanges)
+            parts.append(st_t)
+            cell_parts.append(np.column_stack([np.full(int(prepared.sum()), iy), np.flatnonzero(prepared)]))
+        st = {"u": np.concatenate([p["u"] for p in parts]), "R7": np.concatenate([p["R7"] for p in parts]),
+              "q4": {g: np.concatenate([p["q4"][g] for p in parts]) for g in (1, -1)},
+              "R3ref": {g: np.concatenate([p["R3ref"][g] for p in parts]) for g in (1, -1)}}
+        cells = np.vstack(cell_parts).astype(int)
+    if not len(cells):
         return best_q, best_m, has
-    cands = _srs_candidates(ik0, preps, angles)                        # (8A, n, 7), ik0's P: same arm
-    iy, ix = np.array(cells).T
+    cands = _srs_candidates(ik0, st, angles)                           # (8A, n, 7), ik0's P: same arm
+    iy, ix = cells.T
     t = tracks[iy]
     arm_q, m, h = _best(cands, L.lower[1:], L.upper[1:], np.ones(7, bool))
     m_track = np.minimum(t - L.lower[0], L.upper[0] - t) / (L.upper[0] - L.lower[0])

@@ -105,3 +105,30 @@ def test_seed_solutions_for_the_planner_are_exact_and_inside_limits():
     for s in seeds:
         assert robot.within_limits(s) and s[0] == 120.0
         assert np.linalg.norm(robot.fk_tcp(s)[:3, 3] - T[:3, 3]) < 1e-6
+
+
+@pytest.mark.parametrize("name", ["sia20", "sia20_paper", "seed8"])
+def test_prepare_batch_is_prepare_for_many_poses(name):
+    """The batched preparation gives what ``prepare`` gives pose by pose, and leaves out the same poses."""
+    r = get_robot(name)
+    ik = SrsIK(r) if r.dof == 7 else SrsIK(r, [0.0])
+    rng = np.random.default_rng(0)
+    qs = r.limits.lower + rng.random((120, r.dof)) * (r.limits.upper - r.limits.lower)
+    if r.dof == 8:
+        qs[:, 0] = 0.0
+    Ts = np.array([r.fk(q) for q in qs])
+    Ts[::7, :3, 3] *= 3.0                                   # some out of reach
+    st, ok = ik.prepare_batch(Ts)
+    one = []
+    for T in Ts:
+        try:
+            one.append(ik.prepare(T))
+        except PlanInfeasible:
+            one.append(None)
+    assert np.array_equal(ok, [p is not None for p in one]) and 0 < ok.sum() < len(Ts)
+    ref = ik.stack([p for p in one if p is not None])
+    for key in ("u", "R7"):
+        assert np.allclose(st[key], ref[key], atol=1e-12)
+    for g in (1, -1):
+        assert np.allclose(st["q4"][g], ref["q4"][g], atol=1e-12)
+        assert np.allclose(st["R3ref"][g], ref["R3ref"][g], atol=1e-12)

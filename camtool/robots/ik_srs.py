@@ -129,6 +129,47 @@ class SrsIK:
             ref[g1] = (float(q4), R3ref)
         return {"u": d / nd, "R7": T[:3, :3] @ self.ch.flange[:3, :3].T, "ref": ref}
 
+    def prepare_batch(self, T_flange_mm: np.ndarray) -> tuple[dict, np.ndarray]:
+        """``prepare`` for K flange poses at once: (the ``stack`` of the poses it can prepare, (K,)
+        which those are). A pose ``prepare`` refuses (out of reach, straight elbow, no reference
+        plane) is left out."""
+        T = np.asarray(T_flange_mm, float).reshape(-1, 4, 4)
+        P = self.P
+        W = T[:, :3, :3] @ self.w_flange + T[:, :3, 3]
+        d = W - self.S
+        nd = np.linalg.norm(d, axis=1)
+        s_, w_ = self.s4, self.w4
+        kc, ks, k0 = s_[0] * w_[0] + s_[1] * w_[1], s_[1] * w_[0] - s_[0] * w_[1], s_[2] * w_[2]
+        r = np.hypot(kc, ks)
+        ok = np.full(len(T), r >= 1e-12)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = (0.5 * (s_ @ s_ + w_ @ w_ - nd * nd) - k0) / r
+        ok &= (1.0 - np.abs(c)) >= STRAIGHT_ELBOW_MARGIN        # a root, and the elbow not straight
+        a = np.arccos(np.clip(c, -1.0, 1.0))
+        phi = np.arctan2(ks, kc)
+        q4s = {1: phi - a, -1: phi + a}                          # ``elbow``: (x_minus, x_plus)
+        u_ref = d @ self.R0                                      # R0^T d, per pose
+        A = P[1][:3, :3]
+        R3ref = {}
+        for g1, q4 in q4s.items():
+            w2 = (np.einsum("kij,j->ki", rz_batch(q4), self.w4) @ P[3][:3, :3].T + P[3][:3, 3]) @ P[2][:3, :3].T \
+                + P[2][:3, 3] - self.s2
+            # _two_axis: Rz(x1) A Rz(x2) w2 = u_ref, the + root
+            kc2 = A[2, 0] * w2[:, 0] + A[2, 1] * w2[:, 1]
+            ks2 = A[2, 1] * w2[:, 0] - A[2, 0] * w2[:, 1]
+            r2 = np.hypot(kc2, ks2)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                c2 = (u_ref[:, 2] - A[2, 2] * w2[:, 2]) / r2
+            ok &= (r2 >= 1e-12) & ((1.0 - np.abs(c2)) >= -1e-7)
+            x2 = np.arctan2(ks2, kc2) + np.arccos(np.clip(np.nan_to_num(c2), -1.0, 1.0))
+            v = np.einsum("kij,kj->ki", A @ rz_batch(x2), w2)
+            x1 = np.arctan2(u_ref[:, 1], u_ref[:, 0]) - np.arctan2(v[:, 1], v[:, 0])
+            R3ref[g1] = self.R0 @ rz_batch(x1) @ A @ rz_batch(x2) @ P[2][:3, :3]
+        k = np.flatnonzero(ok)
+        stacked = {"u": d[k] / nd[k, None], "R7": T[k, :3, :3] @ self.ch.flange[:3, :3].T,
+                   "q4": {g: q4s[g][k] for g in (1, -1)}, "R3ref": {g: R3ref[g][k] for g in (1, -1)}}
+        return stacked, ok
+
     def solve_prepared(self, prep: dict, arm_angle_rad: float, families=FAMILIES) -> list[SrsSolution]:
         """``solve`` from a ``prepare``d pose, for the given families (gamma1, gamma2, gamma3) only."""
         P = self.P
