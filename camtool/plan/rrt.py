@@ -41,6 +41,9 @@ EDGE_BATCH = 32       # edge samples checked in one batch (one distance query)
 EXACT_BAND_MM = 50.0  # clearances below this are exact; larger ones may be reported as this lower bound
 
 
+_FRACTIONS: dict = {}   # n -> linspace(0, 1, n + 1): the link sampling fractions, made once a process
+
+
 class _LinkCapsules(Validity):
     """Link capsules of a robot (segments between joint-frame origins, flange and TCP) and their clearance.
 
@@ -64,8 +67,8 @@ class _LinkCapsules(Validity):
         self.tip_exempt = float(tip_exempt_mm)
         self.calls = 0
 
-    def _chain_points(self, q):
-        F = self.chain.frames(np.asarray(q, float))
+    def _chain_points(self, q, F=None):
+        F = self.chain.frames(np.asarray(q, float)) if F is None else F
         pts = [np.zeros(3)] + [T[:3, 3] for T in F] + [(F[-1] @ self.robot.tool_T_mm)[:3, 3]]
         out, to_tip = [], []
         seg = list(zip(pts[:-1], pts[1:]))
@@ -73,24 +76,28 @@ class _LinkCapsules(Validity):
         after = np.cumsum(lengths[::-1])[::-1] - np.array(lengths)  # chain length from each segment's end to the TCP
         for (a, b), L, rest in list(zip(seg, lengths, after))[self.skip:]:
             n = max(int(np.ceil(L / self.spacing)), 1)
-            f = np.linspace(0.0, 1.0, n + 1)
+            f = _FRACTIONS.get(n)
+            if f is None:
+                f = _FRACTIONS[n] = np.linspace(0.0, 1.0, n + 1)
             out.append(a + f[:, None] * (b - a))
             to_tip.append(rest + (1.0 - f) * L)
         P = np.concatenate(out)
         P = P @ self.robot.base_T_mm[:3, :3].T + self.robot.base_T_mm[:3, 3]
         return P, np.concatenate(to_tip)
 
-    def link_points(self, q) -> np.ndarray:
-        """Points (M, 3) along the link segments, world frame (exempt balls and the exempt tip removed)."""
-        P, to_tip = self._chain_points(q)
+    def link_points(self, q, F=None) -> np.ndarray:
+        """Points (M, 3) along the link segments, world frame (exempt balls and the exempt tip removed);
+        ``F`` the chain's frames at q when the caller has them."""
+        P, to_tip = self._chain_points(q, F)
         if self.tip_exempt > 0:
             P = P[to_tip > self.tip_exempt]
         for c, r in self.exempt:
             P = P[np.linalg.norm(P - c, axis=1) > r]
         return P
 
-    def _tcp(self, q) -> np.ndarray:
-        T = self.robot.base_T_mm @ self.chain.frames(np.asarray(q, float))[-1] @ self.robot.tool_T_mm
+    def _tcp(self, q, F=None) -> np.ndarray:
+        F = self.chain.frames(np.asarray(q, float)) if F is None else F
+        T = self.robot.base_T_mm @ F[-1] @ self.robot.tool_T_mm
         P = T[:3, 3][None]
         for c, r in self.exempt:
             P = P[np.linalg.norm(P - c, axis=1) > r]
@@ -128,9 +135,10 @@ class _LinkCapsules(Validity):
     def clearances_mm(self, Q) -> np.ndarray:
         """``clearance_mm`` of every row of Q, with one distance query for all their link points."""
         Q = np.asarray(Q, float)
-        clear = self._per_row_min([self.link_points(q) for q in Q], -self.radius)
+        frames = [self.chain.frames(q) for q in Q]   # once a row, for the links and the TCP
+        clear = self._per_row_min([self.link_points(q, F) for q, F in zip(Q, frames)], -self.radius)
         if self.tip_exempt > 0:
-            clear = np.minimum(clear, self._per_row_min([self._tcp(q) for q in Q], 0.0))
+            clear = np.minimum(clear, self._per_row_min([self._tcp(q, F) for q, F in zip(Q, frames)], 0.0))
         return clear
 
     def _per_row_min(self, points: list, shift: float) -> np.ndarray:
