@@ -44,13 +44,14 @@ FAILING_NAME = "unreachable or failing poses"
 
 
 def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,
-                      trajectory=None, failing_indices=(), redundancy=None, faces=None) -> FsPath:
+                      trajectory=None, failing_indices=(), redundancy=None, faces=None, world=None) -> FsPath:
     """Write the interactive report of a run (or of a failed plan) to ``file``; returns its path.
 
     Only ``report`` and ``robot`` are required: a failed job passes its path
     and ``failing_indices`` (path indices; ``report['unreachable']`` entries
     are marked too). ``redundancy`` is a ``RedundancyMap``; ``faces`` the job's
-    ``faces.faces_report`` (a segmented part: its faces, numbered, the worked ones marked).
+    ``faces.faces_report`` (a segmented part: its faces, numbered, the worked ones marked);
+    ``world`` the job's ``CollisionWorld`` (the robot's link shapes drawn).
     """
     file = FsPath(file)
     feed = _feed(robot, trajectory) if trajectory is not None else None
@@ -61,7 +62,7 @@ def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None
     if faces is not None and workpiece is not None:
         sections.append(("Faces of the part", _FACES_NOTE, _faces_table(faces)
                          + fig_html(_faces_figure(faces, workpiece), FACES_DIV)))
-    scene = _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices)
+    scene = _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices, world)
     sections.append(("Workpiece, path and robot", _SCENE_NOTE, fig_html(scene, DIV["scene"])))
     if trajectory is not None:
         sections.append(("TCP feed along the path", _FEED_NOTE,
@@ -123,7 +124,7 @@ def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None,
             files.append(plot_redundancy_map_png(rmap, outdir / "plots" / "redundancy_map.png"))
     html_file = write_report_html(outdir / "report.html", report=report, robot=robot, workpiece=workpiece,
                                   surface=surface, path=path, joint_path=joint_path, trajectory=trajectory,
-                                  failing_indices=failing_indices, redundancy=rmap, faces=faces)
+                                  failing_indices=failing_indices, redundancy=rmap, faces=faces, world=world)
     return [html_file, *files]
 
 
@@ -427,7 +428,7 @@ def _marker(go, name, p, symbol, color, size=4):
                         marker={"symbol": symbol, "color": color, "size": size}, hoverinfo="name+x+y+z")
 
 
-def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices):
+def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices, world=None):
     import plotly.graph_objects as go
 
     traces = []
@@ -447,7 +448,7 @@ def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, fai
         traces += _path_traces(go, path, feed)
     traces += _event_traces(go, report, robot, path, joint_path, failing_indices)
     traces += obstacle_traces(go, report)   # the cell's obstacles (camtool.collision)
-    robot_traces, steps = _robot_traces(go, robot, path, joint_path, _robot_shapes(report, robot))
+    robot_traces, steps = _robot_traces(go, robot, path, joint_path, _robot_shapes(report, robot, world))
     first_robot = len(traces)
     traces += robot_traces
     fig = go.Figure()
@@ -519,19 +520,22 @@ def _event_traces(go, report, robot, path, joint_path, failing_indices) -> list:
     return traces
 
 
-def _robot_shapes(report: dict, robot):
-    """The robot's bodies as the motion check measured them (its tool from report.json's cell bodies)."""
+def _robot_shapes(report: dict, robot, world=None):
+    """The robot's bodies as the motion check measured them: the job's collision world, else one made
+    with the tool report.json's cell bodies describe."""
     from .collision.plot import RobotShapes
-    from .collision.shapes import robot_bodies
+    from .collision.world import CellSettings, CollisionWorld
 
-    cell = (report.get("motion_check") or {}).get("cell") or {}
-    tool = next((b for b in cell.get("bodies", []) if b.get("kind") == "tool"), None)
-    radius = float(tool["size_mm"][0]) if tool and tool.get("shape") == "cylinder" else DEFAULT_TOOL_RADIUS_MM
-    points = np.asarray(tool["points_mm"], float) if tool and tool.get("points_mm") else None
-    try:
-        return RobotShapes(robot, robot_bodies(robot, radius, points))
-    except BadInput:   # a URDF robot whose meshes cannot be read: the stick figure alone
-        return None
+    if world is None:
+        cell = (report.get("motion_check") or {}).get("cell") or {}
+        tool = next((b for b in cell.get("bodies", []) if b.get("kind") == "tool"), None)
+        radius = float(tool["size_mm"][0]) if tool and tool.get("shape") == "cylinder" else DEFAULT_TOOL_RADIUS_MM
+        points = np.asarray(tool["points_mm"], float) if tool and tool.get("points_mm") else None
+        try:
+            world = CollisionWorld(robot, CellSettings(tool_points_mm=points), radius)
+        except BadInput:   # a URDF robot whose meshes cannot be read: the joints alone
+            return None
+    return RobotShapes(world)
 
 
 def _robot_traces(go, robot, path, joint_path, shapes=None):

@@ -34,7 +34,7 @@ def test_robot_shapes_are_drawn_where_the_check_measures_them():
     for name in ("irb2400", "seed8"):
         robot = get_robot(name)
         world = CollisionWorld(robot)
-        shapes = RobotShapes(robot, world.robot_bodies)
+        shapes = RobotShapes(world)
         rng = np.random.default_rng(5)
         q = robot.limits.lower + rng.random(robot.dof) * (robot.limits.upper - robot.limits.lower)
         V = shapes.vertices_mm(q)

@@ -49,49 +49,33 @@ def _spread(points: np.ndarray, n: int) -> np.ndarray:
 
 
 class RobotShapes:
-    """The robot's link, base and tool bodies as one triangle mesh to draw at any configuration.
+    """The robot's link, base and tool bodies of a ``CollisionWorld`` as one triangle mesh to draw at
+    any configuration, placed by the world's own body poses.
 
     Hulls are drawn from at most ``DRAWN_HULL_VERTICES`` of their vertices:
     a picture of the shapes the check measures, not the measure itself.
     """
 
-    def __init__(self, robot, bodies):
-        self.robot = robot
-        parts, faces, self.parent, self.body, n = [], [], [], [], 0
-        for index, b in enumerate(bodies):
+    def __init__(self, world):
+        self.world = world
+        parts, faces, self.body, n = [], [], [], 0
+        for index, b in enumerate(world.robot_bodies):
             mesh = _mesh(b.shape, b.size_mm, b.points_mm)
             if mesh is None:
                 continue
             V, F = mesh
-            parts.append(V @ b.local_T_mm[:3, :3].T + b.local_T_mm[:3, 3])
+            parts.append(V)                   # in the body's own frame
             faces.append(F + n)
-            self.parent += [b.parent] * len(V)
             self.body += [index] * len(V)     # which body each vertex draws
             n += len(V)
         self.local = np.vstack(parts) if parts else np.zeros((0, 3))
         self.faces = np.vstack(faces) if faces else np.zeros((0, 3), int)
-        self.parent, self.body = np.asarray(self.parent, int), np.asarray(self.body, int)
+        self.body = np.asarray(self.body, int)
 
     def vertices_mm(self, q) -> np.ndarray:
         """(N, 3) world vertices at joint values q (rad / mm)."""
-        import pinocchio as pin
-
-        robot = self.robot
-        data = robot.model.createData()
-        scale = np.where(np.asarray(robot.prismatic, bool), 1e-3, 1.0)
-        pin.forwardKinematics(robot.model, data, np.asarray(q, float) * scale)
-        base = np.asarray(robot.base_T_mm, float)
-        out = np.empty_like(self.local)
-        for p in np.unique(self.parent):
-            sel = self.parent == p
-            T = base.copy()
-            if p > 0:
-                M = data.oMi[int(p)]
-                J = np.eye(4)
-                J[:3, :3], J[:3, 3] = M.rotation, np.asarray(M.translation) * 1000.0
-                T = base @ J
-            out[sel] = self.local[sel] @ T[:3, :3].T + T[:3, 3]
-        return out
+        poses = np.asarray(self.world.body_poses_mm(self.world.joint_frames_mm(q)))[self.body]
+        return np.einsum("nij,nj->ni", poses[:, :3, :3], self.local) + poses[:, :3, 3]
 
     def trace(self, go, q, name: str):
         V = np.round(self.vertices_mm(q), 1)

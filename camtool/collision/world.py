@@ -131,14 +131,6 @@ class CollisionWorld:
         poses[self._moving] = frames[self._moving_frame] @ self._moving_local
         return poses
 
-    def _ball_gaps_mm(self, poses) -> np.ndarray:
-        """(P,) the distance between each pair's bounding balls (a lower bound of the pair's distance)."""
-        centres = np.einsum("bij,bj->bi", poses[:, :3, :3], self._ball_centre) + poses[:, :3, 3]
-        apart = np.linalg.norm(centres[self._pair_a] - centres[self._pair_b], axis=1)
-        with np.errstate(invalid="ignore"):
-            gap = apart - self._ball_radius[self._pair_a] - self._ball_radius[self._pair_b]
-        return np.where(np.isnan(gap), -np.inf, gap)
-
     def pair_distances_mm(self, q, pairs=None) -> np.ndarray:
         """coal distance (mm, negative = overlap) of each pair at configuration q."""
         import coal
@@ -163,29 +155,13 @@ class CollisionWorld:
         return float(d[k]), self.pairs[k]
 
     def valid(self, q) -> bool:
-        """Every pair keeps ``clearance_mm``. A broad phase first: pairs whose bounding balls are at
-        least the clearance apart cannot fail and are not queried (the answer is the same)."""
-        import coal
-
-        if not self.pairs:
-            return True
-        self.calls += 1
-        poses = self._poses(self.joint_frames_mm(q))
-        near = np.flatnonzero(self._ball_gaps_mm(poses) < self.clearance_mm)
-        self.skipped += len(self.pairs) - len(near)
-        req, res = coal.DistanceRequest(), coal.DistanceResult()
-        for k in near:
-            p = self.pairs[k]
-            Ta, Tb = poses[p.a], poses[p.b]
-            res.clear()
-            d = coal.distance(self.geometry[p.a], coal.Transform3s(Ta[:3, :3].copy(), Ta[:3, 3].copy()),
-                              self.geometry[p.b], coal.Transform3s(Tb[:3, :3].copy(), Tb[:3, 3].copy()), req, res)
-            if d < self.clearance_mm:
-                return False
-        return True
+        """Every pair keeps ``clearance_mm`` (``valid_many`` of one row)."""
+        return bool(self.valid_many(np.asarray(q, float)[None])[0])
 
     def valid_many(self, Q) -> np.ndarray:
-        """(K,) ``valid`` of each row of Q, the broad phase over all rows at once."""
+        """(K,) whether every pair keeps ``clearance_mm`` at each row of Q. A broad phase first, over
+        all rows at once: pairs whose bounding balls are at least the clearance apart cannot fail and
+        are not queried (the answer is the same); a row stops at its first failing pair."""
         import coal
 
         Q = np.asarray(Q, float).reshape(-1, self.robot.dof)
