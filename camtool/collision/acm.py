@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadInput
+from .body import joint_frames_mm
 
 ACM_SAMPLES = 5000
 ACM_SEED = 0
@@ -99,10 +100,10 @@ def compute_acm(robot, bodies, samples: int = ACM_SAMPLES, seed: int = ACM_SEED)
         Q = lo + rng.random((samples, robot.dof)) * (hi - lo)
         geo = [b.coal_geometry() for b in links]
         hits = np.zeros(len(cand), np.int64)
-        world = _FK(robot)
+        data = robot.model.createData()
         req, res = coal.CollisionRequest(), coal.CollisionResult()
         for q in Q:
-            F = world(q)
+            F = joint_frames_mm(robot, q, data)
             tf = []
             for b in links:
                 T = (b.local_T_mm if b.parent <= 0 else F[b.parent - 1] @ b.local_T_mm)
@@ -116,24 +117,6 @@ def compute_acm(robot, bodies, samples: int = ACM_SAMPLES, seed: int = ACM_SEED)
             elif hits[k] == samples:
                 reasons[frozenset((links[i].name, links[j].name))] = "always"
     return AllowedCollisions(reasons, samples, geometry_hash(robot, bodies))
-
-
-class _FK:
-    """Joint frames (mm, robot base frame) from Pinocchio, for the samples."""
-
-    def __init__(self, robot):
-        self.robot, self.data = robot, robot.model.createData()
-        self.scale = np.where(np.asarray(robot.prismatic, bool), 1e-3, 1.0)
-
-    def __call__(self, q) -> np.ndarray:
-        import pinocchio as pin
-
-        pin.forwardKinematics(self.robot.model, self.data, q * self.scale)
-        F = np.tile(np.eye(4), (self.robot.dof, 1, 1))
-        for j in range(1, self.robot.model.njoints):
-            F[j - 1, :3, :3] = self.data.oMi[j].rotation
-            F[j - 1, :3, 3] = np.asarray(self.data.oMi[j].translation) * 1000.0
-        return F
 
 
 def _to_json(acm: AllowedCollisions, robot_name: str) -> str:

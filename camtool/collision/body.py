@@ -126,3 +126,24 @@ def mesh_points(path: Path, units: str, drop_damaged: bool = False) -> np.ndarra
     wp = load_workpiece(Path(path), units=units, sample_points=100, drop_nonfinite=drop_damaged)
     pts = wp.vertices_mm if wp.vertices_mm is not None else wp.points_mm
     return np.asarray(pts, float)
+
+
+def se3_mm(M) -> np.ndarray:
+    """4 x 4 (mm) of a Pinocchio SE3 (m)."""
+    T = np.eye(4)
+    T[:3, :3] = M.rotation
+    T[:3, 3] = np.asarray(M.translation) * MM_PER_M
+    return T
+
+
+def joint_frames_mm(robot, q, data=None) -> np.ndarray:
+    """(dof, 4, 4) the robot's joint frames after their motion (Pinocchio's oMi), mm, in its base
+    frame, at q (rad / mm); ``data`` a Pinocchio data to reuse."""
+    import pinocchio as pin
+
+    data = robot.model.createData() if data is None else data
+    scale = np.where(np.asarray(robot.prismatic, bool), 1.0 / MM_PER_M, 1.0)
+    pin.forwardKinematics(robot.model, data, np.asarray(q, float) * scale)
+    F = np.array([data.oMi[j].homogeneous for j in range(1, robot.model.njoints)])
+    F[:, :3, 3] *= MM_PER_M
+    return F

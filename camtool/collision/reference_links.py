@@ -20,17 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadInput
-from .body import BASE, MM_PER_M, Body, hull_points, mesh_points
+from .body import BASE, MM_PER_M, Body, hull_points, joint_frames_mm, mesh_points, se3_mm
 
 REFERENCE_Q_FRACTION = 0.37   # the configuration the placements are taken at (any one works: links are rigid)
 _MEMO: dict = {}               # (URDF, model chain) -> bodies: the meshes are read once a process
-
-
-def _se3_mm(M) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = M.rotation
-    T[:3, 3] = np.asarray(M.translation) * MM_PER_M
-    return T
 
 
 def has_reference_links(robot) -> bool:
@@ -66,7 +59,7 @@ def _read_bodies(robot, q_rad) -> list[Body]:
         lo, hi = robot.limits.lower, robot.limits.upper
         q_rad = lo + REFERENCE_Q_FRACTION * (hi - lo)
     q_model = np.asarray(q_rad, float)
-    frames = _model_joint_frames(robot, q_model)
+    frames = joint_frames_mm(robot, q_model)
     q_urdf = np.zeros(um.nq)
     urdf_q = conv.urdf_from_model(q_model)
     joint_of_urdf = {}
@@ -85,7 +78,7 @@ def _read_bodies(robot, q_rad) -> list[Body]:
         if not go.meshPath:
             continue
         pts = hull_points(_vertices_m(go.meshPath) * np.asarray(go.meshScale) * MM_PER_M)
-        T_world = _se3_mm(gd.oMg[k])
+        T_world = se3_mm(gd.oMg[k])
         parent = _moving_parent(um, go.parentJoint, joint_of_urdf)
         name = um.frames[go.parentFrame].name if go.parentFrame < len(um.frames) else go.name
         if parent == BASE:
@@ -118,13 +111,3 @@ def _moving_parent(um, jid: int, joint_of_urdf: dict) -> int:
     while jid > 0 and jid not in joint_of_urdf:
         jid = um.parents[jid]
     return joint_of_urdf.get(jid, BASE)
-
-
-def _model_joint_frames(robot, q_rad: np.ndarray) -> np.ndarray:
-    """(dof, 4, 4) joint frames of the model (mm, base frame) at q."""
-    import pinocchio as pin
-
-    data = robot.model.createData()
-    scale = np.where(np.asarray(robot.prismatic, bool), 1e-3, 1.0)
-    pin.forwardKinematics(robot.model, data, q_rad * scale)
-    return np.stack([_se3_mm(data.oMi[j]) for j in range(1, robot.model.njoints)])

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import BadInput
 from ..transforms import matrix_from_xyz_rpy
-from .body import BASE, MM_PER_M, WORLD, Body, convex_hull, hull_points, mesh_points  # noqa: F401 (re-exported)
+from .body import BASE, MM_PER_M, WORLD, Body, convex_hull, hull_points, mesh_points, se3_mm  # noqa: F401 (re-exported)
 
 LINK_RADIUS_FRACTION = 0.15
 LINK_RADIUS_MIN_MM, LINK_RADIUS_MAX_MM = 40.0, 100.0
@@ -57,18 +57,11 @@ def segment_T(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return T
 
 
-def _se3_mm(M) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = M.rotation
-    T[:3, 3] = np.asarray(M.translation) * MM_PER_M
-    return T
-
-
 def joint_offsets(robot) -> list[np.ndarray]:
     """(dof) offset (mm) from each joint origin to the next one (the flange after the last), in its frame."""
     m = robot.model
     out = [np.asarray(m.jointPlacements[i + 1].translation) * MM_PER_M for i in range(1, robot.dof)]
-    out.append(_se3_mm(m.frames[robot.flange_frame_id].placement)[:3, 3])
+    out.append(se3_mm(m.frames[robot.flange_frame_id].placement)[:3, 3])
     return out
 
 
@@ -102,7 +95,7 @@ def robot_bodies(robot, tool_radius_mm: float, tool_points_mm: np.ndarray | None
 
 def _tool_bodies(robot, tool_radius_mm, tool_points_mm) -> tuple[Body, ...]:
     bodies = []
-    flange = _se3_mm(robot.model.frames[robot.flange_frame_id].placement)
+    flange = se3_mm(robot.model.frames[robot.flange_frame_id].placement)
     tool = np.asarray(robot.tool_T_mm, float)
     if tool_points_mm is not None:
         pts = hull_points(tool_points_mm)
@@ -129,7 +122,7 @@ def urdf_bodies(robot) -> list[Body]:
         raise BadInput(f"{path}: cannot read its collision elements ({(str(exc).splitlines() or [''])[0]})") from None
     out = []
     for k, go in enumerate(gm.geometryObjects):
-        T = _se3_mm(go.placement)
+        T = se3_mm(go.placement)
         g = go.geometry
         name = f"{go.name}" if go.name else f"collision{k}"
         if isinstance(g, coal.Box):

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .acm import AllowedCollisions, robot_acm
+from .body import joint_frames_mm
 from .shapes import BASE, WORLD, Body, obstacle_bodies, robot_bodies
 from .validity import Validity, valid_rows
 
@@ -90,7 +91,6 @@ class CollisionWorld:
         self.pairs = tuple(pairs)
         base = np.asarray(robot.base_T_mm, float)
         self._base = base
-        self._q_scale = np.where(np.asarray(robot.prismatic, bool), 1.0 / MM_PER_M, 1.0)
         self._data = robot.model.createData()
         self.calls = 0
         self._fixed_poses = np.array([b.local_T_mm if b.parent == WORLD else base @ b.local_T_mm
@@ -114,13 +114,7 @@ class CollisionWorld:
 
     def joint_frames_mm(self, q) -> np.ndarray:
         """(dof, 4, 4) world poses (mm) of the joint frames after their motion (Pinocchio's oMi)."""
-        import pinocchio as pin
-
-        pin.forwardKinematics(self.robot.model, self._data, np.asarray(q, float) * self._q_scale)
-        oMi = self._data.oMi
-        F = np.array([oMi[j].homogeneous for j in range(1, self.robot.model.njoints)])
-        F[:, :3, 3] *= MM_PER_M
-        return self._base @ F
+        return self._base @ joint_frames_mm(self.robot, q, self._data)
 
     def body_poses_mm(self, frames: np.ndarray) -> list[np.ndarray]:
         """World pose (mm) of every body for these joint frames (``joint_frames_mm``)."""
