@@ -166,15 +166,15 @@ def summary_lines(sim):
     return lines(sim)
 
 
-def simulate_program(plugin, entry, robot, profile, trajectory, process, reference=None):
+def simulate_program(plugin, entry, robot, profile, trajectory, process, reference=None, world=None):
     """The simulator's report of one written program (``camtool.simulate``), against the
-    planned path of ``trajectory``."""
+    planned path of ``trajectory``; with ``world``, the cell's pairs on the simulated motion too."""
     from .simulate import reference_from_trajectory, simulate
 
     prog = plugin.read_program(entry, robot, profile)
     if reference is None:
         reference = reference_from_trajectory(trajectory, robot, process.feed_mm_s)
-    return simulate(prog, robot, reference, path_tol_mm=process.path_tol_mm, profile=profile)
+    return simulate(prog, robot, reference, path_tol_mm=process.path_tol_mm, profile=profile, world=world)
 
 
 def check_limits(trajectory, robot) -> None:
@@ -268,14 +268,16 @@ def _forget_stale_programs(outdir: Path, final: list[Path]) -> None:
 
 
 def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dict, outdir, *,
-                   process: ProcessInfo | None = None, path=None, report: dict | None = None) -> list[Path]:
+                   process: ProcessInfo | None = None, path=None, report: dict | None = None,
+                   world=None) -> list[Path]:
     """Write, check, simulate and place the programs of every format in ``profiles``.
 
     ``profiles`` maps each format to its ``ResolvedPost`` (``post_inputs`` / ``preflight``);
     ``post_settings`` gives the tolerances and the shortest move; ``process`` the feed and job
     name and time (default: none, the settings' tolerances). ``path`` (the raster Path,
     optional) names the work rows. ``report`` (optional dict) receives, per format, the
-    simulator's figures. Returns the final paths. Raises BadInput for an output folder that
+    simulator's figures. ``world`` (a ``camtool.collision.CollisionWorld``, optional): the
+    simulated programs are measured against the cell too (no body pair may touch). Returns the final paths. Raises BadInput for an output folder that
     cannot be written, and PlanInfeasible (listing the findings) when the trajectory leaves
     the joint limits, a written program fails its check or its simulation; then nothing is
     left behind.
@@ -308,7 +310,7 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
                              "merged within %.3g mm", fmt, process.path_tol_mm * scale)
                 writing = replace(process, path_tol_mm=process.path_tol_mm * scale)
                 files, found, figures, reference = _write_checked(fmt, post, trajectory, robot, (tmp, outdir),
-                                                                  written, process, writing, reference)
+                                                                  written, process, writing, reference, world)
                 if not (found and all(DEVIATION_FINDING in x for x in found)):
                     break   # written within the tolerance, or a finding merging closer cannot mend
             written += files
@@ -337,7 +339,7 @@ DEVIATION_FINDING = "from the planned path"
 
 
 def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], written: list, process, writing,
-                   reference):
+                   reference, world=None):
     """Write one format into the private folder with ``writing`` (the process, its tolerance perhaps
     tightened), check its files and simulate them against ``process``' tolerance; findings name the
     output folder. Returns (files, findings, figures or None, reference)."""
@@ -369,7 +371,7 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], wri
         if reference is None:
             from .simulate import reference_from_trajectory
             reference = reference_from_trajectory(trajectory, tcp_robot, process.feed_mm_s)
-        sim = simulate_program(plugin, files[0], tcp_robot, profile, trajectory, process, reference)
+        sim = simulate_program(plugin, files[0], tcp_robot, profile, trajectory, process, reference, world)
         findings += [s.replace(str(tmp), str(outdir)) for s in sim.findings]
         figures = sim.as_dict()
         figures.pop("findings")
@@ -380,8 +382,9 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], wri
     return files, findings, figures, reference
 
 
-def write_job_programs(trajectory, robot, job, outdir, path=None, report: dict | None = None) -> list[Path]:
+def write_job_programs(trajectory, robot, job, outdir, path=None, report: dict | None = None,
+                       world=None) -> list[Path]:
     """``write_programs`` with the job's post inputs (``post_inputs``): for callers that hold a job."""
     inputs = post_inputs(job, robot)
     return write_programs(trajectory, robot, inputs.settings, inputs.profiles, outdir, process=inputs.process,
-                          path=path, report=report)
+                          path=path, report=report, world=world)

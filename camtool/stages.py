@@ -351,13 +351,17 @@ def post_checked(trajectory, robot, job: Job, outdir: Path, path=None, report: d
 
     PlanInfeasible on any finding: no program is written from a trajectory that
     breaks a limit. Every program is simulated the way its controller runs it
-    (against ``path``); ``report`` receives the simulation figures.
+    (against ``path``) and its simulated motion measured against the job's cell:
+    no robot or tool body may touch an obstacle, the floor or another link
+    (the acceptance of the written program, not only of the plan); ``report``
+    receives the simulation figures.
     """
     timing = TimingSettings.from_section(job.timing)
     findings = check_trajectory(trajectory, robot, samples=samples_for(trajectory, timing.check_dt_s))
     if findings:
         raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
-    return list(write_job_programs(trajectory, robot, job, outdir, path=path, report=report))
+    world = collision_world(JobSettings.from_job(job, robot), robot)   # the written programs against the cell
+    return list(write_job_programs(trajectory, robot, job, outdir, path=path, report=report, world=world))
 
 
 def timing_figures(trajectory, robot, job: Job) -> dict:

@@ -12,7 +12,7 @@ from camtool.collision.spec import obstacle_specs, parse_obstacles
 from camtool.errors import BadInput
 from camtool.job import load_job
 from camtool.motion import MotionCheckSettings, PartGeometry, check_motion
-from camtool.motion.cell_check import motion_bounds
+from camtool.motion.cell_check import check_sampled_motion, motion_bounds
 from camtool.robots import get_robot
 from camtool.toolpath import ZONE_CODE
 from camtool.transforms import matrix_from_xyz_rpy
@@ -222,6 +222,23 @@ def test_a_thin_wall_between_two_samples_is_found(robot):
     assert "wall" in line and "t = 0.00" in line
     pair = next(p for p in rep.cell_pairs if p["b"] == "wall" and p["min_distance_mm"] < 0)
     assert pair["at"]["zone"] == "self_motion"
+
+
+def test_sampled_motion_finds_the_thin_wall_and_clears_a_clear_one(robot):
+    """The pass over sampled joint values (a simulated program) bisects between samples too, and a
+    motion far from everything costs few distances."""
+    q = np.array([Q0 - np.r_[300.0, np.zeros(7)], Q0 + np.r_[300.0, np.zeros(7)]])
+    tcp = [robot.fk_tcp(x)[:3, 3] for x in q]
+    track = (tcp[1] - tcp[0]) / np.linalg.norm(tcp[1] - tcp[0])
+    size = np.where(np.abs(track) > 0.5, 2.0, 40.0)
+    w = CollisionWorld(robot, CellSettings(obstacles=(box_at("wall", (tcp[0] + tcp[1]) / 2.0, size),)))
+    rep = check_sampled_motion(w, q)
+    hit = [c for c in rep.collisions if c[1] == "wall"]
+    assert hit and hit[0][2] < 0 and 0.0 < hit[0][3] < 1.0   # between the two samples
+    fine = np.array([q[0] + f * (q[1] - q[0]) for f in np.linspace(0.0, 1.0, 2001)])
+    clear = CollisionWorld(robot, CellSettings(obstacles=(sphere_at("ball", [1500.0, 0.0, 1500.0], 50.0),)))
+    rep = check_sampled_motion(clear, fine)
+    assert rep.collisions == () and rep.evaluations < 0.2 * len(fine) * len(clear.pairs)
 
 
 def test_clear_motion_reports_every_pair_minimum(robot):

@@ -339,6 +339,7 @@ def test_pruning_changes_no_figure(arm, monkeypatch):
     zones = [SELF, WORK, SELF]
     fast = check_motion(t, q, zones, arm.robot, part)
     monkeypatch.setattr(PartGeometry, "lower_bound", lambda self, p, h: np.full(len(p), -np.inf))
+    monkeypatch.setattr(PartGeometry, "above", lambda self, p, h, level: np.zeros(len(p), bool))
     slow = check_motion(t, q, zones, arm.robot, part)
     for key in ("max_penetration_mm", "min_clearance_mm", "tcp_min_clearance_mm", "work_deviation_mm"):
         assert getattr(fast, key) == pytest.approx(getattr(slow, key), abs=1e-9), key
@@ -370,11 +371,16 @@ def test_lower_bound_never_exceeds_the_value(kind):
         h = rng.uniform(0, 150, len(p))
         lb = part.lower_bound(p, h)
         assert np.isfinite(lb).mean() > 0.3  # the grid does prune
+        level = rng.uniform(0, 200, len(p))
+        above = part.above(p, h, level)
+        assert above.mean() > 0.1  # it prunes
         for _ in range(4):
             e = rng.normal(size=p.shape)
             e /= np.linalg.norm(e, axis=1)[:, None]
             inside = p + e * (h * rng.uniform(0, 1, len(p)) ** (1 / 3))[:, None]
-            assert (part.signed_distance(inside) >= lb - 1e-9).all()
+            value = part.signed_distance(inside)
+            assert (value >= lb - 1e-9).all()
+            assert (value[above] > level[above]).all()
 
 
 # --------------------------------------------------------------------------- input and report

@@ -272,8 +272,8 @@ def test_a_program_its_simulator_finds_off_the_path_is_written_again_closer(tmp_
 
     calls, real = [], post_mod.simulate_program
 
-    def simulate(plugin, file, robot, profile, trajectory, process, reference):
-        sim = real(plugin, file, robot, profile, trajectory, process, reference)
+    def simulate(plugin, file, robot, profile, trajectory, process, reference, world=None):
+        sim = real(plugin, file, robot, profile, trajectory, process, reference, world)
         calls.append(file.read_text(encoding="latin-1").count("\n"))
         if len(calls) == 1:   # the first attempt: as if it were 0.2 mm off
             sim.findings.append(f"{file}:9: the simulated TCP is 0.200 mm from the planned path "

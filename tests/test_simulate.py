@@ -158,3 +158,24 @@ def test_cli_check_needs_a_robot_or_a_job(tmp_path):
     r, p, post, tr, files = _program("rapid", "seed8", tmp_path)
     res = CliRunner().invoke(cli, ["check", str(files[0])])
     assert res.exit_code == 2 and "--robot NAME, or --job JOB" in res.output
+
+
+def test_the_simulated_program_is_measured_against_the_cell(tmp_path):
+    """With the job's collision world, the simulator runs every body pair on the program as the
+    controller runs it: a clear cell passes with its figures, a ball on the tool's way is a finding
+    naming the two bodies and the program line."""
+    from camtool.collision import CellSettings, CollisionWorld
+    from camtool.collision.shapes import WORLD, Body
+
+    r, p, post, tr, files = _program("rapid", "seed8", tmp_path)
+    prog = post.read_program(files[0], r, p)
+    ref = reference_from_trajectory(tr, r, 100.0)
+    rep = simulate(prog, r, ref, path_tol_mm=0.1, profile=p, world=CollisionWorld(r, CellSettings()))
+    assert rep.findings == [] and rep.cell["collisions"] == 0 and rep.cell["evaluations"] > 0
+    T = np.eye(4)
+    T[:3, 3] = (np.asarray(r.base_T_mm) @ r.fk(tr.q[len(tr.q) // 2]))[:3, 3]   # where the flange passes mid-program
+    ball = Body("ball", "obstacle", WORLD, "sphere", (30.0,), T)
+    rep = simulate(prog, r, ref, path_tol_mm=0.1, profile=p, world=CollisionWorld(r, CellSettings(obstacles=(ball,))))
+    line = next(f for f in rep.findings if "ball" in f)
+    assert "overlap by" in line and "as the controller runs it" in line and rep.cell["collisions"] >= 1
+    assert re.search(r"\.mod|line|move", line, re.I)

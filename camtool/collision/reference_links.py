@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadInput
+from ..robots.urdf_meshes import collision_geometry
 from .body import BASE, MM_PER_M, Body, hull_points, joint_frames_mm, mesh_points, se3_mm
 
 REFERENCE_Q_FRACTION = 0.37   # the configuration the placements are taken at (any one works: links are rigid)
@@ -50,11 +51,10 @@ def _read_bodies(robot, q_rad) -> list[Body]:
     path = Path(conv.urdf_path)
     try:
         um = pin.buildModelFromUrdf(str(path))
-        # package://<pkg>/... resolves against the folders above the URDF (<pkg>/urdf/<robot>.urdf)
-        gm = pin.buildGeomFromUrdf(um, str(path), pin.GeometryType.COLLISION,
-                                   package_dirs=[str(p) for p in list(path.resolve().parents)[:3]])
-    except Exception as exc:  # a mesh that cannot be found or read: one line for the user
-        raise BadInput(f"{path}: cannot read its collision meshes ({(str(exc).splitlines() or [''])[0]})") from None
+    except Exception as exc:
+        raise BadInput(f"{path}: cannot read the URDF ({(str(exc).splitlines() or [''])[0]})") from None
+    # package://<pkg>/... resolves against the folders above the URDF (<pkg>/urdf/<robot>.urdf)
+    gm = collision_geometry(um, path, list(path.resolve().parents)[:3])
     if q_rad is None:
         lo, hi = robot.limits.lower, robot.limits.upper
         q_rad = lo + REFERENCE_Q_FRACTION * (hi - lo)

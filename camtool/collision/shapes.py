@@ -110,16 +110,13 @@ def _tool_bodies(robot, tool_radius_mm, tool_points_mm) -> tuple[Body, ...]:
 def urdf_bodies(robot) -> list[Body]:
     """A URDF robot's ``<collision>`` elements (Pinocchio's buildGeomFromUrdf): boxes, cylinders and
     spheres as they are, meshes as their convex hulls (mm), on the joint frames they belong to."""
-    import pinocchio as pin
     import coal
+
+    from ..robots.urdf_meshes import collision_geometry
 
     path = Path(robot.source)
     data_dir = Path(__file__).resolve().parents[1] / "robots" / "data" / "ros-industrial"
-    try:
-        gm = pin.buildGeomFromUrdf(robot.model, str(path), pin.GeometryType.COLLISION,
-                                   package_dirs=[str(path.parent), str(data_dir)])
-    except Exception as exc:  # a mesh that cannot be found or read: one line for the user
-        raise BadInput(f"{path}: cannot read its collision elements ({(str(exc).splitlines() or [''])[0]})") from None
+    gm = collision_geometry(robot.model, path, [path.parent, data_dir])
     out = []
     for k, go in enumerate(gm.geometryObjects):
         T = se3_mm(go.placement)

@@ -87,10 +87,11 @@ class CellPass:
     frames); ``states()`` the per-pair figures once every sample was fed.
     """
 
-    def __init__(self, world, fk, q_at, C: np.ndarray, clearance_mm: float):
+    def __init__(self, world, fk, q_at, C: np.ndarray, clearance_mm: float, track_minimum: bool = True):
         import coal
 
         self.world, self.fk, self.q_at, self.C = world, fk, q_at, C
+        self.track_minimum = track_minimum   # False: only whether a pair comes below the clearance
         self.S = len(C)
         self.thr = float(clearance_mm)
         self.geo = world.geometry
@@ -149,7 +150,8 @@ class CellPass:
                         self._bisect(pair, st, j - 1, j, lb_prev, d, m)
                 self._offer(st, j, d, pts)
                 st.k, st.d = j, d
-                target = max(thr, st.best - max(MIN_SLACK_MM, SLACK_FRACTION * max(st.best, 0.0)))
+                target = max(thr, st.best - max(MIN_SLACK_MM, SLACK_FRACTION * max(st.best, 0.0))) \
+                    if self.track_minimum else thr
                 if d >= target:
                     j = max(int(cp.searchsorted(cp[j] + d - target, side="right")), j + 1)
                 else:
@@ -178,3 +180,43 @@ class CellPass:
             return
         self._bisect(pair, st, a, mid, da, d, m / 2.0, depth + 1)
         self._bisect(pair, st, mid, b, d, db, m / 2.0, depth + 1)
+
+
+@dataclass(frozen=True)
+class SampledCellReport:
+    """The cell pass over sampled joint values (a simulated program): the pairs that come closer
+    than the threshold, each at its worst sample."""
+
+    threshold_mm: float
+    evaluations: int
+    seconds: float
+    collisions: tuple        # (body a, body b, distance mm, sample index, nearest points) per failing pair
+
+
+def check_sampled_motion(world, q: np.ndarray, threshold_mm: float = 0.0, chunk: int = 50_000) -> SampledCellReport:
+    """Every pair of ``world`` over the joint values ``q`` (S, dof), linear between rows (a
+    program sampled at the controller's step): which pairs come below ``threshold_mm``
+    (conservative advancement and bisection as above; no search for the minimum)."""
+    from .fk_batch import BatchFK
+
+    clock = time.perf_counter()
+    q = np.asarray(q, float)
+    S = len(q)
+    fk = BatchFK(world.robot)
+
+    def q_at(x):
+        x = np.asarray(x, float)
+        k = np.minimum(np.floor(x).astype(np.int64), S - 1)
+        f = (x - k)[:, None]
+        return q[k] + f * (q[np.minimum(k + 1, S - 1)] - q[k])
+
+    cp = CellPass(world, fk, q_at, motion_bounds(world, q), threshold_mm, track_minimum=False)
+    for start in range(0, S, chunk):
+        cp.feed(start, fk(q[start:start + chunk], frames=True))
+    collisions = []
+    for pair, st in zip(world.pairs, cp.states()):
+        if st.fails:   # the closest evaluated sample is the pair's worst
+            a, b = world.pair_name(pair)
+            collisions.append((a, b, float(st.best), float(st.best_at), st.best_points))
+    return SampledCellReport(float(threshold_mm), int(sum(st.evaluations for st in cp.states())),
+                             time.perf_counter() - clock, tuple(collisions))

@@ -497,6 +497,9 @@ def _capsules(part, fkb, bodies, dof, s, nonwork, U):
         thr = np.where(nw, max(s.clearance_mm, min(U, G)), 0.0)
         keep = lb <= thr
         leaf = keep & (h <= hl * (1 + 1e-9))
+        at = np.nonzero(leaf)[0]  # a tighter (dearer) bound first: the exact query is dearer far from the part
+        keep[at[part.above(M[at], 0.0, thr[at] + r[at])]] = False
+        leaf &= keep
         if leaf.any():
             c = part.signed_distance(M[leaf]) - r[leaf]
             np.minimum.at(cmin, (si[leaf], bi[leaf]), c)

@@ -104,8 +104,8 @@ class BatchFK:
         origins = np.empty((S, self.dof, 3))
         joint_R = np.empty((S, self.dof, 3, 3)) if frames else None
         for i, before in enumerate(self._before):
-            p += R @ before[:3, 3]
-            R = R @ before[:3, :3]
+            p += _rotate(R, before[:3, 3])
+            R = _compose(R, before[:3, :3])
             if self.prismatic[i]:
                 p += R[:, :, 2] * q[:, i, None]
             else:
@@ -116,10 +116,10 @@ class BatchFK:
             origins[:, i] = p
             if frames:
                 joint_R[:, i] = R
-        flange_p = p + R @ self._flange[:3, 3]
-        flange_R = R @ self._flange[:3, :3]
-        tcp = flange_p + flange_R @ self._tool_p
-        return FKBatch(origins, flange_p, tcp, flange_R @ self._tool_R, joint_R)
+        flange_p = p + _rotate(R, self._flange[:3, 3])
+        flange_R = _compose(R, self._flange[:3, :3])
+        tcp = flange_p + _rotate(flange_R, self._tool_p)
+        return FKBatch(origins, flange_p, tcp, _compose(flange_R, self._tool_R), joint_R)
 
     def _pinocchio(self, q: np.ndarray, frames: bool = False) -> FKBatch:
         import pinocchio as pin
@@ -147,3 +147,17 @@ class BatchFK:
         tcp = flange_p + flange_R @ self._tool_p
         return FKBatch(origins, flange_p, tcp, flange_R @ self._tool_R,
                        self._base_R @ joint_R if frames else None)
+
+
+def _rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(S, 3): each of the S rotations (S, 3, 3) applied to one vector (one flat GEMV: several
+    times faster than a stacked matmul of 3 x 3 by 3)."""
+    return (R.reshape(-1, 3) @ v).reshape(len(R), 3)
+
+
+def _compose(R: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """(S, 3, 3): R[s] @ B for one 3 x 3 B, column by column (faster than a stacked matmul)."""
+    out = np.empty_like(R)
+    for j in range(3):
+        out[:, :, j] = R[:, :, 0] * B[0, j] + R[:, :, 1] * B[1, j] + R[:, :, 2] * B[2, j]
+    return out

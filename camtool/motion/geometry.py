@@ -55,6 +55,9 @@ EDGE_BAND = 3.0              # points this many spacings (p90) from a flagged ed
 CREASE_NEIGHBOURS = 8        # cloud: normals averaged for the sign where the offset is in-plane
 LATERAL_SPACINGS = 3.0       # cloud: in-plane offsets up to this many spacings (p90) are sampling holes
 HINT_NEAR_FACTOR = 3.0       # mesh orientation vote: faces within this many hint spacings vote
+COVER_CELLS = 0.25           # mesh: a point cover of the surface within this many grid cells (``above``)
+MIN_COVER_MM = 1.0           # ... and never finer than this
+ABOVE_CAP_RATIO = 1.1        # ``above`` queries points whose caps differ by up to this factor together
 
 
 @dataclass(frozen=True)
@@ -148,7 +151,8 @@ class PartGeometry:
         self.face_normals = normals
         # boundary edges: an edge used by one face only; edge k of a face joins corners k and k+1
         e = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-        _, inv, cnt = np.unique(e, axis=0, return_inverse=True, return_counts=True)
+        # one int64 key an edge: a 1-D unique is much faster than the rows' (same order)
+        _, inv, cnt = np.unique(e[:, 0] * np.int64(len(verts)) + e[:, 1], return_inverse=True, return_counts=True)
         self.edge_boundary = (cnt[inv.ravel()] == 1).reshape(-1, 3)
         bvert = np.zeros(len(verts), bool)
         bvert[faces[self.edge_boundary]] = True
@@ -176,6 +180,7 @@ class PartGeometry:
         step = self._g_cell / 2.0
         self._surface_samples = _sample_triangles(verts[faces], step)
         self._surface_gap = step  # every surface point lies within this of a sample
+        self._cover_tree, self._cover_gap = _covering_tree(verts, faces, max(COVER_CELLS * self._g_cell, MIN_COVER_MM))
         self._wall_points = self._mesh_wall(verts, faces, normals, step) if self.boundary_edges else np.zeros((0, 3))
         self._wall_tol = step + self._slack
 
@@ -259,6 +264,7 @@ class PartGeometry:
         self._sheet = self.lateral_tol_mm  # a ball this far from every point does not pass the sheet
         self._surface_samples = P
         self._surface_gap = 0.0  # the cloud is the point set
+        self._cover_tree, self._cover_gap = self._tree, 0.0
         self._wall_points = np.zeros((0, 3))
         self._wall_tol = 0.0
         if self.boundary_edges:
@@ -442,6 +448,32 @@ class PartGeometry:
         lb = np.where(ok, self._g_dist[flat] - a - h - self._slack, -np.inf)
         return np.where(t > h, np.maximum(lb, self.horizon_mm + t - h), lb)
 
+    def above(self, points_mm: np.ndarray, half_length_mm, level_mm) -> np.ndarray:
+        """True where ``value`` is provably above ``level_mm`` over the ball of radius
+        ``half_length_mm`` round each point; tighter than ``lower_bound`` and dearer.
+
+        The ball lies in a grid node's clean ball (so it is not behind the surface and
+        ``value >= distance - slack``), and no point of a cover of the surface (every
+        surface point within the cover's gap of one) is within the distance that would
+        allow the level: a KD query capped at that distance, so far points cost little.
+        """
+        p = np.asarray(points_mm, dtype=float).reshape(-1, 3) - self.origin_mm
+        h = np.broadcast_to(np.asarray(half_length_mm, float), (len(p),))
+        need = np.broadcast_to(np.asarray(level_mm, float), (len(p),)) + h + self._slack + self._cover_gap
+        out = np.zeros(len(p), bool)
+        if not len(p):
+            return out
+        flat, a = self._nearest_node(p)
+        inside = np.all((p >= self._box_lo) & (p <= self._box_hi), axis=1)
+        cand = np.nonzero(inside & (self._g_rho[flat] >= a + h) & np.isfinite(need))[0]
+        if len(cand):  # in groups of about equal caps: a query slows with its cap
+            group = np.floor(np.log(np.maximum(need[cand], 1e-3)) / np.log(ABOVE_CAP_RATIO)).astype(np.int64)
+            for g in np.unique(group):
+                sel = cand[group == g]
+                d = self._cover_tree.query(p[sel], workers=-1, distance_upper_bound=float(need[sel].max()))[0]
+                out[sel] = d > need[sel]
+        return out
+
     def upper_bound_distance(self, points_mm: np.ndarray) -> np.ndarray:
         """An upper bound of the distance (hence of ``value``) at each point; ``inf`` when unknown."""
         p = np.asarray(points_mm, dtype=float).reshape(-1, 3) - self.origin_mm
@@ -507,6 +539,17 @@ def _sample_triangles(tri, step):
         a, b = (i / m)[None, :, None], (j / m)[None, :, None]
         out.append((t[:, :1] + a * (t[:, 1:2] - t[:, :1]) + b * (t[:, 2:3] - t[:, :1])).reshape(-1, 3))
     return np.concatenate(out)
+
+
+def _covering_tree(verts, faces, gap):
+    """(KD-tree, covering radius <= ``gap``) of points with every point of the triangles within
+    the radius of one: the vertices alone where the triangles are small enough (a triangle
+    lies within its longest edge / sqrt(3) of its corners), else a lattice on each triangle."""
+    tri = verts[faces]
+    radius = float(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max()) / np.sqrt(3.0)
+    if radius <= gap:
+        return cKDTree(verts[np.unique(faces)]), radius
+    return cKDTree(_sample_triangles(tri, gap * np.sqrt(3.0))), float(gap)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -59,11 +59,14 @@ __all__ = ["SIM_DT_S", "Reference", "SimReport", "move_durations", "reference_fr
 
 
 def simulate(prog, robot, reference: Reference | None = None, *, dt_s: float = SIM_DT_S,
-             path_tol_mm: float | None = None, profile=None) -> SimReport:
+             path_tol_mm: float | None = None, profile=None, world=None) -> SimReport:
     """Re-execute ``prog`` (a ``ProgramMoves``) at ``dt_s`` and measure it (module doc).
 
     ``reference`` (optional) is the planned path; without it there is no deviation and no
-    time comparison. ``path_tol_mm`` makes a larger deviation a finding.
+    time comparison. ``path_tol_mm`` makes a larger deviation a finding. ``world`` (a
+    ``camtool.collision.CollisionWorld`` of the same robot, optional): every body pair of the
+    cell (link x obstacle, link x link) is measured on the simulated motion too, and a pair
+    that touches or overlaps is a finding.
     """
     robot = _robot_for(prog, robot)
     findings: list[str] = []
@@ -88,6 +91,10 @@ def simulate(prog, robot, reference: Reference | None = None, *, dt_s: float = S
     findings += found
     work_len, feed, max_dev, p99, planned, found = work_figures(prog, chain, s, surf, reference, path_tol_mm)
     findings += found
+    cell = None
+    if world is not None and world.pairs:
+        cell, found = _cell_pass(prog, world, s)
+        findings += found
     t, S, on_work = s.t, len(s.t), surf.on_work
     stops = int(surf.blend_zero.sum())
     return SimReport(moves=M, duration_s=s.total, planned_duration_s=planned, rows=len(surf.rows),
@@ -95,4 +102,20 @@ def simulate(prog, robot, reference: Reference | None = None, *, dt_s: float = S
                      if S > 1 else 0.0, moves_on_work=surf.moves_on_work, max_deviation_mm=max_dev,
                      p99_deviation_mm=p99, feed=feed, exact_stops=stops, exact_stops_on_surface=surf.stops_surface,
                      part_switches=int(surf.switch_after.sum()), part_switches_on_surface=surf.switches_surface,
-                     limit_violations=n_lim, speed_violations=n_speed, samples=S, findings=findings)
+                     limit_violations=n_lim, speed_violations=n_speed, samples=S, findings=findings, cell=cell)
+
+
+def _cell_pass(prog, world, s) -> tuple[dict, list[str]]:
+    """The world's pairs on the simulated samples (``camtool.motion.cell_check``): figures and findings."""
+    from camtool.motion.cell_check import check_sampled_motion
+
+    rep = check_sampled_motion(world, s.q, threshold_mm=0.0)
+    found = []
+    for a, b, d, k, pts in rep.collisions:
+        i = min(int(k), len(s.t) - 1)
+        near = " at ({:.0f}, {:.0f}, {:.0f}) mm".format(*pts[0]) if len(pts) else ""
+        found.append(f"{prog.where[int(s.m[i])]}: {a} and {b} "
+                     + f"overlap by {-d:.3f} mm at t = {float(s.t[i]):.3f} s{near} (the program as the controller runs it)")
+    figures = {"pairs": len(world.pairs), "threshold_mm": rep.threshold_mm, "evaluations": rep.evaluations,
+               "seconds": round(rep.seconds, 4), "collisions": len(rep.collisions)}
+    return figures, found

@@ -240,6 +240,7 @@ class SimReport:
     speed_violations: int
     samples: int
     findings: list = field(default_factory=list)
+    cell: dict | None = None      # the cell pass on the simulated motion (a world given): pairs, evaluations
 
     def as_dict(self) -> dict:
         from dataclasses import asdict
