@@ -114,14 +114,18 @@ class CellPass:
 
     def _distance(self, pair, R, P, j):
         """coal distance of a pair at row j of a batch of joint frames (R rotations, P origins)."""
+        return self._distance_at(pair, R[j], P[j])
+
+    def _distance_at(self, pair, R, P):
+        """coal distance of a pair at one configuration's joint frames (R (dof, 3, 3), P (dof, 3))."""
         tf = []
         for i in (pair.a, pair.b):
             t = self.static_T.get(i)
             if t is None:
                 b = self.world.bodies[i]
                 f = b.parent - 1
-                Rf = R[j, f]
-                t = self._coal.Transform3s(Rf @ b.local_T_mm[:3, :3], P[j, f] + Rf @ b.local_T_mm[:3, 3])
+                Rf = R[f]
+                t = self._coal.Transform3s(Rf @ b.local_T_mm[:3, :3], P[f] + Rf @ b.local_T_mm[:3, 3])
             tf.append(t)
         self.res.clear()
         d = self._coal.distance(self.geo[pair.a], tf[0], self.geo[pair.b], tf[1], self.req, self.res)
@@ -133,15 +137,19 @@ class CellPass:
 
     def feed(self, c0: int, fkb) -> None:
         """Advance every pair through the samples c0 .. c0 + len(fkb.tcp) - 1."""
-        clock = time.perf_counter()
-        c1 = c0 + len(fkb.tcp)
         R, P = fkb.joint_R, fkb.joint_origins
+        self.feed_frames(c0, c0 + len(fkb.tcp), lambda j: (R[j - c0], P[j - c0]))
+
+    def feed_frames(self, c0: int, c1: int, frames_at) -> None:
+        """Advance every pair through the samples c0 .. c1 - 1; ``frames_at(j)`` gives sample j's
+        joint frames (rotations (dof, 3, 3), origins (dof, 3), mm)."""
+        clock = time.perf_counter()
         S, thr = self.S, self.thr
         for n, pair in enumerate(self.world.pairs):
             st, cp = self._states[n], self.pair_C[n]
             j = self._next[n]
             while j < c1:
-                d, pts = self._distance(pair, R, P, j - c0)
+                d, pts = self._distance_at(pair, *frames_at(j))
                 st.evaluations += 1
                 if st.k >= 0 and j > st.k:
                     lb_prev = st.d - (cp[j - 1] - cp[st.k])
@@ -193,10 +201,11 @@ class SampledCellReport:
     collisions: tuple        # (body a, body b, distance mm, sample index, nearest points) per failing pair
 
 
-def check_sampled_motion(world, q: np.ndarray, threshold_mm: float = 0.0, chunk: int = 50_000) -> SampledCellReport:
+def check_sampled_motion(world, q: np.ndarray, threshold_mm: float = 0.0) -> SampledCellReport:
     """Every pair of ``world`` over the joint values ``q`` (S, dof), linear between rows (a
     program sampled at the controller's step): which pairs come below ``threshold_mm``
-    (conservative advancement and bisection as above; no search for the minimum)."""
+    (conservative advancement and bisection as above; no search for the minimum). Only the
+    samples the advancement lands on are evaluated, so their frames are made one by one."""
     from .fk_batch import BatchFK
 
     clock = time.perf_counter()
@@ -211,8 +220,7 @@ def check_sampled_motion(world, q: np.ndarray, threshold_mm: float = 0.0, chunk:
         return q[k] + f * (q[np.minimum(k + 1, S - 1)] - q[k])
 
     cp = CellPass(world, fk, q_at, motion_bounds(world, q), threshold_mm, track_minimum=False)
-    for start in range(0, S, chunk):
-        cp.feed(start, fk(q[start:start + chunk], frames=True))
+    cp.feed_frames(0, S, _FramesAt(world.robot, q))
     collisions = []
     for pair, st in zip(world.pairs, cp.states()):
         if st.fails:   # the closest evaluated sample is the pair's worst
@@ -220,3 +228,28 @@ def check_sampled_motion(world, q: np.ndarray, threshold_mm: float = 0.0, chunk:
             collisions.append((a, b, float(st.best), float(st.best_at), st.best_points))
     return SampledCellReport(float(threshold_mm), int(sum(st.evaluations for st in cp.states())),
                              time.perf_counter() - clock, tuple(collisions))
+
+
+class _FramesAt:
+    """Joint frames (world, mm) of single samples, as ``feed_frames`` asks for them: Pinocchio's
+    forward kinematics a sample (about 20 us; a batch of every sample would cost more, as the
+    advancement evaluates a few in a hundred), the last few kept."""
+
+    KEEP = 4096
+
+    def __init__(self, robot, q):
+        from ..collision.body import joint_frames_mm
+
+        self._frames, self._robot, self._q = joint_frames_mm, robot, q
+        self._data = robot.model.createData()
+        self._base = np.asarray(robot.base_T_mm, float)
+        self._memo: dict = {}
+
+    def __call__(self, j: int):
+        hit = self._memo.get(j)
+        if hit is None:
+            if len(self._memo) >= self.KEEP:
+                self._memo.clear()
+            F = self._base @ self._frames(self._robot, self._q[j], self._data)
+            hit = self._memo[j] = (F[:, :3, :3], F[:, :3, 3])
+        return hit

@@ -428,10 +428,10 @@ class PartGeometry:
         return ndimage.distance_transform_edt(empty, sampling=self._g_cell).ravel()
 
     def _nearest_node(self, p):
-        idx = np.clip(np.rint((p - self._g_lo) / self._g_cell).astype(np.int64), 0, self._g_shape - 1)
-        flat = (idx[:, 0] * self._g_shape[1] + idx[:, 1]) * self._g_shape[2] + idx[:, 2]
-        a = np.linalg.norm(p - (self._g_lo + idx * self._g_cell), axis=1)
-        return flat, a
+        from .grid_bounds import nearest_nodes
+
+        return nearest_nodes(np.ascontiguousarray(p, dtype=float), self._g_lo, float(self._g_cell),
+                             self._g_shape.astype(np.int64))
 
     def lower_bound(self, points_mm: np.ndarray, half_length_mm) -> np.ndarray:
         """A lower bound of ``value`` over the ball of radius ``half_length_mm`` round each point.
@@ -439,14 +439,12 @@ class PartGeometry:
         ``-inf`` where the grid cannot tell (near the surface, near its edge or
         behind it); the exact query decides there.
         """
+        from .grid_bounds import lower_bounds
+
         p = np.asarray(points_mm, dtype=float).reshape(-1, 3) - self.origin_mm
-        h = np.broadcast_to(np.asarray(half_length_mm, float), (len(p),))
-        out_excess = np.maximum(np.maximum(self._box_lo - p, p - self._box_hi), 0.0)
-        t = np.linalg.norm(out_excess, axis=1)
-        flat, a = self._nearest_node(p)
-        ok = self._g_rho[flat] >= a + h
-        lb = np.where(ok, self._g_dist[flat] - a - h - self._slack, -np.inf)
-        return np.where(t > h, np.maximum(lb, self.horizon_mm + t - h), lb)
+        h = np.ascontiguousarray(np.broadcast_to(np.asarray(half_length_mm, float), (len(p),)))
+        return lower_bounds(p, h, self._g_lo, float(self._g_cell), self._g_shape.astype(np.int64), self._g_rho,
+                            self._g_dist, self._box_lo, self._box_hi, float(self._slack), float(self.horizon_mm))
 
     def above(self, points_mm: np.ndarray, half_length_mm, level_mm) -> np.ndarray:
         """True where ``value`` is provably above ``level_mm`` over the ball of radius
