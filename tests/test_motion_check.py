@@ -236,6 +236,15 @@ def test_fifty_mm_above_passes(arm):
     tool_end = 50.0 + 30.0 * (-arm.tool_z @ arm.o) - 25.0
     assert rep.min_clearance_mm == pytest.approx(tool_end, abs=1e-3)
     assert rep.min_clearance_at.body == "tool"
+    # per body, off work: the closest body's own figure is the minimum, with where and when; a body
+    # pruned as farther has only its bound, never below the minimum
+    per = {b["name"]: b for b in rep.bodies}
+    assert per["tool"]["min_clearance_mm"] == pytest.approx(tool_end, abs=1e-3)
+    assert per["tool"]["min_clearance_at"]["zone"] == "self_motion"
+    assert per["tcp"]["min_clearance_mm"] == pytest.approx(50.0, abs=1e-3)
+    for b in (b for b in per.values() if b["kind"] != "tcp"):   # the TCP is measured on its own
+        assert (b["min_clearance_mm"] if b["min_clearance_mm"] is not None else b["clearance_above_mm"]) \
+            >= rep.min_clearance_mm - 1e-9
 
 
 def test_wrist_dipping_into_the_part_fails_naming_body_and_time(arm):

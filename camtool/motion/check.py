@@ -278,6 +278,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
     best_edge = _Best()       # min of -(TCP beyond the part's edge) on work
     fails = {"penetration": [], "clearance": [], "deviation": []}
     body_pen = {name: _Best() for name in ["tcp"] + [b.name for b in bodies]}
+    body_clear = {b.name: _Best() for b in bodies}   # off work, against the part
 
     U_body, U_tcp = np.inf, np.inf
     nonwork_codes = np.array(NON_WORK)
@@ -338,6 +339,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
             fails["penetration"].append((gidx[pen], np.full(pen.sum(), body.name, dtype=object), -c[pen]))
             nw = np.nonzero(nonwork)[0]
             best_clear.offer(c[nw], gidx[nw], body.name)
+            body_clear[body.name].offer(c[nw], gidx[nw], body.name)
             low = nonwork & (c < s.clearance_mm) & ~pen
             fails["clearance"].append((gidx[low], np.full(low.sum(), body.name, dtype=object), c[low]))
 
@@ -358,6 +360,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
     tcp_clear = best_tcp.value if best_tcp.value <= G else None
     dev = -best_dev.value if np.isfinite(best_dev.value) else None
     step_rev, step_rev_at, step_pri, step_pri_at = _joint_steps(q, tcp_wp, zone, robot, t_s, pidx, index_label)
+    exact_below = max(s.clearance_mm, min(U_body, G))   # no body value at or below it was pruned
     ok = cell_ok and not any(fails[k][i][0].size for k in fails for i in range(len(fails[k])))
     return MotionReport(
         ok=ok, samples=S, dt_s=float(s.dt_s), duration_s=float(t_s[-1] - t_s[0]),
@@ -372,8 +375,9 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
         max_joint_step_deg_per_mm=step_rev, max_joint_step_at=step_rev_at,
         max_track_step_mm_per_mm=step_pri, max_track_step_at=step_pri_at,
         findings=tuple(findings),
-        bodies=tuple(_body_figures(name, kind, radius, body_pen[name])
-                     for name, kind, radius in [("tcp", "tcp", 0.0)] + [(b.name, b.kind, b.radius) for b in bodies]),
+        bodies=tuple(_body_figures(name, kind, radius, body_pen[name], clear, place, exact)
+                     for name, kind, radius, clear, exact in [("tcp", "tcp", 0.0, best_tcp, max(0.0, min(U_tcp, G)))]
+                     + [(b.name, b.kind, b.radius, body_clear[b.name], exact_below) for b in bodies]),
         part=part.describe(), settings=s, check_seconds=time.perf_counter() - clock, horizon_mm=G,
         cell_pairs=cell_pairs, cell=cell_figures)
 
@@ -435,9 +439,18 @@ def _cell_pass_end(cp, samples, place, s):
     return tuple(pairs), figures, lines
 
 
-def _body_figures(name, kind, radius, pen: _Best) -> dict:
-    return {"name": name, "kind": kind, "radius_mm": radius,
-            "max_penetration_mm": max(0.0, -pen.value) if np.isfinite(pen.value) else 0.0}
+def _body_figures(name, kind, radius, pen: _Best, clear: _Best, place, exact_below: float) -> dict:
+    """A body's figures: its deepest penetration, and its smallest clearance from the part off
+    work with where and when. That clearance is exact up to ``exact_below`` (the check's final
+    threshold: pieces farther were pruned); above it only the bound is known."""
+    d = {"name": name, "kind": kind, "radius_mm": radius,
+         "max_penetration_mm": max(0.0, -pen.value) if np.isfinite(pen.value) else 0.0}
+    if clear.value <= exact_below:
+        d["min_clearance_mm"] = round(float(clear.value), 6)
+        d["min_clearance_at"] = place(clear.sample, name).to_dict()
+    else:
+        d["min_clearance_mm"], d["clearance_above_mm"] = None, round(float(exact_below), 6)
+    return d
 
 
 def _fk_chunks(fk: BatchFK, q: np.ndarray, chunk: int) -> np.ndarray:

@@ -255,12 +255,38 @@ def cartesian_targets(prog) -> np.ndarray:
     return (prog.kind != "J") | pose_only
 
 
+_SOLVED: dict = {}   # the last programs' solved targets: a run checks a program, then simulates it
+SOLVED_KEEP = 4
+
+
 def target_joints(prog, robot, profile=None) -> np.ndarray:
     """(M, dof) joint values of every target: joint targets as written; each Cartesian target
     solved for the joints it leaves open, from the previous target's joints, in the
     configuration the program asks for (ABB confdata: the quadrants of axes 1, 4, 6 and the
-    side of axis 5); NaN where no solution within 1e-3 mm / 1e-5 rad is found."""
+    side of axis 5); NaN where no solution within 1e-3 mm / 1e-5 rad is found.
+
+    The answer depends only on the program's targets, the robot and the profile's axes, so a
+    program read twice (its check, then its simulation) is solved once."""
+    import hashlib
+
     robot = _robot_for(prog, robot)
+    h = hashlib.sha256()
+    for a in (prog.kind, prog.q, prog.pose, prog.conf, robot.base_T_mm, robot.tool_T_mm,
+              robot.limits.lower, robot.limits.upper):
+        h.update(np.ascontiguousarray(a).tobytes())
+    for M in robot.model.jointPlacements:   # the kinematics itself, not only the robot's name
+        h.update(np.asarray(M.homogeneous).tobytes())
+    h.update(f"{robot.name}|{prog.conf_convention}|{None if profile is None else repr(profile.axes)}".encode())
+    key = h.hexdigest()
+    if key not in _SOLVED:
+        if len(_SOLVED) >= SOLVED_KEEP:
+            _SOLVED.pop(next(iter(_SOLVED)))
+        _SOLVED[key] = _solve_targets(prog, robot, profile)
+    return _SOLVED[key].copy()
+
+
+def _solve_targets(prog, robot, profile) -> np.ndarray:
+    """``target_joints`` without the memo."""
     q = np.array(prog.q, float)
     stated = cartesian_targets(prog)
     cart = np.flatnonzero(stated)
@@ -286,24 +312,26 @@ def target_joints(prog, robot, profile=None) -> np.ndarray:
         from camtool.robots.confdata import yaskawa_rconf
         from camtool.robots.ik_common import nearest_equivalent
         starts = np.random.default_rng(0).uniform(robot.limits.lower, robot.limits.upper, (48, robot.dof))
-    for i in pose_only:
+        # the fixed starts do not depend on where the robot is: every target's are solved in one batch
+        # (rows are solved independently); only the start from the previous target waits for it
+        K, free = cart[pose_only], ~known[pose_only]
+        S0 = np.where(known[pose_only][:, None, :], q[K][:, None, :], starts[None, :, :]).reshape(-1, robot.dof)
+        TS = np.repeat(prog.pose[K], len(starts), axis=0)
+        far = [x.reshape(len(K), len(starts), *x.shape[1:]) for x in
+               _ik_batch(chain, TS[:, :3, 3], TS[:, :3, :3], S0, np.repeat(free, len(starts), 0), iters=80)]
+    for n_i, i in enumerate(pose_only):
         k = cart[i]
         ref = q[k - 1] if k > 0 and np.isfinite(q[k - 1]).all() else mid
-        seeds = np.vstack([ref, starts])
-        seeds = np.where(known[i][None], q[k][None], seeds)
-        T = np.repeat(prog.pose[k][None], len(seeds), axis=0)
-        sol, ep, eo = _ik_batch(chain, T[:, :3, 3], T[:, :3, :3], seeds, np.repeat(~known[i][None], len(seeds), 0),
-                                iters=80)
-        cands = []
-        for c in sol[(ep < 1e-3) & (eo < 1e-5)]:
-            w = nearest_equivalent(c, ref, robot.limits.lower, robot.limits.upper, ~robot.prismatic)
-            if w is None:
-                continue
-            if (prog.conf[k] != CONF_UNKNOWN).all() and robot.dof == len(robot.conventions.axis_joints) >= 6:
-                rc = yaskawa_rconf(robot, w[None], 6)[0]
-                if [rc[0], rc[1], rc[2], rc[3] * 4 + rc[4] * 2 + rc[5]] != list(prog.conf[k]):
-                    continue
-            cands.append(w)
+        T = prog.pose[[k]]
+        near = _ik_batch(chain, T[:, :3, 3], T[:, :3, :3], np.where(known[i], q[k], ref)[None], ~known[i][None],
+                         iters=80)
+        sol, ep, eo = (np.concatenate([a_, b_[n_i]]) for a_, b_ in zip(near, far))
+        cands = [w for w in (nearest_equivalent(c, ref, robot.limits.lower, robot.limits.upper, ~robot.prismatic)
+                             for c in sol[(ep < 1e-3) & (eo < 1e-5)]) if w is not None]
+        if cands and (prog.conf[k] != CONF_UNKNOWN).all() and robot.dof == len(robot.conventions.axis_joints) >= 6:
+            rc = yaskawa_rconf(robot, np.array(cands), 6)   # every candidate's flags in one call
+            flags = np.stack([rc[:, 0], rc[:, 1], rc[:, 2], rc[:, 3] * 4 + rc[:, 4] * 2 + rc[:, 5]], axis=1)
+            cands = [w for w, f in zip(cands, flags) if list(f) == list(prog.conf[k])]
         if cands:
             q[k], done[i] = min(cands, key=lambda w: float(np.sum((w - ref) ** 2))), True
     check = ax is not None and (prog.conf[cart] != CONF_UNKNOWN).all(axis=1) if ax is not None else \
