@@ -224,6 +224,21 @@ def test_a_thin_wall_between_two_samples_is_found(robot):
     assert pair["at"]["zone"] == "self_motion"
 
 
+def test_a_refused_configuration_names_the_pair_that_fails(robot):
+    """The planner's refusals say which bodies: the world check's reason is its closest pair."""
+    from camtool.collision.validity import reason_of
+    from camtool.collision.world import WorldChecker
+
+    w0 = CollisionWorld(robot)
+    F = w0.joint_frames_mm(Q0)
+    c = (F[-1] @ np.r_[0.0, 0.0, 150.0, 1.0])[:3] + 100.0 * F[-1][:3, 0]
+    check = WorldChecker(None, CollisionWorld(robot, CellSettings(obstacles=(sphere_at("ball", c, 70.0),))))
+    assert not check(Q0)
+    why = reason_of(check, Q0)
+    assert "ball" in why and "j8-flange" in why and "cell.clearance_mm" in why
+    assert reason_of(lambda q: False, Q0) == "the validity check refuses it"
+
+
 def test_sampled_motion_finds_the_thin_wall_and_clears_a_clear_one(robot):
     """The pass over sampled joint values (a simulated program) bisects between samples too, and a
     motion far from everything costs few distances."""

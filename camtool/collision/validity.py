@@ -19,6 +19,15 @@ class Validity(ABC):
         """(K,) bool: each row of Q checked; subclasses batch the work."""
         return np.array([self(q) for q in np.asarray(Q, float)], bool)
 
+    def reason(self, q) -> str:
+        """Why an invalid configuration q is invalid, for a refusal a user can act on."""
+        return "a link or the tool comes too close to the part"
+
+
+def reason_of(valid, q) -> str:
+    """``valid.reason(q)`` for a ``Validity``; a plain callable cannot say."""
+    return valid.reason(q) if isinstance(valid, Validity) else "the validity check refuses it"
+
 
 def valid_rows(valid, Q) -> np.ndarray:
     """(K,) bool of each row of Q under ``valid``: a ``Validity`` in one batch, any other callable

@@ -20,7 +20,7 @@ import numpy as np
 from .acm import AllowedCollisions, robot_acm
 from .body import joint_frames_mm
 from .shapes import BASE, WORLD, Body, obstacle_bodies, robot_bodies
-from .validity import Validity, valid_rows
+from .validity import Validity, reason_of, valid_rows
 
 MM_PER_M = 1000.0
 
@@ -218,6 +218,16 @@ class WorldChecker(Validity):
         rows = np.flatnonzero(ok)
         ok[rows] = self.world.valid_many(Q[rows])
         return ok
+
+    def reason(self, q) -> str:
+        """The closest pair of the world when it is what fails, else the inner check's reason."""
+        if self.inner is not None and not valid_rows(self.inner, np.asarray(q, float)[None])[0]:
+            return reason_of(self.inner, q)
+        d = self.world.pair_distances_mm(q)
+        i = int(np.argmin(d))
+        a, b = self.world.pair_name(self.world.pairs[i])
+        gap = f"overlap by {-d[i]:.3f} mm" if d[i] < 0 else f"are {d[i]:.3f} mm apart"
+        return f"{a} and {b} {gap} (< cell.clearance_mm {self.world.clearance_mm:g} mm)"
 
     def __getattr__(self, name):   # the inner checker's figures (calls, mesh, ...)
         return getattr(self.inner, name)

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..collision.validity import Validity, valid_rows
+from ..collision.validity import Validity, reason_of, valid_rows
 from ..errors import BadInput, PlanInfeasible
 from ..robots.ik_common import Chain
 from ..toolpath import ZONE_CODE, Path
@@ -380,6 +380,9 @@ def _joint_path(robot, q: np.ndarray) -> tuple[JointPath, Path]:
 
 REROUTE_RESOLUTION_SHARE = 0.25   # a move re-routed after its timed samples broke validity is searched
                                   # with edges checked this much finer
+MIN_REROUTE_RESOLUTION_RAD = 1e-3  # ... but never finer than this (about 1 mm at 1 m): each round made it
+                                   # 4x finer, so a move grazing a body at the clearance took 4^k x the checks
+                                   # (minutes); the timed 4 ms samples stay the judge either way
 
 
 def time_and_verify(robot, waypoints: list, valid, dt_s: float = 0.004, max_splits: int = 6,
@@ -397,7 +400,7 @@ def time_and_verify(robot, waypoints: list, valid, dt_s: float = 0.004, max_spli
 
     q = np.array(waypoints)
     w = np.ones(q.shape[1]) if weights is None else np.asarray(weights, float)
-    fine = resolution_rad * REROUTE_RESOLUTION_SHARE
+    fine = max(resolution_rad * REROUTE_RESOLUTION_SHARE, MIN_REROUTE_RESOLUTION_RAD)
     for attempt in range(max_splits + 1):
         jp, path = _joint_path(robot, q)
         tr = time_trajectory(jp, path, robot, TimingSettings.make(**{"method": "ruckig", **timing}))
@@ -421,8 +424,10 @@ def time_and_verify(robot, waypoints: list, valid, dt_s: float = 0.004, max_spli
                     new.extend(shortcut(detour, valid, fine, 50, seed + attempt, w)[1:-1])
             new.append(q[k])
         q = np.array(new)
-        fine *= REROUTE_RESOLUTION_SHARE
-    raise PlanInfeasible("free move: the timed trajectory keeps breaking the validity check")
+        fine = max(fine * REROUTE_RESOLUTION_SHARE, MIN_REROUTE_RESOLUTION_RAD)
+    k = int(bad[0])
+    raise PlanInfeasible(f"free move: the timed trajectory keeps breaking the validity check: at t = "
+                         f"{float(t[k]):.3f} s of the move {reason_of(valid, qs[k])}")
 
 
 def plan_free_move(robot, q_start, q_goal, valid=None, mesh=None, radius_mm: float = 60.0,
