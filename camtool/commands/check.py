@@ -29,12 +29,13 @@ def _simulation(program: Path, robot, profile, fmt: str, against: Path | None, j
         else:
             t_s, q = get_plugin("csv").read_trajectory(Path(against), robot)
             reference = reference_from_samples(t_s, q, robot, feed)
-    return simulate(prog, robot, reference, path_tol_mm=path_tol, profile=profile), None
+    world = None if job is None else job.world()   # --job: the program against the job's cell too
+    return simulate(prog, robot, reference, path_tol_mm=path_tol, profile=profile, world=world), None
 
 
 class _JobPost:
     """What ``check --job`` takes from a job: its post settings, process facts (feed,
-    tolerance) and the profile of the checked format."""
+    tolerance), its cell and the profile of the checked format."""
 
     def __init__(self, raw_job, robot):
         from ..post import process_for_job
@@ -43,6 +44,13 @@ class _JobPost:
         self._job, self._robot = raw_job, robot
         self.settings = PostSettings.from_section(raw_job.post)
         self.process = process_for_job(raw_job, self.settings)
+
+    def world(self):
+        """The job's collision world (obstacles, floor, the robot's own links)."""
+        from ..collision.stage import collision_world
+        from ..settings import JobSettings
+
+        return collision_world(JobSettings.from_job(self._job, self._robot), self._robot)
 
     def profile(self, fmt: str):
         from ..post import profile_for_job
@@ -66,8 +74,9 @@ class _JobPost:
               help="With --simulate: the planned path to measure against, a trajectory.npz (`camtool time`) "
                    "or the run's CSV program.")
 @click.option("--job", "job_file", type=click.Path(path_type=Path), default=None,
-              help="The job the program was written for: its robot placement and tool, post.path_tol_mm "
-                   "and feed (for --simulate).")
+              help="The job the program was written for: its robot placement and tool, post.path_tol_mm, "
+                   "feed and cell (for --simulate: the simulated motion against its obstacles, floor and "
+                   "the robot's own links).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON object: file, format, robot, profile, ok, findings, moves, duration_s "
                    "(and simulation).")
@@ -81,7 +90,9 @@ def command(program: Path, robot_name: str | None, profile_file: Path | None, fm
 
     With --simulate, the program is also re-executed the way the controller
     interpolates it; with --against PLAN the simulated TCP is measured against
-    the planned path (the job's post.path_tol_mm, or 0.1 mm, is the tolerance).
+    the planned path (the job's post.path_tol_mm, or 0.1 mm, is the tolerance);
+    with --job, every robot and tool body is measured against the job's cell on
+    the simulated motion (no pair may touch).
 
     Exit 0 when clean, 2 with one line per finding otherwise (with --json: the
     JSON object, and the same exit code).

@@ -2,8 +2,9 @@
 robot's own links (the pairs of ``camtool.collision.CollisionWorld``), on the check's samples.
 
 Shared with the planner: only the bodies and pairs (what the cell *is*). The
-sampling, the forward kinematics (``fk_batch``) and the bounds are the
-check's own.
+sampling, the forward kinematics (``fk_batch``; for the few samples of a
+simulated program that ``check_sampled_motion`` evaluates, Pinocchio's, one
+sample at a time) and the bounds are the check's own.
 
 Conservative advancement. A point of body b moves, over a joint-linear step
 dq, by at most sum_j |dq_j| R_jb: R_jb is 1 for a prismatic joint j before b
@@ -198,7 +199,7 @@ class SampledCellReport:
     threshold_mm: float
     evaluations: int
     seconds: float
-    collisions: tuple        # (body a, body b, distance mm, sample index, nearest points) per failing pair
+    collisions: tuple        # (body a, body b, distance mm, sample (fractional: bisected), nearest points)
 
 
 def check_sampled_motion(world, q: np.ndarray, threshold_mm: float = 0.0) -> SampledCellReport:
