@@ -223,10 +223,9 @@ class WorldChecker(Validity):
         """The closest pair of the world when it is what fails, else the inner check's reason."""
         if self.inner is not None and not valid_rows(self.inner, np.asarray(q, float)[None])[0]:
             return reason_of(self.inner, q)
-        d = self.world.pair_distances_mm(q)
-        i = int(np.argmin(d))
-        a, b = self.world.pair_name(self.world.pairs[i])
-        gap = f"overlap by {-d[i]:.3f} mm" if d[i] < 0 else f"are {d[i]:.3f} mm apart"
+        d, pair = self.world.clearance_mm_at(q)
+        a, b = self.world.pair_name(pair)
+        gap = f"overlap by {-d:.3f} mm" if d < 0 else f"are {d:.3f} mm apart"
         return f"{a} and {b} {gap} (< cell.clearance_mm {self.world.clearance_mm:g} mm)"
 
     def __getattr__(self, name):   # the inner checker's figures (calls, mesh, ...)

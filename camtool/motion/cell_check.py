@@ -81,6 +81,17 @@ def sampled_motion_bounds(world, q_waypoints: np.ndarray, seg: np.ndarray, frac:
     return W[seg] + frac[:, None] * (W[nxt] - W[seg])
 
 
+def between_rows(rows, S: int):
+    """``q_at(x)``: joint values at fractional sample positions x, linear between the rows
+    ``rows(k)`` (k an index array into S samples) on either side (the bisection's configurations)."""
+    def q_at(x):
+        x = np.asarray(x, float)
+        k = np.minimum(np.floor(x).astype(np.int64), S - 1)
+        qa, qb = rows(k), rows(np.minimum(k + 1, S - 1))
+        return qa + (x - k)[:, None] * (qb - qa)
+    return q_at
+
+
 class CellPass:
     """Runs the pairs of a CollisionWorld over the samples, chunk by chunk (module docstring).
 
@@ -113,10 +124,6 @@ class CellPass:
     def _tf(self, T):
         return self._coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
 
-    def _distance(self, pair, R, P, j):
-        """coal distance of a pair at row j of a batch of joint frames (R rotations, P origins)."""
-        return self._distance_at(pair, R[j], P[j])
-
     def _distance_at(self, pair, R, P):
         """coal distance of a pair at one configuration's joint frames (R (dof, 3, 3), P (dof, 3))."""
         tf = []
@@ -134,7 +141,7 @@ class CellPass:
 
     def _at_fraction(self, pair, s: float):
         fkb = self.fk(self.q_at(np.array([s], float)), frames=True)
-        return self._distance(pair, fkb.joint_R, fkb.joint_origins, 0)
+        return self._distance_at(pair, fkb.joint_R[0], fkb.joint_origins[0])
 
     def feed(self, c0: int, fkb) -> None:
         """Advance every pair through the samples c0 .. c0 + len(fkb.tcp) - 1."""
@@ -214,13 +221,8 @@ def check_sampled_motion(world, q: np.ndarray, threshold_mm: float = 0.0) -> Sam
     S = len(q)
     fk = BatchFK(world.robot)
 
-    def q_at(x):
-        x = np.asarray(x, float)
-        k = np.minimum(np.floor(x).astype(np.int64), S - 1)
-        f = (x - k)[:, None]
-        return q[k] + f * (q[np.minimum(k + 1, S - 1)] - q[k])
-
-    cp = CellPass(world, fk, q_at, motion_bounds(world, q), threshold_mm, track_minimum=False)
+    cp = CellPass(world, fk, between_rows(lambda k: q[k], S), motion_bounds(world, q), threshold_mm,
+                  track_minimum=False)
     cp.feed_frames(0, S, _FramesAt(world.robot, q))
     collisions = []
     for pair, st in zip(world.pairs, cp.states()):

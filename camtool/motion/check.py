@@ -384,21 +384,11 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
 
 def _cell_pass_start(world, fk, q, samples):
     """The cell pass (``cell_check``) over these samples: motion bounds from the waypoints, chunks fed later."""
-    from .cell_check import CellPass, sampled_motion_bounds
+    from .cell_check import CellPass, between_rows, sampled_motion_bounds
 
     clock = time.perf_counter()
-    S = len(samples)
-
-    def q_at(x):
-        x = np.asarray(x, float)
-        k = np.minimum(np.floor(x).astype(np.int64), S - 1)
-        f = (x - k)[:, None]
-        qa = samples.q(q, k)
-        qb = samples.q(q, np.minimum(k + 1, S - 1))
-        return qa + f * (qb - qa)
-
-    cp = CellPass(world, fk, q_at, sampled_motion_bounds(world, q, samples.seg, samples.frac),
-                  world.clearance_mm)
+    cp = CellPass(world, fk, between_rows(lambda k: samples.q(q, k), len(samples)),
+                  sampled_motion_bounds(world, q, samples.seg, samples.frac), world.clearance_mm)
     cp.seconds += time.perf_counter() - clock
     return cp
 

@@ -114,8 +114,8 @@ def _cell_pass(prog, world, s) -> tuple[dict, list[str]]:
     for a, b, d, k, pts in rep.collisions:
         i = min(int(k), len(s.t) - 1)
         near = " at ({:.0f}, {:.0f}, {:.0f}) mm".format(*pts[0]) if len(pts) else ""
-        found.append(f"{prog.where[int(s.m[i])]}: {a} and {b} "
-                     + f"overlap by {-d:.3f} mm at t = {float(s.t[i]):.3f} s{near} (the program as the controller runs it)")
+        found.append(f"{prog.where[int(s.m[i])]}: {a} and {b} overlap by {-d:.3f} mm at t = {float(s.t[i]):.3f} s"
+                     f"{near} (the program as the controller runs it)")
     figures = {"pairs": len(world.pairs), "threshold_mm": rep.threshold_mm, "evaluations": rep.evaluations,
                "seconds": round(rep.seconds, 4), "collisions": len(rep.collisions)}
     return figures, found
