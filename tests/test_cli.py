@@ -43,6 +43,29 @@ def test_robots_json_lists_five_with_limits(cli):
     assert robots["irb2400"]["joints"][1]["lower"] == pytest.approx(-100)
 
 
+# libraries that cost start-up time and that `camtool --help` and `camtool robots` do not need (issue #25);
+# the robots are Pinocchio models, so listing them loads Pinocchio
+HEAVY = ("scipy", "open3d", "trimesh", "plotly", "matplotlib", "numba", "cv2", "pinocchio")
+
+
+@pytest.mark.parametrize("args, needed", [(["--help"], ()), (["robots"], ("pinocchio",)),
+                                          (["robots", "--json"], ("pinocchio",))])
+def test_start_up_loads_no_heavy_library(args, needed):
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            f"sys.argv = ['camtool', *{args!r}]\n"
+            "from camtool.cli import main\n"
+            "try:\n"
+            "    main()\n"
+            "finally:\n"
+            f"    print(sorted({{m.partition('.')[0] for m in sys.modules}} & set({HEAVY!r})), file=sys.stderr)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.splitlines()[-1] == repr(sorted(needed))
+
+
 def test_unknown_robot_one_line_exit_2():
     r = run_camtool("fk", "ur5", 0)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "unknown robot" in r.stderr

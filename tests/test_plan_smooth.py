@@ -5,7 +5,7 @@ import pytest
 from camtool.job import load_job
 from camtool.plan import plan_path
 from camtool.plan.cwln import CwlnSolver
-from camtool.plan.smooth import SmoothSettings, divided_difference, run_ratios, smooth_runs
+from camtool.plan.smooth import SmoothSettings, derivatives, divided_difference, run_ratios, smooth_runs
 from camtool.plan.strategy import ik_settings
 from camtool.settings import JobSettings
 from camtool.stages import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
@@ -22,6 +22,29 @@ def test_divided_differences_are_exact_on_polynomials_on_an_uneven_grid():
     second = divided_difference(s, 2) @ (s ** 2)
     assert np.allclose(second, 2.0)                                              # (s^2)'' = 2
     assert np.allclose(divided_difference(s, 1) @ s, 1.0)
+
+
+def test_the_ratios_by_sequential_differences_are_the_matrix_formulas():
+    """run_ratios builds no matrix; its numbers are the divided-difference matrices' on an uneven grid."""
+    from camtool.robots import get_robot
+    robot = get_robot("seed8")
+    rng = np.random.default_rng(25)
+    s = np.cumsum(np.r_[0.0, rng.uniform(0.2, 3.0, 40)])
+    q = np.cumsum(rng.normal(0.0, 0.01, (41, 8)), axis=0)
+    d = derivatives(q, s, 3)
+    for k in range(4):
+        assert np.allclose(d[k], divided_difference(s, k) @ q, rtol=1e-12, atol=0)
+    feed = 100.0
+    jerk, acc = run_ratios(q, s, robot, feed)
+    lim = robot.limits
+    assert np.allclose(jerk, np.abs(divided_difference(s, 3) @ q).max(axis=0) * feed ** 3 / lim.jerk,
+                       rtol=1e-12, atol=0)
+    assert np.allclose(acc, np.abs(divided_difference(s, 2) @ q).max(axis=0) * feed ** 2 / lim.acceleration,
+                       rtol=1e-12, atol=0)
+    for n in (1, 2, 3):  # too few poses for a third (n <= 3) or a second difference (n <= 2): 0
+        jerk, acc = run_ratios(q[:n], s[:n], robot, feed)
+        assert np.array_equal(jerk, np.zeros(8))
+        assert np.array_equal(acc, np.zeros(8)) or n == 3
 
 
 @pytest.fixture(scope="module")

@@ -1,9 +1,12 @@
 """camtool.transforms against scipy's Rotation and hand-built rotation matrices."""
+import warnings
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from camtool.transforms import invert, matrix_from_xyz_rpy, quaternion_wxyz_from_matrix, rotation_angle_rad
+from camtool.transforms import (invert, matrix_from_xyz_rpy, quaternion_wxyz_from_matrix, rotation_angle_rad,
+                                rotation_from_rpy, rpy_deg_from_matrix)
 
 
 def rx(a):
@@ -37,6 +40,36 @@ def test_matrix_from_xyz_rpy_is_fixed_axis_roll_pitch_yaw(rpy):
     assert np.allclose(T[:3, :3], Rotation.from_euler("xyz", rpy, degrees=True).as_matrix(), atol=1e-12)
     assert np.array_equal(T[:3, 3], [12.5, -300.0, 4.0])
     assert np.array_equal(T[3], [0, 0, 0, 1])
+
+
+def _same_bits(a, b):
+    return np.array_equal(a, b) and np.array_equal(np.signbit(a), np.signbit(b))
+
+
+def test_rpy_in_numpy_is_scipy_bit_for_bit():
+    # programs stay byte-identical to the scipy version: no last-bit difference, no -0.0 for 0.0
+    rng = np.random.default_rng(25)
+    angles_deg = np.concatenate([rng.uniform(-180, 180, (2000, 3)), rng.uniform(-1e-6, 1e-6, (200, 3)),
+                                 rng.choice([-180.0, -90.0, -45.0, -0.0, 0.0, 30.0, 90.0, 180.0, 270.0], (500, 3))])
+    for rpy in angles_deg:
+        ref = Rotation.from_euler("xyz", rpy, degrees=True).as_matrix()
+        assert _same_bits(matrix_from_xyz_rpy([0, 0, 0], rpy)[:3, :3], ref), rpy
+        assert _same_bits(rotation_from_rpy(np.deg2rad(rpy)), ref), rpy
+        r, p, y = np.deg2rad(rpy)
+        assert np.allclose(rotation_from_rpy([r, p, y]), rz(y) @ ry(p) @ rx(r), rtol=0, atol=1e-15)
+
+
+def test_rpy_from_a_matrix_is_scipys():
+    rng = np.random.default_rng(26)
+    frames = [Rotation.random(random_state=rng).as_matrix() for _ in range(200)]
+    frames += [matrix_from_xyz_rpy([1, 2, 3], rpy) for rpy in ([0, 0, 0], [0, 90, 0], [0, -90, 30], [180, 0, 180])]
+    signed_zeros = np.eye(3)
+    signed_zeros[[1, 2], [0, 1]] = -0.0  # scipy's roll is -0.0 here
+    frames += [np.eye(3), np.eye(4), signed_zeros]
+    for R in frames:
+        with warnings.catch_warnings():  # gimbal lock
+            warnings.simplefilter("ignore")
+            assert _same_bits(rpy_deg_from_matrix(R), Rotation.from_matrix(R[:3, :3]).as_euler("xyz", degrees=True))
 
 
 def test_matrix_from_xyz_rpy_rotates_a_vector_as_expected():

@@ -76,11 +76,26 @@ def divided_difference(s: np.ndarray, order: int) -> sp.csr_matrix:
     return D.tocsr()
 
 
+def derivatives(q: np.ndarray, s_mm: np.ndarray, order: int) -> list[np.ndarray]:
+    """q (n, dof) and its first ``order`` derivatives along ``s_mm`` by sequential divided differences.
+
+    Entry k, (n - k, dof), is ``divided_difference(s_mm, k) @ q`` up to rounding, without building
+    the matrix (``run_ratios`` runs for every run at every iteration).
+    """
+    out = [q]
+    for k in range(1, order + 1):
+        m = len(s_mm) - k
+        span = (s_mm[k:] - s_mm[:m]) / k
+        out.append(np.diff(out[-1], axis=0) / span[:, None])
+    return out
+
+
 def run_ratios(q: np.ndarray, s_mm: np.ndarray, robot: Robot, feed_mm_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Per joint, the largest |q'''| v^3 / jerk limit and |q''| v^2 / acceleration limit along one run."""
     lim, none = robot.limits, np.zeros((1, q.shape[1]))
-    jerk = np.abs(divided_difference(s_mm, 3) @ q) * feed_mm_s ** 3 / lim.jerk if len(q) > 3 else none
-    acc = np.abs(divided_difference(s_mm, 2) @ q) * feed_mm_s ** 2 / lim.acceleration if len(q) > 2 else none
+    d = derivatives(q, s_mm, min(3, len(q) - 1))  # as many as the run has poses for
+    jerk = np.abs(d[3]) * feed_mm_s ** 3 / lim.jerk if len(q) > 3 else none
+    acc = np.abs(d[2]) * feed_mm_s ** 2 / lim.acceleration if len(q) > 2 else none
     return jerk.max(axis=0), acc.max(axis=0)
 
 

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadInput
-from ..transforms import matrix_from_xyz_rpy
+from ..transforms import matrix_from_xyz_rpy, rpy_deg_from_matrix
 
 SOURCES = ("paper", "manufacturer", "user")
 _TOP_KEYS = {"name", "source", "reference", "axis", "tool0_in_flange", "robot_frame_in_base", "urdf", "driver"}
@@ -170,11 +170,10 @@ class ControllerConventions:
         """Source, reference, axis formulas, controller limits (deg / mm) and frames (for ``camtool robots``)."""
         def edge(v, k):
             return float(v) if self.prismatic[k] else float(math.degrees(v))
-        from scipy.spatial.transform import Rotation
 
         def frame(T):
             return {"xyz_mm": [round(float(x), 9) for x in T[:3, 3]],
-                    "rpy_deg": [round(float(x), 9) for x in Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)]}
+                    "rpy_deg": [round(float(x), 9) for x in rpy_deg_from_matrix(T)]}
         return {
             "source": self.source,
             "reference": self.reference,
@@ -205,9 +204,8 @@ class ControllerConventions:
 
 
 def _frame_text(T: np.ndarray) -> str:
-    from scipy.spatial.transform import Rotation
     xyz = ", ".join(f"{v:g}" for v in np.round(T[:3, 3], 6))
-    rpy = ", ".join(f"{v:g}" for v in np.round(Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True), 6))
+    rpy = ", ".join(f"{v:g}" for v in np.round(rpy_deg_from_matrix(T), 6))
     return f"xyz ({xyz}) mm, rpy ({rpy}) deg"
 
 

@@ -24,7 +24,6 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial.transform import Rotation
 
 from ..errors import BadInput
 from .dh import MAX_LENGTH_MM, MM_TO_M, rot_x, rot_z, trans
@@ -182,6 +181,8 @@ def robot_from_urdf(path: Path, flange_link: str | None = None) -> Robot:
 
 
 def _origin(T_mm: np.ndarray) -> str:
+    from scipy.spatial.transform import Rotation  # here, not at the top: scipy.spatial costs start-up time
+
     xyz = T_mm[:3, 3] * MM_TO_M
     with warnings.catch_warnings():  # gimbal lock still gives a valid rpy
         warnings.simplefilter("ignore")
