@@ -517,10 +517,26 @@ def _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
         surfaces = [(_surface(m, P_world, N_all, P, idx, centroid, bkw), m, idx) for m, idx in merged]
     else:
         surfaces = [t for t, b in zip(surfaces, big) if b]
+    surfaces = _on_edges(surfaces, P_world, workpiece, thr)
     areas = [area_mm2(s) for s, _, _ in surfaces]
     order = sorted(range(len(surfaces)), key=lambda k: (-round(areas[k], 6), k))  # largest first
     faces = [Face(i, surfaces[k][0], surfaces[k][2], areas[k]) for i, k in enumerate(order)]
     return faces, dropped
+
+
+def _on_edges(surfaces, P_world, workpiece, threshold_mm):
+    """The faces' boundaries moved onto the part's edges (``face_edges``): neighbours' intersections, and the
+    mesh's free edges when the workpiece is a mesh."""
+    from .face_edges import FreeEdges, on_edges
+
+    free = FreeEdges.of_mesh(getattr(workpiece, "vertices_mm", None), getattr(workpiece, "faces", None))
+    points = [P_world[idx if len(idx) <= BOUNDARY_POINTS else
+                      idx[np.linspace(0, len(idx) - 1, BOUNDARY_POINTS).astype(int)]] for _, _, idx in surfaces]
+    owner = np.full(len(P_world), -1)
+    for k, (_, _, idx) in enumerate(surfaces):
+        owner[idx] = k
+    moved = on_edges([s for s, _, _ in surfaces], points, P_world, owner, threshold_mm, free)
+    return [(s, m, idx) for s, (_, m, idx) in zip(moved, surfaces)]
 
 
 def _surface(model: _Model, P_world, N_all, P, idx, centroid, bkw):

@@ -1,0 +1,524 @@
+"""Face boundaries on the part's edges: where two faces meet, and where a mesh ends.
+
+A face's boundary is traced from its inlier points (``segment.boundary_on_points``),
+and the points stop short of the part's edges: on a mesh by about a point
+spacing, and the traced outline is moved into the material by a few mm so that
+a row along it crosses it once; on a scan the estimated normals blend near an
+edge and the normal test rejects points there, so the inliers end 4 to 11 mm
+before it. The faces' fitted models are far better than that (a few hundredths
+of a mm), so this pass puts each boundary vertex, along the boundary's outward
+normal on the face (in the face's flat chart), onto
+
+- the **intersection with a neighbouring face**: the nearest crossing of that
+  face's surface within ``SNAP_REACH_MM`` near which the neighbour has points;
+  where the two surfaces meet tangentially (a dome on a cylinder of its radius)
+  there is no crossing to find, and the vertex goes to the seam, the extremum of
+  the neighbour's distance along the normal;
+- else a **free edge of the mesh** (an edge of one triangle only) that the
+  normal meets within ``SNAP_REACH_MM``, when the workpiece is a mesh.
+
+Other vertices (a scan's free edges, a full cylinder's seam) stay where the
+points put them, and a polygon with no vertex moved is returned as it was.
+
+Hand-written: trimesh and open3d segment meshes but do not refine a
+segmentation's outlines onto the fitted models' intersections; the maths is a
+1-D root (or extremum) search per vertex, done for all vertices at once.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from functools import cached_property
+
+import cv2
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .surface import Boundary, Cylinder, PlaneSurface
+
+SNAP_REACH_MM = 15.0    # a vertex moves at most this far out of the material along its normal, and the neighbour's
+                        # points must come this near the point it moves to
+DISTANCE_WEIGHT = 0.1   # mm of a neighbour's gap a mm farther along the normal is worth
+INWARD_MM = 3.0         # ... or this far into the material (the traced outline is inside, or a point spacing out);
+                        # a tangent seam, where the two faces' points mingle, is looked for SNAP_REACH_MM either way
+SEARCH_STEP_MM = 0.5    # the normal is sampled this finely; crossings are interpolated between samples
+VERTEX_MM = 1.0         # boundary polygons are resampled to vertices this far apart before they move
+TANGENT_DEG = 15.0      # surfaces whose normals differ by less than this meet tangentially
+TANGENT_GAP_MM = 0.5    # ... and touch where the neighbour's distance along the normal has an extremum this small
+HEAD_ON_DEG = 35.0      # a vertex moves onto an edge only along a normal within this angle of the edge's normal
+TANGENT_RADIUS_MM = 10000.0  # ... and the distance curves along the normal at least as much as on this radius
+FREE_EDGE_GAP_MM = 0.5  # a mesh free edge counts as met where the normal passes this near it
+TANGENT_VERTICES = 4    # the outward normal is taken from the outline over +-4 vertices
+MIN_RUN_VERTICES = 3    # vertices moved onto one edge in a run shorter than this stay where they were
+LINE_VERTICES = 6       # ... an edge's line into a corner is drawn through its last 6 vertices
+GAP_VERTICES = 25       # a run of unmoved vertices this short between moved ones is closed (chord or corner)
+END_SPACINGS = 2.0      # a point of the ray is among the face's points when one is this many spacings near
+END_GAP_SPACINGS = 0.0  # a free edge lies this many spacings beyond the last points
+END_WINDOW_VERTICES = 8  # ... the farthest within +-8 vertices
+END_TANGENT_VERTICES = 12  # ... along normals taken over +-12 vertices
+END_WINDOW_DEG = 10.0   # ... whose normals agree within this angle
+SEAM_RAD = 0.1          # a face all round its axis keeps the vertices this near its seam where they are
+NEIGHBOUR_POINTS = 50000  # a neighbour's points (strided) its nearness is measured on
+EXTENT_POINTS = 200000  # a face's points (strided) its extent is read from
+PASSES = 2              # the pass is run this many times
+SIMPLIFY_MM = 0.05      # the moved polygon is simplified (Douglas-Peucker) to this tolerance
+
+
+# ----------------------------------------------------------------------------- flat charts
+
+
+def flat_mm(surface, uv: np.ndarray) -> np.ndarray:
+    """(u, v) in the surface's flat chart (mm): a plane's own, (R u, v) on a cylinder, sinusoidal on a sphere."""
+    if isinstance(surface, PlaneSurface):
+        return uv
+    if isinstance(surface, Cylinder):
+        return np.stack([surface.radius_mm * uv[:, 0], uv[:, 1]], axis=-1)
+    r = surface.radius_mm
+    return np.stack([r * uv[:, 0] * np.cos(uv[:, 1]), r * uv[:, 1]], axis=-1)
+
+
+def uv_of_flat(surface, xy: np.ndarray) -> np.ndarray:
+    """The surface's (u, v) of flat-chart points (inverse of ``flat_mm``)."""
+    if isinstance(surface, PlaneSurface):
+        return xy
+    if isinstance(surface, Cylinder):
+        return np.stack([xy[:, 0] / surface.radius_mm, xy[:, 1]], axis=-1)
+    r = surface.radius_mm
+    v = np.clip(xy[:, 1] / r, -math.pi / 2 + 1e-6, math.pi / 2 - 1e-6)
+    return np.stack([xy[:, 0] / (r * np.cos(v)), v], axis=-1)
+
+
+# ----------------------------------------------------------------------------- the surfaces as level sets
+
+
+def level(surface, X: np.ndarray) -> np.ndarray:
+    """Signed distance (mm, to first order) of points X (..., 3) from the surface's plane, sphere or cylinder."""
+    if isinstance(surface, PlaneSurface):
+        return (X - surface.origin_mm) @ surface.normal
+    d = X - surface.center_mm
+    if isinstance(surface, Cylinder):
+        d = d - (d @ surface.axis)[..., None] * surface.axis
+    return np.linalg.norm(d, axis=-1) - surface.radius_mm
+
+
+def level_normal(surface, X: np.ndarray) -> np.ndarray:
+    """Unit gradient (..., 3) of ``level`` at X."""
+    if isinstance(surface, PlaneSurface):
+        return np.broadcast_to(surface.normal, X.shape).copy()
+    d = X - surface.center_mm
+    if isinstance(surface, Cylinder):
+        d = d - (d @ surface.axis)[..., None] * surface.axis
+    return d / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)[..., None]
+
+
+def _projected(surface, X: np.ndarray) -> np.ndarray:
+    """The points X (n, 3) moved onto the surface along its normal."""
+    return X - level(surface, X)[:, None] * level_normal(surface, X)
+
+
+# ----------------------------------------------------------------------------- inputs
+
+
+@dataclass(frozen=True)
+class FreeEdges:
+    """A mesh's free edges (edges of one triangle only) as segments, with a tree of points along them."""
+
+    start_mm: np.ndarray  # (k, 3)
+    end_mm: np.ndarray    # (k, 3)
+    tree: cKDTree         # over points every <= 0.5 mm along the segments
+    segment_of: np.ndarray  # the segment of each tree point
+
+    @staticmethod
+    def of_mesh(vertices_mm, triangles) -> "FreeEdges | None":
+        """The free edges of a triangle mesh (merged vertices), or None when it has none."""
+        if vertices_mm is None or triangles is None or len(triangles) == 0:
+            return None
+        V, F = np.asarray(vertices_mm, float), np.asarray(triangles, np.int64)
+        e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+        key = e[:, 0] * (len(V) + 1) + e[:, 1]
+        uniq, first, count = np.unique(key, return_index=True, return_counts=True)
+        free = e[first[count == 1]]
+        if len(free) == 0:
+            return None
+        a, b = V[free[:, 0]], V[free[:, 1]]
+        n = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) / 0.5).astype(int), 1)
+        seg = np.repeat(np.arange(len(free)), n + 1)
+        frac = np.concatenate([np.linspace(0, 1, k + 1) for k in n])
+        pts = a[seg] + frac[:, None] * (b - a)[seg]
+        return FreeEdges(a, b, cKDTree(pts), seg)
+
+    def nearest_mm(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(distance, closest point) of each point X (n, 3) to the free edges, within ``SNAP_REACH_MM``."""
+        d, i = self.tree.query(X, distance_upper_bound=SNAP_REACH_MM)
+        near = np.isfinite(d)
+        closest = np.full(X.shape, np.nan)
+        dist = np.full(len(X), np.inf)
+        s = self.segment_of[i[near]]
+        a, ab = self.start_mm[s], self.end_mm[s] - self.start_mm[s]
+        f = np.clip(np.einsum("ij,ij->i", X[near] - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-24), 0, 1)
+        closest[near] = a + f[:, None] * ab
+        dist[near] = np.linalg.norm(X[near] - closest[near], axis=1)
+        return dist, closest
+
+
+# ----------------------------------------------------------------------------- the pass
+
+
+def on_edges(surfaces: list, points_mm: list[np.ndarray], cloud_mm: np.ndarray, owner: np.ndarray,
+             threshold_mm: float, free_edges: FreeEdges | None = None) -> list:
+    """The surfaces with their boundary vertices moved onto the part's edges (see the module docstring).
+
+    ``points_mm[k]`` are face k's inlier points (world mm); every other face is a
+    possible neighbour of face k, and counts where its points come near. Where no
+    edge is met, the workpiece's points ``cloud_mm`` within ``threshold_mm`` of the
+    face's surface that no other face owns (``owner``: each point's face, -1 for
+    none; near an edge a scan's normals blend and its points are nobody's) say where
+    the face ends."""
+    trees = [cKDTree(_strided(p, NEIGHBOUR_POINTS)) for p in points_mm]
+    out = []
+    for k, s in enumerate(surfaces):
+        others = [(surfaces[j], trees[j]) for j in range(len(surfaces)) if j != k]
+        b = s.boundary
+        own = _FacePoints(_strided(cloud_mm[(np.abs(level(s, cloud_mm)) < threshold_mm) &
+                                            ((owner == k) | (owner < 0))], EXTENT_POINTS))
+        moved = [_moved_again(s, poly, others, free_edges, own) for poly in (b.outer_uv, *b.holes_uv)]
+        if all(m is None for m in moved):
+            out.append(s)
+            continue
+        polys = [np.asarray(p, float) if m is None else m for p, m in zip((b.outer_uv, *b.holes_uv), moved)]
+        out.append(replace(s, boundary=Boundary(polys[0], tuple(polys[1:]))))
+    return out
+
+
+def _strided(points: np.ndarray, most: int) -> np.ndarray:
+    """At most ``most`` of the points, evenly strided."""
+    return points if len(points) <= most else points[np.linspace(0, len(points) - 1, most).astype(int)]
+
+
+class _FacePoints:
+    """The points a face's extent is read from, with their tree and spacing made on first use."""
+
+    def __init__(self, points_mm: np.ndarray):
+        self.points_mm = points_mm
+
+    @cached_property
+    def tree(self) -> cKDTree:
+        return cKDTree(self.points_mm)
+
+    @cached_property
+    def spacing_mm(self) -> float:
+        return _spacing_mm(self.tree, self.points_mm)
+
+
+def _moved_again(surface, poly_uv, others, free_edges, own) -> np.ndarray | None:
+    """``_moved`` repeated ``PASSES`` times: a corner the first pass closed lets the rays of a short side
+    next to it meet their edge head on."""
+    out = None
+    for k in range(PASSES):  # the face's own points decide only in the last pass, where no edge was met
+        moved = _moved(surface, poly_uv if out is None else out, others, free_edges, own if k == PASSES - 1 else None)
+        if moved is None:
+            break
+        out = moved
+    return out
+
+
+def _moved(surface, poly_uv, others, free_edges, own) -> np.ndarray | None:
+    """The polygon (uv) with its vertices on the edges they reach, or None when none reaches one."""
+    xy = _resampled(flat_mm(surface, np.asarray(poly_uv, float)), VERTEX_MM)
+    if len(xy) < 2 * TANGENT_VERTICES + 3:
+        return None
+    outward = _outward(xy)
+    t = np.arange(-SNAP_REACH_MM, SNAP_REACH_MM + 1e-9, SEARCH_STEP_MM)
+    ray_xy = xy[:, None, :] + t[None, :, None] * outward[:, None, :]  # (m, K, 2)
+    uv = uv_of_flat(surface, ray_xy.reshape(-1, 2))
+    ray = surface.point_mm(uv[:, 0], uv[:, 1]).reshape(len(xy), len(t), 3)
+    best_t = np.full(len(xy), np.inf)
+    best_score = np.full(len(xy), np.inf)
+    source = np.full(len(xy), -1)  # which edge a vertex moved onto: a neighbour's index, len(others) = free
+    for j, (other, tree) in enumerate(others):
+        tk = _meeting(surface, other, ray, t, uv.reshape(len(xy), len(t), 2))
+        rows = np.flatnonzero(np.isfinite(tk))
+        if len(rows) == 0:
+            continue
+        gap = tree.query(_ray_at(ray, t, tk[rows], rows), distance_upper_bound=SNAP_REACH_MM)[0]
+        # the neighbour that is there: its points nearest the meeting point, a nearer meeting breaking ties
+        score = gap + DISTANCE_WEIGHT * np.abs(tk[rows])
+        better = np.isfinite(gap) & (score < best_score[rows])
+        idx = rows[better]
+        best_t[idx], best_score[idx], source[idx] = tk[idx], score[better], j
+    new_xy = xy.copy()
+    on = source >= 0
+    new_xy[on] = xy[on] + best_t[on, None] * outward[on]
+    if free_edges is not None and not on.all():
+        rest = np.flatnonzero(~on)
+        dist, closest = free_edges.nearest_mm(ray[rest].reshape(-1, 3))
+        dist = dist.reshape(len(rest), len(t))
+        kmin = np.argmin(np.where((dist < FREE_EDGE_GAP_MM) & (t >= -INWARD_MM)[None, :], np.abs(t)[None, :], np.inf),
+                         axis=1)
+        hit = dist[np.arange(len(rest)), kmin] < FREE_EDGE_GAP_MM
+        if hit.any():
+            rows = rest[hit]
+            X = closest.reshape(len(rest), len(t), 3)[hit, kmin[hit]]
+            uv_x = surface.uv_from_points(X)
+            if not isinstance(surface, PlaneSurface):  # the angle u on the ray's turn, not wrapped to (-pi, pi]
+                near_u = uv.reshape(len(xy), len(t), 2)[rows, kmin[hit], 0]
+                uv_x[:, 0] += 2 * np.pi * np.round((near_u - uv_x[:, 0]) / (2 * np.pi))
+            new_xy[rows] = flat_mm(surface, uv_x)
+            source[rows] = len(others)
+    seam = _on_seam(surface, xy) & (np.abs(outward[:, 0]) > math.cos(math.radians(HEAD_ON_DEG))) & (source < 0)
+    if seam.any():  # the cut of a face all round its axis: exactly at u = +-pi (the points go on across it)
+        new_xy[seam, 0] = np.sign(outward[seam, 0]) * math.pi * surface.radius_mm * _flat_u_scale(surface, xy[seam])
+        source[seam] = len(others) + 2
+    rest = np.flatnonzero(source < 0)
+    if len(rest) and own is not None:
+        steady = _outward(xy, END_TANGENT_VERTICES)  # a scan's outline weaves: its free edge is followed
+        end_uv = uv_of_flat(surface, (xy[rest, None, :] + t[None, :, None] * steady[rest, None, :]).reshape(-1, 2))
+        t_edge = np.full(len(xy), np.inf)
+        t_edge[rest] = _points_end(surface.point_mm(end_uv[:, 0], end_uv[:, 1]).reshape(len(rest), len(t), 3),
+                                   t, own)
+        t_edge = _window_max(t_edge, steady, END_WINDOW_VERTICES)[rest]
+        ok = np.isfinite(t_edge)
+        new_xy[rest[ok]] = xy[rest[ok]] + t_edge[ok, None] * steady[rest[ok]]
+        source[rest[ok]] = len(others) + 1
+    source = _without_short_runs(source, MIN_RUN_VERTICES)
+    if (source < 0).all():
+        return None
+    source = _short_estimates_dropped(source, len(others) + 1)
+    new_xy = np.where((source >= 0)[:, None], new_xy, xy)
+    new_xy = _gaps_closed(new_xy, source)
+    simple = cv2.approxPolyDP(new_xy.reshape(-1, 1, 2).astype(np.float32), SIMPLIFY_MM, True).reshape(-1, 2)
+    return uv_of_flat(surface, simple.astype(float) if len(simple) >= 3 else new_xy)
+
+
+def _spacing_mm(tree: cKDTree, points: np.ndarray) -> float:
+    """Median distance from a point to its nearest neighbour (at most 2000 points asked)."""
+    probe = points[np.linspace(0, len(points) - 1, min(len(points), 2000)).astype(int)]
+    return float(np.median(tree.query(probe, k=2)[0][:, 1]))
+
+
+def _points_end(ray: np.ndarray, t: np.ndarray, own: _FacePoints) -> np.ndarray:
+    """Per ray, where the face's own points end along it (mm from the vertex; inf where they do not).
+
+    A ray sample is among the points when one lies within ``END_SPACINGS`` spacings. From the vertex
+    (or, if it is out of the points, from the first sample back among them) the ray is followed while
+    it is among them; the edge is the farthest, along the ray, of the points nearest those samples
+    (a point's own position: the ray's samples would overshoot where it runs slantwise out)."""
+    r = END_SPACINGS * own.spacing_mm
+    m, K = ray.shape[:2]
+    d, idx = own.tree.query(ray.reshape(-1, 3), distance_upper_bound=r)
+    inside = np.isfinite(d).reshape(m, K)
+    idx = np.where(inside.ravel(), idx, 0).reshape(m, K)
+    k0 = int(np.argmin(np.abs(t)))
+    after = np.where(~inside[:, k0:], np.arange(k0, K)[None, :], K).min(axis=1)  # first sample out, from k0
+    back = (np.arange(k0) >= np.searchsorted(t, -INWARD_MM))[None, :]
+    before = np.where(inside[:, :k0] & back, np.arange(k0)[None, :], -1).max(axis=1)  # last sample in, before k0
+    last = np.where(inside[:, k0], after - 1, before)
+    start = np.where(inside[:, k0], k0, before)
+    ok = (last >= 0) & (last < K - 1)
+    direction = ray[:, k0 + 1] - ray[:, k0]
+    direction /= np.maximum(np.linalg.norm(direction, axis=1), 1e-12)[:, None]
+    along = np.einsum("mkj,mj->mk", own.points_mm[idx] - ray[:, k0:k0 + 1], direction)  # (m, K)
+    k = np.arange(K)[None, :]
+    along = np.where(inside & (k >= np.minimum(start, last)[:, None]) & (k <= last[:, None]), along, -np.inf)
+    out = np.where(ok, along.max(axis=1) + END_GAP_SPACINGS * own.spacing_mm, np.inf)
+    return np.where(np.isfinite(out), out, np.inf)
+
+
+def _window_max(values: np.ndarray, outward: np.ndarray, half: int) -> np.ndarray:
+    """Cyclic running maximum over 2 x half + 1 vertices of the finite values, among vertices whose normals
+    agree (within ``END_WINDOW_DEG``; inf entries stay inf, and are left out): the sparse points near a scan's
+    free edge reach it only here and there, and a corner's rays measure something else."""
+    finite = np.isfinite(values)
+    v = np.where(finite, values, -np.inf)
+    out = v.copy()
+    cos_max = math.cos(math.radians(END_WINDOW_DEG))
+    for k in (*range(1, half + 1), *range(-half, 0)):
+        agree = np.einsum("ij,ij->i", outward, np.roll(outward, k, axis=0)) > cos_max
+        out = np.maximum(out, np.where(agree, np.roll(v, k), -np.inf))
+    return np.where(finite, out, np.inf)
+
+
+def _flat_u_scale(surface, xy: np.ndarray) -> np.ndarray:
+    """mm of the flat chart's x per mm of R u: 1 on a cylinder, cos v on a sphere (sinusoidal chart)."""
+    if isinstance(surface, Cylinder):
+        return np.ones(len(xy))
+    return np.cos(uv_of_flat(surface, xy)[:, 1])
+
+
+def _on_seam(surface, xy: np.ndarray) -> np.ndarray:
+    """Vertices near the seam (u = +-pi) of a face that goes all round its axis (the outline's cut there is
+    not an edge: those whose normal runs along u stay)."""
+    if isinstance(surface, PlaneSurface):
+        return np.zeros(len(xy), bool)
+    u = uv_of_flat(surface, xy)[:, 0]
+    if u.max() - u.min() < 2 * math.pi - 2 * SEAM_RAD:
+        return np.zeros(len(xy), bool)
+    return np.abs(np.angle(np.exp(1j * u))) > math.pi - SEAM_RAD
+
+
+def _outward(xy: np.ndarray, k: int = 0) -> np.ndarray:
+    """Unit normals (m, 2) of a closed polygon, to its right (out of the material), from the tangent averaged
+    over 2 k + 1 vertices (``TANGENT_VERTICES`` by default: a traced outline weaves by a fraction of a mm)."""
+    k = k or TANGENT_VERTICES
+    tangent = np.roll(xy, -k, axis=0) - np.roll(xy, k, axis=0)
+    outward = np.stack([tangent[:, 1], -tangent[:, 0]], axis=-1)
+    return outward / np.maximum(np.linalg.norm(outward, axis=1), 1e-12)[:, None]
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal cyclic runs (start, length) of True in mask (not all True)."""
+    m = len(mask)
+    if mask.all() or not mask.any():
+        return [(0, m)] if mask.all() else []
+    first = int(np.flatnonzero(~mask)[0])  # start scanning just after a False
+    out, start = [], None
+    for step in range(1, m + 1):
+        i = (first + step) % m
+        if mask[i] and start is None:
+            start = step
+        if not mask[i] and start is not None:
+            out.append(((first + start) % m, step - start))
+            start = None
+    if start is not None:
+        out.append(((first + start) % m, m + 1 - start))
+    return out
+
+
+def _without_short_runs(source: np.ndarray, min_len: int) -> np.ndarray:
+    """``source`` with runs of one edge shorter than ``min_len`` vertices unset (-1): stray hits."""
+    out = source.copy()
+    for value in np.unique(source[source >= 0]):
+        for start, n in _runs(source == value):
+            if n < min_len:
+                out[(start + np.arange(n)) % len(source)] = -1
+    return out
+
+
+def _short_estimates_dropped(source: np.ndarray, estimated: int) -> np.ndarray:
+    """``source`` with short runs (<= GAP_VERTICES) of vertices placed by the points' extent (``estimated``)
+    between two edges met exactly unset: the corner of those two edges is the better guess there."""
+    out = source.copy()
+    m = len(source)
+    for start, n in _runs(source == estimated):
+        left, right = source[(start - 1) % m], source[(start + n) % m]
+        if n <= GAP_VERTICES and n < m and left >= 0 and right >= 0 and estimated not in (left, right):
+            out[(start + np.arange(n)) % m] = -1
+    return out
+
+
+def _run_end(source: np.ndarray, i: int, direction: int) -> int:
+    """The vertex up to LINE_VERTICES from i (cyclic, going ``direction``) still on i's edge."""
+    m, j = len(source), i
+    for _ in range(LINE_VERTICES):
+        k = (j + direction) % m
+        if source[k] != source[i]:
+            break
+        j = k
+    return j
+
+
+def _gaps_closed(xy: np.ndarray, source: np.ndarray) -> np.ndarray:
+    """Short runs of unmoved vertices between moved ones replaced: by the corner where the two edges' lines
+    meet when they are different edges (a box's corner, the smoothing rounded), else by the chord; two
+    edges' runs that meet without a gap but a jump get their corner put between them."""
+    out = xy.copy()
+    m = len(xy)
+    for start, n in _runs(source < 0):
+        if n > GAP_VERTICES or n == m:
+            continue
+        run = (start + np.arange(n)) % m
+        left, right = (start - 1) % m, (start + n) % m
+        corner = _corner(out, source, left, right) if source[left] != source[right] else None
+        out[run] = np.repeat(corner[None], n, axis=0) if corner is not None else \
+            out[left] + np.linspace(0, 1, n + 2)[1:-1, None] * (out[right] - out[left])
+    jumps = [i for i in range(m) if source[i] >= 0 and source[(i + 1) % m] >= 0 and source[i] != source[(i + 1) % m]
+             and np.linalg.norm(out[(i + 1) % m] - out[i]) > 2 * VERTEX_MM]
+    corners = {i: _corner(out, source, i, (i + 1) % m) for i in jumps}
+    rows = [np.vstack([out[i], corners[i]]) if corners.get(i) is not None else out[i:i + 1] for i in range(m)]
+    return np.vstack(rows)
+
+
+def _corner(xy: np.ndarray, source: np.ndarray, left: int, right: int) -> np.ndarray | None:
+    """Where the line of the edge run ending at ``left`` meets that of the run starting at ``right`` (their
+    last / first LINE_VERTICES vertices), when it lies ahead of the one and behind the other within
+    GAP_VERTICES mm; else None."""
+    a, b = xy[left], xy[right]
+    da, db = a - xy[_run_end(source, left, -1)], xy[_run_end(source, right, +1)] - b  # into / out of the corner
+    A = np.stack([da, -db], axis=1)
+    if abs(np.linalg.det(A)) <= 1e-3 * np.linalg.norm(da) * np.linalg.norm(db):
+        return None
+    sa, sb = np.linalg.solve(A, b - a)
+    if 0 <= sa * np.linalg.norm(da) <= GAP_VERTICES and 0 <= -sb * np.linalg.norm(db) <= GAP_VERTICES:
+        return a + sa * da
+    return None
+
+
+def _meeting(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray) -> np.ndarray:
+    """Per vertex, the distance t (mm) along its normal where the ray meets ``other``: the crossing nearest
+    to the vertex where the surfaces cross, the touching point where they meet tangentially; inf if none."""
+    f = level(other, ray)  # (m, K)
+    m = len(f)
+    best = np.full(m, np.inf)
+    # crossings: sign changes between samples, interpolated
+    f0, f1 = f[:, :-1], f[:, 1:]
+    cross = (f0 * f1 <= 0) & (f0 != f1)
+    frac = np.where(cross, f0 / np.where(f0 != f1, f0 - f1, 1.0), 0.0)
+    tc = np.where(cross, t[:-1] + frac * (t[1:] - t[:-1]), np.inf)
+    tc[tc < -INWARD_MM] = np.inf  # a crossing inside the material is another part of the neighbour's surface
+    # touching: an extremum of f within TANGENT_GAP_MM of zero (parabola through three samples)
+    d0, d1 = f[:, 1:-1] - f[:, :-2], f[:, 2:] - f[:, 1:-1]
+    curv = d1 - d0  # a touching point is a true extremum: curved at least as a cylinder of TANGENT_RADIUS_MM
+    ext = (d0 * d1 < 0) & (np.abs(f[:, 1:-1]) < TANGENT_GAP_MM) & \
+        (np.abs(curv) > (t[1] - t[0]) ** 2 / TANGENT_RADIUS_MM)
+    shift = np.where(ext, -0.5 * (d0 + d1) / np.where(curv != 0, curv, 1.0), 0.0)
+    te = np.where(ext, t[1:-1] + np.clip(shift, -1, 1) * (t[1] - t[0]), np.inf)
+    # which of the two applies depends on the angle between the surfaces there
+    cos_tangent = math.cos(math.radians(TANGENT_DEG))
+    for tk, touching in ((tc, False), (te, True)):
+        k = np.argmin(np.abs(tk), axis=1)
+        cand = tk[np.arange(m), k]
+        fin = np.isfinite(cand)
+        if not fin.any():
+            continue
+        rows = np.flatnonzero(fin)
+        X = _ray_at(ray, t, cand[rows], rows)
+        uv = ray_uv[rows, np.clip(np.searchsorted(t, cand[rows]), 0, len(t) - 1)]
+        nA, nB = surface.normal_at(uv[:, 0], uv[:, 1]), level_normal(other, X)
+        cos = np.abs(np.einsum("ij,ij->i", nA, nB))
+        keep = (cos > cos_tangent) == touching
+        # the ray must meet the edge head on, not run along it past a corner
+        i = np.clip(np.searchsorted(t, cand[rows]), 1, len(t) - 1)
+        along = ray[rows, i] - ray[rows, i - 1]
+        along /= np.maximum(np.linalg.norm(along, axis=1), 1e-12)[:, None]
+        if not touching:  # the edge's normal in the face: the neighbour's normal, less the face's
+            across = nB - np.einsum("ij,ij->i", nB, nA)[:, None] * nA
+            head_on = np.abs(np.einsum("ij,ij->i", along, across)) >= math.cos(math.radians(HEAD_ON_DEG)) * \
+                np.linalg.norm(across, axis=1)
+        else:  # a seam: the neighbour's distance curves across it, not along it
+            h = 1.0
+            side = np.cross(nA, along)
+            f_side = (level(other, _projected(surface, X + h * side)) + level(other, _projected(surface, X - h * side))
+                      - 2 * level(other, X)) / h ** 2
+            f_ray = np.abs(curv[rows, np.clip(k[rows] , 0, curv.shape[1] - 1)]) / (t[1] - t[0]) ** 2
+            head_on = np.abs(f_side) <= math.tan(math.radians(HEAD_ON_DEG)) ** 2 * f_ray
+        keep &= head_on
+        take = rows[keep & (np.abs(cand[rows]) < np.abs(best[rows]))]
+        best[take] = cand[take]
+    return best
+
+
+def _ray_at(ray: np.ndarray, t: np.ndarray, tk: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Points of the rays ``rows`` at distances tk, interpolated between the samples."""
+    pos = np.clip((tk - t[0]) / (t[1] - t[0]), 0, len(t) - 1 - 1e-9)
+    i = np.floor(pos).astype(int)
+    w = (pos - i)[:, None]
+    return (1 - w) * ray[rows, i] + w * ray[rows, np.minimum(i + 1, len(t) - 1)]
+
+
+def _resampled(closed_xy: np.ndarray, step_mm: float) -> np.ndarray:
+    """The closed polygon with vertices at most ``step_mm`` apart (its own vertices kept)."""
+    closed = np.vstack([closed_xy, closed_xy[:1]])
+    seg = np.diff(closed, axis=0)
+    n = np.maximum(np.ceil(np.linalg.norm(seg, axis=1) / step_mm).astype(int), 1)
+    frac = np.concatenate([np.arange(k) / k for k in n])
+    return np.repeat(closed[:-1], n, axis=0) + frac[:, None] * np.repeat(seg, n, axis=0)
