@@ -90,7 +90,7 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     import trimesh
 
     from .fit import cylinder_surface, plane_surface, sphere_patch
-    from .segment import MIN_FACE_SAMPLES, area_mm2, boundary_on_points
+    from .segment import MIN_FACE_SAMPLES, area_mm2, boundaries_on_edges, boundary_on_points
     from .step import read_step_faces, step_mesh
     from .surface import FitStats
     from .workpiece import Workpiece
@@ -139,6 +139,9 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
             dropped += sub.dropped_faces
     kept = [(s, idx) for s, idx in built if area_mm2(s) >= settings.min_area_mm2]
     dropped += len(built) - len(kept)
+    if kept:  # the B-rep faces' exact surfaces meet exactly: their boundaries go onto those edges
+        moved = boundaries_on_edges([s for s, _ in kept], [idx for _, idx in kept], workpiece, settings.threshold_mm)
+        kept = [(s, idx) for s, (_, idx) in zip(moved, kept)]
     areas = [area_mm2(s) for s, _ in kept]
     order = sorted(range(len(kept)), key=lambda k: (-round(areas[k], 6), k))
     faces = tuple(Face(i, kept[k][0], kept[k][1], areas[k]) for i, k in enumerate(order))

@@ -525,18 +525,26 @@ def _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
 
 
 def _on_edges(surfaces, P_world, workpiece, threshold_mm):
-    """The faces' boundaries moved onto the part's edges (``face_edges``): neighbours' intersections, and the
-    mesh's free edges when the workpiece is a mesh."""
+    """``(surface, model, inliers)`` triples with the surfaces' boundaries on the part's edges."""
+    moved = boundaries_on_edges([s for s, _, _ in surfaces], [idx for _, _, idx in surfaces], workpiece,
+                                threshold_mm)
+    return [(s, m, idx) for s, (_, m, idx) in zip(moved, surfaces)]
+
+
+def boundaries_on_edges(surfaces: list, inliers: list[np.ndarray], workpiece, threshold_mm: float) -> list:
+    """The faces' surfaces with their boundaries moved onto the part's edges (``face_edges.on_edges``):
+    neighbours' intersections and seams, the mesh's free edges when the workpiece is a mesh, else the
+    points' extent. ``inliers[k]``: face k's indices into the workpiece's points."""
     from .face_edges import FreeEdges, on_edges
 
+    P_world = np.asarray(workpiece.points_mm, float)
     free = FreeEdges.of_mesh(getattr(workpiece, "vertices_mm", None), getattr(workpiece, "faces", None))
     points = [P_world[idx if len(idx) <= BOUNDARY_POINTS else
-                      idx[np.linspace(0, len(idx) - 1, BOUNDARY_POINTS).astype(int)]] for _, _, idx in surfaces]
+                      idx[np.linspace(0, len(idx) - 1, BOUNDARY_POINTS).astype(int)]] for idx in inliers]
     owner = np.full(len(P_world), -1)
-    for k, (_, _, idx) in enumerate(surfaces):
+    for k, idx in enumerate(inliers):
         owner[idx] = k
-    moved = on_edges([s for s, _, _ in surfaces], points, P_world, owner, threshold_mm, free)
-    return [(s, m, idx) for s, (_, m, idx) in zip(moved, surfaces)]
+    return on_edges(list(surfaces), points, P_world, owner, threshold_mm, free)
 
 
 def _surface(model: _Model, P_world, N_all, P, idx, centroid, bkw):
