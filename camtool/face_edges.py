@@ -1,4 +1,4 @@
-"""Face boundaries on the part's edges: where two faces meet, and where a mesh ends.
+"""Face boundaries on the part's edges: where two faces meet, where a mesh ends, and where a scan's points do.
 
 A face's boundary is traced from its inlier points (``segment.boundary_on_points``),
 and the points stop short of the part's edges: on a mesh by about a point
@@ -9,16 +9,20 @@ before it. The faces' fitted models are far better than that (a few hundredths
 of a mm), so this pass puts each boundary vertex, along the boundary's outward
 normal on the face (in the face's flat chart), onto
 
-- the **intersection with a neighbouring face**: the nearest crossing of that
-  face's surface within ``SNAP_REACH_MM`` near which the neighbour has points;
-  where the two surfaces meet tangentially (a dome on a cylinder of its radius)
-  there is no crossing to find, and the vertex goes to the seam, the extremum of
-  the neighbour's distance along the normal;
+- the **intersection with a neighbouring face**: a crossing of that face's
+  surface met head on within ``SNAP_REACH_MM``, near which the neighbour has
+  points (the nearest such neighbour wins); where the two surfaces meet
+  tangentially (a dome on a cylinder of its radius) there is no crossing, and
+  the vertex goes to the seam, the extremum of the neighbour's distance;
 - else a **free edge of the mesh** (an edge of one triangle only) that the
-  normal meets within ``SNAP_REACH_MM``, when the workpiece is a mesh.
+  normal meets, when the workpiece is a mesh;
+- else, on a face all round its axis, its **seam** at u = +-pi (the cut of its
+  outline, not an edge);
+- else **where the face's points end** (a scan's free edge): the farthest of
+  the workpiece's points on the surface that no other face owns.
 
-Other vertices (a scan's free edges, a full cylinder's seam) stay where the
-points put them, and a polygon with no vertex moved is returned as it was.
+Short gaps between two edges are closed at their corner, and a polygon with no
+vertex moved is returned as it was.
 
 Hand-written: trimesh and open3d segment meshes but do not refine a
 segmentation's outlines onto the fitted models' intersections; the maths is a
@@ -38,9 +42,9 @@ from .surface import Boundary, Cylinder, PlaneSurface
 
 SNAP_REACH_MM = 15.0    # a vertex moves at most this far out of the material along its normal, and the neighbour's
                         # points must come this near the point it moves to
-DISTANCE_WEIGHT = 0.1   # mm of a neighbour's gap a mm farther along the normal is worth
 INWARD_MM = 3.0         # ... or this far into the material (the traced outline is inside, or a point spacing out);
                         # a tangent seam, where the two faces' points mingle, is looked for SNAP_REACH_MM either way
+DISTANCE_WEIGHT = 0.1   # mm of a neighbour's gap a mm farther along the normal is worth
 SEARCH_STEP_MM = 0.5    # the normal is sampled this finely; crossings are interpolated between samples
 VERTEX_MM = 1.0         # boundary polygons are resampled to vertices this far apart before they move
 TANGENT_DEG = 15.0      # surfaces whose normals differ by less than this meet tangentially
@@ -53,7 +57,6 @@ MIN_RUN_VERTICES = 3    # vertices moved onto one edge in a run shorter than thi
 LINE_VERTICES = 6       # ... an edge's line into a corner is drawn through its last 6 vertices
 GAP_VERTICES = 25       # a run of unmoved vertices this short between moved ones is closed (chord or corner)
 END_SPACINGS = 2.0      # a point of the ray is among the face's points when one is this many spacings near
-END_GAP_SPACINGS = 0.0  # a free edge lies this many spacings beyond the last points
 END_WINDOW_VERTICES = 8  # ... the farthest within +-8 vertices
 END_TANGENT_VERTICES = 12  # ... along normals taken over +-12 vertices
 END_WINDOW_DEG = 10.0   # ... whose normals agree within this angle
@@ -222,72 +225,120 @@ def _moved_again(surface, poly_uv, others, free_edges, own) -> np.ndarray | None
     return out
 
 
+@dataclass(frozen=True)
+class _Rays:
+    """A polygon's vertices (flat chart, 1 mm apart), their outward normals and the rays along them: ``t`` (K,)
+    mm from the vertex, ``uv`` (m, K, 2) and ``X`` (m, K, 3) the ray's points on the surface."""
+
+    xy: np.ndarray
+    outward: np.ndarray
+    t: np.ndarray
+    uv: np.ndarray
+    X: np.ndarray
+
+    @staticmethod
+    def of(surface, xy: np.ndarray, outward: np.ndarray, rows=slice(None)) -> "_Rays":
+        t = np.arange(-SNAP_REACH_MM, SNAP_REACH_MM + 1e-9, SEARCH_STEP_MM)
+        xy, outward = xy[rows], outward[rows]
+        uv = uv_of_flat(surface, (xy[:, None, :] + t[None, :, None] * outward[:, None, :]).reshape(-1, 2))
+        X = surface.point_mm(uv[:, 0], uv[:, 1]).reshape(len(xy), len(t), 3)
+        return _Rays(xy, outward, t, uv.reshape(len(xy), len(t), 2), X)
+
+
+# what a vertex moved onto (``_moved``'s source codes past the neighbours' indices 0..n-1)
+FREE_EDGE, SEAM, EXTENT = -2, -3, -4
+UNMOVED = -1
+
+
 def _moved(surface, poly_uv, others, free_edges, own) -> np.ndarray | None:
     """The polygon (uv) with its vertices on the edges they reach, or None when none reaches one."""
     xy = _resampled(flat_mm(surface, np.asarray(poly_uv, float)), VERTEX_MM)
     if len(xy) < 2 * TANGENT_VERTICES + 3:
         return None
-    outward = _outward(xy)
-    t = np.arange(-SNAP_REACH_MM, SNAP_REACH_MM + 1e-9, SEARCH_STEP_MM)
-    ray_xy = xy[:, None, :] + t[None, :, None] * outward[:, None, :]  # (m, K, 2)
-    uv = uv_of_flat(surface, ray_xy.reshape(-1, 2))
-    ray = surface.point_mm(uv[:, 0], uv[:, 1]).reshape(len(xy), len(t), 3)
-    best_t = np.full(len(xy), np.inf)
-    best_score = np.full(len(xy), np.inf)
-    source = np.full(len(xy), -1)  # which edge a vertex moved onto: a neighbour's index, len(others) = free
+    rays = _Rays.of(surface, xy, _outward(xy))
+    new_xy, source = xy.copy(), np.full(len(xy), UNMOVED)
+    _onto_neighbours(surface, rays, others, new_xy, source)
+    if free_edges is not None:
+        _onto_free_edges(surface, rays, free_edges, new_xy, source)
+    _onto_seam(surface, rays, new_xy, source)
+    if own is not None:
+        _onto_extent(surface, xy, own, new_xy, source)
+    source = _without_short_runs(source, MIN_RUN_VERTICES)
+    if (source == UNMOVED).all():
+        return None
+    source = _short_estimates_dropped(source)
+    new_xy = _gaps_closed(np.where((source != UNMOVED)[:, None], new_xy, xy), source)
+    simple = cv2.approxPolyDP(new_xy.reshape(-1, 1, 2).astype(np.float32), SIMPLIFY_MM, True).reshape(-1, 2)
+    return uv_of_flat(surface, simple.astype(float) if len(simple) >= 3 else new_xy)
+
+
+def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
+    """Vertices onto the neighbour they meet (crossing or seam) whose points come nearest the meeting point,
+    a nearer meeting breaking ties (in place)."""
+    best_t = np.full(len(rays.xy), np.inf)
+    best_score = np.full(len(rays.xy), np.inf)
     for j, (other, tree) in enumerate(others):
-        tk = _meeting(surface, other, ray, t, uv.reshape(len(xy), len(t), 2))
+        tk = _meeting(surface, other, rays.X, rays.t, rays.uv)
         rows = np.flatnonzero(np.isfinite(tk))
         if len(rows) == 0:
             continue
-        gap = tree.query(_ray_at(ray, t, tk[rows], rows), distance_upper_bound=SNAP_REACH_MM)[0]
-        # the neighbour that is there: its points nearest the meeting point, a nearer meeting breaking ties
+        gap = tree.query(_ray_at(rays.X, rays.t, tk[rows], rows), distance_upper_bound=SNAP_REACH_MM)[0]
         score = gap + DISTANCE_WEIGHT * np.abs(tk[rows])
         better = np.isfinite(gap) & (score < best_score[rows])
         idx = rows[better]
         best_t[idx], best_score[idx], source[idx] = tk[idx], score[better], j
-    new_xy = xy.copy()
     on = source >= 0
-    new_xy[on] = xy[on] + best_t[on, None] * outward[on]
-    if free_edges is not None and not on.all():
-        rest = np.flatnonzero(~on)
-        dist, closest = free_edges.nearest_mm(ray[rest].reshape(-1, 3))
-        dist = dist.reshape(len(rest), len(t))
-        kmin = np.argmin(np.where((dist < FREE_EDGE_GAP_MM) & (t >= -INWARD_MM)[None, :], np.abs(t)[None, :], np.inf),
-                         axis=1)
-        hit = dist[np.arange(len(rest)), kmin] < FREE_EDGE_GAP_MM
-        if hit.any():
-            rows = rest[hit]
-            X = closest.reshape(len(rest), len(t), 3)[hit, kmin[hit]]
-            uv_x = surface.uv_from_points(X)
-            if not isinstance(surface, PlaneSurface):  # the angle u on the ray's turn, not wrapped to (-pi, pi]
-                near_u = uv.reshape(len(xy), len(t), 2)[rows, kmin[hit], 0]
-                uv_x[:, 0] += 2 * np.pi * np.round((near_u - uv_x[:, 0]) / (2 * np.pi))
-            new_xy[rows] = flat_mm(surface, uv_x)
-            source[rows] = len(others)
-    seam = _on_seam(surface, xy) & (np.abs(outward[:, 0]) > math.cos(math.radians(HEAD_ON_DEG))) & (source < 0)
-    if seam.any():  # the cut of a face all round its axis: exactly at u = +-pi (the points go on across it)
-        new_xy[seam, 0] = np.sign(outward[seam, 0]) * math.pi * surface.radius_mm * _flat_u_scale(surface, xy[seam])
-        source[seam] = len(others) + 2
-    rest = np.flatnonzero(source < 0)
-    if len(rest) and own is not None:
-        steady = _outward(xy, END_TANGENT_VERTICES)  # a scan's outline weaves: its free edge is followed
-        end_uv = uv_of_flat(surface, (xy[rest, None, :] + t[None, :, None] * steady[rest, None, :]).reshape(-1, 2))
-        t_edge = np.full(len(xy), np.inf)
-        t_edge[rest] = _points_end(surface.point_mm(end_uv[:, 0], end_uv[:, 1]).reshape(len(rest), len(t), 3),
-                                   t, own)
-        t_edge = _window_max(t_edge, steady, END_WINDOW_VERTICES)[rest]
-        ok = np.isfinite(t_edge)
-        new_xy[rest[ok]] = xy[rest[ok]] + t_edge[ok, None] * steady[rest[ok]]
-        source[rest[ok]] = len(others) + 1
-    source = _without_short_runs(source, MIN_RUN_VERTICES)
-    if (source < 0).all():
-        return None
-    source = _short_estimates_dropped(source, len(others) + 1)
-    new_xy = np.where((source >= 0)[:, None], new_xy, xy)
-    new_xy = _gaps_closed(new_xy, source)
-    simple = cv2.approxPolyDP(new_xy.reshape(-1, 1, 2).astype(np.float32), SIMPLIFY_MM, True).reshape(-1, 2)
-    return uv_of_flat(surface, simple.astype(float) if len(simple) >= 3 else new_xy)
+    new_xy[on] = rays.xy[on] + best_t[on, None] * rays.outward[on]
+
+
+def _onto_free_edges(surface, rays: _Rays, free_edges: FreeEdges, new_xy, source) -> None:
+    """Unmoved vertices onto the mesh free edge their ray passes nearest to them (in place)."""
+    rest = np.flatnonzero(source == UNMOVED)
+    if len(rest) == 0:
+        return
+    K = len(rays.t)
+    dist, closest = free_edges.nearest_mm(rays.X[rest].reshape(-1, 3))
+    dist = dist.reshape(len(rest), K)
+    near = (dist < FREE_EDGE_GAP_MM) & (rays.t >= -INWARD_MM)[None, :]
+    kmin = np.argmin(np.where(near, np.abs(rays.t)[None, :], np.inf), axis=1)
+    hit = near[np.arange(len(rest)), kmin]
+    if not hit.any():
+        return
+    rows = rest[hit]
+    X = closest.reshape(len(rest), K, 3)[hit, kmin[hit]]
+    uv = surface.uv_from_points(X)
+    if not isinstance(surface, PlaneSurface):  # the angle u on the ray's turn, not wrapped to (-pi, pi]
+        ray_u = rays.uv[rows, kmin[hit], 0]
+        uv[:, 0] += 2 * np.pi * np.round((ray_u - uv[:, 0]) / (2 * np.pi))
+    new_xy[rows] = flat_mm(surface, uv)
+    source[rows] = FREE_EDGE
+
+
+def _onto_seam(surface, rays: _Rays, new_xy, source) -> None:
+    """Unmoved vertices on the cut of a face all round its axis, their normals along u: exactly at u = +-pi
+    (the points go on across it; in place)."""
+    seam = _on_seam(surface, rays.xy) & (source == UNMOVED) & \
+        (np.abs(rays.outward[:, 0]) > math.cos(math.radians(HEAD_ON_DEG)))
+    if seam.any():
+        new_xy[seam, 0] = np.sign(rays.outward[seam, 0]) * math.pi * surface.radius_mm * \
+            _flat_u_scale(surface, rays.xy[seam])
+        source[seam] = SEAM
+
+
+def _onto_extent(surface, xy, own: "_FacePoints", new_xy, source) -> None:
+    """Unmoved vertices out to where the face's points end, along a steadier normal (a scan's outline weaves;
+    the farthest within +-END_WINDOW_VERTICES; in place)."""
+    rest = np.flatnonzero(source == UNMOVED)
+    if len(rest) == 0:
+        return
+    steady = _outward(xy, END_TANGENT_VERTICES)
+    rays = _Rays.of(surface, xy, steady, rest)
+    t_edge = np.full(len(xy), np.inf)
+    t_edge[rest] = _points_end(rays.X, rays.t, own)
+    t_edge = _window_max(t_edge, steady, END_WINDOW_VERTICES)[rest]
+    ok = np.isfinite(t_edge)
+    new_xy[rest[ok]] = xy[rest[ok]] + t_edge[ok, None] * steady[rest[ok]]
+    source[rest[ok]] = EXTENT
 
 
 def _spacing_mm(tree: cKDTree, points: np.ndarray) -> float:
@@ -300,9 +351,9 @@ def _points_end(ray: np.ndarray, t: np.ndarray, own: _FacePoints) -> np.ndarray:
     """Per ray, where the face's own points end along it (mm from the vertex; inf where they do not).
 
     A ray sample is among the points when one lies within ``END_SPACINGS`` spacings. From the vertex
-    (or, if it is out of the points, from the first sample back among them) the ray is followed while
-    it is among them; the edge is the farthest, along the ray, of the points nearest those samples
-    (a point's own position: the ray's samples would overshoot where it runs slantwise out)."""
+    (or, if it is out of the points, from the first sample back among them, at most INWARD_MM) the ray
+    is followed while it is among them; the edge is the farthest, along the ray, of the points nearest
+    those samples (a point's own position: the ray's samples would overshoot where it runs slantwise out)."""
     r = END_SPACINGS * own.spacing_mm
     m, K = ray.shape[:2]
     d, idx = own.tree.query(ray.reshape(-1, 3), distance_upper_bound=r)
@@ -320,7 +371,7 @@ def _points_end(ray: np.ndarray, t: np.ndarray, own: _FacePoints) -> np.ndarray:
     along = np.einsum("mkj,mj->mk", own.points_mm[idx] - ray[:, k0:k0 + 1], direction)  # (m, K)
     k = np.arange(K)[None, :]
     along = np.where(inside & (k >= np.minimum(start, last)[:, None]) & (k <= last[:, None]), along, -np.inf)
-    out = np.where(ok, along.max(axis=1) + END_GAP_SPACINGS * own.spacing_mm, np.inf)
+    out = np.where(ok, along.max(axis=1), np.inf)
     return np.where(np.isfinite(out), out, np.inf)
 
 
@@ -385,24 +436,24 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _without_short_runs(source: np.ndarray, min_len: int) -> np.ndarray:
-    """``source`` with runs of one edge shorter than ``min_len`` vertices unset (-1): stray hits."""
+    """``source`` with runs of one edge shorter than ``min_len`` vertices unset (UNMOVED): stray hits."""
     out = source.copy()
-    for value in np.unique(source[source >= 0]):
+    for value in np.unique(source[source != UNMOVED]):
         for start, n in _runs(source == value):
             if n < min_len:
-                out[(start + np.arange(n)) % len(source)] = -1
+                out[(start + np.arange(n)) % len(source)] = UNMOVED
     return out
 
 
-def _short_estimates_dropped(source: np.ndarray, estimated: int) -> np.ndarray:
-    """``source`` with short runs (<= GAP_VERTICES) of vertices placed by the points' extent (``estimated``)
-    between two edges met exactly unset: the corner of those two edges is the better guess there."""
+def _short_estimates_dropped(source: np.ndarray) -> np.ndarray:
+    """``source`` with short runs (<= GAP_VERTICES) of vertices placed by the points' extent between two edges
+    met exactly unset: the corner of those two edges is the better guess there."""
     out = source.copy()
     m = len(source)
-    for start, n in _runs(source == estimated):
+    for start, n in _runs(source == EXTENT):
         left, right = source[(start - 1) % m], source[(start + n) % m]
-        if n <= GAP_VERTICES and n < m and left >= 0 and right >= 0 and estimated not in (left, right):
-            out[(start + np.arange(n)) % m] = -1
+        if n <= GAP_VERTICES and n < m and UNMOVED not in (left, right) and EXTENT not in (left, right):
+            out[(start + np.arange(n)) % m] = UNMOVED
     return out
 
 
@@ -423,7 +474,7 @@ def _gaps_closed(xy: np.ndarray, source: np.ndarray) -> np.ndarray:
     edges' runs that meet without a gap but a jump get their corner put between them."""
     out = xy.copy()
     m = len(xy)
-    for start, n in _runs(source < 0):
+    for start, n in _runs(source == UNMOVED):
         if n > GAP_VERTICES or n == m:
             continue
         run = (start + np.arange(n)) % m
@@ -431,8 +482,8 @@ def _gaps_closed(xy: np.ndarray, source: np.ndarray) -> np.ndarray:
         corner = _corner(out, source, left, right) if source[left] != source[right] else None
         out[run] = np.repeat(corner[None], n, axis=0) if corner is not None else \
             out[left] + np.linspace(0, 1, n + 2)[1:-1, None] * (out[right] - out[left])
-    jumps = [i for i in range(m) if source[i] >= 0 and source[(i + 1) % m] >= 0 and source[i] != source[(i + 1) % m]
-             and np.linalg.norm(out[(i + 1) % m] - out[i]) > 2 * VERTEX_MM]
+    jumps = [i for i in range(m) if UNMOVED not in (source[i], source[(i + 1) % m])
+             and source[i] != source[(i + 1) % m] and np.linalg.norm(out[(i + 1) % m] - out[i]) > 2 * VERTEX_MM]
     corners = {i: _corner(out, source, i, (i + 1) % m) for i in jumps}
     rows = [np.vstack([out[i], corners[i]]) if corners.get(i) is not None else out[i:i + 1] for i in range(m)]
     return np.vstack(rows)

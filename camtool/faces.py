@@ -7,8 +7,7 @@
   the placed workpiece is split into faces (``camtool.segment``), numbered
   largest first, and the selection picks from them.
 
-A job works one face for now; a selection of several faces is refused with
-the list of what it selected (``camtool faces JOB`` shows them).
+A selection of several faces is worked in one program (``camtool.face_set``).
 """
 from __future__ import annotations
 
@@ -178,14 +177,17 @@ def select_faces(seg: Segmentation, select, workpiece=None, source: str = "job")
 
 
 def face_surface_for_job(job: Job, workpiece):
-    """The surface of the job's one selected face (world frame); BadInput when the selection holds several."""
+    """The surface of the job's selected face (world frame), or a ``surface.FaceSet`` of its selected faces."""
+    from .face_set import raster_changes
+    from .surface import FaceSet
+
     seg = segment_job(job, workpiece)
     chosen = select_faces(seg, job.faces.select, workpiece, str(job.path))
-    if len(chosen) > 1:
-        raise BadInput(f"{job.path}: faces.select = {job.faces.select!r} selects {len(chosen)} faces "
-                       f"({', '.join(str(f.index) for f in chosen)}); a job works one face for now: "
-                       "select one, e.g. select = [" + str(chosen[0].index) + "]")
-    return chosen[0].surface
+    if len(chosen) == 1:
+        return chosen[0].surface
+    job_keys = dict(job.sections["raster"])
+    changes = tuple(raster_changes(job_keys, job.faces.raster.get(str(f.index), {})) for f in chosen)
+    return FaceSet(tuple(f.surface for f in chosen), tuple(f.index for f in chosen), changes)
 
 
 def faces_png(seg: Segmentation, workpiece, path: Path, title: str = "") -> Path:

@@ -205,7 +205,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "feed_factor_min": Key("float", 0.25, "target_removal_file: lowest feed, as a share of timing.tcp_speed_mm_s (the longest dwell).", check=lambda x: 0.01 <= x <= 1, expect="a number in 0.01..1"),
     },
     "faces": {
-        "select": Key("select", "single", "Which faces of the workpiece the job works: single = the one surface [fit] finds (as before faces existed); all; a list of face indices as `camtool faces JOB` prints them (largest first); a model name (plane, sphere, cylinder); {largest = N}; or {nearest_mm = [x, y, z]} (world frame). Any other choice splits the workpiece into faces (docs/faces.md); one face per job for now."),
+        "select": Key("select", "single", "Which faces of the workpiece the job works: single = the one surface [fit] finds (as before faces existed); all; a list of face indices as `camtool faces JOB` prints them (largest first); a model name (plane, sphere, cylinder); {largest = N}; or {nearest_mm = [x, y, z]} (world frame). Any other choice splits the workpiece into faces (docs/faces.md); several faces are worked in one program."),
         "normal_tol_deg": Key("float", 10.0, "A point belongs to a face only when its normal is within this angle of the face's normal there.", check=lambda x: 0.5 <= x <= 45, expect="an angle in 0.5..45 deg"),
         "min_area_mm2": _nonneg("Faces smaller than this are dropped or merged (small_faces).", 100.0),
         "small_faces": Key("str", "drop", "What becomes of a face smaller than min_area_mm2: drop it, or merge its points into the neighbouring face they fit (within 3x fit.threshold_mm, normals agreeing).", choices=("drop", "merge")),

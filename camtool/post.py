@@ -151,14 +151,21 @@ def preflight(robot, job, outdir) -> PostInputs:
 
 
 def row_labels(trajectory, path) -> tuple:
-    """A label per work row of ``trajectory`` naming its raster segment (``path.segment``)."""
+    """A label per work row of ``trajectory`` naming its raster segment (``path.segment``), and on a path
+    over several faces its face (``path.face``), e.g. "face 2, segment 26"."""
     from .toolpath import WORK
 
     work = np.asarray(trajectory.zone) == WORK
     first = np.flatnonzero(work & ~np.r_[False, work[:-1]])
     pidx = np.asarray(trajectory.path_index)[first]
     seg = np.asarray(path.segment)
-    return tuple(f"segment {int(seg[i])}" if 0 <= i < len(seg) else "" for i in pidx)
+    face = None if path.face is None else np.asarray(path.face)
+
+    def label(i):
+        if not 0 <= i < len(seg):
+            return ""
+        return f"segment {int(seg[i])}" if face is None else f"face {int(face[i])}, segment {int(seg[i])}"
+    return tuple(label(i) for i in pidx)
 
 
 def summary_lines(sim):

@@ -41,7 +41,9 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from .errors import BadInput
+from .face_set import raster_faces
 from .settings import RasterSettings
+from .surface import FaceSet
 from .toolpath import ZONE_CODE, ZONES, Path
 
 APPROACH_POINTS = 3  # poses in the approach and in the depart zone
@@ -266,8 +268,11 @@ def raster_path(surface, settings: RasterSettings) -> Path:
 
     Lengths in mm (measured on the surface), angles in rad (``RasterSettings``).
     Raises ``BadInput`` for an empty boundary or a step-over wider than the
-    patch. Poses are in the surface's (world) frame; tool z = -normal.
+    patch. Poses are in the surface's (world) frame; tool z = -normal. A
+    ``surface.FaceSet`` is rastered face by face and joined (``face_set.raster_faces``).
     """
+    if isinstance(surface, FaceSet):
+        return raster_faces(surface, settings, raster_path)
     _check_boundary(surface)
     if settings.step_over_auto:  # `camtool run` chooses it first (camtool.process.stepover.auto_step_over)
         raise BadInput('raster.step_over_mm = "auto" is chosen from the [process] footprint by `camtool run` '
@@ -472,7 +477,8 @@ def count_rows(path: Path) -> int:
 def raster_summary(path: Path, surface=None, grid: int = 400) -> dict:
     """Figures of a raster path: rows, segments, work and zone points, length (mm), coverage.
 
-    ``coverage`` (0..1) is computed when ``surface`` is given, else None.
+    ``coverage`` (0..1) is computed when ``surface`` is given, else None (a path over several faces:
+    ``face_report.path_figures``).
     """
     zones = {name: int(np.count_nonzero(path.zone == code)) for code, name in enumerate(ZONES)}
     work = zones["work"]

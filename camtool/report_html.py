@@ -62,6 +62,8 @@ def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None
     if faces is not None and workpiece is not None:
         sections.append(("Faces of the part", _FACES_NOTE, _faces_table(faces)
                          + fig_html(_faces_figure(faces, workpiece), FACES_DIV)))
+        if faces.get("worked"):
+            sections.append(("Each face worked", _WORKED_NOTE, _worked_table(faces["worked"], report)))
     scene = _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices, world)
     sections.append(("Workpiece, path and robot", _SCENE_NOTE, fig_html(scene, DIV["scene"])))
     if trajectory is not None:
@@ -146,6 +148,30 @@ def _faces_table(faces: dict) -> str:
                     f"<td>{'worked' if f['selected'] else ''}</td></tr>")
     head = ("<tr><th>face</th><th>model</th><th>area cm²</th><th>radius mm</th><th>points</th>"
             "<th>RMS mm</th><th></th></tr>")
+    return f'<table class="verdict">{head}{"".join(rows)}</table>'
+
+
+_WORKED_NOTE = ('<p class="note">The faces this job works in one program, in the order they are worked '
+                '(nearest entry next, then 2-opt), joined by a lift and a free move. Coverage: the share of '
+                "the face within reach of its own rows' work points; feed: the TCP feed on the face's work, "
+                "measured on the timed trajectory. The motion check covers the whole program, every face's "
+                "work and the moves between them.</p>")
+
+
+def _worked_table(worked: list, report: dict) -> str:
+    """Per face worked: order, number, model, rows, work points, step-over, coverage, feed within 1 %, min feed."""
+    ok = "passed" if report.get("motion_check", {}).get("ok") else "not run"
+    rows = []
+    for n, w in enumerate(worked, 1):
+        feed = w.get("work_feed") or {}
+        cov = w.get("coverage")
+        rows.append(f"<tr><td>{n}</td><td>{int(w['index'])}</td><td>{html.escape(str(w['model']))}</td>"
+                    f"<td>{int(w['rows'])}</td><td>{int(w['work_points'])}</td><td>{w['step_over_mm']:g}</td>"
+                    f"<td>{'' if cov is None else f'{100 * cov:.2f}'}</td>"
+                    f"<td>{100 * feed.get('work_share_within_1pct', float('nan')):.1f}</td>"
+                    f"<td>{feed.get('min_work_feed_mm_s', float('nan')):.1f}</td><td>{ok}</td></tr>")
+    head = ("<tr><th>order</th><th>face</th><th>model</th><th>rows</th><th>work points</th><th>step-over mm</th>"
+            "<th>coverage %</th><th>feed within 1 % (%)</th><th>min feed mm/s</th><th>motion check</th></tr>")
     return f'<table class="verdict">{head}{"".join(rows)}</table>'
 
 
@@ -391,7 +417,13 @@ def _process_section(report: dict, surface):
 # ----------------------------------------------------------------------------- 3-D scene
 
 def _boundary_lines(surface) -> np.ndarray | None:
-    """The material boundary on the fitted surface as polylines (None-separated rows of NaN)."""
+    """The material boundary on the fitted surface (every face of a ``FaceSet``) as polylines (None-separated
+    rows of NaN)."""
+    from .surface import FaceSet
+
+    if isinstance(surface, FaceSet):
+        parts = [p for p in (_boundary_lines(s) for s in surface.surfaces) if p is not None]
+        return np.vstack(parts) if parts else None
     b = getattr(surface, "boundary", None)
     if b is None:
         return None

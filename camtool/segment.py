@@ -45,6 +45,7 @@ from scipy.spatial import cKDTree
 from .errors import BadInput
 from .fit import (LARGE_SPHERE_FACTOR, _refine_plane, _refine_sphere, cylinder_hypotheses, cylinder_radial,
                   cylinder_residuals, cylinder_surface, plane_surface, refine_cylinder, sphere_patch)
+from .face_edges import flat_mm, uv_of_flat
 from .surface import Cylinder, FitStats, PlaneSurface, SpherePatch
 
 SAMPLE = 20000            # points the RANSAC rounds search
@@ -572,26 +573,6 @@ def _surface(model: _Model, P_world, N_all, P, idx, centroid, bkw):
     return boundary_on_points(surface, Q_world)
 
 
-def _flat(surface, uv: np.ndarray) -> np.ndarray:
-    """(u, v) in the surface's flat chart (mm): a plane's own, (R u, v) on a cylinder, sinusoidal on a sphere."""
-    if isinstance(surface, PlaneSurface):
-        return uv
-    if isinstance(surface, Cylinder):
-        return np.stack([surface.radius_mm * uv[:, 0], uv[:, 1]], axis=-1)
-    r = surface.radius_mm
-    return np.stack([r * uv[:, 0] * np.cos(uv[:, 1]), r * uv[:, 1]], axis=-1)
-
-
-def _unflat(surface, xy: np.ndarray) -> np.ndarray:
-    if isinstance(surface, PlaneSurface):
-        return xy
-    if isinstance(surface, Cylinder):
-        return np.stack([xy[:, 0] / surface.radius_mm, xy[:, 1]], axis=-1)
-    r = surface.radius_mm
-    v = np.clip(xy[:, 1] / r, -math.pi / 2 + 1e-6, math.pi / 2 - 1e-6)
-    return np.stack([xy[:, 0] / (r * np.cos(v)), v], axis=-1)
-
-
 def _pull_within(poly: np.ndarray, tree: cKDTree, xy: np.ndarray, reach_mm: float, step_mm: float) -> np.ndarray:
     """The closed polygon densified to ``step_mm`` and every vertex farther than ``reach_mm`` from the
     points ``xy`` (``tree``) moved to that distance from its nearest point."""
@@ -622,7 +603,7 @@ def boundary_on_points(surface, Q_world: np.ndarray):
 
     from .surface import Boundary
 
-    xy = _flat(surface, surface.uv_from_points(Q_world))
+    xy = flat_mm(surface, surface.uv_from_points(Q_world))
     tree = cKDTree(xy)
     probe = xy[np.linspace(0, len(xy) - 1, min(len(xy), 2000)).astype(int)]
     d, _ = tree.query(probe, k=2)
@@ -630,7 +611,7 @@ def boundary_on_points(surface, Q_world: np.ndarray):
     b = surface.boundary
 
     def pulled(poly):
-        xy_poly = _pull_within(_flat(surface, np.asarray(poly, float)), tree, xy, reach, 1.0)
+        xy_poly = _pull_within(flat_mm(surface, np.asarray(poly, float)), tree, xy, reach, 1.0)
         # the pulled outline follows the points' scatter; smoothed along the outline (circular average over
         # 2 x SMOOTH_VERTICES + 1 vertices 1 mm apart) and moved into the material (the left side of outer
         # contours and holes alike) by the OFFSET_PERCENTILE-th percentile of its overshoot, a row near and
@@ -648,6 +629,6 @@ def boundary_on_points(surface, Q_world: np.ndarray):
             xy_poly = xy_poly + max(float(np.percentile(over, OFFSET_PERCENTILE)), 0.0) * left
             xy_poly = _pull_within(xy_poly, tree, xy, reach, 1.0)  # where the offset could not reach
         simple = cv2.approxPolyDP(xy_poly.reshape(-1, 1, 2).astype(np.float32), 0.05, True).reshape(-1, 2)
-        return _unflat(surface, simple.astype(float) if len(simple) >= 3 else xy_poly)
+        return uv_of_flat(surface, simple.astype(float) if len(simple) >= 3 else xy_poly)
 
     return replace(surface, boundary=Boundary(pulled(b.outer_uv), tuple(pulled(h) for h in b.holes_uv)))

@@ -24,7 +24,7 @@ of holes; material is inside the outer polygon and outside every hole.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -250,6 +250,45 @@ class Cylinder:
 Surface = PlaneSurface | SpherePatch | Cylinder
 
 
+@dataclass(frozen=True)
+class FaceSet:
+    """The faces a job works in one program (``camtool.face_set``), as surfaces (world frame), with their
+    segmentation numbers and raster changes.
+
+    ``raster_changes[k]``: the ``RasterSettings`` fields face k's ``faces.raster`` keys set
+    (internal units), applied over whatever settings the path is rastered with."""
+
+    surfaces: tuple
+    indices: tuple[int, ...]
+    raster_changes: tuple[dict, ...]
+    model: str = field(default="faces", init=False)
+
+    def __post_init__(self):
+        if not (len(self.surfaces) == len(self.indices) == len(self.raster_changes)) or len(self.surfaces) < 2:
+            raise ValueError("a FaceSet holds two or more faces, each with its index and raster changes")
+
+    def settings_for(self, k: int, base):
+        """Face k's raster settings: ``base`` (``settings.RasterSettings``) with the face's own keys."""
+        return replace(base, **self.raster_changes[k])
+
+    def to_dict(self) -> dict:
+        return {"model": "faces", "indices": list(self.indices),
+                "raster_changes": [dict(c) for c in self.raster_changes],
+                "faces": [s.to_dict() for s in self.surfaces]}
+
+    @staticmethod
+    def from_dict(d: dict) -> "FaceSet":
+        from .settings import RasterSettings
+
+        names = {f for f in RasterSettings.__dataclass_fields__}
+        changes = tuple(dict(c) for c in d["raster_changes"])
+        if any(not set(c) <= names for c in changes):
+            raise ValueError("raster_changes names a key RasterSettings does not have")
+        return FaceSet(tuple(surface_from_dict(f) for f in d["faces"]), tuple(int(i) for i in d["indices"]),
+                       changes)
+
+
+
 def _with_stats(d: dict, stats: FitStats | None) -> dict:
     if stats is not None:
         d.update(
@@ -277,7 +316,10 @@ def _unit_vectors(d: dict, keys) -> None:
 
 
 def surface_from_dict(d: dict) -> Surface:
-    """Rebuild a surface from ``to_dict`` output (checked: finite, unit axes, a positive radius)."""
+    """Rebuild a surface from ``to_dict`` output (checked: finite, unit axes, a positive radius); a job's
+    several faces (model "faces") come back as a ``FaceSet``."""
+    if d.get("model") == "faces":
+        return FaceSet.from_dict(d)
     b = d["boundary"]
     for poly in [b["outer_uv"], *b.get("holes_uv", [])]:
         a = np.asarray(poly, dtype=float)

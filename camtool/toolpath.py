@@ -1,7 +1,8 @@
 """The ``Path``: tool-centre-point poses in S order, with segments and zones.
 
 Each pose k carries ``segment[k]`` (i, 0-based), ``point[k]`` (j, 1-based on
-work points, 0 elsewhere) and ``zone[k]`` (a code from ``ZONES``). Poses are
+work points, 0 elsewhere) and ``zone[k]`` (a code from ``ZONES``); a path over
+several faces of a part also ``face[k]``, the face's number (``camtool.face_set``). Poses are
 4x4 TCP poses in the **world (cell) frame**, translations in mm; the tool z
 axis points into the surface.
 """
@@ -71,8 +72,11 @@ class Path:
     free_spin: bool = False
     step_over_mm: float = 0.0
     pitch_mm: float = 0.0
+    face: np.ndarray | None = None  # the part's face of each pose (a job of several faces), else None
 
     def __post_init__(self):
+        if self.face is not None and len(self.face) != len(self.poses_mm):
+            raise ValueError(f"Path.face has {len(self.face)} entries for {len(self.poses_mm)} poses")
         freeze_arrays(self)
 
     def __len__(self) -> int:

@@ -89,8 +89,9 @@ def test_mesh_free_edges_are_the_edges_of_one_triangle():
 def test_runs_are_cyclic_and_short_ones_drop():
     mask = np.array([1, 1, 0, 0, 1, 0, 1, 1], bool)
     assert fe._runs(mask) == [(4, 1), (6, 4)]  # the last run wraps round to the start
-    source = np.array([2, 2, 2, -1, 5, -1, 2, 2])
-    assert list(fe._without_short_runs(source, 3)) == [2, 2, 2, -1, -1, -1, 2, 2]
+    source = np.array([2, 2, 2, fe.UNMOVED, 5, fe.UNMOVED, 2, 2])
+    u = fe.UNMOVED
+    assert list(fe._without_short_runs(source, 3)) == [2, 2, 2, u, u, u, 2, 2]
 
 
 def test_window_max_keeps_to_agreeing_normals():

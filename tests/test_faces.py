@@ -9,6 +9,7 @@ from camtool.faces import face_surface_for_job, segment_job, select_faces, segme
 from camtool.job import load_job
 from camtool.settings import JobSettings
 from camtool.stages import path_for_job, surface_for_job, workpiece_for_job
+from camtool.surface import FaceSet
 
 from conftest import SAMPLES, run_camtool
 
@@ -49,8 +50,9 @@ def test_single_is_the_old_fit_and_a_selection_gives_that_faces_surface(tmp_path
     assert s.model == "cylinder" and s.concave and abs(s.radius_mm - 100) < 0.5
     plain = load_job(write_job(tmp_path, "", "[fit]\nmodel = \"cylinder\"\n"))
     assert not segmented(plain) and not JobSettings.from_job(plain).segmented
-    with pytest.raises(BadInput, match="one face per job|works one face"):
-        face_surface_for_job(load_job(write_job(tmp_path, 'select = "cylinder"')), workpiece_for_job(job))
+    both = face_surface_for_job(load_job(write_job(tmp_path, 'select = "cylinder"')), workpiece_for_job(job))
+    assert isinstance(both, FaceSet) and both.indices == (0, 1)  # two cylinders: one program for both
+    assert [f.model for f in both.surfaces] == ["cylinder", "cylinder"]
 
 
 def test_per_face_raster_keys_become_the_jobs(tmp_path):

@@ -141,3 +141,17 @@ def test_a_timed_move_that_grazes_between_checked_points_is_rerouted():
     _t, qs, *_ = tr.sample(0.004)
     assert all(valid(x) for x in qs)
     assert len(q) > 2 and np.abs(q[:, 1] - q0[1]).max() >= 0.2   # it went round the wall
+
+
+def test_an_open_patch_is_inside_only_behind_the_face_its_work_orients():
+    """An open L of two square plates (a floor z = 0 and a wall x = 0, both 200 mm): work poses on the floor
+    only (tool side +z). Below the floor is inside; beside the wall, which no work pose orients, is not."""
+    robot = get_robot("irb2400")
+    floor = trimesh.Trimesh([[0, -100, 0], [200, -100, 0], [200, 100, 0], [0, 100, 0]], [[0, 1, 2], [0, 2, 3]])
+    wall = trimesh.Trimesh([[0, -100, 0], [0, 100, 0], [0, 100, 200], [0, -100, 200]], [[0, 1, 2], [0, 2, 3]])
+    mesh = trimesh.util.concatenate([floor, wall])
+    work = np.array([[x, y, 0.0] for x in (40.0, 100.0, 160.0) for y in (-60.0, 0.0, 60.0)])
+    chk = CapsuleChecker(robot, mesh, radius_mm=10.0, outward=(work, np.tile([0.0, 0.0, 1.0], (len(work), 1))))
+    d = chk.distances(np.array([[100.0, 0.0, -30.0], [-30.0, 0.0, 100.0], [30.0, 0.0, 100.0]]))
+    assert d[0] == pytest.approx(-30.0, abs=1e-3)  # under the worked floor: inside the part
+    assert d[1] == pytest.approx(30.0, abs=1e-3) and d[2] == pytest.approx(30.0, abs=1e-3)  # either side of the wall

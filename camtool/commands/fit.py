@@ -11,9 +11,13 @@ SURFACE_FILE = "surface.json"
 
 
 def surface_summary(surface) -> dict:
-    """The JSON summary of a fitted surface (parameters, statistics, boundary)."""
-    from ..surface import PlaneSurface
+    """The JSON summary of a fitted surface (parameters, statistics, boundary); of a job's several faces
+    (``surface.FaceSet``), ``{"model": "faces", "faces": [{"index": ..., summary}, ...]}``."""
+    from ..surface import FaceSet, PlaneSurface
 
+    if isinstance(surface, FaceSet):
+        return {"model": "faces", "faces": [{"index": i, **surface_summary(f)}
+                                            for i, f in zip(surface.indices, surface.surfaces)]}
     d = {"model": surface.model}
     if isinstance(surface, PlaneSurface):
         d.update(normal=surface.normal, offset_mm=surface.offset_mm)
@@ -78,6 +82,15 @@ def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, m
         save_surface(surface, save)
     if as_json:
         echo_json(surface_summary(surface))
+        return
+    from ..surface import FaceSet
+
+    if isinstance(surface, FaceSet):  # one line per face, in the job's selection
+        for f in surface_summary(surface)["faces"]:
+            click.echo(f"face {f['index']:<3} {f['model']:<9} inliers {f['n_inliers']:>7}  rms_mm {f['rms_mm']:.4f}  "
+                       f"boundary {len(f['boundary']['outer_uv'])} vertices, {len(f['boundary']['holes_uv'])} holes")
+        if save is not None:
+            click.echo(f"{'saved':<16} {save}")
         return
     s, b = surface.stats, surface.boundary
     rows = [("model", surface.model)]

@@ -38,7 +38,7 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
     surface within half the diagonal of a pitch x step-over cell, plus 2 % of
     the step-over, of a work point).
     """
-    from ..raster import raster_summary
+    from ..face_report import path_figures
     from ..stage_files import save_stage
     from ..stages import path_for_job, surface_for_job, workpiece_for_job
     from ..surface import load_surface
@@ -55,7 +55,7 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
             click.echo(f"camtool: warning: {w}", err=True)
         surface = surface_for_job(job, workpiece)
     path = path_for_job(job, surface)
-    summary = {"job": str(job_file), "surface": surface.model, **raster_summary(path, surface)}
+    summary = {"job": str(job_file), "surface": surface.model, **path_figures(path, surface)}
     if outdir is not None:
         save_file = save_file or outdir / PATH_FILE
     if save_file is not None:

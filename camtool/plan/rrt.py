@@ -152,6 +152,9 @@ class _LinkCapsules(Validity):
         return out
 
 
+HINT_COS = 0.5  # a work pose's tool axis orients a mesh face within 60 deg of it (open patches)
+
+
 class CapsuleChecker(_LinkCapsules):
     """Joint limits plus link-capsule clearance from a workpiece mesh (world frame, mm).
 
@@ -210,10 +213,13 @@ class CapsuleChecker(_LinkCapsules):
         n = ans["primitive_normals"].numpy().astype(float)
         tree, dirs = self.outward
         hint = dirs[tree.query(c)[1]]
-        n *= np.where(np.sum(n * hint, axis=1) < 0, -1.0, 1.0)[:, None]
+        along = np.sum(n * hint, axis=1)
+        n *= np.where(along < 0, -1.0, 1.0)[:, None]
         off = P - c
         dist = np.linalg.norm(off, axis=1)
-        behind = np.sum(off * n, axis=1) < -0.5 * dist  # behind the face, not beside the patch's edge
+        # behind the face, not beside the patch's edge; and only where the nearest work pose's axis is the
+        # face's (a part of several faces: the work on one face does not orient the face next to it)
+        behind = (np.sum(off * n, axis=1) < -0.5 * dist) & (np.abs(along) > HINT_COS)
         return np.where(behind, -dist, dist)
 
     def _exact(self, P) -> np.ndarray:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..collision.stage import collision_world
 from ..errors import BadInput, PlanInfeasible
+from ..face_report import faces_worked
 from ..faces import faces_report, segmented
 from ..job import Job
 from ..process.outputs import process_outputs
@@ -17,10 +18,23 @@ from ..raster import raster_path
 from ..placement.partial import partial_path, partial_summary, reachable_stretches
 from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
+from ..surface import FaceSet
 from ..timing import plot_feed_png, samples_for
 from ..stages import (RunResult, StageLog, finish_run, motion_check, part_for_checks, path_for_job, plan_and_time,
                       plan_with_sized_leads, post_checked, report_failure, report_unreachable, run_report,
                       surface_for_job, time_for_job, workpiece_for_job)
+
+
+def check_several_faces(job: Job, settings: JobSettings) -> None:
+    """BadInput for what a job of several faces does not do yet: a target removal map, an automatic step-over,
+    a partial plan (each is one surface's)."""
+    process = settings.process
+    what = ("process.target_removal_file" if process is not None and process.enabled and process.target_removal_file
+            else 'raster.step_over_mm = "auto"' if settings.raster.step_over_auto
+            else "task.allow_partial" if job.task.allow_partial else None)
+    if what:
+        raise BadInput(f"{job.path}: {what} works one face; faces.select = {job.faces.select!r} selects several: "
+                       "select one face, or drop the key")
 
 
 def partial_plan_path(path, exc: PlanInfeasible):
@@ -43,6 +57,9 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     outdir = Path(outdir)
     wp = log.done("workpiece", workpiece_for_job(job))
     surface = log.done("fit", surface_for_job(job, wp))
+    several = isinstance(surface, FaceSet)  # faces.select names several faces: one program for them all
+    if several:
+        check_several_faces(job, settings)
     check_target_inputs(job, settings.process, surface)  # a target removal map it cannot meet: before planning
     settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
     path = log.done("raster", path_for_job(job, surface) if step_choice is None else raster_path(surface, settings.raster))
@@ -96,11 +113,15 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     report["motion_check"] = motion
     report["programs_simulated"] = simulated
     if segmented(job):   # the faces of the part and which the job works (the fit stage's segmentation)
-        faces = log.outputs["faces"] = faces_report(job, wp)
+        faces = faces_report(job, wp)
+        if several:  # each face worked, in working order: coverage and feed
+            faces["worked"] = faces_worked(surface, path, trajectory, robot,
+                                           samples_for(trajectory, settings.timing.check_dt_s))
+        log.outputs["faces"] = faces
         report["faces"] = {k: v for k, v in faces.items() if k != "labels"}
     report["limits_ok"] = True  # post_checked passed the independent check
     report["status"] = "ok"
-    process, process_files = process_outputs(job, settings, trajectory, robot, surface, outdir,
+    process, process_files = process_outputs(job, settings, trajectory, robot, None if several else surface, outdir,
                                              extra=None if step_choice is None else {"step_over_auto": step_choice},
                                              dwell=dwell)
     if process is not None:

@@ -1,0 +1,57 @@
+"""report.json's ``faces.worked`` and the figures of a path over several faces (``camtool.face_set``)."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .face_set import face_paths, face_runs
+from .raster import coverage as face_coverage
+from .raster import raster_summary
+from .segment import area_mm2
+from .surface import FaceSet
+from .timing.feed import feed_profile, feed_statistics
+from .toolpath import Path, row_segments
+
+
+def coverage(face_set: FaceSet, path: Path, grid: int = 400) -> float:
+    """Share (0..1) of the faces' area the joined ``path`` covers, each face by its own rows."""
+    surface_of = dict(zip(face_set.indices, face_set.surfaces))
+    parts = [(area_mm2(surface_of[i]), face_coverage(surface_of[i], own, own.step_over_mm, grid))
+             for i, own in face_paths(face_set, path)]
+    total = sum(a for a, _ in parts)
+    return float(sum(a * c for a, c in parts) / total) if total > 0 else 0.0
+
+
+def faces_worked(face_set: FaceSet, path: Path, trajectory, robot, samples) -> list[dict]:
+    """report.json's ``faces.worked``: per face in working order, its segments, rows, work points and coverage
+    (``raster.raster_summary`` of its own poses on its surface), and its TCP feed on work measured on ``samples``
+    (``timing.feed``)."""
+    surface_of = dict(zip(face_set.indices, face_set.surfaces))
+    feed = float(getattr(trajectory, "tcp_speed_mm_s", 0.0) or 0.0)
+    profile = feed_profile(trajectory, robot, samples) if feed > 0 and len(samples.t_s) > 1 else None
+    if profile is not None:  # the face of each sample interval: its waypoint's segment's
+        tw = np.asarray(trajectory.t_s, float)
+        mid = 0.5 * (profile.t_s[:-1] + profile.t_s[1:])
+        k = np.clip(np.searchsorted(tw, mid, side="right") - 1, 0, max(len(tw) - 2, 0))
+        seg = row_segments(trajectory.path_index, trajectory.zone, path.segment)[k]
+        face_of_segment = np.full(int(path.segment.max()) + 1, -1)
+        face_of_segment[path.segment] = path.face
+        interval_face = np.where(seg >= 0, face_of_segment[np.maximum(seg, 0)], -1)
+    out = []
+    for (index, own), (_, idx) in zip(face_paths(face_set, path), face_runs(path)):
+        surface = surface_of[index]
+        entry = {"index": index, "model": surface.model, **raster_summary(own, surface),
+                 "segment_range": [int(path.segment[idx].min()), int(path.segment[idx].max())]}
+        if profile is not None:
+            entry["work_feed"] = feed_statistics(replace(profile, work=profile.work & (interval_face == index)), feed)
+        out.append(entry)
+    return out
+
+
+
+def path_figures(path: Path, surface) -> dict:
+    """``raster.raster_summary`` of a path on its surface; on a ``FaceSet``, its coverage face by face."""
+    if not isinstance(surface, FaceSet):
+        return raster_summary(path, surface)
+    return {**raster_summary(path), "coverage": round(coverage(surface, path), 5)}
