@@ -117,10 +117,17 @@ def _polygon_edges_st(boundary, chart: _Chart) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(a), np.concatenate(b)
 
 
+ROW_SLACK = 0.01  # a domain up to this share of a step-over wider than whole steps gets no extra row
+
+
 def _row_offsets(t_lo: float, t_hi: float, step_mm: float) -> np.ndarray:
-    """Row positions t (mm) across the domain, step_mm apart and centred."""
+    """Row positions t (mm) across the domain, step_mm apart and centred.
+
+    A width a hair over whole steps (a face's exact boundary, 300.01 mm at 10 mm) takes
+    the rows of whole steps, each edge half a step (plus ROW_SLACK of one) from a row:
+    one more row would put the first and last rows on the edges themselves."""
     width = t_hi - t_lo
-    n = max(1, math.ceil(width / step_mm - 1e-9))
+    n = max(1, math.ceil(width / step_mm - ROW_SLACK))
     return t_lo + (width - (n - 1) * step_mm) / 2 + step_mm * np.arange(n)
 
 
