@@ -28,7 +28,6 @@ from pathlib import Path as FsPath
 
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
-from scipy.signal import fftconvolve
 
 from ..errors import BadInput
 from ..settings import ProcessSettings
@@ -36,7 +35,8 @@ from ..toolpath import SURFACE_CODES, WORK
 from .figures import edge_distance_mm
 from .footprint import Footprint
 from .grid import MapGrid, map_grid
-from .integrate import ProcessMap, _bin_bilinear, amounts
+from .integrate import ProcessMap, _bin_bilinear, _fftconvolve, amounts
+
 
 MAX_TARGET_BYTES = 200_000_000
 
@@ -152,10 +152,10 @@ def plan_dwell(surface, path, process: ProcessSettings, feed_mm_s: float, target
     flipped = kernel[::-1, ::-1]
 
     def forward(d):
-        return fftconvolve(_bin_bilinear(grid, uv, rate * d), kernel, mode="same") / grid.area_mm2
+        return _fftconvolve(_bin_bilinear(grid, uv, rate * d), kernel, mode="same") / grid.area_mm2
 
     def adjoint(field):
-        return rate * _gather_bilinear(grid, fftconvolve(field / grid.area_mm2, flipped, mode="same"), uv)
+        return rate * _gather_bilinear(grid, _fftconvolve(field / grid.area_mm2, flipped, mode="same"), uv)
 
     d_min = length[keep] / feed_mm_s
     d_max = d_min / process.feed_factor_min
