@@ -89,6 +89,11 @@ class Path:
     def zone_names(self) -> list[str]:
         return [ZONES[z] for z in self.zone]
 
+    def segment_text(self, k: int) -> str:
+        """Where pose k is, for messages: "segment S", or on a path over several faces "face F, segment S"."""
+        seg = f"segment {int(self.segment[k])}"
+        return seg if self.face is None else f"face {int(self.face[k])}, {seg}"
+
     def length_mm(self) -> float:
         """Length of the TCP polyline through every pose, in mm."""
         p = self.poses_mm[:, :3, 3]

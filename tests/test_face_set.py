@@ -51,6 +51,7 @@ def test_joined_numbers_segments_on_and_marks_each_face():
     assert list(np.unique(path.segment)) == [0, 1, 2, 3, 4]
     assert [f for f, _ in face_runs(path)] == [3, 7]
     assert path.step_over_mm == 4.0 and path.pitch_mm == 2.0
+    assert path.segment_text(0) == "face 3, segment 0" and a.segment_text(0) == "segment 0"  # for messages
     with pytest.raises(ValueError):
         Path(a.poses_mm, a.segment, a.point, a.zone, face=np.zeros(1, np.int32))
 

@@ -181,7 +181,7 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
         try:
             new, info = lift_and_reconfigure(solver, robot, Ta, jp.q[r0], Tb, jp.q[r1], settings, valid)
         except PlanInfeasible as exc:
-            raise PlanInfeasible(f"reconfiguration before segment {int(seg[jp.path_index[r1]])}: {exc}") from None
+            raise PlanInfeasible(f"reconfiguration before {path.segment_text(int(jp.path_index[r1]))}: {exc}") from None
         keep[r0 + 1:r1] = False
         info["retract"] = bool(np.any(jp.retract[r0 + 1:r1]))  # a strategy retract, re-planned here
         info.update(segment=int(seg[jp.path_index[r1]]), joint_change_deg=round(float(np.degrees(

@@ -472,7 +472,7 @@ class Planner:
                 break
         if best is None:
             p = self.path.poses_mm[k][:3, 3]
-            raise PlanInfeasible(f"pose {k} (segment {int(self.path.segment[k])}) needs a reconfiguration, but the "
+            raise PlanInfeasible(f"pose {k} ({self.path.segment_text(k)}) needs a reconfiguration, but the "
                                  f"tool cannot be lifted off the surface there (tried {self.st.retract_mm:g} mm and "
                                  f"less; at {[round(float(x), 1) for x in p]} mm): the part is at the edge of the "
                                  "robot's reach; move it closer (camtool place) or lower planner.retract_mm")
@@ -532,6 +532,7 @@ def plan_path(path: Path, robot: Robot, settings: PlannerSettings, world=None) -
     if len(missed):
         k = jp.path_index[missed]
         unreachable = [{"index": int(i), "segment": int(path.segment[i]), "point": int(path.point[i]),
+                        **({} if path.face is None else {"face": int(path.face[i])}),
                         "zone": ZONES[path.zone[i]],
                         "xyz_mm": [round(float(x), 3) for x in path.poses_mm[i][:3, 3]],
                         "position_error_mm": round(float(jp.position_error_mm[m]), 3)}
@@ -549,7 +550,7 @@ def plan_path(path: Path, robot: Robot, settings: PlannerSettings, world=None) -
         why = f"; there {first['reason']}" if "reason" in first else ""
         raise PlanInfeasible(
             f"{len(unreachable)} of {len(path)} path poses are out of reach of {robot.name} "
-            f"(first: pose {first['index']}, segment {first['segment']}, point {first['point']}, "
+            f"(first: pose {first['index']}, {path.segment_text(first['index'])}, point {first['point']}, "
             f"at {first['xyz_mm']} mm{why}); see report.json",
             report={"unreachable": unreachable, "joint_path": jp})
     return jp
