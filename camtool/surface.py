@@ -369,7 +369,7 @@ def load_surface(path: str | FsPath) -> Surface:
     """Read a surface saved by ``save_surface``."""
     p = FsPath(path)
     try:
-        d = json.loads(p.read_text())
+        d = json.loads(safe_io.read_input_text(p, "stage"))  # a regular file under the cap: no FIFO hang
         if d.get("version", SURFACE_VERSION) != SURFACE_VERSION:
             raise BadInput(f"{p}: surface file version {d['version']} is not supported "
                            f"(this camtool reads version {SURFACE_VERSION}); rerun camtool fit")

@@ -253,3 +253,16 @@ def test_cylinder_round_trip_and_bad_frame(tmp_path):
     d["frame"] = [[1, 0, 0], [1, 0, 0], [0, 0, 1]]
     with pytest.raises(ValueError):
         surface_from_dict(d)
+
+
+def test_a_surface_file_that_is_a_fifo_or_a_bad_face_set_is_refused_without_blocking(tmp_path):
+    import os
+
+    fifo = tmp_path / "surface.json"
+    os.mkfifo(fifo)
+    with pytest.raises(BadInput, match="FIFO"):
+        load_surface(fifo)  # no writer: reading it would block for ever
+    bad = tmp_path / "faces.json"
+    bad.write_text('{"model": "faces", "indices": [0, 1], "raster_changes": [{}, {"bogus": 1}], "faces": []}')
+    with pytest.raises(BadInput, match="not a camtool surface file"):
+        load_surface(bad)
