@@ -1,8 +1,8 @@
 """Several faces of a part worked in one program: the faces, their order, and the joined tool path.
 
-A job whose ``[faces] select`` names more than one face gets a ``FaceSet`` where a
-single-face job gets its surface (``surface.FaceSet``). ``raster.raster_path`` rasters each face with its own
-settings (the job's ``[raster]`` and ``faces.raster``) and joins them:
+A job whose ``[faces] select`` names more than one face gets a ``surface.FaceSet`` where
+a single-face job gets its surface. ``raster.raster_path`` rasters each face with its
+own settings (the job's ``[raster]`` and ``faces.raster``) and joins them:
 
 1. **Order** (``working_order``): nearest neighbour from the largest face, each face's
    path going from its entry (approach) to its exit (depart), then 2-opt on the
