@@ -6,12 +6,11 @@ import numpy as np
 import pytest
 
 from camtool.face_set import face_runs, joined, raster_changes, working_order
-from camtool.job import load_job
 from camtool.settings import RasterSettings
 from camtool.surface import Boundary, FaceSet, PlaneSurface, surface_from_dict
 from camtool.toolpath import ZONE_CODE, Path
 
-from conftest import SAMPLES
+from conftest import SAMPLES, run_camtool
 
 
 def _line_path(entry, exit_, segments=1):
@@ -79,8 +78,6 @@ def test_a_face_set_round_trips_through_the_surface_format():
 def test_two_faces_of_the_half_pipe_make_one_program(tmp_path):
     """The outside cylinder and the top end face in one RAPID program: rows named by face, one lifted move
     between the faces, and a section per face in report.json."""
-    from camtool.pipeline import run_job
-
     job_file = tmp_path / "pipe2.toml"
     text = (SAMPLES / "pipe_half.toml").read_text()
     text = text.replace('file = "pipe_half.stl"', f'file = "{(SAMPLES / "pipe_half.stl").as_posix()}"')
@@ -88,9 +85,11 @@ def test_two_faces_of_the_half_pipe_make_one_program(tmp_path):
     text = text.replace("step_over_mm = 15.0", "step_over_mm = 30.0")
     text = text.replace('formats = ["rapid", "inform", "csv"]', 'formats = ["rapid"]')
     job_file.write_text(text)
-    result = run_job(load_job(job_file, []), tmp_path / "out")
-    report = result.outputs["report"]
+    done = run_camtool("run", job_file, "-o", tmp_path / "out")  # as a user runs it
+    assert done.returncode == 0, done.stderr
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
     worked = report["faces"]["worked"]
+    assert "face 0 (cylinder): " in done.stdout and "face 2 (plane): " in done.stdout  # a line per face
     assert [w["index"] for w in worked] == [0, 2]
     assert worked[1]["step_over_mm"] == 8.0 and worked[0]["step_over_mm"] == 30.0
     assert all(w["work_feed"]["work_share_within_1pct"] > 0.99 for w in worked)

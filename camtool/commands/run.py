@@ -74,6 +74,11 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
                  if leads.get("lead_mm_used", 0) > leads.get("lead_mm_set", 0) else "")
         click.echo(f"feed on work: {100 * feed['work_share_within_1pct']:.1f}% of {feed['work_length_mm'] / 1000:.1f} m "
                    f"within 1% of {feed['commanded_feed_mm_s']:g} mm/s, min {feed['min_work_feed_mm_s']:.1f} mm/s{sized}")
+    for w in report.get("faces", {}).get("worked", []):  # a job of several faces: each one, in working order
+        wf = w.get("work_feed") or {}
+        click.echo(f"face {w['index']} ({w['model']}): {w['rows']} rows, {w['work_points']} work points, coverage "
+                   f"{100 * (w['coverage'] or 0.0):.2f}%, feed {100 * wf.get('work_share_within_1pct', 0.0):.1f}% "
+                   f"within 1%")
     slow = report.get("slowdowns", [])
     if slow:
         worst = min(s["speed_ratio"] for s in slow)
