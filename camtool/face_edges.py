@@ -210,7 +210,7 @@ class _FacePoints:
 
     @cached_property
     def spacing_mm(self) -> float:
-        return _spacing_mm(self.tree, self.points_mm)
+        return spacing_mm(self.tree, self.points_mm)
 
 
 def _moved_again(surface, poly_uv, others, free_edges, own) -> np.ndarray | None:
@@ -341,7 +341,7 @@ def _onto_extent(surface, xy, own: "_FacePoints", new_xy, source) -> None:
     source[rest[ok]] = EXTENT
 
 
-def _spacing_mm(tree: cKDTree, points: np.ndarray) -> float:
+def spacing_mm(tree: cKDTree, points: np.ndarray) -> float:
     """Median distance from a point to its nearest neighbour (at most 2000 points asked)."""
     probe = points[np.linspace(0, len(points) - 1, min(len(points), 2000)).astype(int)]
     return float(np.median(tree.query(probe, k=2)[0][:, 1]))

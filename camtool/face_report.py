@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .face_set import face_paths, face_runs
+from .face_set import face_paths
 from .raster import coverage as face_coverage
 from .raster import raster_summary
 from .segment import area_mm2
@@ -18,7 +18,7 @@ def coverage(face_set: FaceSet, path: Path, grid: int = 400) -> float:
     """Share (0..1) of the faces' area the joined ``path`` covers, each face by its own rows."""
     surface_of = dict(zip(face_set.indices, face_set.surfaces))
     parts = [(area_mm2(surface_of[i]), face_coverage(surface_of[i], own, own.step_over_mm, grid))
-             for i, own in face_paths(face_set, path)]
+             for i, _, own in face_paths(face_set, path)]
     total = sum(a for a, _ in parts)
     return float(sum(a * c for a, c in parts) / total) if total > 0 else 0.0
 
@@ -39,7 +39,7 @@ def faces_worked(face_set: FaceSet, path: Path, trajectory, robot, samples) -> l
         face_of_segment[path.segment] = path.face
         interval_face = np.where(seg >= 0, face_of_segment[np.maximum(seg, 0)], -1)
     out = []
-    for (index, own), (_, idx) in zip(face_paths(face_set, path), face_runs(path)):
+    for index, idx, own in face_paths(face_set, path):
         surface = surface_of[index]
         entry = {"index": index, "model": surface.model, **raster_summary(own, surface),
                  "segment_range": [int(path.segment[idx].min()), int(path.segment[idx].max())]}
@@ -47,7 +47,6 @@ def faces_worked(face_set: FaceSet, path: Path, trajectory, robot, samples) -> l
             entry["work_feed"] = feed_statistics(replace(profile, work=profile.work & (interval_face == index)), feed)
         out.append(entry)
     return out
-
 
 
 def path_figures(path: Path, surface) -> dict:

@@ -109,13 +109,14 @@ def face_runs(path: Path) -> list[tuple[int, np.ndarray]]:
     return [(int(path.face[a]), np.arange(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def face_paths(face_set: FaceSet, path: Path) -> list[tuple[int, Path]]:
-    """(face index, that face's own part of the joined ``path``, with its step-over and pitch) in working order."""
+def face_paths(face_set: FaceSet, path: Path) -> list[tuple[int, np.ndarray, Path]]:
+    """(face index, its pose indices in the joined ``path``, that face's own part of it, with its step-over
+    and pitch) in working order."""
     k_of = {i: k for k, i in enumerate(face_set.indices)}
     out = []
     for index, idx in face_runs(path):
         change = face_set.raster_changes[k_of[index]]
-        out.append((index, Path(path.poses_mm[idx], path.segment[idx] - path.segment[idx].min(), path.point[idx],
+        out.append((index, idx, Path(path.poses_mm[idx], path.segment[idx] - path.segment[idx].min(), path.point[idx],
                                 path.zone[idx], path.free_spin, change.get("step_over_mm", path.step_over_mm),
                                 change.get("pitch_mm", path.pitch_mm))))
     return out

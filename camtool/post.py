@@ -158,14 +158,7 @@ def row_labels(trajectory, path) -> tuple:
     work = np.asarray(trajectory.zone) == WORK
     first = np.flatnonzero(work & ~np.r_[False, work[:-1]])
     pidx = np.asarray(trajectory.path_index)[first]
-    seg = np.asarray(path.segment)
-    face = None if path.face is None else np.asarray(path.face)
-
-    def label(i):
-        if not 0 <= i < len(seg):
-            return ""
-        return f"segment {int(seg[i])}" if face is None else f"face {int(face[i])}, segment {int(seg[i])}"
-    return tuple(label(i) for i in pidx)
+    return tuple(path.segment_text(int(i)) if 0 <= i < len(path) else "" for i in pidx)
 
 
 def summary_lines(sim):

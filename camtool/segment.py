@@ -45,7 +45,7 @@ from scipy.spatial import cKDTree
 from .errors import BadInput
 from .fit import (LARGE_SPHERE_FACTOR, _refine_plane, _refine_sphere, cylinder_hypotheses, cylinder_radial,
                   cylinder_residuals, cylinder_surface, plane_surface, refine_cylinder, sphere_patch)
-from .face_edges import flat_mm, uv_of_flat
+from .face_edges import FreeEdges, flat_mm, on_edges, spacing_mm, uv_of_flat
 from .surface import Cylinder, FitStats, PlaneSurface, SpherePatch
 
 SAMPLE = 20000            # points the RANSAC rounds search
@@ -275,12 +275,6 @@ def _largest_piece(points: np.ndarray, radius: float) -> np.ndarray:
     return np.flatnonzero(label == int(np.argmax(counts)))
 
 
-def _spacing(tree: cKDTree, S: np.ndarray) -> float:
-    probe = S[np.linspace(0, len(S) - 1, min(len(S), 2000)).astype(int)]
-    d, _ = tree.query(probe, k=2)
-    return float(np.median(d[:, 1]))
-
-
 # ----------------------------------------------------------------------------- charts for the assignment
 
 
@@ -358,7 +352,7 @@ def segment(workpiece, settings: SegmentSettings = SegmentSettings()) -> Segment
     pick = np.sort(rng.choice(len(P), SAMPLE, replace=False)) if len(P) > SAMPLE else np.arange(len(P))
     S, NS = P[pick], N_all[pick]
     tree = cKDTree(S)
-    spacing = _spacing(tree, S)
+    spacing = spacing_mm(tree, S)
     remaining = np.ones(len(S), bool)
     models: list[_Model] = []
     members: list[np.ndarray] = []
@@ -466,16 +460,8 @@ def _relabel_sample(S, NS, models, members, radius, thr, cos_tol):
 
 def area_mm2(surface) -> float:
     """Area of the material region (outer polygon minus holes) in the surface's flat chart (mm^2)."""
-    def chart(uv):
-        if isinstance(surface, PlaneSurface):
-            return uv
-        if isinstance(surface, Cylinder):
-            return np.stack([surface.radius_mm * uv[:, 0], uv[:, 1]], axis=-1)
-        r = surface.radius_mm  # sinusoidal projection: equal-area
-        return np.stack([r * uv[:, 0] * np.cos(uv[:, 1]), r * uv[:, 1]], axis=-1)
-
-    def area(poly):
-        xy = chart(np.asarray(poly, float))
+    def area(poly):  # the flat chart is area-true (a sphere's is sinusoidal)
+        xy = flat_mm(surface, np.asarray(poly, float))
         x, y = xy[:, 0], xy[:, 1]
         return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
@@ -536,8 +522,6 @@ def boundaries_on_edges(surfaces: list, inliers: list[np.ndarray], workpiece, th
     """The faces' surfaces with their boundaries moved onto the part's edges (``face_edges.on_edges``):
     neighbours' intersections and seams, the mesh's free edges when the workpiece is a mesh, else the
     points' extent. ``inliers[k]``: face k's indices into the workpiece's points."""
-    from .face_edges import FreeEdges, on_edges
-
     P_world = np.asarray(workpiece.points_mm, float)
     free = FreeEdges.of_mesh(getattr(workpiece, "vertices_mm", None), getattr(workpiece, "faces", None))
     points = [P_world[idx if len(idx) <= BOUNDARY_POINTS else
