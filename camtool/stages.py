@@ -221,14 +221,16 @@ def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path
     return insert_home_moves(joint_path, moves["approach"], moves["depart"], {"free_moves": figures})
 
 
-def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str | None = None):
+def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str | None = None, planned=None):
     """Plan ``path`` with the job's planner (or another ``method``), plus home moves when a workpiece is given.
 
-    ``workpiece``: the part the free motion keeps clear of (``part_for_checks``)."""
+    ``workpiece``: the part the free motion keeps clear of (``part_for_checks``).
+    ``planned``: ``plan_path``'s joint path of this very ``path`` and planner, when the
+    caller has it already (lead sizing); it is then not planned again."""
     planner = settings.planner if method is None else settings.planner.with_method(method)
     solver = CwlnSolver(robot, ik_settings(planner), free_spin=path.free_spin)  # lifts and densified poses
     world = collision_world(settings, robot)
-    joint_path = plan_path(path, robot, planner, world)
+    joint_path = plan_path(path, robot, planner, world) if planned is None else planned
     if planner.smooth_runs:
         smooth = SmoothSettings(feed_mm_s=settings.timing.tcp_speed_mm_s)
         joint_path = smooth_runs(joint_path, path, robot, solver, smooth)
@@ -247,42 +249,83 @@ LEAD_SIZING_ROUNDS = 2   # re-raster and re-plan at most this many times for lon
 LEAD_MARGIN = 1.05       # the chosen lead is this much longer than the longest ramp needs (before rounding)
 
 
+@dataclass
+class _Leads:
+    """Lead sizing under way: the path, its plan, the lead it was rastered with, and report.json's record."""
+
+    path: object
+    joint_path: object
+    lead_mm: float
+    record: dict
+    rounds_used: int = 0
+
+    def grow(self, settings: JobSettings, surface, robot, plan: Callable, rounds: int) -> bool:
+        """Up to ``rounds`` times: measure the ramps on the plan, re-raster with a longer lead and ``plan`` it.
+
+        True when the leads are long enough for the plan in hand; False when capped
+        at ``raster.lead_max_mm``, out of rounds, or the longer lead cannot be planned
+        (the last plan is kept)."""
+        raster = settings.raster
+        for round_ in range(rounds + 1):
+            need = lead_needed_mm(self.joint_path, self.path, robot, settings.timing)
+            needed = max(need["lead_in_mm"], need["lead_out_mm"])
+            self.record["needed_mm"] = round(float(needed), 3)
+            have = min([min(r["lead_in_mm"], r["lead_out_mm"]) for r in need["per_run"]], default=self.lead_mm)
+            if needed <= have + 1e-6:
+                return True
+            if round_ == rounds:
+                return False
+            longer = min(float(math.ceil(LEAD_MARGIN * needed - 1e-9)), raster.lead_max_mm)
+            if longer <= self.lead_mm:
+                self.record["capped"] = True
+                return False
+            try:
+                new_path = raster_path(surface, replace(raster, lead_mm=longer))
+                new_joint_path = plan(new_path)
+            except PlanInfeasible as exc:
+                self.record["kept_because"] = f"a {longer:g} mm lead cannot be planned: {exc}"
+                return False
+            self.path, self.joint_path, self.lead_mm = new_path, new_joint_path, longer
+            self.record["lead_mm_used"] = longer
+            self.rounds_used += 1
+        return False
+
+
 def plan_with_sized_leads(settings: JobSettings, surface, path, robot, workpiece=None):
-    """(path, joint path): ``plan_for_job``, then, with ``raster.lead_auto``, leads long enough for the ramps.
+    """(path, joint path): ``plan_for_job``, with ``raster.lead_auto`` on leads long enough for the ramps.
 
     The length the ramps to and from the feed need (``timing.lead_needed_mm``: the
-    limits, the feed and the planned joint path) is measured on the plan; where a run
-    needs more than it has, ``surface`` is rastered again with a lead of that length
-    (times ``LEAD_MARGIN``, rounded up to whole mm, at most ``raster.lead_max_mm``)
-    and planned again. ``events['leads']`` records the lead set, the lead used and the
-    length needed. A longer lead that cannot be planned keeps the first plan.
+    limits, the feed and the planned joint path) is measured on ``plan_path``'s plan,
+    before smoothing, lifts and densifying, which leave the runs' ends as they are;
+    where a run needs more than it has, ``surface`` is rastered again with a lead of
+    that length (times ``LEAD_MARGIN``, rounded up to whole mm, at most
+    ``raster.lead_max_mm``) and ``plan_path`` runs again. The whole plan is then made
+    once, on the path with the leads chosen, and measured again; should it need
+    longer leads still, the sizing goes on with whole plans (``LEAD_SIZING_ROUNDS``
+    in all). ``events['leads']`` records the lead set, the lead used and the length
+    needed. A longer lead that cannot be planned is not taken (``kept_because``).
     """
-    joint_path = plan_for_job(settings, path, robot, workpiece)
     raster = settings.raster
+    world = collision_world(settings, robot)
+    raw = plan_path(path, robot, settings.planner, world)
     if not raster.lead_auto or raster.lead_mm <= 0:
-        return path, joint_path
+        return path, plan_for_job(settings, path, robot, workpiece, planned=raw)
     lead = raster.lead_mm
-    record = {"lead_mm_set": lead, "lead_mm_used": lead, "max_mm": raster.lead_max_mm}
-    for _ in range(LEAD_SIZING_ROUNDS):
-        need = lead_needed_mm(joint_path, path, robot, settings.timing)
-        needed = max(need["lead_in_mm"], need["lead_out_mm"])
-        record["needed_mm"] = round(float(needed), 3)
-        have = min([min(r["lead_in_mm"], r["lead_out_mm"]) for r in need["per_run"]], default=lead)
-        if needed <= have + 1e-6:
-            break
-        longer = min(float(math.ceil(LEAD_MARGIN * needed - 1e-9)), raster.lead_max_mm)
-        if longer <= lead:
-            record["capped"] = True
-            break
-        try:
-            new_path = raster_path(surface, replace(raster, lead_mm=longer))
-            new_joint_path = plan_for_job(settings, new_path, robot, workpiece)
-        except PlanInfeasible as exc:
-            record["kept_because"] = f"a {longer:g} mm lead cannot be planned: {exc}"
-            break
-        path, joint_path, lead = new_path, new_joint_path, longer
-        record["lead_mm_used"] = lead
-    return path, replace(joint_path, events={**joint_path.events, "leads": record})
+    sizing = _Leads(path, raw, lead, {"lead_mm_set": lead, "lead_mm_used": lead, "max_mm": raster.lead_max_mm})
+    kernel_only = sizing.grow(settings, surface, robot, lambda p: plan_path(p, robot, settings.planner, world),
+                              LEAD_SIZING_ROUNDS)
+    try:
+        sizing.joint_path = plan_for_job(settings, sizing.path, robot, workpiece, planned=sizing.joint_path)
+    except PlanInfeasible as exc:
+        if sizing.lead_mm == lead:
+            raise
+        sizing.record["kept_because"] = f"a {sizing.lead_mm:g} mm lead cannot be planned: {exc}"
+        sizing.path, sizing.lead_mm, sizing.record["lead_mm_used"] = path, lead, lead
+        sizing.joint_path = plan_for_job(settings, path, robot, workpiece, planned=raw)
+        kernel_only = False
+    rounds_left = LEAD_SIZING_ROUNDS - sizing.rounds_used if kernel_only else 0  # else: capped, or kept
+    sizing.grow(settings, surface, robot, lambda p: plan_for_job(settings, p, robot, workpiece), rounds_left)
+    return sizing.path, replace(sizing.joint_path, events={**sizing.joint_path.events, "leads": sizing.record})
 
 
 def time_for_job(settings: JobSettings, joint_path, path, robot):

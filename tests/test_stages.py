@@ -3,6 +3,8 @@ import numpy as np
 import pytest
 
 from camtool.job import load_job
+from camtool.plan import plan_path
+from camtool.plan.smooth import smooth_runs
 from camtool.settings import JobSettings
 from camtool.stages import (part_for_checks, path_for_job, plan_for_job, plan_with_sized_leads, robot_for_job,
                             surface_for_job, workpiece_for_job)
@@ -40,6 +42,20 @@ def test_leads_are_lengthened_to_what_the_ramps_need(short_leads_job):
     for run in after["per_run"]:
         assert run["lead_in_needed_mm"] <= run["lead_in_mm"] + 1e-6
         assert run["lead_out_needed_mm"] <= run["lead_out_mm"] + 1e-6
+
+
+def test_lead_sizing_makes_the_whole_plan_once(short_leads_job, monkeypatch):
+    """Leads are sized on the planning kernel's plan; smoothing, lifts and densifying run once, on the path
+    with the leads chosen (they used to run again for every longer lead)."""
+    import camtool.stages as stages
+    settings, surface, path, robot, part = short_leads_job
+    kernel, smoothed = [], []
+    monkeypatch.setattr(stages, "plan_path", lambda p, *a, **k: kernel.append(len(p)) or plan_path(p, *a, **k))
+    monkeypatch.setattr(stages, "smooth_runs", lambda jp, p, *a, **k: smoothed.append(len(p)) or smooth_runs(jp, p, *a, **k))
+    sized_path, jp = plan_with_sized_leads(settings, surface, path, robot, part)
+    assert jp.events["leads"]["lead_mm_used"] > 10.0
+    assert kernel == [len(path), len(sized_path)]     # the kernel for each lead tried
+    assert smoothed == [len(sized_path)]              # the rest once, for the lead taken
 
 
 def test_lead_auto_off_or_capped_keeps_the_set_lead(short_leads_job):
