@@ -4,7 +4,8 @@ Each job runs as its own process (`python -m camtool.cli run ... --json`), exact
 as a user runs it, with every check on (the 4 ms limit check, the independent
 motion check, every program simulated); the run must pass them all. Printed per
 job: wall and CPU seconds of every stage (report.json's ``stage_seconds`` and
-``stage_cpu_seconds``), the start-up (imports, job loading) as what the whole
+``stage_cpu_seconds``; the figures drawn alongside the post stage in a forked process,
+``stage_seconds_alongside``, marked +), the start-up (imports, job loading) as what the whole
 process took beyond its stages, the planning kernel's own time in the same run
 (``plan_seconds``: ``plan_path``, the CWLN strategy), the ratio whole run / kernel
 and the process's peak RSS (its own rusage).
@@ -77,7 +78,9 @@ def run_job(name: str, extra: list[str], env: dict) -> dict:
         raise SystemExit(f"{name}: a check did not run or did not pass: {checks}")
     return {"name": name, "wall_s": wall, "cpu_s": cpu, "rss_gb": rss, "kernel_s": float(report["plan_seconds"]),
             "poses": int(report["points_total"]), "stages": report["stage_seconds"],
-            "stages_cpu": report.get("stage_cpu_seconds", {})}
+            "stages_cpu": report.get("stage_cpu_seconds", {}),
+            "alongside": report.get("stage_seconds_alongside", {}),
+            "alongside_cpu": report.get("stage_cpu_seconds_alongside", {})}
 
 
 def print_job(r: dict, anchor_cpu: float) -> None:
@@ -89,7 +92,12 @@ def print_job(r: dict, anchor_cpu: float) -> None:
     start = r["wall_s"] - r["stages"]["total"]
     for name, sec in stages.items():
         print(f"   {name:<14}{sec:>9.2f}{cpu.get(name, float('nan')):>9.2f}")
-    print(f"   {'start-up':<14}{start:>9.2f}{r['cpu_s'] - cpu.get('total', 0.0):>9.2f}   (imports, job, outside the stages)")
+    for name, sec in r["alongside"].items():
+        if name != "total":
+            print(f"   {'+ ' + name:<14}{sec:>9.2f}{r['alongside_cpu'].get(name, float('nan')):>9.2f}   "
+                  "(drawn alongside post and report, in a forked process)")
+    own_cpu = cpu.get("total", 0.0) + r["alongside_cpu"].get("total", 0.0)
+    print(f"   {'start-up':<14}{start:>9.2f}{r['cpu_s'] - own_cpu:>9.2f}   (imports, job, outside the stages)")
     print(f"   planning kernel (plan_path, inside 'plan'): {r['kernel_s']:.3f} s "
           f"({r['poses'] / r['kernel_s']:,.0f} poses/s)")
     print(f"   whole run / kernel: {r['wall_s'] / r['kernel_s']:.1f}x wall, {r['cpu_s'] / r['kernel_s']:.1f}x CPU")

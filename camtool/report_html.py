@@ -104,26 +104,34 @@ def write_html_page(file, title: str, sections: list[tuple[str, str, str]]) -> F
     return safe_io.write_file(file.parent, file.name, page)
 
 
-def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,
-                   trajectory=None, failing_indices=(), faces=None, world=None) -> list[FsPath]:
-    """``OUTDIR/report.html`` and, for robots with closed-form IK, ``OUTDIR/plots/redundancy_map.png``.
+def redundancy_figure(outdir, robot, path=None, joint_path=None, failing_indices=(), world=None):
+    """(map, files): the redundancy map of ``path`` and ``OUTDIR/plots/redundancy_map.png``.
 
-    The redundancy map is computed here (``redundancy_map``, failing poses
-    included as columns, its collision layer from ``world``, the job's
-    ``CollisionWorld``); robots without closed-form families get none.
-    Returns the files written.
+    The map is computed with failing poses included as columns and its collision
+    layer from ``world`` (the job's ``CollisionWorld``); robots without closed-form
+    IK families get none: ``(None, [])``.
     """
     from .redundancy_map import plot_redundancy_map_png, redundancy_kind, redundancy_map
 
+    if path is None or not len(path) or redundancy_kind(robot) is None:
+        return None, []
+    try:
+        rmap = redundancy_map(path, robot, joint_path, include=failing_indices, world=world)
+    except BadInput:
+        return None, []
+    return rmap, [plot_redundancy_map_png(rmap, FsPath(outdir) / "plots" / "redundancy_map.png")]
+
+
+def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,
+                   trajectory=None, failing_indices=(), faces=None, world=None, redundancy=None) -> list[FsPath]:
+    """``OUTDIR/report.html`` and, for robots with closed-form IK, ``OUTDIR/plots/redundancy_map.png``.
+
+    ``redundancy``: ``redundancy_figure``'s (map, files) when drawn already (alongside
+    the post stage), else it is drawn here. Returns the files written.
+    """
     outdir = FsPath(outdir)
-    files, rmap = [], None
-    if path is not None and len(path) and redundancy_kind(robot) is not None:
-        try:
-            rmap = redundancy_map(path, robot, joint_path, include=failing_indices, world=world)
-        except BadInput:
-            rmap = None
-        if rmap is not None:
-            files.append(plot_redundancy_map_png(rmap, outdir / "plots" / "redundancy_map.png"))
+    rmap, files = redundancy if redundancy is not None else redundancy_figure(
+        outdir, robot, path, joint_path, failing_indices, world)
     html_file = write_report_html(outdir / "report.html", report=report, robot=robot, workpiece=workpiece,
                                   surface=surface, path=path, joint_path=joint_path, trajectory=trajectory,
                                   failing_indices=failing_indices, redundancy=rmap, faces=faces, world=world)

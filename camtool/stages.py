@@ -458,14 +458,29 @@ def report_failure(exc: PlanInfeasible, path, joint_path, robot, job: Job, outdi
 
 
 def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, trajectories: dict, outdir: Path,
-               extra_files=(), world=None) -> RunResult:
+               extra_files=(), world=None, figures=None) -> RunResult:
     """Write the plots, points.csv and report.json of a successful run; the RunResult lists every file.
-    ``world``: the job's collision world (the redundancy map's collision layer)."""
+
+    ``world``: the job's collision world (the redundancy map's collision layer).
+    ``figures``: an ``Alongside`` drawing ``run_figures.draw_run_figures`` while the
+    run went on (the raster task); its files are taken here, the wait for them is the
+    stage ``figures`` and their own time is report.json's ``stage_seconds_alongside``.
+    Without it the joint plots and the redundancy map are drawn here."""
     outdir = Path(outdir)
     log.lap("report")
-    plots = plot_joints(trajectories, robot, outdir / "plots")
+    redundancy = None
+    if figures is None:
+        plots = plot_joints(trajectories, robot, outdir / "plots")
     write_points_csv(path, joint_path, robot, outdir / "points.csv")
-    log.lap("plots")
+    if figures is None:
+        log.lap("plots")
+    else:
+        log.lap("report")
+        drawn = figures.result()
+        log.lap("figures")
+        plots, redundancy, extra_files = list(drawn.joint_plots), drawn.redundancy, (drawn.feed_png, *extra_files)
+        report["stage_seconds_alongside"] = stage_seconds(drawn.seconds)
+        report["stage_cpu_seconds_alongside"] = stage_seconds(drawn.cpu_seconds)
     report["programs"] = [str(f) for f in programs]
     report["plots"] = [str(f) for f in plots]
     report["stage_seconds"], report["stage_cpu_seconds"] = stage_seconds(log.seconds), stage_seconds(log.cpu_seconds)
@@ -474,7 +489,7 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
     html = write_run_html(outdir, report=report, robot=robot, workpiece=log.outputs.get("workpiece"),
                           surface=log.outputs.get("fit"), path=path, joint_path=joint_path,
                           trajectory=next(iter(trajectories.values())), faces=log.outputs.get("faces"),
-                          world=world)
+                          world=world, redundancy=redundancy)
     log.lap("report_html")
     report["stage_seconds"], report["stage_cpu_seconds"] = stage_seconds(log.seconds), stage_seconds(log.cpu_seconds)
     write_json_atomic(report, outdir / "report.json")  # again, with the page's own time (11 kB)

@@ -31,6 +31,8 @@ def test_report(sphere_run):
         assert (out / "plots" / f"{name}.png").stat().st_size > 10000
     lines = (out / "points.csv").read_text().splitlines()
     assert lines[0].startswith("row,path_index,segment,point,zone") and len(lines) > 10000
+    assert set(saved["stage_seconds_alongside"]) == {"plots", "redundancy_map", "total"}   # drawn alongside post
+    assert {"post", "figures", "report_html"} <= set(saved["stage_seconds"])
 
 
 def test_the_sample_runs_its_work_at_the_commanded_feed(sphere_run):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..alongside import Alongside
 from ..collision.stage import collision_world
 from ..errors import BadInput, PlanInfeasible
 from ..face_report import faces_worked
@@ -15,11 +16,12 @@ from ..process.outputs import process_outputs
 from ..process.dwell import check_target_inputs, retime_for_target
 from ..process.stepover import auto_step_over
 from ..raster import raster_path
+from ..run_figures import FigureInputs, draw_run_figures
 from ..placement.partial import partial_path, partial_summary, reachable_stretches
 from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
 from ..surface import FaceSet
-from ..timing import plot_feed_png, samples_for
+from ..timing import samples_for
 from ..stages import (RunResult, StageLog, finish_run, motion_check, part_for_checks, path_for_job, plan_and_time,
                       plan_with_sized_leads, post_checked, report_failure, report_unreachable, run_report,
                       surface_for_job, time_for_job, workpiece_for_job)
@@ -97,43 +99,49 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     except PlanInfeasible as exc:
         report_failure(exc, path, joint_path, robot, job, outdir, wp, surface, world=collision_world(settings, robot))
         raise
-    simulated: dict = {}
-    programs = log.done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated))
-    report = run_report(path, joint_path, trajectory, robot, job, settings.planner.method)
-    feed_png = plot_feed_png(trajectory, robot, samples_for(trajectory, settings.timing.check_dt_s),
-                             outdir / "plots" / "feed.png", title=job.path.name)
-    if "free_moves" in joint_path.events:
-        report["free_moves"] = joint_path.events["free_moves"]
-    report["lifted_connectors"] = joint_path.events.get("lifted_connectors", [])
-    if "leads" in joint_path.events:
-        report["leads"] = joint_path.events["leads"]
-    report["smoothed_runs"] = joint_path.events.get("smoothed_runs", [])
-    if partial is not None:
-        report["partial"] = partial
-    report["motion_check"] = motion
-    report["programs_simulated"] = simulated
-    if segmented(job):   # the faces of the part and which the job works (the fit stage's segmentation)
-        faces = faces_report(job, wp)
-        if several:  # each face worked, in working order: coverage and feed
-            faces["worked"] = faces_worked(surface, path, trajectory, robot,
-                                           samples_for(trajectory, settings.timing.check_dt_s))
-        log.outputs["faces"] = faces
-        report["faces"] = {k: v for k, v in faces.items() if k != "labels"}
-    report["limits_ok"] = True  # post_checked passed the independent check
-    report["status"] = "ok"
-    process, process_files = process_outputs(job, settings, trajectory, robot, None if several else surface, outdir,
-                                             extra=None if step_choice is None else {"step_over_auto": step_choice},
-                                             dwell=dwell)
-    if process is not None:
-        report["process_map"] = process
     trajectories = {settings.planner.method: trajectory}
+    compared = None
     if compare:
         other = "general" if settings.planner.method == "seed" else "seed"
         try:
             jp2, tr2 = plan_and_time(settings, path, robot, other, workpiece=part)
             trajectories[other] = tr2
-            report["compare"] = run_report(path, jp2, tr2, robot, job, other)
+            compared = run_report(path, jp2, tr2, robot, job, other)
         except PlanInfeasible as exc:
-            report["compare"] = {"method": other, "status": "infeasible", "reason": str(exc)}
-    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir,
-                      extra_files=(feed_png, *process_files), world=collision_world(settings, robot))
+            compared = {"method": other, "status": "infeasible", "reason": str(exc)}
+        log.lap("compare")
+    world = collision_world(settings, robot)
+    drawn = FigureInputs(trajectories, robot, path, joint_path, outdir, settings.timing.check_dt_s, job.path.name, world)
+    figures = Alongside(lambda: draw_run_figures(drawn))
+    with figures:  # the figures are drawn while the programs are written and checked; cancelled on a failure
+        simulated: dict = {}
+        programs = log.done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated))
+        report = run_report(path, joint_path, trajectory, robot, job, settings.planner.method)
+        if "free_moves" in joint_path.events:
+            report["free_moves"] = joint_path.events["free_moves"]
+        report["lifted_connectors"] = joint_path.events.get("lifted_connectors", [])
+        if "leads" in joint_path.events:
+            report["leads"] = joint_path.events["leads"]
+        report["smoothed_runs"] = joint_path.events.get("smoothed_runs", [])
+        if partial is not None:
+            report["partial"] = partial
+        report["motion_check"] = motion
+        report["programs_simulated"] = simulated
+        if segmented(job):   # the faces of the part and which the job works (the fit stage's segmentation)
+            faces = faces_report(job, wp)
+            if several:  # each face worked, in working order: coverage and feed
+                faces["worked"] = faces_worked(surface, path, trajectory, robot,
+                                               samples_for(trajectory, settings.timing.check_dt_s))
+            log.outputs["faces"] = faces
+            report["faces"] = {k: v for k, v in faces.items() if k != "labels"}
+        report["limits_ok"] = True  # post_checked passed the independent check
+        report["status"] = "ok"
+        process, process_files = process_outputs(job, settings, trajectory, robot, None if several else surface,
+                                                 outdir, dwell=dwell,
+                                                 extra=None if step_choice is None else {"step_over_auto": step_choice})
+        if process is not None:
+            report["process_map"] = process
+        if compared is not None:
+            report["compare"] = compared
+        return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir,
+                          extra_files=tuple(process_files), world=world, figures=figures)

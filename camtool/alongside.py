@@ -1,0 +1,125 @@
+"""Work done alongside: a function run in a forked child process while this process goes on.
+
+The last stages of a run are independent of one another: the figures (PNG plots, the
+redundancy map) need only the timed trajectory, while the programs are written, read
+back and simulated. ``Alongside(fn)`` forks, runs ``fn()`` in the child and hands its
+result back by pickle through a pipe; ``result()`` waits for it, re-raising what the
+child raised. Where the machine gives this process one CPU, or has no ``fork``,
+``fn`` runs in this process when its result is asked for: the same files, the same
+result, only later.
+
+Why by hand: threads would hold the GIL (matplotlib draws in Python), and the standard
+pools pickle their inputs (a dense job's trajectory is hundreds of MB) where a fork
+shares them copy-on-write; ``os.fork`` and ``pickle`` are all it takes. A child never
+outlives the run: ``cancel()`` (and leaving a ``with`` block by an exception) kills it
+and reaps it, and it is in the run's process group, which a batch kills on timeout.
+"""
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import sys
+from typing import Any, Callable
+
+_OK, _RAISED = "ok", "raised"
+
+
+def cpus_available() -> int:
+    """CPUs this process may run on (its affinity), at least 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def _payload(fn: Callable[[], Any]) -> bytes:
+    """``fn()``'s result, or what it raised, pickled (an exception that does not pickle as its message)."""
+    try:
+        return pickle.dumps((_OK, fn()), protocol=pickle.HIGHEST_PROTOCOL)
+    except BaseException as exc:  # handed to the parent, which re-raises it where it asks for the result
+        try:
+            return pickle.dumps((_RAISED, exc), protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception:
+            return pickle.dumps((_RAISED, RuntimeError(f"{type(exc).__name__}: {exc}")))
+
+
+class Alongside:
+    """``fn()`` in a forked child while the caller goes on; ``result()`` is its return value.
+
+    ``forked`` says whether a child runs it (False: it runs in this process, at
+    ``result()``). Use as a context manager so that an error in the caller's own
+    work cancels the child.
+    """
+
+    def __init__(self, fn: Callable[[], Any], forked: bool | None = None):
+        self._fn = fn
+        self._pid, self._fd, self._done = None, None, False
+        self.forked = (hasattr(os, "fork") and cpus_available() > 1) if forked is None else forked
+        if self.forked:
+            self._start()
+
+    def _start(self) -> None:
+        read_fd, write_fd = os.pipe()
+        sys.stdout.flush()
+        sys.stderr.flush()  # nothing buffered is written twice
+        pid = os.fork()
+        if pid == 0:  # the child: run, hand the result over, leave without the parent's exit handlers
+            os.close(read_fd)
+            code = 0
+            try:
+                signal.signal(signal.SIGINT, signal.SIG_DFL)   # Ctrl-C stops the child at once
+                data = _payload(self._fn)
+                with os.fdopen(write_fd, "wb") as pipe:
+                    pipe.write(data)
+            except BaseException:
+                code = 1
+            finally:
+                os._exit(code)
+        os.close(write_fd)
+        self._pid, self._fd = pid, read_fd
+
+    def result(self) -> Any:
+        """The child's result (it is waited for), or what it raised, raised here."""
+        if self._done:
+            raise RuntimeError("Alongside.result() was already taken")
+        self._done = True
+        if not self.forked:
+            return self._fn()
+        fd, self._fd = self._fd, None
+        with os.fdopen(fd, "rb") as pipe:
+            data = pipe.read()
+        _, status = os.waitpid(self._pid, 0)
+        self._pid = None
+        if not data:
+            code = os.waitstatus_to_exitcode(status)
+            how = f"signal {-code}" if code < 0 else f"exit code {code}"
+            raise RuntimeError(f"the process drawing alongside the run ended without a result ({how})")
+        kind, value = pickle.loads(data)
+        if kind == _RAISED:
+            raise value
+        return value
+
+    def cancel(self) -> None:
+        """Kill and reap the child if it still runs; its result is then never taken."""
+        self._done = True
+        if self._pid is not None:
+            try:
+                os.kill(self._pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            os.waitpid(self._pid, 0)
+            self._pid = None
+        if self._fd is not None:
+            try:
+                os.close(self._fd)
+            except OSError:
+                pass
+            self._fd = None
+
+    def __enter__(self) -> "Alongside":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None or not self._done:
+            self.cancel()

@@ -1,0 +1,70 @@
+"""Work done alongside (camtool.alongside): a forked child's result, its errors, its cancellation."""
+import os
+import signal
+import time
+
+import numpy as np
+import pytest
+
+from camtool.alongside import Alongside, cpus_available
+from camtool.errors import BadInput
+
+fork_only = pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
+
+
+def _big():
+    return {"pid": os.getpid(), "values": np.arange(300_000, dtype=float)}  # over a pipe's 64 kB buffer
+
+
+@fork_only
+def test_a_forked_child_hands_its_result_back():
+    job = Alongside(_big, forked=True)
+    out = job.result()
+    assert job.forked and out["pid"] != os.getpid()
+    assert np.array_equal(out["values"], np.arange(300_000, dtype=float))
+
+
+def test_inline_gives_the_same_result_in_this_process():
+    job = Alongside(_big, forked=False)
+    out = job.result()
+    assert out["pid"] == os.getpid() and len(out["values"]) == 300_000
+
+
+@fork_only
+@pytest.mark.parametrize("forked", [True, False])
+def test_what_the_function_raised_is_raised_by_result(forked):
+    def fails():
+        raise BadInput("plots/feed.png: a symlink; camtool does not follow it")
+    job = Alongside(fails, forked=forked)
+    with pytest.raises(BadInput, match="does not follow it"):
+        job.result()
+
+
+@fork_only
+def test_a_child_that_dies_is_reported_not_hung():
+    job = Alongside(lambda: os.kill(os.getpid(), signal.SIGKILL), forked=True)
+    with pytest.raises(RuntimeError, match="signal 9"):
+        job.result()
+
+
+@fork_only
+def test_leaving_the_block_by_an_error_kills_the_child():
+    with pytest.raises(ValueError):
+        with Alongside(lambda: time.sleep(60), forked=True) as job:
+            pid = job._pid
+            raise ValueError("the post stage failed")
+    with pytest.raises(ProcessLookupError):   # reaped, not left running
+        os.kill(pid, 0)
+
+
+def test_the_result_is_taken_once():
+    job = Alongside(lambda: 1, forked=False)
+    assert job.result() == 1
+    with pytest.raises(RuntimeError):
+        job.result()
+
+
+def test_default_forks_only_with_a_second_cpu():
+    job = Alongside(lambda: 1)
+    assert job.result() == 1
+    assert job.forked == (hasattr(os, "fork") and cpus_available() > 1)
