@@ -19,7 +19,11 @@ normal on the face (in the face's flat chart), onto
 - else, on a face all round its axis, its **seam** at u = +-pi (the cut of its
   outline, not an edge);
 - else **where the face's points end** (a scan's free edge): the farthest of
-  the workpiece's points on the surface that no other face owns.
+  the workpiece's points on the surface that no other face owns, then settled
+  on discs of those points (the second farthest within 6, then 10 mm, along the
+  moved outline's normal, less the mean shortfall of such a point, 1 / (R rho)
+  at density rho); where the outline turns next to an edge met exactly, the
+  corner of the two edges' lines is taken instead.
 
 Short gaps between two edges are closed at their corner, and a polygon with no
 vertex moved is returned as it was.
@@ -60,6 +64,12 @@ END_SPACINGS = 2.0      # a point of the ray is among the face's points when one
 END_WINDOW_VERTICES = 8  # ... the farthest within +-8 vertices
 END_TANGENT_VERTICES = 12  # ... along normals taken over +-12 vertices
 END_WINDOW_DEG = 10.0   # ... whose normals agree within this angle
+END_DISCS_MM = (6.0, 10.0, 10.0)  # then each such vertex goes out to the points' second farthest along the moved
+                        # outline's normal within this radius of it, once per radius: a window of the points
+                        # themselves, as the outline settles onto the edge its normal does too
+END_DISC_POINTS = 5     # ... where at least this many points are in the disc
+END_DISC_WIDTH_SHARE = 0.4  # ... of radius at most this share of the face's width
+CORNER_VERTICES = 8     # such vertices this near an edge met exactly, where the outline turns, give way to the corner
 SEAM_RAD = 0.1          # a face all round its axis keeps the vertices this near its seam where they are
 NEIGHBOUR_POINTS = 50000  # a neighbour's points (strided) its nearness is measured on
 EXTENT_POINTS = 200000  # a face's points (strided) its extent is read from
@@ -219,9 +229,10 @@ def _moved_again(surface, poly_uv, others, free_edges, own) -> np.ndarray | None
     out = None
     for k in range(PASSES):  # the face's own points decide only in the last pass, where no edge was met
         moved = _moved(surface, poly_uv if out is None else out, others, free_edges, own if k == PASSES - 1 else None)
-        if moved is None:
-            break
-        out = moved
+        if moved is not None:
+            out = moved
+        elif out is not None:
+            break   # (a face with no edge met before the last pass: its own points may still say where it ends)
     return out
 
 
@@ -339,6 +350,53 @@ def _onto_extent(surface, xy, own: "_FacePoints", new_xy, source) -> None:
     ok = np.isfinite(t_edge)
     new_xy[rest[ok]] = xy[rest[ok]] + t_edge[ok, None] * steady[rest[ok]]
     source[rest[ok]] = EXTENT
+    width_mm = min(cv2.minAreaRect(new_xy.astype(np.float32))[1])   # a disc sees one side of a narrow face
+    for radius in END_DISCS_MM:
+        _extent_settled(surface, new_xy, source == EXTENT, own, min(radius, END_DISC_WIDTH_SHARE * width_mm))
+    source[_extent_into_corners(new_xy, source)] = UNMOVED
+
+
+def _extent_into_corners(xy: np.ndarray, source: np.ndarray) -> np.ndarray:
+    """Vertices placed by the points' extent where the outline turns (``_straight`` false) within
+    CORNER_VERTICES of a run on an edge met exactly: unset, the corner of the two edges' lines is the better
+    guess there (``_gaps_closed``)."""
+    exact = (source != UNMOVED) & (source != EXTENT)
+    near_exact = np.zeros(len(xy), bool)
+    for k in range(-CORNER_VERTICES, CORNER_VERTICES + 1):
+        near_exact |= np.roll(exact, k)
+    return (source == EXTENT) & near_exact & ~_straight(xy)
+
+
+def _straight(xy: np.ndarray) -> np.ndarray:
+    """Vertices where the outline's normal (over +-END_TANGENT_VERTICES) agrees within END_WINDOW_DEG with
+    the normals END_TANGENT_VERTICES before and after."""
+    k = END_TANGENT_VERTICES
+    normal = _outward(xy, k)
+    cos_max = math.cos(math.radians(END_WINDOW_DEG))
+    return (np.einsum("ij,ij->i", normal, np.roll(normal, k, axis=0)) > cos_max) & \
+        (np.einsum("ij,ij->i", normal, np.roll(normal, -k, axis=0)) > cos_max)
+
+
+def _extent_settled(surface, xy, on_extent: np.ndarray, own: "_FacePoints", radius_mm: float) -> None:
+    """The vertices ``on_extent`` moved along the outline's normal (taken over +-END_TANGENT_VERTICES of the
+    polygon as it is now) to the second farthest of the face's points within ``radius_mm`` of them: the
+    farthest point of a disc lies within a fraction of a spacing of a straight free edge, and the second
+    farthest leaves out one stray point (in place)."""
+    rows = np.flatnonzero(on_extent)
+    if len(rows) == 0:
+        return
+    normal = _outward(xy, END_TANGENT_VERTICES)[rows]
+    a, b = (surface.point_mm(*uv_of_flat(surface, xy[rows] + h * normal).T) for h in (-0.5, 0.5))
+    X = 0.5 * (a + b)
+    direction = (b - a) / np.maximum(np.linalg.norm(b - a, axis=1), 1e-12)[:, None]
+    # the second farthest of random points (density rho) in a half disc on a straight edge lies, on average,
+    # 1 / (R rho) inside it (the band 2 R wide and g deep holds 2 R g rho points); the face's density from its
+    # spacing (median nearest-neighbour distance d of a Poisson sample: rho = ln 2 / (pi d^2))
+    inside_mm = 1.0 / (radius_mm * math.log(2) / (math.pi * own.spacing_mm ** 2))
+    for i, near in enumerate(own.tree.query_ball_point(X, radius_mm)):
+        if len(near) >= END_DISC_POINTS:
+            along = (own.points_mm[near] - X[i]) @ direction[i]
+            xy[rows[i]] += (np.partition(along, -2)[-2] + inside_mm) * normal[i]
 
 
 def spacing_mm(tree: cKDTree, points: np.ndarray) -> float:

@@ -61,6 +61,27 @@ def test_an_inset_boundary_moves_onto_the_neighbours_and_its_corners_close():
     assert _outline_distance_mm(moved, rectangle) < 0.05
 
 
+def test_a_sparse_scans_free_edges_are_found_without_a_bias():
+    """A 200 x 80 mm face scanned at random (0.3 points per mm2, about 0.9 mm apart) whose traced outline is
+    5 mm short of its free edges, with no neighbour: the vertices go out to the points' extent and settle on
+    discs of the points. The long sides come out within a spacing (95 %) and without a bias (the farthest of
+    a window of rays alone falls short by about a third of a spacing)."""
+    rng = np.random.default_rng(7)
+    xy = rng.uniform([-100, -40], [100, 40], size=(4800, 2))
+    cloud = np.column_stack([xy, np.zeros(len(xy))])
+    face = _plane([0, 0, 0], [0, 0, 1], [1, 0, 0], [[-95, -35], [95, -35], [95, 35], [-95, 35]])
+    moved = fe.on_edges([face], [cloud], cloud, np.zeros(len(cloud), int), 0.5)[0]
+    spacing = fe.spacing_mm(cKDTree(cloud), cloud)
+    poly = np.vstack([moved.boundary.outer_uv, moved.boundary.outer_uv[:1]])
+    dense = np.vstack([poly[k] + np.linspace(0, 1, 20, endpoint=False)[:, None] * (poly[k + 1] - poly[k])
+                       for k in range(len(poly) - 1)])
+    long_sides = dense[np.abs(dense[:, 0]) < 80]   # away from the corners
+    error = np.abs(long_sides[:, 1]) - 40.0        # + beyond the edge
+    assert 0.8 < spacing < 1.0
+    assert abs(error.mean()) < 0.2 * spacing
+    assert np.percentile(np.abs(error), 95) < spacing
+
+
 def test_a_boundary_with_no_edge_in_reach_is_returned_as_it_was():
     square = _plane([0, 0, 0], [0, 0, 1], [1, 0, 0], [[-10, -10], [10, -10], [10, 10], [-10, 10]])
     far = _plane([0, 0, 500], [0, 0, 1], [1, 0, 0], [[-10, -10], [10, -10], [10, 10], [-10, 10]])
