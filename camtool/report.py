@@ -5,7 +5,6 @@ and ``OUTDIR/plots/*.png``. Angles in degrees, lengths in mm, times in s.
 """
 from __future__ import annotations
 
-import csv
 import json
 import math
 from pathlib import Path as FsPath
@@ -107,29 +106,34 @@ def _strict(x):
 
 
 def write_points_csv(path: Path, jp: JointPath, robot, file: FsPath) -> None:
-    """Per-point diagnostics: indices, zone, TCP position, joint values, IK errors, flags."""
+    """Per-point diagnostics: indices, zone, TCP position, joint values, IK errors, flags.
+
+    CSV as the csv module writes it (comma-separated, CRLF), one format string a row:
+    no field holds a comma, a quote or a line break."""
     file = FsPath(file)
     names = [f"{n}_{'mm' if p else 'deg'}" for n, p in zip(robot.joint_names, robot.prismatic)]
     step = np.zeros(len(jp.q))
     step[1:] = np.degrees(np.abs(np.diff(jp.q, axis=0))[:, ~robot.prismatic].max(axis=1))
+    idx = np.asarray(jp.path_index, int)
+    src = np.maximum(idx, 0)
+    xyz = path.poses_mm[src, :3, 3].copy()
+    for k in np.flatnonzero(idx < 0):   # inserted rows: the TCP of their own joint values
+        xyz[k] = (robot.base_T_mm @ robot.fk_tcp(jp.q[k]))[:3, 3]
+    seg = np.where(idx >= 0, path.segment[src], -1)
+    pt = np.where(idx >= 0, path.point[src], 0)
+    joints = _edge(np.asarray(jp.q, float), robot.prismatic)
+    header = ["row", "path_index", "segment", "point", "zone", "x_mm", "y_mm", "z_mm", *names,
+              "position_error_mm", "orientation_error_deg", "max_joint_step_deg", "jump",
+              "reverse_planned", "retract", "singular", "reached"]
+    row = ",".join(["%d", "%d", "%d", "%d", "%s", "%.4f", "%.4f", "%.4f", *(["%.5f"] * robot.dof),
+                    "%.3e", "%.3e", "%.4f", "%d", "%d", "%d", "%d", "%d"]) + "\r\n"
+    flags = np.stack([jp.jump, jp.reverse_planned, jp.retract, jp.singular, jp.reached], axis=1).astype(int)
+    ori_deg = np.degrees(jp.orientation_error_rad)
+    lines = [row % (k, idx[k], seg[k], pt[k], ZONES[jp.zone[k]], *xyz[k], *joints[k], jp.position_error_mm[k],
+                    ori_deg[k], step[k], *flags[k]) for k in range(len(jp.q))]
     with open(file, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["row", "path_index", "segment", "point", "zone", "x_mm", "y_mm", "z_mm", *names,
-                    "position_error_mm", "orientation_error_deg", "max_joint_step_deg", "jump",
-                    "reverse_planned", "retract", "singular", "reached"])
-        for k in range(len(jp.q)):
-            i = int(jp.path_index[k])
-            if i >= 0:
-                xyz = path.poses_mm[i][:3, 3]
-                seg, pt = int(path.segment[i]), int(path.point[i])
-            else:
-                xyz = (robot.base_T_mm @ robot.fk_tcp(jp.q[k]))[:3, 3]
-                seg, pt = -1, 0
-            w.writerow([k, i, seg, pt, ZONES[jp.zone[k]], *(f"{v:.4f}" for v in xyz),
-                        *(f"{v:.5f}" for v in _edge(jp.q[k], robot.prismatic)),
-                        f"{jp.position_error_mm[k]:.3e}", f"{np.degrees(jp.orientation_error_rad[k]):.3e}",
-                        f"{step[k]:.4f}", int(jp.jump[k]), int(jp.reverse_planned[k]), int(jp.retract[k]),
-                        int(jp.singular[k]), int(jp.reached[k])])
+        f.write(",".join(header) + "\r\n")
+        f.write("".join(lines))
 
 
 def _plt():
