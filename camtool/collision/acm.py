@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadInput
-from .body import joint_frames_mm
+from ..robots.joint_frames import joint_frames_mm
 
 ACM_SAMPLES = 5000
 ACM_SEED = 0

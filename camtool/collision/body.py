@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadInput
+from ..robots.joint_frames import joint_frames_mm  # noqa: F401  (the bodies' frames; re-exported)
 
 MM_PER_M = 1000.0
 WORLD, BASE = -1, 0
@@ -136,14 +137,3 @@ def se3_mm(M) -> np.ndarray:
     return T
 
 
-def joint_frames_mm(robot, q, data=None) -> np.ndarray:
-    """(dof, 4, 4) the robot's joint frames after their motion (Pinocchio's oMi), mm, in its base
-    frame, at q (rad / mm); ``data`` a Pinocchio data to reuse."""
-    import pinocchio as pin
-
-    data = robot.model.createData() if data is None else data
-    scale = np.where(np.asarray(robot.prismatic, bool), 1.0 / MM_PER_M, 1.0)
-    pin.forwardKinematics(robot.model, data, np.asarray(q, float) * scale)
-    F = np.array([data.oMi[j].homogeneous for j in range(1, robot.model.njoints)])
-    F[:, :3, 3] *= MM_PER_M
-    return F

@@ -21,7 +21,8 @@ import numpy as np
 
 from ..errors import BadInput
 from ..robots.urdf_meshes import collision_geometry
-from .body import BASE, MM_PER_M, Body, hull_points, joint_frames_mm, mesh_points, se3_mm
+from ..robots.joint_frames import joint_frames_mm
+from .body import BASE, MM_PER_M, Body, hull_points, mesh_points, se3_mm
 
 REFERENCE_Q_FRACTION = 0.37   # the configuration the placements are taken at (any one works: links are rigid)
 _MEMO: dict = {}               # (URDF, model chain) -> bodies: the meshes are read once a process

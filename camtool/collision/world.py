@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .acm import AllowedCollisions, robot_acm
-from .body import joint_frames_mm
+from ..robots.joint_frames import JointFrames, joint_frames_mm
 from .shapes import BASE, WORLD, Body, obstacle_bodies, robot_bodies
 from .validity import Validity, reason_of, valid_rows
 
@@ -92,6 +92,7 @@ class CollisionWorld:
         base = np.asarray(robot.base_T_mm, float)
         self._base = base
         self._data = robot.model.createData()
+        self._frames = JointFrames(robot)   # many configurations' frames at once (valid_many)
         self.calls = 0
         self._fixed_poses = np.array([b.local_T_mm if b.parent == WORLD else base @ b.local_T_mm
                                       for b in self.bodies])   # moving bodies' rows are overwritten
@@ -163,7 +164,7 @@ class CollisionWorld:
         if not self.pairs or not len(Q):
             return ok
         self.calls += len(Q)
-        frames = np.array([self.joint_frames_mm(q) for q in Q])                      # (K, dof, 4, 4)
+        frames = self._base @ self._frames(Q)                                         # (K, dof, 4, 4)
         poses = np.repeat(self._fixed_poses[None], len(Q), axis=0)
         poses[:, self._moving] = frames[:, self._moving_frame] @ self._moving_local
         centres = np.einsum("kbij,bj->kbi", poses[..., :3, :3], self._ball_centre) + poses[..., :3, 3]
