@@ -179,3 +179,30 @@ def test_the_simulated_program_is_measured_against_the_cell(tmp_path):
     line = next(f for f in rep.findings if "ball" in f)
     assert "overlap by" in line and "as the controller runs it" in line and rep.cell["collisions"] >= 1
     assert re.search(r"\.mod|line|move", line, re.I)
+
+
+@pytest.mark.parametrize("fmt,robot_name", [("rapid", "seed8"), ("rapid", "irb2400"), ("inform", "sia20")])
+def test_blocks_of_samples_give_the_same_simulation(fmt, robot_name, tmp_path, monkeypatch):
+    """The simulator interpolates (corners, Cartesian Newton) and measures (speeds, TCP, deviation) in
+    blocks of samples: blocks far smaller than the program give the same samples and figures as one."""
+    import camtool.simulate as sim
+    import camtool.simulate.interpolation as itp
+    import camtool.simulate.measures as ms
+
+    r, p, post, tr, files = _program(fmt, robot_name, tmp_path)
+    prog = post.read_program(files[0], r, p)
+    prog.duration_s[len(prog) // 2:] *= 0.05   # too fast from the middle on: speed and time findings too
+    seen = []
+    monkeypatch.setattr(sim, "interpolate", lambda *a: seen.append(itp.interpolate(*a)) or seen[-1])
+
+    def run(block):
+        monkeypatch.setattr(itp, "SIM_BLOCK_SAMPLES", block)
+        monkeypatch.setattr(ms, "BLOCK_SAMPLES", block)
+        return simulate(prog, r, reference_from_trajectory(tr, r, 100.0), path_tol_mm=0.1, profile=p).as_dict()
+
+    whole = run(10**9)
+    blocks = run(7)
+    assert whole["samples"] > 50 * 7 and whole["findings"]
+    assert whole["speed_violations"] > 0 or not (prog.kind == "J").all()  # a MoveL keeps its TCP speed
+    assert blocks == whole
+    assert np.array_equal(seen[0].q, seen[1].q) and np.array_equal(seen[0].m, seen[1].m)

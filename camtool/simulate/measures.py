@@ -92,21 +92,42 @@ def limit_findings(prog, robot, chain, s) -> tuple[int, int, list[str]]:
                         f"at t = {t[k0]:.3f} s ({n_lim} samples)")
     n_speed = 0
     if S > 1:
-        dts = np.diff(t)
-        good = dts > 1e-9
-        v = np.abs(np.diff(q, axis=0))[good] / dts[good, None]
-        allowed = Lm.velocity[None, :] * (1 + SPEED_REL_TOL) + 2 * tol[None, :] / dts[good, None]
-        sp = v > allowed
-        n_speed = int(sp.any(axis=1).sum())
+        n_speed, first = _speed_excess(q, t, Lm.velocity * (1 + SPEED_REL_TOL), 2 * tol)
         if n_speed:
-            k0 = int(np.flatnonzero(good)[np.flatnonzero(sp.any(axis=1))[0]])
-            i0 = int(np.flatnonzero(sp[np.flatnonzero(sp.any(axis=1))[0]])[0])
+            k0, i0, v0 = first
             unit = "mm/s" if chain.prismatic[i0] else "deg/s"
             conv = (lambda x: x) if chain.prismatic[i0] else np.degrees
             findings.append(f"{prog.where[m[k0 + 1]]}: {robot.joint_names[i0]} moves at "
-                            f"{conv(v[np.flatnonzero(sp.any(axis=1))[0], i0]):.2f} {unit}, above its limit "
+                            f"{conv(v0):.2f} {unit}, above its limit "
                             f"{conv(Lm.velocity[i0]):.2f} {unit} ({n_speed} samples)")
     return n_lim, n_speed, findings
+
+
+BLOCK_SAMPLES = 20_000  # samples measured at a time: a block's (samples x dof) temporaries stay a
+                       # few MB, not the hundreds of MB of a whole program's samples
+
+
+def _blocks(n: int):
+    """Slices covering range(n) in blocks of ``BLOCK_SAMPLES``."""
+    return [slice(a, min(a + BLOCK_SAMPLES, n)) for a in range(0, n, BLOCK_SAMPLES)]
+
+
+def _speed_excess(q, t, speed, slack) -> tuple[int, tuple | None]:
+    """(sample steps whose joint speed |dq| / dt exceeds ``speed`` + ``slack`` / dt, the first one as
+    (step, joint, speed) or None), block by block over the steps of ``q`` (S, dof) at times ``t``."""
+    count, first = 0, None
+    for b in _blocks(len(t) - 1):
+        nxt = slice(b.start + 1, b.stop + 1)
+        dts = t[nxt] - t[b]
+        good = dts > 1e-9
+        v = np.abs(q[nxt] - q[b])[good] / dts[good, None]
+        sp = v > speed[None, :] + slack[None, :] / dts[good, None]
+        rows = np.flatnonzero(sp.any(axis=1))
+        count += len(rows)
+        if first is None and len(rows):
+            i0 = int(np.flatnonzero(sp[rows[0]])[0])
+            first = (b.start + int(np.flatnonzero(good)[rows[0]]), i0, float(v[rows[0], i0]))
+    return count, first
 
 
 @dataclass(frozen=True)
@@ -176,8 +197,9 @@ def work_figures(prog, chain, s, surf: Surface, reference: Reference | None, pat
     work_len = 0.0
     feed = {}
     X = np.full((S, 3), np.nan)
-    if on_work.any():  # the TCP is measured where it is on the surface
-        X[on_work] = chain.fk(q[on_work])[0]
+    work_at = np.flatnonzero(on_work)
+    for b in _blocks(len(work_at)):  # the TCP is measured where it is on the surface
+        X[work_at[b]] = chain.fk(q[work_at[b]])[0]
     if S > 1 and on_work.any():
         seg = on_work[1:] & on_work[:-1]
         d = np.where(seg, np.linalg.norm(np.diff(X, axis=0), axis=1), 0.0)
@@ -200,8 +222,9 @@ def work_figures(prog, chain, s, surf: Surface, reference: Reference | None, pat
     if reference is not None:
         planned = reference.duration_s
         if on_work.any():
-            dev = _distance_to_polyline(X[on_work], reference, t[on_work],
-                                        path_tol_mm if path_tol_mm is not None else 0.0)
+            tol = path_tol_mm if path_tol_mm is not None else 0.0
+            dev = np.concatenate([_distance_to_polyline(X[work_at[b]], reference, t[work_at[b]], tol)
+                                  for b in _blocks(len(work_at))])   # each point's distance is its own
             max_dev, p99 = float(np.max(dev)), float(np.percentile(dev, 99))
             if path_tol_mm is not None and max_dev > path_tol_mm + DEV_ABS_TOL_MM:
                 worst = int(np.flatnonzero(on_work)[int(np.argmax(dev))])
