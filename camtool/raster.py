@@ -120,15 +120,22 @@ def _polygon_edges_st(boundary, chart: _Chart) -> tuple[np.ndarray, np.ndarray]:
 ROW_SLACK = 0.01  # a domain up to this share of a step-over wider than whole steps gets no extra row
 
 
-def _row_offsets(t_lo: float, t_hi: float, step_mm: float) -> np.ndarray:
+def _row_offsets(t_lo: float, t_hi: float, step_mm: float, edge_margin: float = 0.0) -> np.ndarray:
     """Row positions t (mm) across the domain, step_mm apart and centred.
 
     A width a hair over whole steps (a face's exact boundary, 300.01 mm at 10 mm) takes
     the rows of whole steps, each edge half a step (plus ROW_SLACK of one) from a row:
-    one more row would put the first and last rows on the edges themselves."""
+    one more row would put the first and last rows on the edges themselves. Where the
+    centred rows would still come nearer an edge than ``edge_margin`` of a step (a scan's
+    face a little over whole steps, its outline weaving by a point spacing), they are
+    drawn closer together (never farther apart) to keep that margin: a row along a
+    weaving edge finds little material, and the strip beside it goes unworked."""
     width = t_hi - t_lo
     n = max(1, math.ceil(width / step_mm - ROW_SLACK))
-    return t_lo + (width - (n - 1) * step_mm) / 2 + step_mm * np.arange(n)
+    margin, least = (width - (n - 1) * step_mm) / 2, edge_margin * step_mm
+    if n > 1 and margin < least:
+        return t_lo + least + (width - 2 * least) / (n - 1) * np.arange(n)
+    return t_lo + margin + step_mm * np.arange(n)
 
 
 def _row_runs(boundary, chart: _Chart, rows_t: np.ndarray, e0: np.ndarray, e1: np.ndarray):
@@ -296,7 +303,7 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     if step > t_hi - t_lo:
         raise BadInput(f"raster.step_over_mm: {step:g} mm is larger than the patch "
                        f"({t_hi - t_lo:.1f} mm across the rows)")
-    rows_t = _row_offsets(t_lo, t_hi, step)
+    rows_t = _row_offsets(t_lo, t_hi, step, settings.edge_margin)
     s_lo, s_hi = float(e0[:, 0].min()), float(e0[:, 0].max())
     if pitch > s_hi - s_lo:  # chart s is mm at the largest metric scale: an upper bound of any row's length
         raise BadInput(f"raster.pitch_mm: {pitch:g} mm is longer than the part ({s_hi - s_lo:.1f} mm along the "

@@ -103,6 +103,7 @@ class RasterSettings(_FromSection):
     free_spin: bool
     step_over_auto: bool = False  # step_over_mm = "auto": chosen from the process map (camtool.process.stepover)
     cylinder_rows: str = "around"  # on a cylinder: rows around the axis or along it
+    edge_margin: float = 0.25      # the first and last rows at least this share of a step-over inside the edges
 
     @classmethod
     def from_section(cls, sec):
@@ -114,7 +115,8 @@ class RasterSettings(_FromSection):
                    transition_points=int(sec["transition_points"]),
                    tool_x=sec["tool_x"], tool_x_world=tuple(float(x) for x in sec["tool_x_world"]),
                    lead_rad=math.radians(sec["lead_deg"]), tilt_rad=math.radians(sec["tilt_deg"]),
-                   free_spin=bool(sec["free_spin"]), cylinder_rows=sec["cylinder_rows"])
+                   free_spin=bool(sec["free_spin"]), cylinder_rows=sec["cylinder_rows"],
+                   edge_margin=float(sec["edge_margin"]))
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.raster import (APPROACH_POINTS, coverage, count_rows, coverage_radius_mm, raster_path,
+from camtool.raster import (APPROACH_POINTS, _row_offsets, coverage, count_rows, coverage_radius_mm, raster_path,
                             raster_summary)
 from camtool.surface import Boundary, PlaneSurface, SpherePatch
 from camtool.stage_files import load_stage as load_path, save_stage as save_path
@@ -37,7 +37,7 @@ def plate():
 
 @pytest.fixture(scope="module")
 def sphere_path(sphere):
-    return raster_path(sphere, RasterSettings.make())
+    return raster_path(sphere, RasterSettings.make(edge_margin=0.0))   # the seed paper's raster
 
 
 def work_segments(path):
@@ -74,6 +74,21 @@ def test_sphere_rows_are_constant_elevation_and_geodesic_step(sphere, sphere_pat
     lo, hi = np.radians([-10, 60])
     assert 0 < (elev[0] - lo) * 600 <= 5.0 + 1e-9 and 0 < (hi - elev[-1]) * 600 <= 5.0 + 1e-9
     assert abs((elev[0] - lo) - (hi - elev[-1])) < 1e-9
+
+
+@pytest.mark.parametrize("width_mm, rows, gap_mm, margin_mm", [
+    (150.0, 15, 10.0, 5.0),           # whole steps: centred, half a step from each edge
+    (151.4, 16, 146.4 / 15, 2.5),     # 0.7 mm margins centred: drawn closer, a quarter step kept
+    (156.0, 16, 10.0, 3.0),           # 3 mm margins: enough, centred
+])
+def test_rows_keep_a_margin_from_the_edges(width_mm, rows, gap_mm, margin_mm):
+    """``raster.edge_margin`` (a quarter step by default): rows centred step_over_mm apart that would come
+    nearer an edge are drawn closer together, never farther apart; the paper's raster (0) keeps 10 mm."""
+    offsets = _row_offsets(0.0, width_mm, 10.0, 0.25)
+    assert len(offsets) == rows
+    assert np.allclose(np.diff(offsets), gap_mm) and np.diff(offsets).max() <= 10.0 + 1e-9
+    assert np.isclose(offsets[0], margin_mm) and np.isclose(width_mm - offsets[-1], margin_mm)
+    assert np.allclose(np.diff(_row_offsets(0.0, width_mm, 10.0, 0.0)), 10.0)
 
 
 def test_plane_step_over_at_an_angle(plate):
@@ -347,7 +362,8 @@ def pipe():
 
 @pytest.mark.parametrize("rows", ["around", "along"])
 def test_cylinder_rows_around_or_along_the_axis_geodesic_step(pipe, rows):
-    path = raster_path(pipe, RasterSettings.make(step_over_mm=15, pitch_mm=5, lead_mm=0, cylinder_rows=rows))
+    path = raster_path(pipe, RasterSettings.make(step_over_mm=15, pitch_mm=5, lead_mm=0, cylinder_rows=rows,
+                                                 edge_margin=0.0))
     segs = work_segments(path)
     for s in segs:
         r = np.hypot(s[:, 1], s[:, 2])
