@@ -6,7 +6,7 @@ Entry points:
   (``settings``: ``camtool.settings.TimingSettings``)
 - ``timing_report(trajectory, robot, samples)`` (``samples``: ``TrajectorySamples``)
 - ``check_trajectory(trajectory, robot, dt_s=None, samples=None)`` (independent checker, ``check.py``)
-- ``samples_for(trajectory, dt_s)``: the trajectory's resampling at ``dt_s``, made when asked for
+- ``samples_for(trajectory, dt_s)``: the samples a TimedTrajectory was checked with, else a new resampling
 
 Surface zones (work, lead_in, lead_out) are split into *runs*: consecutive
 surface poses of one path segment. Each run is a cubic spline through its poses
@@ -63,11 +63,10 @@ class TimedTrajectory(Trajectory):
     ``piece_zone``, ``piece_ruckig`` (True if it is a ruckig move) and
     ``piece_reason`` ("" or why a ruckig piece kept its quintic).
 
-    ``check_dt_s``: the step (s) of the resampling ``time_trajectory`` checked it
-    with; not an init argument, not compared, not shown, not saved, and not
-    carried over by ``dataclasses.replace`` (None then). ``check_samples`` is
-    that resampling, made again at each use (``samples_for``): it is 4 x dof
-    floats per sample (200 MB for a 50-minute job at 4 ms), too much to keep.
+    ``check_samples``: the resampling (``TrajectorySamples`` at
+    ``settings.check_dt_s``) that ``time_trajectory`` checked it with, for the
+    caller to reuse (``samples_for``); not an init argument, not compared, not
+    shown, not saved, and not carried over by ``dataclasses.replace`` (None then).
     """
 
     method: str = ""
@@ -80,18 +79,16 @@ class TimedTrajectory(Trajectory):
     piece_zone: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     piece_ruckig: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     piece_reason: np.ndarray = field(default_factory=lambda: np.zeros(0, str))
-    check_dt_s: float | None = field(default=None, init=False, repr=False, compare=False,
-                                     metadata={"transient": True})
-
-    @property
-    def check_samples(self) -> TrajectorySamples | None:
-        """The resampling at ``check_dt_s`` (made now), or None without a check step."""
-        return None if self.check_dt_s is None else sample_trajectory(self, self.check_dt_s)
+    check_samples: TrajectorySamples | None = field(default=None, init=False, repr=False, compare=False,
+                                                    metadata={"transient": True})
 
 
 def samples_for(trajectory: Trajectory, dt_s: float) -> TrajectorySamples:
-    """The trajectory's resampling at ``dt_s`` (``sample_trajectory``), made when asked for: callers
-    drop it after use, so at most one is alive at a time."""
+    """The trajectory's resampling at ``dt_s``: the ``check_samples`` of a TimedTrajectory when they
+    are at ``dt_s``, else ``sample_trajectory(trajectory, dt_s)`` (e.g. a trajectory loaded from a file)."""
+    samples = getattr(trajectory, "check_samples", None)
+    if samples is not None and samples.matches(trajectory, dt_s):
+        return samples
     return sample_trajectory(trajectory, dt_s)
 
 
@@ -128,8 +125,8 @@ def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedT
     pass their poses without stopping, ``flow.py``) or "stop" (rest at every free
     pose), and
     ``check_dt_s``: the result is verified by ``check_trajectory`` on a
-    resampling at that step (``check_dt_s``; ``check_samples`` makes it again), and a
-    CamtoolError is raised if it breaks a limit.
+    resampling at that step (kept as ``check_samples``), and a CamtoolError is
+    raised if it breaks a limit.
     """
     _validate(joint_path, path, robot)
     L = robot.limits
@@ -155,12 +152,12 @@ def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedT
         piece_ruckig=np.asarray(surface.interpolation.piece_ruckig, bool),
         piece_reason=np.asarray(surface.interpolation.piece_reason, str),
     )
-    findings = check_trajectory(traj, robot, settings.check_dt_s)
+    samples = sample_trajectory(traj, settings.check_dt_s) if len(traj.t_s) >= 2 else None
+    findings = check_trajectory(traj, robot, settings.check_dt_s, samples=samples)
     if findings:
         raise CamtoolError(f"timing produced a trajectory that breaks a limit ({len(findings)} findings): "
                            f"{findings[0]}")
-    if len(traj.t_s) >= 2:
-        object.__setattr__(traj, "check_dt_s", float(settings.check_dt_s))  # set once before anyone sees traj
+    object.__setattr__(traj, "check_samples", samples)  # derived data, set once before anyone sees traj
     return traj
 
 
