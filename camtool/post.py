@@ -32,10 +32,12 @@ import numpy as np
 
 from .errors import BadInput, PlanInfeasible
 from .profiles import Profile, default_profile_path
+from .program.candidates import forget_merged
 from .program.check import check_file
 from .program.plugin import PostProcessor
 from .program.process import DATE_FORMAT, DEFAULT_ORI_TOL_DEG, DEFAULT_PATH_TOL_MM, ProcessInfo  # noqa: F401
 from .program.profiles import defaults_profile, load_profile
+from .program.targets import forget_solved
 from .program.registry import get_plugin
 from .settings import PostSettings, TimingSettings
 
@@ -317,6 +319,8 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
             findings += found
             if figures is not None and report is not None:
                 report[fmt] = figures
+            post.plugin.forget()   # what a format kept of its own files (a dense job's: hundreds of MB)
+            forget_solved()
         findings = list(dict.fromkeys(findings))  # each once, in order
         if findings:
             more = f" (and {len(findings) - MAX_LISTED} more)" if len(findings) > MAX_LISTED else ""
@@ -330,6 +334,7 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
         _forget_stale_programs(outdir, final)
         return final
     finally:
+        forget_merged()
         shutil.rmtree(tmp, ignore_errors=True)
 
 

@@ -58,6 +58,20 @@ def test_all_three_formats_are_written_and_checked(tmp_path):
     assert left == sorted(f.name for f in files)  # no temp folder left
 
 
+def test_nothing_read_back_is_kept_after_the_post_stage(tmp_path):
+    """The files parsed, the targets solved and the merge are dropped once the programs are placed (a dense
+    job's are hundreds of MB that would stay alive to the end of the run)."""
+    from camtool.program import candidates, targets
+    from postprocessors.inform import parser as inform_parser
+    from postprocessors.rapid import parser as rapid_parser
+
+    r = get_robot("seed8")
+    write_job_programs(rows_trajectory(r), r, _job(tmp_path), tmp_path / "out")
+    assert not rapid_parser._PARSED and not rapid_parser._READ
+    assert not inform_parser._PARSED and not inform_parser._READ
+    assert not targets._SOLVED and not candidates._MERGED
+
+
 def test_job_tool_and_csv_unit_reach_the_programs(tmp_path):
     r = get_robot("irb2400")
     job = _job(tmp_path, "irb2400", 'formats = ["rapid", "csv"]\ncsv_angle_unit = "rad"\n',

@@ -400,6 +400,11 @@ def candidate_steps() -> CompoundCandidateStep:
 _MERGED: dict = {}  # the last merge, by trajectory (kept alive here) and settings: formats share it
 
 
+def forget_merged() -> None:
+    """Drop the last merge and the trajectory it holds (the post stage, when every format is done)."""
+    _MERGED.clear()
+
+
 def merged_candidates(trajectory, robot, process, linear: bool) -> Candidates:
     """``candidate_steps()`` on a trajectory's waypoints; the last result is reused (RAPID and
     INFORM of one run merge the same way)."""

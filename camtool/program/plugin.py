@@ -80,6 +80,10 @@ class PostProcessor(ABC):
         """The program move by move, for the simulator; None: this format is not simulated."""
         return None
 
+    def forget(self) -> None:
+        """Drop what the plugin keeps of the files it has read (a check and a simulation read a file once);
+        the post stage calls it when a format is done. The default keeps nothing."""
+
     @property
     def simulated(self) -> bool:
         """True when the plugin reads its programs back move by move (``read_program``)."""
@@ -116,3 +120,6 @@ class PackagedPost(PostProcessor):
 
     def check(self, path: Path, robot, profile) -> list[str]:
         return self.checker.check(path, robot, profile)
+
+    def forget(self) -> None:
+        self.parser.forget()

@@ -259,6 +259,11 @@ _SOLVED: dict = {}   # the last programs' solved targets: a run checks a program
 SOLVED_KEEP = 4
 
 
+def forget_solved() -> None:
+    """Drop the solved targets kept (the post stage, when a format is done)."""
+    _SOLVED.clear()
+
+
 def target_joints(prog, robot, profile=None) -> np.ndarray:
     """(M, dof) joint values of every target: joint targets as written; each Cartesian target
     solved for the joints it leaves open, from the previous target's joints, in the

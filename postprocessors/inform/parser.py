@@ -86,6 +86,12 @@ _PARSED: dict = {}  # (path, content digest) -> JbiText: a check and a simulatio
 _READ: dict = {}    # the programs read last (read_program), by their parsed jobs, profile and robot
 
 
+def forget() -> None:
+    """Drop the files parsed and the programs read (``PostProcessor.forget``)."""
+    _PARSED.clear()
+    _READ.clear()
+
+
 def _parse_jbi(path, raw: bytes) -> JbiText:
     j = JbiText()
     p = f"{path}"
