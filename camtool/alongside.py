@@ -20,6 +20,7 @@ import os
 import pickle
 import signal
 import sys
+import time
 from typing import Any, Callable
 
 _OK, _RAISED = "ok", "raised"
@@ -31,6 +32,13 @@ def cpus_available() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
         return max(1, os.cpu_count() or 1)
+
+
+def timed(fn: Callable[[], Any]) -> tuple[Any, tuple[float, float]]:
+    """(``fn()``, (wall s, CPU s of this process)): what work done alongside took where it ran."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    value = fn()
+    return value, (round(time.perf_counter() - wall, 3), round(time.process_time() - cpu, 3))
 
 
 def _payload(fn: Callable[[], Any]) -> bytes:
@@ -55,6 +63,7 @@ class Alongside:
     def __init__(self, fn: Callable[[], Any], forked: bool | None = None):
         self._fn = fn
         self._pid, self._fd, self._done = None, None, False
+        self._outcome = None   # (kind, value) once taken
         self.forked = (hasattr(os, "fork") and cpus_available() > 1) if forked is None else forked
         if self.forked:
             self._start()
@@ -80,12 +89,31 @@ class Alongside:
         self._pid, self._fd = pid, read_fd
 
     def result(self) -> Any:
-        """The child's result (it is waited for), or what it raised, raised here."""
+        """The child's result (it is waited for), or what it raised, raised here; asked again, the same."""
+        if self._outcome is None:
+            self._outcome = self._take()
+        kind, value = self._outcome
+        if kind == _RAISED:
+            raise value
+        return value
+
+    def failure(self) -> BaseException | None:
+        """What ``fn`` raised (the child waited for), or None when it returned."""
+        try:
+            self.result()
+        except BaseException as exc:  # handed to the caller, who decides which error is the run's
+            return exc
+        return None
+
+    def _take(self) -> tuple:
         if self._done:
-            raise RuntimeError("Alongside.result() was already taken")
+            raise RuntimeError("Alongside was cancelled: it has no result")
         self._done = True
         if not self.forked:
-            return self._fn()
+            try:
+                return _OK, self._fn()
+            except Exception as exc:   # as a child's: raised where the result is asked for
+                return _RAISED, exc
         fd, self._fd = self._fd, None
         with os.fdopen(fd, "rb") as pipe:
             data = pipe.read()
@@ -94,11 +122,8 @@ class Alongside:
         if not data:
             code = os.waitstatus_to_exitcode(status)
             how = f"signal {-code}" if code < 0 else f"exit code {code}"
-            raise RuntimeError(f"the process drawing alongside the run ended without a result ({how})")
-        kind, value = pickle.loads(data)
-        if kind == _RAISED:
-            raise value
-        return value
+            raise RuntimeError(f"the process working alongside the run ended without a result ({how})")
+        return pickle.loads(data)
 
     def cancel(self) -> None:
         """Kill and reap the child if it still runs; its result is then never taken."""

@@ -271,7 +271,7 @@ def _forget_stale_programs(outdir: Path, final: list[Path]) -> None:
 
 def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dict, outdir, *,
                    process: ProcessInfo | None = None, path=None, report: dict | None = None,
-                   world=None) -> list[Path]:
+                   world=None, before_placing=None) -> list[Path]:
     """Write, check, simulate and place the programs of every format in ``profiles``.
 
     ``profiles`` maps each format to its ``ResolvedPost`` (``post_inputs`` / ``preflight``);
@@ -279,7 +279,9 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
     name and time (default: none, the settings' tolerances). ``path`` (the raster Path,
     optional) names the work rows. ``report`` (optional dict) receives, per format, the
     simulator's figures. ``world`` (a ``camtool.collision.CollisionWorld``, optional): the
-    simulated programs are measured against the cell too (no body pair may touch). Returns the final paths. Raises BadInput for an output folder that
+    simulated programs are measured against the cell too (no body pair may touch). ``before_placing``
+    (optional): called once every program has passed, before any is placed; what it raises
+    leaves nothing behind (the motion check run alongside). Returns the final paths. Raises BadInput for an output folder that
     cannot be written, and PlanInfeasible (listing the findings) when the trajectory leaves
     the joint limits, a written program fails its check or its simulation; then nothing is
     left behind.
@@ -328,6 +330,8 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
                                  + " | ".join(findings[:MAX_LISTED]) + more, {"findings": findings})
         from . import safe_io
 
+        if before_placing is not None:
+            before_placing()
         for f in written:  # a folder, link or special file where a program goes: one line, before any change
             safe_io.check_target(outdir, f.name)
         final = [safe_io.place_file(f, outdir, f.name) for f in written]
@@ -388,8 +392,8 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], wri
 
 
 def write_job_programs(trajectory, robot, job, outdir, path=None, report: dict | None = None,
-                       world=None) -> list[Path]:
+                       world=None, before_placing=None) -> list[Path]:
     """``write_programs`` with the job's post inputs (``post_inputs``): for callers that hold a job."""
     inputs = post_inputs(job, robot)
     return write_programs(trajectory, robot, inputs.settings, inputs.profiles, outdir, process=inputs.process,
-                          path=path, report=report, world=world)
+                          path=path, report=report, world=world, before_placing=before_placing)

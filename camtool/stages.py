@@ -80,6 +80,8 @@ class StageLog:
     outputs: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
     cpu_seconds: dict = field(default_factory=dict)
+    alongside_seconds: dict = field(default_factory=dict)       # stages run in a forked process: their own
+    alongside_cpu_seconds: dict = field(default_factory=dict)   # wall and CPU seconds there
     _mark: tuple = field(default_factory=lambda: (time.perf_counter(), time.process_time()), repr=False)
 
     def lap(self, name: str) -> None:
@@ -389,7 +391,8 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
     return figures
 
 
-def post_checked(trajectory, robot, job: Job, outdir: Path, path=None, report: dict | None = None) -> list[Path]:
+def post_checked(trajectory, robot, job: Job, outdir: Path, path=None, report: dict | None = None,
+                 before_placing: Callable | None = None) -> list[Path]:
     """The independent 4 ms limit check of the timed trajectory, then the post stage.
 
     PlanInfeasible on any finding: no program is written from a trajectory that
@@ -397,14 +400,16 @@ def post_checked(trajectory, robot, job: Job, outdir: Path, path=None, report: d
     (against ``path``) and its simulated motion measured against the job's cell:
     no robot or tool body may touch an obstacle, the floor or another link
     (the acceptance of the written program, not only of the plan); ``report``
-    receives the simulation figures.
+    receives the simulation figures; ``before_placing`` is called once they all pass, before any is
+    placed (``post.write_programs``).
     """
     timing = TimingSettings.from_section(job.timing)
     findings = check_trajectory(trajectory, robot, samples=samples_for(trajectory, timing.check_dt_s))
     if findings:
         raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
     world = collision_world(JobSettings.from_job(job, robot), robot)   # the written programs against the cell
-    return list(write_job_programs(trajectory, robot, job, outdir, path=path, report=report, world=world))
+    return list(write_job_programs(trajectory, robot, job, outdir, path=path, report=report, world=world,
+                                   before_placing=before_placing))
 
 
 def timing_figures(trajectory, robot, job: Job) -> dict:
@@ -447,14 +452,14 @@ def report_unreachable(exc: PlanInfeasible, path, robot, job: Job, outdir: Path,
 
 
 def report_failure(exc: PlanInfeasible, path, joint_path, robot, job: Job, outdir: Path, workpiece=None,
-                   surface=None, world=None) -> None:
+                   surface=None, world=None, redundancy=None) -> None:
     """report.json (status "unsafe", the reason and the motion-check figures) and report.html for a plan
     that failed a check after planning; no program is written."""
     report = {"robot": robot.name, "method": job.planner.method, "status": "unsafe", "reason": str(exc),
               "points_total": len(path), **exc.report}
     write_json_atomic(report, Path(outdir) / "report.json")
     write_run_html(outdir, report=report, robot=robot, workpiece=workpiece, surface=surface, path=path,
-                   joint_path=joint_path, world=world)
+                   joint_path=joint_path, world=world, redundancy=redundancy)
 
 
 def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, trajectories: dict, outdir: Path,
@@ -479,8 +484,11 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
         drawn = figures.result()
         log.lap("figures")
         plots, redundancy, extra_files = list(drawn.joint_plots), drawn.redundancy, (drawn.feed_png, *extra_files)
-        report["stage_seconds_alongside"] = stage_seconds(drawn.seconds)
-        report["stage_cpu_seconds_alongside"] = stage_seconds(drawn.cpu_seconds)
+        log.alongside_seconds.update(drawn.seconds)
+        log.alongside_cpu_seconds.update(drawn.cpu_seconds)
+    if log.alongside_seconds:
+        report["stage_seconds_alongside"] = stage_seconds(log.alongside_seconds)
+        report["stage_cpu_seconds_alongside"] = stage_seconds(log.alongside_cpu_seconds)
     report["programs"] = [str(f) for f in programs]
     report["plots"] = [str(f) for f in plots]
     report["stage_seconds"], report["stage_cpu_seconds"] = stage_seconds(log.seconds), stage_seconds(log.cpu_seconds)

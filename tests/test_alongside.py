@@ -57,10 +57,24 @@ def test_leaving_the_block_by_an_error_kills_the_child():
         os.kill(pid, 0)
 
 
-def test_the_result_is_taken_once():
+@pytest.mark.parametrize("forked", [True, False])
+def test_the_result_and_the_failure_are_kept(forked):
+    job = Alongside(lambda: 1, forked=forked)
+    assert job.result() == 1 and job.result() == 1 and job.failure() is None
+
+    def fails():
+        raise BadInput("the motion check failed")
+    job = Alongside(fails, forked=forked)
+    first = job.failure()
+    assert isinstance(first, BadInput) and job.failure() is first
+    with pytest.raises(BadInput):
+        job.result()
+
+
+def test_a_cancelled_job_has_no_result():
     job = Alongside(lambda: 1, forked=False)
-    assert job.result() == 1
-    with pytest.raises(RuntimeError):
+    job.cancel()
+    with pytest.raises(RuntimeError, match="cancelled"):
         job.result()
 
 

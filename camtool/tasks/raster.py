@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..alongside import Alongside
+from ..alongside import Alongside, timed
 from ..collision.stage import collision_world
 from ..errors import BadInput, PlanInfeasible
 from ..face_report import faces_worked
@@ -94,11 +94,8 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     retimed, dwell = retime_for_target(job, settings, surface, path, joint_path, robot)  # a target removal map
     trajectory = trajectory if retimed is None else retimed
     log.done("time", trajectory)
-    try:
-        motion = log.done("check", motion_check(settings, trajectory, robot, wp, path, surface))
-    except PlanInfeasible as exc:
-        report_failure(exc, path, joint_path, robot, job, outdir, wp, surface, world=collision_world(settings, robot))
-        raise
+    # the independent motion check runs alongside the post stage, which places no program before it passed
+    checking = Alongside(lambda: timed(lambda: motion_check(settings, trajectory, robot, wp, path, surface)))
     trajectories = {settings.planner.method: trajectory}
     compared = None
     if compare:
@@ -113,9 +110,26 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     world = collision_world(settings, robot)
     drawn = FigureInputs(trajectories, robot, path, joint_path, outdir, settings.timing.check_dt_s, job.path.name, world)
     figures = Alongside(lambda: draw_run_figures(drawn))
-    with figures:  # the figures are drawn while the programs are written and checked; cancelled on a failure
+    with checking, figures:  # the check and the figures run while the programs are written; cancelled on an error
+
+        def motion_checked():   # the programs are placed only once the motion check has passed
+            log.lap("post")
+            figures_, (wall, cpu) = checking.result()
+            log.alongside_seconds["check"], log.alongside_cpu_seconds["check"] = wall, cpu
+            return log.done("check", figures_)
+
         simulated: dict = {}
-        programs = log.done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated))
+        try:
+            programs = log.done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated,
+                                                     before_placing=motion_checked))
+        except PlanInfeasible as exc:
+            failed = checking.failure()   # a motion-check finding is the run's, as when the check ran first
+            if not isinstance(failed, PlanInfeasible):
+                raise
+            report_failure(failed, path, joint_path, robot, job, outdir, wp, surface, world=world,
+                           redundancy=figures.result().redundancy)   # the figures finish: none half-written
+            raise failed from None
+        motion = log.outputs["check"]
         report = run_report(path, joint_path, trajectory, robot, job, settings.planner.method)
         if "free_moves" in joint_path.events:
             report["free_moves"] = joint_path.events["free_moves"]
