@@ -95,7 +95,7 @@ def print_job(r: dict, anchor_cpu: float) -> None:
     for name, sec in r["alongside"].items():
         if name != "total":
             print(f"   {'+ ' + name:<14}{sec:>9.2f}{r['alongside_cpu'].get(name, float('nan')):>9.2f}   "
-                  "(drawn alongside post and report, in a forked process)")
+                  "(alongside post and report, in a forked process)")
     own_cpu = cpu.get("total", 0.0) + r["alongside_cpu"].get("total", 0.0)
     print(f"   {'start-up':<14}{start:>9.2f}{r['cpu_s'] - own_cpu:>9.2f}   (imports, job, outside the stages)")
     print(f"   planning kernel (plan_path, inside 'plan'): {r['kernel_s']:.3f} s "
