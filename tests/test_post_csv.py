@@ -91,3 +91,21 @@ def test_reader_takes_a_file_without_trailer(tmp_path):
     t_s, q = POST.read_trajectory(f, r)
     assert np.array_equal(t_s, tr.t_s) and np.array_equal(q, tr.q)
     assert any("no trailer" in x for x in POST.check(f, r, None))
+
+
+def test_blocks_of_rows_give_the_same_file_and_table(tmp_path, monkeypatch):
+    """The writer turns 20k rows to text at a time and the reader parses 20k at a time (a dense job's table
+    at once is ~0.4 GB of text): in blocks of 7 rows the file and the table read back are the same."""
+    from postprocessors.csv import parser, writer
+
+    r = get_robot("seed8")
+    tr = smooth_trajectory(r, 97)
+    (tmp_path / "whole").mkdir()
+    (tmp_path / "blocks").mkdir()
+    whole = POST.write(tr, r, _profile("deg"), tmp_path / "whole")[0]
+    monkeypatch.setattr(writer, "BLOCK_ROWS", 7)
+    monkeypatch.setattr(parser, "BLOCK_ROWS", 7)
+    blocks = POST.write(tr, r, _profile("deg"), tmp_path / "blocks")[0]
+    assert blocks.read_bytes() == whole.read_bytes()
+    t_s, q = POST.read_trajectory(blocks, r)
+    assert np.array_equal(t_s, tr.t_s) and np.allclose(q, tr.q, rtol=0, atol=1e-12)

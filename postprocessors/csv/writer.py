@@ -9,6 +9,8 @@ from camtool.program.text import sanitise_name
 
 from .dialect import columns_for, trailer, validate_profile
 
+BLOCK_ROWS = 20_000   # rows turned to text at a time: a dense job's table as text at once is ~0.4 GB
+
 
 def write(trajectory, robot, profile, outdir: Path) -> list[Path]:
     """Write ``<NAME>.csv``: t_s and every joint per waypoint."""
@@ -17,11 +19,13 @@ def write(trajectory, robot, profile, outdir: Path) -> list[Path]:
     name, _ = sanitise_name(profile.program_name, max_len=64, what="CSV file name")
     q = np.asarray(trajectory.q, float)
     edge = np.where(robot.prismatic[None, :], q, np.degrees(q) if unit == "deg" else q)
-    lines = [",".join(columns_for(robot, unit))]
-    # numpy's float to text is Python's shortest round-trip repr, for a whole table at once
-    table = np.column_stack([np.asarray(trajectory.t_s, float), edge]).astype(str).tolist()
-    lines += [",".join(row) for row in table]
-    lines.append(trailer(len(lines) - 1))
+    table = np.column_stack([np.asarray(trajectory.t_s, float), edge])
     path = Path(outdir) / f"{name}.csv"
-    path.write_bytes(("\n".join(lines) + "\n").encode("ascii"))
+    with open(path, "wb") as f:
+        f.write((",".join(columns_for(robot, unit)) + "\n").encode("ascii"))
+        for a in range(0, len(table), BLOCK_ROWS):
+            # numpy's float to text is Python's shortest round-trip repr, for a block of rows at once
+            rows = table[a:a + BLOCK_ROWS].astype(str).tolist()
+            f.write(("\n".join(",".join(row) for row in rows) + "\n").encode("ascii"))
+        f.write((trailer(len(table)) + "\n").encode("ascii"))
     return [path]
