@@ -1,10 +1,10 @@
 """Work done alongside: a function run in a forked child process while this process goes on.
 
-The last stages of a run are independent of one another: the figures (PNG plots, the
-redundancy map) need only the timed trajectory, while the programs are written, read
-back and simulated. ``Alongside(fn)`` forks, runs ``fn()`` in the child and hands its
+The last stages of a run are independent of one another: the independent motion check
+and the figures (PNG plots, the redundancy map) need only the timed trajectory, while
+the programs are written, read back and simulated. ``Alongside(fn)`` forks, runs ``fn()`` in the child and hands its
 result back by pickle through a pipe; ``result()`` waits for it, re-raising what the
-child raised. Where the machine gives this process one CPU, or has no ``fork``,
+child raised (``failure()`` returns it), and gives the same when asked again. Where the machine gives this process one CPU, or has no ``fork``,
 ``fn`` runs in this process when its result is asked for: the same files, the same
 result, only later.
 
