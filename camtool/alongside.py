@@ -101,7 +101,7 @@ class Alongside:
         """What ``fn`` raised (the child waited for), or None when it returned."""
         try:
             self.result()
-        except BaseException as exc:  # handed to the caller, who decides which error is the run's
+        except Exception as exc:  # handed to the caller, who decides which error is the run's (Ctrl-C is not)
             return exc
         return None
 

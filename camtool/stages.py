@@ -472,15 +472,13 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
     stage ``figures`` and their own time is report.json's ``stage_seconds_alongside``.
     Without it the joint plots and the redundancy map are drawn here."""
     outdir = Path(outdir)
+    write_points_csv(path, joint_path, robot, outdir / "points.csv")
     log.lap("report")
     redundancy = None
     if figures is None:
         plots = plot_joints(trajectories, robot, outdir / "plots")
-    write_points_csv(path, joint_path, robot, outdir / "points.csv")
-    if figures is None:
         log.lap("plots")
     else:
-        log.lap("report")
         drawn = figures.result()
         log.lap("figures")
         plots, redundancy, extra_files = list(drawn.joint_plots), drawn.redundancy, (drawn.feed_png, *extra_files)

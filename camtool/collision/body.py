@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadInput
-from ..robots.joint_frames import joint_frames_mm  # noqa: F401  (the bodies' frames; re-exported)
 
 MM_PER_M = 1000.0
 WORLD, BASE = -1, 0

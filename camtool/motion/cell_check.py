@@ -241,7 +241,7 @@ class _FramesAt:
     KEEP = 4096
 
     def __init__(self, robot, q):
-        from ..collision.body import joint_frames_mm
+        from ..robots.joint_frames import joint_frames_mm
 
         self._frames, self._robot, self._q = joint_frames_mm, robot, q
         self._data = robot.model.createData()

@@ -12,6 +12,7 @@ from .dialect import COLUMN_RE
 
 BLOCK_ROWS = 20_000   # rows parsed at a time (see _parse)
 
+
 def read_bytes(path: Path) -> bytes:
     """The bytes of one CSV file (the reader's only file access)."""
     from camtool.safe_io import read_program_bytes  # regular files under the cap: a FIFO never blocks

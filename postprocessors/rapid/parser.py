@@ -119,13 +119,13 @@ def _speed_ok(speed: str) -> bool:
 
 _PARSED: dict = {}  # (path, content digest) -> ModuleText: a check and a simulation read a file once
 _READ: dict = {}    # the programs read last (read_program), by their parsed modules, profile and robot
+_PARSED_MAX = 64
 
 
 def forget() -> None:
     """Drop the files parsed and the programs read (``PostProcessor.forget``)."""
     _PARSED.clear()
     _READ.clear()
-_PARSED_MAX = 64
 
 
 def parse_module(path: Path) -> ModuleText:
