@@ -23,10 +23,10 @@ def coverage(face_set: FaceSet, path: Path, grid: int = 400) -> float:
     return float(sum(a * c for a, c in parts) / total) if total > 0 else 0.0
 
 
-def faces_worked(face_set: FaceSet, path: Path, trajectory, robot, samples) -> list[dict]:
+def faces_worked(face_set: FaceSet, path: Path, trajectory, robot, samples, motion: dict | None = None) -> list[dict]:
     """report.json's ``faces.worked``: per face in working order, its segments, rows, work points and coverage
-    (``raster.raster_summary`` of its own poses on its surface), and its TCP feed on work measured on ``samples``
-    (``timing.feed``)."""
+    (``raster.raster_summary`` of its own poses on its surface), its TCP feed on work measured on ``samples``
+    (``timing.feed``) and, given the motion check's figures (``motion``, by segment), its worst figures there."""
     surface_of = dict(zip(face_set.indices, face_set.surfaces))
     feed = float(getattr(trajectory, "tcp_speed_mm_s", 0.0) or 0.0)
     profile = feed_profile(trajectory, robot, samples) if feed > 0 and len(samples.t_s) > 1 else None
@@ -45,8 +45,27 @@ def faces_worked(face_set: FaceSet, path: Path, trajectory, robot, samples) -> l
                  "segment_range": [int(path.segment[idx].min()), int(path.segment[idx].max())]}
         if profile is not None:
             entry["work_feed"] = feed_statistics(replace(profile, work=profile.work & (interval_face == index)), feed)
+        if motion is not None:
+            entry["motion_check"] = face_motion(motion, set(np.unique(path.segment[idx]).tolist()))
         out.append(entry)
     return out
+
+
+def face_motion(motion: dict, segments: set[int]) -> dict:
+    """The motion check's worst figures over the samples of ``segments`` (its ``by_index``, by segment): the
+    deepest penetration into the part, the work deviation, the off-work clearance and the failing samples."""
+    rows = [r for r in motion.get("by_index", ()) if r["index"] in segments]
+
+    def worst(key, pick):
+        values = [r[key] for r in rows if r[key] is not None]
+        return pick(values) if values else None
+    failing = {}
+    for r in rows:
+        for kind, n in r["failing_samples"].items():
+            failing[kind] = failing.get(kind, 0) + n
+    return {"samples": sum(r["samples"] for r in rows), "max_penetration_mm": worst("max_penetration_mm", max),
+            "work_deviation_mm": worst("work_deviation_mm", max), "min_clearance_mm": worst("min_clearance_mm", min),
+            "failing_samples": failing}
 
 
 def path_figures(path: Path, surface) -> dict:

@@ -99,3 +99,11 @@ def test_two_faces_of_the_half_pipe_make_one_program(tmp_path):
     between = [c for c in report["lifted_connectors"] if c["segment"] == worked[1]["segment_range"][0]]
     assert between, "the move from one face to the next is a lifted connector"
     assert report["motion_check"]["ok"]
+    # the motion check face by face: its worst figures over the face's segments, the run's worst among them
+    motion = report["motion_check"]
+    checked = [w["motion_check"] for w in worked]
+    assert sum(c["samples"] for c in checked) == motion["samples"]
+    assert max(c["work_deviation_mm"] for c in checked) == motion["work_deviation_mm"]
+    assert min(c["min_clearance_mm"] for c in checked) == motion["min_clearance_mm"]
+    assert all(not any(c["failing_samples"].values()) for c in checked)
+    assert f"deviation {checked[0]['work_deviation_mm']:.3f} mm" in done.stdout

@@ -439,3 +439,17 @@ def test_shares_no_code_with_planner_or_timing():
             f"print([m for m in sys.modules if m.startswith({forbidden!r})])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_figures_by_index_add_up_to_the_whole_check(arm):
+    """``by_index``: each caller's index gets its samples' worst figures; together they are the check's."""
+    part = cap_part(arm.tcp - 280.0 * arm.o, arm.o)
+    t, q = track_motion([-150.0, 0.0, 150.0], 3.0)
+    rep = check_motion(t, q, [SELF, SELF, SELF], arm.robot, part, path_index=[-1, 7, 8], index_label="segment")
+    rows = {r["index"]: r for r in rep.to_dict()["by_index"]}
+    assert set(rows) == {7, 8}
+    assert sum(r["samples"] for r in rows.values()) == rep.samples
+    assert max(r["max_penetration_mm"] for r in rows.values()) == pytest.approx(rep.max_penetration_mm, abs=1e-6)
+    failing = sum(sum(r["failing_samples"].values()) for r in rows.values())
+    assert (failing > 0) == bool(rep.findings)
+    assert check_motion(t, q, [SELF, SELF, SELF], arm.robot, part).by_index == ()  # no index: none

@@ -76,9 +76,12 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
                    f"within 1% of {feed['commanded_feed_mm_s']:g} mm/s, min {feed['min_work_feed_mm_s']:.1f} mm/s{sized}")
     for w in report.get("faces", {}).get("worked", []):  # a job of several faces: each one, in working order
         wf = w.get("work_feed") or {}
+        mc = w.get("motion_check") or {}
+        checked = (f", deviation {mc['work_deviation_mm']:.3f} mm" if mc.get("work_deviation_mm") is not None else "") + (
+            f", clearance {mc['min_clearance_mm']:.1f} mm" if mc.get("min_clearance_mm") is not None else "")
         click.echo(f"face {w['index']} ({w['model']}): {w['rows']} rows, {w['work_points']} work points, coverage "
                    f"{100 * (w['coverage'] or 0.0):.2f}%, feed {100 * wf.get('work_share_within_1pct', 0.0):.1f}% "
-                   f"within 1%")
+                   f"within 1%{checked}")
     slow = report.get("slowdowns", [])
     if slow:
         worst = min(s["speed_ratio"] for s in slow)

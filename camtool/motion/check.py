@@ -104,6 +104,7 @@ class MotionReport:
     horizon_mm: float = 0.0
     cell_pairs: tuple[dict, ...] = ()   # per pair of bodies (link x obstacle, link x link): min distance, where
     cell: dict | None = None            # the collision world's bodies and the cell pass's figures
+    by_index: tuple[dict, ...] = ()     # per caller's index (e.g. segment): its samples' worst figures
 
     def to_dict(self) -> dict:
         d = {}
@@ -282,6 +283,8 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
 
     U_body, U_tcp = np.inf, np.inf
     nonwork_codes = np.array(NON_WORK)
+    place = _Placer(samples, zone, pidx, index_label)
+    per_index = _PerIndex(place.sample_index())
     cell = _cell_pass_start(world, fk, q, samples) if world is not None and world.pairs else None
 
     for start in range(0, S, int(s.chunk_samples)):
@@ -327,6 +330,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
             U_tcp = min(U_tcp, float(tv[el].min()))
         wk = np.nonzero(work)[0]
         best_dev.offer(-np.abs(dv[wk]), gidx[wk], "tcp")
+        per_index.offer(gidx, work, nonwork, tv, np.abs(dv))
         dev = work & (np.abs(dv) > s.path_tol_mm)
         fails["deviation"].append((gidx[dev], np.full(dev.sum(), "tcp"), dv[dev]))
         # ---- capsules
@@ -342,8 +346,8 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
             body_clear[body.name].offer(c[nw], gidx[nw], body.name)
             low = nonwork & (c < s.clearance_mm) & ~pen
             fails["clearance"].append((gidx[low], np.full(low.sum(), body.name, dtype=object), c[low]))
+            per_index.offer(gidx, work, nonwork, c, None, clearance=True)
 
-    place = _Placer(samples, zone, pidx, index_label)
     findings: list[str] = []
     cell_pairs, cell_figures, cell_ok = (), None, True
     if cell is not None:
@@ -379,7 +383,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
                      for name, kind, radius, clear, exact in [("tcp", "tcp", 0.0, best_tcp, max(0.0, min(U_tcp, G)))]
                      + [(b.name, b.kind, b.radius, body_clear[b.name], exact_below) for b in bodies]),
         part=part.describe(), settings=s, check_seconds=time.perf_counter() - clock, horizon_mm=G,
-        cell_pairs=cell_pairs, cell=cell_figures)
+        cell_pairs=cell_pairs, cell=cell_figures, by_index=per_index.figures(fails, G))
 
 
 def _cell_pass_start(world, fk, q, samples):
@@ -540,6 +544,16 @@ class _Placer:
             prv = np.where(valid, pos, -1)
             self.prev = np.maximum.accumulate(prv)
 
+    def sample_index(self) -> np.ndarray | None:
+        """The caller's index of every sample, as ``__call__`` places it (-1: none); None without one."""
+        if self.pidx is None:
+            return None
+        M = len(self.pidx)
+        at = np.where(self.pidx >= 0, self.pidx,
+                      np.where(self.next < M, self.pidx[np.minimum(self.next, M - 1)],
+                               np.where(self.prev >= 0, self.pidx[np.maximum(self.prev, 0)], -1)))
+        return at[self.samples.wp]
+
     def __call__(self, k: int, body: str) -> Place | None:
         if k < 0:
             return None
@@ -559,6 +573,56 @@ class _Placer:
             else:
                 index, rel = None, ""
         return Place(float(sm.t[k]), ZONES[int(sm.zone[k])], wp, at, index, label, rel, body)
+
+
+class _PerIndex:
+    """The worst figures of the samples of each caller's index (e.g. segment), fed chunk by chunk:
+    the deepest penetration of any body into the part, the work deviation, the off-work clearance."""
+
+    def __init__(self, sample_index: np.ndarray | None):
+        self.at = sample_index
+        n = int(sample_index.max()) + 1 if sample_index is not None and len(sample_index) else 0
+        self.samples = np.bincount(sample_index[sample_index >= 0], minlength=n) if n else np.zeros(0, np.int64)
+        self.value = np.full(n, np.inf)       # min signed distance to the part, any body (< 0: penetration)
+        self.deviation = np.full(n, -np.inf)  # max |TCP deviation| on work
+        self.clearance = np.full(n, np.inf)   # min clearance off work, tool and links
+
+    def offer(self, gidx, work, nonwork, value, deviation, clearance: bool = False) -> None:
+        """One body's values over the chunk's samples ``gidx``; ``deviation`` the TCP's (None for a capsule)."""
+        if not len(self.value):
+            return
+        at = self.at[gidx]
+        known = (at >= 0) & np.isfinite(value)
+        np.minimum.at(self.value, at[known], value[known])
+        if deviation is not None:
+            w = (at >= 0) & work & np.isfinite(deviation)
+            np.maximum.at(self.deviation, at[w], deviation[w])
+        if clearance:
+            c = known & nonwork
+            np.minimum.at(self.clearance, at[c], value[c])
+
+    def figures(self, fails: dict, horizon_mm: float) -> tuple[dict, ...]:
+        """Per index with samples: samples, max_penetration_mm, work_deviation_mm (None: no work),
+        min_clearance_mm (None: beyond the part's horizon) and the failing samples of each kind."""
+        if not len(self.value):
+            return ()
+        failing = {}
+        for kind, parts in fails.items():
+            k = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0, np.int64)
+            k = np.unique(k.astype(np.int64))
+            at = self.at[k]
+            failing[kind] = np.bincount(at[at >= 0], minlength=len(self.value))
+        out = []
+        for i in np.nonzero(self.samples)[0]:
+            clear = self.clearance[i]
+            out.append({"index": int(i), "samples": int(self.samples[i]),
+                        "max_penetration_mm": round(max(0.0, -float(self.value[i])) if np.isfinite(self.value[i])
+                                                    else 0.0, 6),
+                        "work_deviation_mm": round(float(self.deviation[i]), 6) if np.isfinite(self.deviation[i])
+                        else None,
+                        "min_clearance_mm": round(float(clear), 6) if clear <= horizon_mm else None,
+                        "failing_samples": {kind: int(f[i]) for kind, f in failing.items()}})
+        return tuple(out)
 
 
 def _finding_lines(parts, place: _Placer, s: MotionCheckSettings, kind: str) -> list[str]:

@@ -145,7 +145,7 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
             faces = faces_report(job, wp)
             if several:  # each face worked, in working order: coverage and feed
                 faces["worked"] = faces_worked(surface, path, trajectory, robot,
-                                               samples_for(trajectory, settings.timing.check_dt_s))
+                                               samples_for(trajectory, settings.timing.check_dt_s), motion)
             log.outputs["faces"] = faces
             report["faces"] = {k: v for k, v in faces.items() if k != "labels"}
         report["limits_ok"] = True  # post_checked passed the independent check
