@@ -157,7 +157,7 @@ def time_and_measure(jp, path, robot, timing, png: Path | None, title: str) -> d
     t0 = time.perf_counter()
     tr = time_trajectory(jp, path, robot, timing)
     wall = time.perf_counter() - t0
-    prof = feed_profile(tr, robot, tr.check_samples)
+    prof = feed_profile(tr, tr.sampled)
     if png is not None:
         plot_feed(prof, timing.tcp_speed_mm_s, png, title=title)
     return {"cycle_time_s": tr.duration_s, **zone_times(tr), **feed_statistics(prof, timing.tcp_speed_mm_s),

@@ -3,7 +3,7 @@
 Usage: .venv/bin/python benchmarks/timing_speed.py [n_runs] [poses_per_run] [method] [zones (flow)]
 
 "timing+check" is ``time_trajectory`` (which resamples once and checks); the
-report reuses those samples (``check_samples``), as the pipeline does.
+report reuses what the check gathered of those samples (``sampled``), as the pipeline does.
 """
 import resource
 import sys
@@ -37,7 +37,7 @@ def main():
     tr = time_trajectory(jp, path, robot, settings)
     wall = time.perf_counter() - t0
     t1 = time.perf_counter()
-    rep = timing_report(tr, robot, tr.check_samples)
+    rep = timing_report(tr, robot, tr.sampled)
     wall_report = time.perf_counter() - t1
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"poses {len(q)} work {int((zone == ZONE_CODE['work']).sum())} method {method} zones {zones}: "

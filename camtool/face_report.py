@@ -23,13 +23,13 @@ def coverage(face_set: FaceSet, path: Path, grid: int = 400) -> float:
     return float(sum(a * c for a, c in parts) / total) if total > 0 else 0.0
 
 
-def faces_worked(face_set: FaceSet, path: Path, trajectory, robot, samples, motion: dict | None = None) -> list[dict]:
+def faces_worked(face_set: FaceSet, path: Path, trajectory, sampled, motion: dict | None = None) -> list[dict]:
     """report.json's ``faces.worked``: per face in working order, its segments, rows, work points and coverage
-    (``raster.raster_summary`` of its own poses on its surface), its TCP feed on work measured on ``samples``
-    (``timing.feed``) and, given the motion check's figures (``motion``, by segment), its worst figures there."""
+    (``raster.raster_summary`` of its own poses on its surface), its TCP feed on work measured on ``sampled``
+    (``timing.SampledMotion``, ``timing.feed``) and, given the motion check's figures (``motion``, by segment), its worst figures there."""
     surface_of = dict(zip(face_set.indices, face_set.surfaces))
     feed = float(getattr(trajectory, "tcp_speed_mm_s", 0.0) or 0.0)
-    profile = feed_profile(trajectory, robot, samples) if feed > 0 and len(samples.t_s) > 1 else None
+    profile = feed_profile(trajectory, sampled) if feed > 0 and len(sampled.t_s) > 1 else None
     if profile is not None:  # the face of each sample interval: its waypoint's segment's
         tw = np.asarray(trajectory.t_s, float)
         mid = 0.5 * (profile.t_s[:-1] + profile.t_s[1:])

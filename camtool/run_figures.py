@@ -11,7 +11,7 @@ from pathlib import Path
 
 from .report import plot_joints
 from .report_html import redundancy_figure
-from .timing import plot_feed_png, samples_for
+from .timing import plot_feed_png, sampled_for
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,7 @@ def draw_run_figures(inputs: FigureInputs) -> RunFigures:
         mark[:] = now
 
     own = next(iter(inputs.trajectories.values()))
-    feed_png = plot_feed_png(own, inputs.robot, samples_for(own, inputs.dt_s),
+    feed_png = plot_feed_png(own, sampled_for(own, inputs.robot, inputs.dt_s),
                              Path(inputs.outdir) / "plots" / "feed.png", title=inputs.title)
     joint_plots = tuple(plot_joints(inputs.trajectories, inputs.robot, Path(inputs.outdir) / "plots"))
     lap("plots")

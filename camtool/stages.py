@@ -42,7 +42,7 @@ from .report import (plan_metrics, plot_joints, plot_unreachable, stage_seconds,
 from .report_html import write_run_html
 from .robots import get_robot
 from .settings import FitSettings, JobSettings, PlannerSettings, RasterSettings, TimingSettings, WorkpieceSettings
-from .timing import check_trajectory, lead_needed_mm, samples_for, time_trajectory, timing_report
+from .timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
 from .toolpath import row_segments
 from .transforms import matrix_from_xyz_rpy
 from .workpiece import load_workpiece
@@ -393,7 +393,8 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
 
 def post_checked(trajectory, robot, job: Job, outdir: Path, path=None, report: dict | None = None,
                  before_placing: Callable | None = None) -> list[Path]:
-    """The independent 4 ms limit check of the timed trajectory, then the post stage.
+    """The independent 4 ms limit check of the timed trajectory (``time_trajectory`` made it already of
+    one it timed: ``timing.limit_findings``), then the post stage.
 
     PlanInfeasible on any finding: no program is written from a trajectory that
     breaks a limit. Every program is simulated the way its controller runs it
@@ -404,7 +405,7 @@ def post_checked(trajectory, robot, job: Job, outdir: Path, path=None, report: d
     placed (``post.write_programs``).
     """
     timing = TimingSettings.from_section(job.timing)
-    findings = check_trajectory(trajectory, robot, samples=samples_for(trajectory, timing.check_dt_s))
+    findings = limit_findings(trajectory, robot, timing.check_dt_s)  # [] when time_trajectory checked it
     if findings:
         raise PlanInfeasible(f"the timed trajectory breaks {len(findings)} limit(s); first: {findings[0]}")
     world = collision_world(JobSettings.from_job(job, robot), robot)   # the written programs against the cell
@@ -414,7 +415,8 @@ def post_checked(trajectory, robot, job: Job, outdir: Path, path=None, report: d
 
 def timing_figures(trajectory, robot, job: Job) -> dict:
     """The timing stage's figures, its method named ``timing_method``."""
-    figures = timing_report(trajectory, robot, samples_for(trajectory, TimingSettings.from_section(job.timing).check_dt_s))
+    figures = timing_report(trajectory, robot,
+                            sampled_for(trajectory, robot, TimingSettings.from_section(job.timing).check_dt_s))
     figures["timing_method"] = figures.pop("method")
     return figures
 

@@ -190,28 +190,42 @@ class TrajectorySamples:
                 and (dt_s is None or self.dt_s == dt_s))
 
 
+def _chunks(m: int) -> list[tuple[int, int]]:
+    """(first, last) waypoint of each chunk of ``SAMPLE_CHUNK_WAYPOINTS`` steps."""
+    return [(a, min(a + SAMPLE_CHUNK_WAYPOINTS, m - 1)) for a in range(0, max(m - 1, 1), SAMPLE_CHUNK_WAYPOINTS)]
+
+
+def sample_blocks(trajectory: Trajectory, dt_s: float):
+    """``sample_trajectory``'s samples a chunk of waypoints at a time: one ``TrajectorySamples`` per
+    chunk (``waypoints`` and the end times are the whole trajectory's), for passes that need not hold
+    every sample at once; together, in order, they are ``sample_trajectory(trajectory, dt_s)``."""
+    tr = trajectory
+    t_s, q, qd, qdd = tr.t_s, tr.q, tr.qd, tr.qdd
+    m = len(t_s)
+    for a, b in _chunks(m):
+        t = _grid(t_s[a:b + 1], dt_s)
+        values = _hermite(t_s[a:b + 1], q[a:b + 1], qd[a:b + 1], qdd[a:b + 1], t)
+        yield TrajectorySamples(float(dt_s), int(m), float(t_s[0]), float(t_s[-1]), t, *values)
+
+
 def sample_trajectory(trajectory: Trajectory, dt_s: float) -> TrajectorySamples:
     """Resample ``trajectory`` every ``dt_s`` (s) in chunks of ``SAMPLE_CHUNK_WAYPOINTS`` waypoints.
 
     Chunk [a, b] (waypoint indices, b = a + chunk or the last one) is sampled
-    like ``Trajectory.sample`` on that chunk alone; the chunks' samples are
-    written one after another into arrays allocated once.
+    like ``Trajectory.sample`` on that chunk alone (``sample_blocks``); the
+    chunks' samples are written one after another into arrays allocated once.
     """
     tr = trajectory
-    t_s, q, qd, qdd = tr.t_s, tr.q, tr.qd, tr.qdd
-    m = len(t_s)
-    dof = np.shape(q)[1]
-    chunks = [(a, min(a + SAMPLE_CHUNK_WAYPOINTS, m - 1)) for a in range(0, max(m - 1, 1), SAMPLE_CHUNK_WAYPOINTS)]
-    grids = [_grid(t_s[a:b + 1], dt_s) for a, b in chunks]
-    total = sum(len(g) for g in grids)
-    out = [np.empty((total, dof)) for _ in range(4)]
+    m = len(tr.t_s)
+    total = sum(len(_grid(tr.t_s[a:b + 1], dt_s)) for a, b in _chunks(m))
+    out = [np.empty(total)] + [np.empty((total, np.shape(tr.q)[1])) for _ in range(4)]
     i = 0
-    for (a, b), t in zip(chunks, grids):
-        values = _hermite(t_s[a:b + 1], q[a:b + 1], qd[a:b + 1], qdd[a:b + 1], t)
-        for dst, src in zip(out, values):
-            dst[i:i + len(t)] = src
-        i += len(t)
-    return TrajectorySamples(float(dt_s), int(m), float(t_s[0]), float(t_s[-1]), np.concatenate(grids), *out)
+    for block in sample_blocks(tr, dt_s):
+        n = len(block.t_s)
+        for dst, src in zip(out, (block.t_s, block.q, block.qd, block.qdd, block.qddd)):
+            dst[i:i + n] = src
+        i += n
+    return TrajectorySamples(float(dt_s), int(m), float(tr.t_s[0]), float(tr.t_s[-1]), *out)
 
 
 def quintic_coefficients(p0, v0, a0, p1, v1, a1) -> list[np.ndarray]:

@@ -155,6 +155,19 @@ def test_motion_bound_holds_for_every_body_point(robot):
             assert moved <= C[b] + 1e-6
 
 
+def test_motion_bounds_in_blocks_are_one_cumulative_sum(robot, monkeypatch):
+    """Summed a block at a time, each block carrying the sum so far: the very additions of one sum."""
+    import camtool.motion.cell_check as cell_check
+
+    w = CollisionWorld(robot)
+    q = np.cumsum(np.random.default_rng(5).normal(0, 1e-3, (1001, robot.dof)), axis=0)
+    whole = np.vstack([np.zeros((1, len(w.bodies))),
+                       np.cumsum(np.abs(np.diff(q, axis=0)) @ cell_check.motion_rates(w), axis=0)])
+    monkeypatch.setattr(cell_check, "BOUND_BLOCK_ROWS", 7)
+    assert np.array_equal(motion_bounds(w, q), whole)
+    assert motion_bounds(w, q[:1]).shape == (1, len(w.bodies)) and not motion_bounds(w, q[:1]).any()
+
+
 # --------------------------------------------------------------------------- matrix and distances
 
 def test_acm_is_deterministic_and_allows_adjacent_links(robot):

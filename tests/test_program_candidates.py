@@ -68,3 +68,15 @@ def test_the_merge_is_shared_by_the_formats_of_one_run(start):
     a = merged_candidates(tr, r, ProcessInfo(), linear=True)
     assert merged_candidates(tr, r, ProcessInfo(), linear=True) is a
     assert merged_candidates(tr, r, ProcessInfo(path_tol_mm=0.2), linear=True) is not a
+
+
+def test_waypoint_arrays_made_in_blocks_are_each_waypoints_own(start, monkeypatch):
+    """Poses, Jacobians and dexterity a block of waypoints at a time: the same arrays as all at once."""
+    import camtool.program.candidates as candidates
+
+    tr, r, whole = start
+    monkeypatch.setattr(candidates, "STATE_BLOCK_ROWS", 5)
+    blocks = Candidates.from_trajectory(tr, r, ProcessInfo(), linear=True)
+    assert len(whole) > 20 and whole.st.keys() == blocks.st.keys()
+    for k in whole.st:
+        assert np.array_equal(whole.st[k], blocks.st[k]), k

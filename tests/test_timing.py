@@ -22,7 +22,7 @@ def timed(request):
 def test_within_limits_by_independent_check(timed):
     _, tr = timed
     assert check_trajectory(tr, ROBOT, dt_s=0.004) == []
-    rep = timing_report(tr, ROBOT, tr.check_samples)
+    rep = timing_report(tr, ROBOT, tr.sampled)
     for key in ("peak_joint_speed_ratio", "peak_joint_acc_ratio", "peak_joint_jerk_ratio"):
         assert 0 < rep[key] <= 1.0
     assert 0 < rep["work_time_s"] < rep["cycle_time_s"] == pytest.approx(tr.duration_s)
@@ -70,7 +70,7 @@ def test_fast_job_is_slowed_down_and_reported():
     tr = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(tcp_speed_mm_s=1500.0))
     assert check_trajectory(tr, ROBOT, 0.004) == []
     assert len(tr.slowdowns) == 2 and all(0.3 < s["speed_ratio"] < 0.99 for s in tr.slowdowns)
-    rep = timing_report(tr, ROBOT, tr.check_samples)
+    rep = timing_report(tr, ROBOT, tr.sampled)
     assert rep["slowdowns"] == [dict(s) for s in tr.slowdowns]
     peaks = [rep[f"peak_joint_{k}_ratio"] for k in ("speed", "acc", "jerk")]
     assert 0.9 < max(peaks) <= 1.0  # the binding limit is used, not exceeded
@@ -132,16 +132,18 @@ def test_each_run_is_timed_once_lead_sizing_then_timing():
     from camtool.timing import pathlaw
 
     settings = TimingSettings.make(method="quintic", tcp_speed_mm_s=90.0)
-    pathlaw._RUN_MEMO.clear()
-    fresh = time_trajectory(JP, PATH, ROBOT, settings)        # every run planned now
-    pathlaw._RUN_MEMO.clear()
-    need = lead_needed_mm(JP, PATH, ROBOT, settings)          # plans the runs ...
-    planned = len(pathlaw._RUN_MEMO)
-    assert planned == len(need["per_run"]) > 0
-    again = time_trajectory(JP, PATH, ROBOT, settings)        # ... and timing takes their laws
-    assert len(pathlaw._RUN_MEMO) == planned
+    fresh = time_trajectory(JP, PATH, ROBOT, settings)        # every run planned now, none kept
+    assert pathlaw._RUN_MEMO is None
+    with pathlaw.remembered_runs():
+        need = lead_needed_mm(JP, PATH, ROBOT, settings)      # plans the runs ...
+        planned = len(pathlaw._RUN_MEMO)
+        assert planned == len(need["per_run"]) > 0
+        with pathlaw.remembered_runs():                       # an inner scope shares the outer's laws
+            again = time_trajectory(JP, PATH, ROBOT, settings)    # ... and timing takes their laws
+        assert len(pathlaw._RUN_MEMO) == planned
+        _, smp, _ = next(iter(pathlaw._RUN_MEMO.values()))
+    assert pathlaw._RUN_MEMO is None                          # let go with the scope
     for f in ("t_s", "q", "qd", "qdd", "zone", "path_index"):
         assert np.array_equal(getattr(fresh, f), getattr(again, f))
-    _, smp, _ = next(iter(pathlaw._RUN_MEMO.values()))
     with pytest.raises(ValueError):                           # kept laws cannot be changed by a caller
         smp.q[0, 0] = 1.0

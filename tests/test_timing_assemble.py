@@ -9,9 +9,11 @@ import pytest
 
 import camtool.trajectory as trajectory_module
 from camtool.settings import TimingSettings
-from camtool.timing import (TrajectorySamples, check_trajectory, sample_trajectory, samples_for, time_trajectory,
+from camtool.timing import (SampledMotion, check_trajectory, limit_findings, sample_trajectory, sampled_for,
+                            tcp_positions_world, time_trajectory,
                             timing_report)
 from camtool.timing.assemble import _stretched
+from camtool.timing.sampled import sample_motion
 from camtool.timing.flow import corner_poses, flow_chain, hard_steps
 from camtool.timing.quintic import MARGIN
 from camtool.timing.ruckig_moves import RuckigMover, rest_to_rest_chain
@@ -196,8 +198,8 @@ def test_arrays_are_read_only():
     names = ("prismatic", "t_s", "q", "qd", "qdd", "zone", "path_index", "piece_row", "piece_zone", "piece_ruckig",
              "piece_reason")
     arrays = [getattr(TR, n) for n in names] + list(TR.limits.values())
-    s = TR.check_samples
-    arrays += [s.t_s, s.q, s.qd, s.qdd, s.qddd]
+    s = TR.sampled
+    arrays += [s.t_s, s.tcp_mm, s.peak_ratio]
     for a in arrays:
         assert not a.flags.writeable
         with pytest.raises(ValueError):
@@ -211,33 +213,59 @@ def test_arrays_are_read_only():
     assert not tr.q.flags.writeable and q.flags.writeable and ROBOT.limits.jerk.flags.writeable
 
 
-def test_check_samples_are_reused_and_match():
-    s = TR.check_samples
-    assert isinstance(s, TrajectorySamples) and s.dt_s == 0.003 and s.waypoints == len(TR.t_s)
-    assert samples_for(TR, 0.003) is s
+def test_sampled_motion_is_what_the_check_sampled():
+    s = TR.sampled
+    assert isinstance(s, SampledMotion) and s.dt_s == 0.003 and s.waypoints == len(TR.t_s)
+    assert sampled_for(TR, ROBOT, 0.003) is s
     fresh = sample_trajectory(TR, 0.003)
-    for name in ("t_s", "q", "qd", "qdd", "qddd"):
-        assert np.array_equal(getattr(fresh, name), getattr(s, name))
-    assert samples_for(TR, 0.004) is not s and samples_for(TR, 0.004).dt_s == 0.004
-    assert check_trajectory(TR, ROBOT, samples=s) == [] == check_trajectory(TR, ROBOT, 0.003, samples=s)
-    assert timing_report(TR, ROBOT, s) == timing_report(TR, ROBOT, fresh)
+    assert np.array_equal(fresh.t_s, s.t_s)
+    assert np.array_equal(tcp_positions_world(ROBOT, fresh.q), s.tcp_mm)
+    L = ROBOT.limits
+    for r, (x, limit) in enumerate(((fresh.qd, L.velocity), (fresh.qdd, L.acceleration), (fresh.qddd, L.jerk))):
+        assert np.array_equal(s.peak_ratio[r], (np.abs(x) / limit).max(axis=0))
+    assert sampled_for(TR, ROBOT, 0.004) is not s and sampled_for(TR, ROBOT, 0.004).dt_s == 0.004
+    assert check_trajectory(TR, ROBOT, samples=fresh) == [] == check_trajectory(TR, ROBOT, 0.003)
+    assert limit_findings(TR, ROBOT, 0.003) == [] == limit_findings(TR, ROBOT, 0.004)
+    assert timing_report(TR, ROBOT, s) == timing_report(TR, ROBOT, sample_motion(TR, ROBOT, 0.003))
     # not compared, not shown, not carried over by replace (the copy may be a different trajectory)
-    assert "check_samples" not in repr(TR)
+    assert "sampled" not in repr(TR)
     thinned = replace(TR, t_s=TR.t_s[::2], q=TR.q[::2], qd=TR.qd[::2], qdd=TR.qdd[::2], zone=TR.zone[::2],
                       path_index=TR.path_index[::2])
-    assert thinned.check_samples is None and not s.matches(thinned)
-    assert samples_for(thinned, 0.003).waypoints == len(thinned.t_s)
+    assert thinned.sampled is None and not s.matches(thinned)
+    assert sampled_for(thinned, ROBOT, 0.003).waypoints == len(thinned.t_s)
+
+
+def test_streamed_check_finds_what_the_whole_check_finds(monkeypatch):
+    """A pass in blocks says nothing; a breach in any block, the waypoints' or a late one's, gives the
+    lines of the check on all samples at once."""
+    monkeypatch.setattr(trajectory_module, "SAMPLE_CHUNK_WAYPOINTS", 200)
+    assert len(TR.t_s) > 1000
+    fast = replace(TR, t_s=TR.t_s * 0.7, qd=TR.qd / 0.7, qdd=TR.qdd / 0.49)   # every speed up by 1/0.7
+    whole = check_trajectory(fast, ROBOT, samples=sample_trajectory(fast, 0.003))
+    assert whole and check_trajectory(fast, ROBOT, 0.003) == whole
+    k = len(TR.t_s) - 50                       # one waypoint late in the last block beyond its limit
+    q = TR.q.copy()
+    q[k, 3] = ROBOT.limits.upper[3] + 1e-3
+    late = replace(TR, q=q)
+    lines = check_trajectory(late, ROBOT, 0.003)
+    assert lines == check_trajectory(late, ROBOT, samples=sample_trajectory(late, 0.003))
+    assert any("position" in line for line in lines)
+    seen = []
+    assert check_trajectory(TR, ROBOT, 0.003, each_block=seen.append) == []
+    assert len(seen) > 5 and np.array_equal(np.concatenate([b.t_s for b in seen]), sample_trajectory(TR, 0.003).t_s)
 
 
 def test_samples_must_fit_the_trajectory_and_step():
-    s = TR.check_samples
+    s = sample_trajectory(TR, 0.003)
     with pytest.raises(ValueError):
         check_trajectory(TR, ROBOT, 0.004, samples=s)
     other = time_trajectory(*CASES["retract"], ROBOT, TimingSettings.make())
     with pytest.raises(ValueError):
         check_trajectory(other, ROBOT, samples=s)
     with pytest.raises(ValueError):
-        timing_report(other, ROBOT, s)
+        timing_report(other, ROBOT, TR.sampled)
+    with pytest.raises(TypeError):
+        timing_report(TR, ROBOT, s)
     with pytest.raises(TypeError):
         timing_report(TR, ROBOT, 0.004)
     with pytest.raises(TypeError):
@@ -268,7 +296,7 @@ def test_checker_imports_no_timing_code():
                 if isinstance(node, ast.ImportFrom)} | \
         {a.name for node in ast.walk(ast.parse(src.read_text())) if isinstance(node, ast.Import)
          for a in node.names}
-    assert imported <= {"__future__", "numpy", "trajectory"}, imported
+    assert imported <= {"__future__", "typing", "numpy", "trajectory"}, imported
     assert {a.name for node in ast.walk(ast.parse(src.read_text())) if isinstance(node, ast.ImportFrom)
             and node.module == "trajectory" for a in node.names} <= {"Trajectory", "TrajectorySamples",
-                                                                       "sample_trajectory"}
+                                                                       "sample_blocks", "sample_trajectory"}

@@ -38,7 +38,7 @@ BUMP = with_leads(bump_deg=1.0)
 
 def _report(tr):
     assert check_trajectory(tr, ROBOT, 0.004) == []
-    return timing_report(tr, ROBOT, tr.check_samples)
+    return timing_report(tr, ROBOT, tr.sampled)
 
 
 def test_work_at_the_feed_when_the_leads_hold_the_ramps():
@@ -49,7 +49,7 @@ def test_work_at_the_feed_when_the_leads_hold_the_ramps():
     assert rep["slowdowns"] == [] and rep["short_leads"] == []
     assert rep["feed_policy"] == "constant" and rep["slow_scope"] == "row"
     # the TCP is at the feed at the first work pose: the ramp lies in the lead-in
-    prof = feed_profile(tr, ROBOT, tr.check_samples)
+    prof = feed_profile(tr, tr.sampled)
     first_work = np.flatnonzero(prof.work)[0]
     assert abs(prof.feed_mm_s[first_work] - 100.0) < 0.5
     # and the leads need no more than they have (15 mm)
@@ -82,7 +82,7 @@ def test_row_scope_slows_the_whole_row_and_names_the_joint():
     assert s["run"] == 0 and s["first_row"] == 5 and s["last_row"] == N - 6  # the first and last work pose
     assert s["joint"] == "j5" and s["limit"] == "jerk" and 0.3 < s["speed_ratio"] < 0.9
     assert s["feed_mm_s"] == pytest.approx(100.0 * s["speed_ratio"])
-    prof = feed_profile(tr, ROBOT, tr.check_samples)
+    prof = feed_profile(tr, tr.sampled)
     t0, t1 = s["t_start_s"], s["t_end_s"]
     mid = prof.work & (prof.t_s[:-1] > t0 + 0.25 * (t1 - t0)) & (prof.t_s[1:] < t0 + 0.4 * (t1 - t0))
     assert mid.sum() > 20 and np.allclose(prof.feed_mm_s[mid], s["feed_mm_s"], rtol=0.01)
@@ -121,7 +121,7 @@ def test_feed_report_and_png(tmp_path):
     assert set(f) == {"commanded_feed_mm_s", "work_length_mm", "work_share_within_1pct", "work_share_within_2pct",
                       "min_work_feed_mm_s", "median_work_feed_mm_s", "max_work_feed_mm_s"}
     assert f["work_length_mm"] == pytest.approx(2 * (N - 11) * 3.0, rel=0.01)
-    png = plot_feed_png(tr, ROBOT, tr.check_samples, tmp_path / "plots" / "feed.png", title="leads")
+    png = plot_feed_png(tr, tr.sampled, tmp_path / "plots" / "feed.png", title="leads")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10000
 
 

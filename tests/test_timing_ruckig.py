@@ -25,7 +25,7 @@ QT = time_trajectory(JP, PATH, ROBOT, TimingSettings.make(method="quintic", tcp_
 
 
 def _report(tr):
-    return timing_report(tr, ROBOT, tr.check_samples)
+    return timing_report(tr, ROBOT, tr.sampled)
 
 
 def _row_index(tr, row):

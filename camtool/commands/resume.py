@@ -79,5 +79,8 @@ def trajectory_of(job, settings, robot, from_file: Path | None, path_file: Path 
     if from_file is not None:
         path = load_stage(sibling(from_file, path_file, PATH_FILE, "path"), expect=("Path",))
         return path, load_stage(from_file, expect=("TimedTrajectory", "Trajectory"))
-    path, joint_path = joint_path_of(job, settings, robot, None, None)
-    return path, time_for_job(settings, joint_path, path, robot)
+    from ..timing.pathlaw import remembered_runs
+
+    with remembered_runs():   # lead sizing plans each run's time law; the timing takes it
+        path, joint_path = joint_path_of(job, settings, robot, None, None)
+        return path, time_for_job(settings, joint_path, path, robot)

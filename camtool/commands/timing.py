@@ -28,12 +28,14 @@ def command(job_file: Path, from_file: Path | None, path_file: Path | None, outd
     from ..settings import JobSettings
     from ..stage_files import save_stage
     from ..stages import robot_for_job, time_for_job
+    from ..timing.pathlaw import remembered_runs
 
     job = load_job(job_file, list(overrides))
     robot = robot_for_job(job)
     settings = JobSettings.from_job(job, robot)
-    path, joint_path = joint_path_of(job, settings, robot, from_file, path_file)
-    trajectory = time_for_job(settings, joint_path, path, robot)
+    with remembered_runs():   # planned now: lead sizing's run time laws are the timing's
+        path, joint_path = joint_path_of(job, settings, robot, from_file, path_file)
+        trajectory = time_for_job(settings, joint_path, path, robot)
     saved = save_stage(trajectory, outdir / TRAJECTORY_FILE)
     summary = {"job": str(job_file), "robot": robot.name, "timing_method": settings.timing.method,
                "cycle_time_s": trajectory.duration_s, "waypoints": int(len(trajectory.t_s)), "saved": str(saved)}

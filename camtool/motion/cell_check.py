@@ -68,10 +68,23 @@ def motion_rates(world) -> np.ndarray:
     return Rjb
 
 
+BOUND_BLOCK_ROWS = 65536   # rows of q taken at a time by motion_bounds (bounded temporaries)
+
+
 def motion_bounds(world, q: np.ndarray) -> np.ndarray:
-    """(S, B) cumulated motion bound (mm) of each body along the joint-linear motion through the rows of q."""
-    step = np.abs(np.diff(q, axis=0)) @ motion_rates(world)
-    return np.vstack([np.zeros((1, len(world.bodies))), np.cumsum(step, axis=0)])
+    """(S, B) cumulated motion bound (mm) of each body along the joint-linear motion through the rows of q.
+
+    Summed a block of rows at a time, each block's first step carrying the sum so far: the same
+    additions in the same order as one cumulative sum over every step, without (S, dof) temporaries."""
+    rates = motion_rates(world)
+    S = len(q)
+    out = np.zeros((S, rates.shape[1]))
+    for a in range(0, S - 1, BOUND_BLOCK_ROWS):
+        b = min(a + BOUND_BLOCK_ROWS, S - 1)
+        step = np.abs(np.diff(q[a:b + 1], axis=0)) @ rates
+        step[0] += out[a]
+        np.cumsum(step, axis=0, out=out[a + 1:b + 1])
+    return out
 
 
 def sampled_motion_bounds(world, q_waypoints: np.ndarray, seg: np.ndarray, frac: np.ndarray) -> np.ndarray:
@@ -116,7 +129,7 @@ class CellPass:
                 self.static_T[i] = self._tf(b.local_T_mm)
             elif b.parent == BASE:
                 self.static_T[i] = self._tf(np.asarray(world.robot.base_T_mm, float) @ b.local_T_mm)
-        self.pair_C = [C[:, p.a] + C[:, p.b] for p in world.pairs]
+        self._pair_C = [None] * len(world.pairs)   # each pair's bound, made when it is first advanced
         self._states = [_PairState(fails=[]) for _ in world.pairs]
         self._next = [0] * len(world.pairs)
         self.seconds = 0.0
@@ -154,8 +167,10 @@ class CellPass:
         clock = time.perf_counter()
         S, thr = self.S, self.thr
         for n, pair in enumerate(self.world.pairs):
-            st, cp = self._states[n], self.pair_C[n]
-            j = self._next[n]
+            st, j = self._states[n], self._next[n]
+            if j >= c1:
+                continue
+            cp = self._pair_bound(n)
             while j < c1:
                 d, pts = self._distance_at(pair, *frames_at(j))
                 st.evaluations += 1
@@ -173,7 +188,16 @@ class CellPass:
                 else:
                     j += 1
             self._next[n] = j
+            if j >= S:
+                self._pair_C[n] = None   # the pair is through every sample: its bound goes
         self.seconds += time.perf_counter() - clock
+
+    def _pair_bound(self, n: int) -> np.ndarray:
+        """(S,) pair n's motion bound: its two bodies' cumulated bounds summed."""
+        if self._pair_C[n] is None:
+            pair = self.world.pairs[n]
+            self._pair_C[n] = self.C[:, pair.a] + self.C[:, pair.b]
+        return self._pair_C[n]
 
     def states(self) -> list[_PairState]:
         return self._states

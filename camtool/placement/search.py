@@ -190,7 +190,8 @@ def verify_placement(job: Job, offset, settings: ScreenSettings) -> dict:
     (``PlacementProblem.planned_cost``).
     """
     from .. import stages
-    from ..timing import check_trajectory, samples_for
+    from ..timing import limit_findings
+    from ..timing.pathlaw import remembered_runs
 
     t0 = time.perf_counter()
     pj = placed_job(job, offset)
@@ -203,13 +204,14 @@ def verify_placement(job: Job, offset, settings: ScreenSettings) -> dict:
     part = part_for_checks(st, wp, surface) if part_for_checks is not None else wp
     out = {"offset": [float(v) for v in offset], "poses": len(path)}
     try:
-        path, jp = stages.plan_with_sized_leads(st, surface, path, robot, part)  # as the raster task plans
-        tr = time_for_job(st, jp, path, robot)
+        with remembered_runs():   # as the raster task plans and times
+            path, jp = stages.plan_with_sized_leads(st, surface, path, robot, part)
+            tr = time_for_job(st, jp, path, robot)
     except PlanInfeasible as exc:
         out.update(ok=False, unreachable=len(exc.report.get("unreachable", [])), reason=str(exc), cost=math.inf,
                    seconds=round(time.perf_counter() - t0, 3))
         return out
-    findings = check_trajectory(tr, robot, samples=samples_for(tr, st.timing.check_dt_s))
+    findings = limit_findings(tr, robot, st.timing.check_dt_s)
     m = reach_margins(path, jp, robot, orientation_mm=st.planner.orientation_weight_mm,
                       track_scale_mm=st.planner.track_scale_mm)
     jm = m["joint_limit"]["min_share"] if m["joint_limit"] else None

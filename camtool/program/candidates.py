@@ -229,14 +229,26 @@ def _ratios(kin, st: dict, process, linear: bool):
     return chooser(joint.linear), chooser(joint.exact)
 
 
+STATE_BLOCK_ROWS = 32768   # waypoints whose poses and Jacobians are made at a time (bounded temporaries)
+
+
 def _state(kin, t, q, qd, qdd, zone, process, linear: bool) -> dict:
-    """Waypoint arrays with what merging and blending need (poses, Jacobians, tolerances)."""
-    P, R, J = kin.pose_jacobian(q)
+    """Waypoint arrays with what merging and blending need (poses, Jacobians, tolerances).
+
+    Poses, Jacobians and dexterity are each waypoint's own, made ``STATE_BLOCK_ROWS`` at a time:
+    the kinematics' (S, dof, 3) temporaries of a dense job's 180k waypoints would be hundreds of MB."""
+    S, dof = np.shape(q)
+    P, R, J, dexterous = np.empty((S, 3)), np.empty((S, 3, 3)), np.empty((S, 3, dof)), np.zeros(S, bool)
+    for a in range(0, S, STATE_BLOCK_ROWS):
+        rows = slice(a, a + STATE_BLOCK_ROWS)
+        P[rows], R[rows], J[rows] = kin.pose_jacobian(q[rows])
+        if linear:
+            dexterous[rows] = kin.dexterity(q[rows]) >= MIN_DEXTERITY
     free = np.isin(zone, FREE_ZONES)
     tol = np.where(free, FREE_TOL_FACTOR, 1.0) * float(process.path_tol_mm)
     # straight TCP moves between process waypoints away from singularities (where a straight TCP
     # line can need unbounded joint speeds); joint moves elsewhere
-    in_proc = ~free & (kin.dexterity(q) >= MIN_DEXTERITY) if linear else np.zeros(len(t), bool)
+    in_proc = ~free & dexterous if linear else np.zeros(len(t), bool)
     return dict(t=t, q=q, qd=qd, qdd=qdd, zone=zone, P=P, R=R, J=J, free=free, tol=tol,
                 merge_tol=MERGE_SHARE * tol, in_proc=in_proc)
 

@@ -21,7 +21,8 @@ from ..placement.partial import partial_path, partial_summary, reachable_stretch
 from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
 from ..surface import FaceSet
-from ..timing import samples_for
+from ..timing import sampled_for
+from ..timing.pathlaw import remembered_runs
 from ..stages import (RunResult, StageLog, finish_run, motion_check, part_for_checks, path_for_job, plan_and_time,
                       plan_with_sized_leads, post_checked, report_failure, report_unreachable, run_report,
                       surface_for_job, time_for_job, workpiece_for_job)
@@ -51,6 +52,41 @@ def partial_plan_path(path, exc: PlanInfeasible):
     return sub, figures
 
 
+def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp, part, surface, path, outdir: Path):
+    """(path, joint path, trajectory, partial figures or None): the plan and time stages of a raster job.
+
+    Leads grow to what the ramps need (``plan_with_sized_leads``; each run's time law is planned once,
+    ``remembered_runs``); with ``task.allow_partial`` the reachable stretches are planned when some poses
+    are not. An unreachable plan writes its report (and the nearest shift that would fit) and is raised.
+    ``wp`` the workpiece as loaded, ``part`` what the checks measure against (``part_for_checks``)."""
+    partial = None
+    with remembered_runs():  # lead sizing plans each run's time law; the time stage takes it
+        try:
+            try:
+                with log.clock("plan"):
+                    path, joint_path = plan_with_sized_leads(settings, surface, path, robot, workpiece=part)
+                with log.clock("time"):
+                    trajectory = time_for_job(settings, joint_path, path, robot)
+                if joint_path.events.get("leads", {}).get("lead_mm_used", settings.raster.lead_mm) != settings.raster.lead_mm:
+                    log.done("raster", path)  # rastered again with the leads the ramps need
+            except PlanInfeasible as exc:
+                if not (job.task.allow_partial and exc.report.get("unreachable")):
+                    raise
+                path, partial = partial_plan_path(path, exc)
+                joint_path, trajectory = plan_and_time(settings, path, robot, workpiece=part)
+                log.done("raster", path)  # the part of the raster that is programmed
+        except PlanInfeasible as exc:
+            shift = None
+            if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, a bounded search
+                shift = nearest_feasible_shift(job, settings, robot, path)
+            report_unreachable(exc, path, robot, job, outdir, wp, surface, shift=shift,
+                               world=collision_world(settings, robot))
+            if shift is not None and not shift["already_reachable"]:
+                raise PlanInfeasible(f"{exc}; {shift['message']}", report=exc.report) from None
+            raise
+    return path, joint_path, trajectory, partial
+
+
 def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool = False) -> RunResult:
     """Run a raster job; programs, report.json, points.csv and plots go into ``outdir``."""
     if settings.planner.method == "arm-angle-sqp":
@@ -66,30 +102,8 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
     path = log.done("raster", path_for_job(job, surface) if step_choice is None else raster_path(surface, settings.raster))
     part = part_for_checks(settings, wp, surface)
-    partial = None
-    try:
-        try:
-            with log.clock("plan"):
-                path, joint_path = plan_with_sized_leads(settings, surface, path, robot, workpiece=part)
-            with log.clock("time"):
-                trajectory = time_for_job(settings, joint_path, path, robot)
-            if joint_path.events.get("leads", {}).get("lead_mm_used", settings.raster.lead_mm) != settings.raster.lead_mm:
-                log.done("raster", path)  # rastered again with the leads the ramps need
-        except PlanInfeasible as exc:
-            if not (job.task.allow_partial and exc.report.get("unreachable")):
-                raise
-            path, partial = partial_plan_path(path, exc)
-            joint_path, trajectory = plan_and_time(settings, path, robot, workpiece=part)
-            log.done("raster", path)  # the part of the raster that is programmed
-    except PlanInfeasible as exc:
-        shift = None
-        if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, a bounded search
-            shift = nearest_feasible_shift(job, settings, robot, path)
-        report_unreachable(exc, path, robot, job, outdir, wp, surface, shift=shift,
-                           world=collision_world(settings, robot))
-        if shift is not None and not shift["already_reachable"]:
-            raise PlanInfeasible(f"{exc}; {shift['message']}", report=exc.report) from None
-        raise
+    path, joint_path, trajectory, partial = planned_and_timed(job, settings, robot, log, wp, part, surface,
+                                                                   path, outdir)
     log.done("plan", joint_path)
     retimed, dwell = retime_for_target(job, settings, surface, path, joint_path, robot)  # a target removal map
     trajectory = trajectory if retimed is None else retimed
@@ -144,8 +158,8 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
         if segmented(job):   # the faces of the part and which the job works (the fit stage's segmentation)
             faces = faces_report(job, wp)
             if several:  # each face worked, in working order: coverage and feed
-                faces["worked"] = faces_worked(surface, path, trajectory, robot,
-                                               samples_for(trajectory, settings.timing.check_dt_s), motion)
+                faces["worked"] = faces_worked(surface, path, trajectory,
+                                               sampled_for(trajectory, robot, settings.timing.check_dt_s), motion)
             log.outputs["faces"] = faces
             report["faces"] = {k: v for k, v in faces.items() if k != "labels"}
         report["limits_ok"] = True  # post_checked passed the independent check

@@ -4,9 +4,11 @@ Entry points:
 
 - ``time_trajectory(joint_path, path, robot, settings)`` -> ``TimedTrajectory``
   (``settings``: ``camtool.settings.TimingSettings``)
-- ``timing_report(trajectory, robot, samples)`` (``samples``: ``TrajectorySamples``)
+- ``timing_report(trajectory, robot, sampled)`` (``sampled``: ``SampledMotion``, ``sampled.py``)
 - ``check_trajectory(trajectory, robot, dt_s=None, samples=None)`` (independent checker, ``check.py``)
-- ``samples_for(trajectory, dt_s)``: the samples a TimedTrajectory was checked with, else a new resampling
+- ``sampled_for(trajectory, robot, dt_s)``: what a TimedTrajectory's check gathered of its samples, else
+  a new sampling; ``limit_findings(trajectory, robot, dt_s)``: the check's findings, [] for a
+  TimedTrajectory it passed
 
 Surface zones (work, lead_in, lead_out) are split into *runs*: consecutive
 surface poses of one path segment. Each run is a cubic spline through its poses
@@ -37,11 +39,13 @@ from .assemble import (SURFACE_ZONES, lead_needed_mm, place, run_layout, short_l
 from .check import check_trajectory
 from .feed import feed_profile, feed_statistics, plot_feed, tcp_positions_world
 from .runs import lead_bound_mm
+from .sampled import MotionGatherer, SampledMotion, sample_motion
 
 if TYPE_CHECKING:
     from ..settings import TimingSettings
 
-__all__ = ["TimedTrajectory", "TrajectorySamples", "check_trajectory", "sample_trajectory", "samples_for",
+__all__ = ["TimedTrajectory", "TrajectorySamples", "SampledMotion", "check_trajectory", "sample_trajectory",
+           "sampled_for", "limit_findings",
            "time_trajectory", "timing_report", "plot_feed_png", "feed_profile", "feed_statistics",
            "lead_needed_mm", "lead_bound_mm", "tcp_positions_world", "SURFACE_ZONES"]
 
@@ -63,10 +67,11 @@ class TimedTrajectory(Trajectory):
     ``piece_zone``, ``piece_ruckig`` (True if it is a ruckig move) and
     ``piece_reason`` ("" or why a ruckig piece kept its quintic).
 
-    ``check_samples``: the resampling (``TrajectorySamples`` at
-    ``settings.check_dt_s``) that ``time_trajectory`` checked it with, for the
-    caller to reuse (``samples_for``); not an init argument, not compared, not
-    shown, not saved, and not carried over by ``dataclasses.replace`` (None then).
+    ``sampled``: what ``time_trajectory``'s limit check gathered of the samples it
+    checked (``SampledMotion`` at ``settings.check_dt_s``), for the figures
+    (``sampled_for``); its presence says the check passed. Not an init argument,
+    not compared, not shown, not saved, and not carried over by
+    ``dataclasses.replace`` (None then).
     """
 
     method: str = ""
@@ -79,17 +84,25 @@ class TimedTrajectory(Trajectory):
     piece_zone: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     piece_ruckig: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     piece_reason: np.ndarray = field(default_factory=lambda: np.zeros(0, str))
-    check_samples: TrajectorySamples | None = field(default=None, init=False, repr=False, compare=False,
-                                                    metadata={"transient": True})
+    sampled: SampledMotion | None = field(default=None, init=False, repr=False, compare=False,
+                                          metadata={"transient": True})
 
 
-def samples_for(trajectory: Trajectory, dt_s: float) -> TrajectorySamples:
-    """The trajectory's resampling at ``dt_s``: the ``check_samples`` of a TimedTrajectory when they
-    are at ``dt_s``, else ``sample_trajectory(trajectory, dt_s)`` (e.g. a trajectory loaded from a file)."""
-    samples = getattr(trajectory, "check_samples", None)
-    if samples is not None and samples.matches(trajectory, dt_s):
-        return samples
-    return sample_trajectory(trajectory, dt_s)
+def _checked(trajectory: Trajectory, dt_s: float) -> SampledMotion | None:
+    sampled = trajectory.sampled if isinstance(trajectory, TimedTrajectory) else None
+    return sampled if sampled is not None and sampled.matches(trajectory, dt_s) else None
+
+
+def sampled_for(trajectory: Trajectory, robot, dt_s: float) -> SampledMotion:
+    """The trajectory sampled at ``dt_s`` for the figures: what ``time_trajectory``'s check gathered when
+    it checked at ``dt_s``, else a new ``sample_motion`` (e.g. a trajectory loaded from a file)."""
+    return _checked(trajectory, dt_s) or sample_motion(trajectory, robot, dt_s)
+
+
+def limit_findings(trajectory: Trajectory, robot, dt_s: float) -> list[str]:
+    """``check_trajectory`` at ``dt_s``: [] for a TimedTrajectory that ``time_trajectory`` checked at that
+    step (it is raised there otherwise), else the check's findings (a trajectory from a file)."""
+    return [] if _checked(trajectory, dt_s) is not None else check_trajectory(trajectory, robot, dt_s)
 
 
 def _validate(joint_path, path, robot) -> None:
@@ -125,7 +138,7 @@ def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedT
     pass their poses without stopping, ``flow.py``) or "stop" (rest at every free
     pose), and
     ``check_dt_s``: the result is verified by ``check_trajectory`` on a
-    resampling at that step (kept as ``check_samples``), and a CamtoolError is
+    resampling at that step (what the figures need kept as ``sampled``), and a CamtoolError is
     raised if it breaks a limit.
     """
     _validate(joint_path, path, robot)
@@ -152,12 +165,12 @@ def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedT
         piece_ruckig=np.asarray(surface.interpolation.piece_ruckig, bool),
         piece_reason=np.asarray(surface.interpolation.piece_reason, str),
     )
-    samples = sample_trajectory(traj, settings.check_dt_s) if len(traj.t_s) >= 2 else None
-    findings = check_trajectory(traj, robot, settings.check_dt_s, samples=samples)
+    gather = MotionGatherer(traj, robot, settings.check_dt_s)
+    findings = check_trajectory(traj, robot, settings.check_dt_s, each_block=gather)
     if findings:
         raise CamtoolError(f"timing produced a trajectory that breaks a limit ({len(findings)} findings): "
                            f"{findings[0]}")
-    object.__setattr__(traj, "check_samples", samples)  # derived data, set once before anyone sees traj
+    object.__setattr__(traj, "sampled", gather.result())  # derived data, set once before anyone sees traj
     return traj
 
 
@@ -182,44 +195,34 @@ def _piece_figures(tr) -> dict:
     }
 
 
-def _feed_figures(tr, robot, samples) -> dict:
+def _feed_figures(tr, sampled: SampledMotion) -> dict:
     """TCP feed on work measured on the samples (``feed.py``); {} without a commanded feed."""
     feed = float(getattr(tr, "tcp_speed_mm_s", 0.0) or 0.0)
-    if feed <= 0 or len(samples.t_s) < 2:
+    if feed <= 0 or len(sampled.t_s) < 2:
         return {}
-    return feed_statistics(feed_profile(tr, robot, samples), feed)
+    return feed_statistics(feed_profile(tr, sampled), feed)
 
 
-def plot_feed_png(trajectory: Trajectory, robot, samples: TrajectorySamples, png_path, title: str = ""):
+def plot_feed_png(trajectory: Trajectory, sampled: SampledMotion, png_path, title: str = ""):
     """Write a PNG of the TCP feed against TCP path length (work highlighted, the commanded feed and its
-    +-1 % / +-2 % bands marked) measured on ``samples``; returns the file's path (matplotlib, Agg)."""
+    +-1 % / +-2 % bands marked) measured on ``sampled``; returns the file's path (matplotlib, Agg)."""
     feed = float(getattr(trajectory, "tcp_speed_mm_s", 0.0) or 0.0)
-    return plot_feed(feed_profile(trajectory, robot, samples), feed, png_path, title)
+    return plot_feed(feed_profile(trajectory, sampled), feed, png_path, title)
 
 
-REPORT_BLOCK_SAMPLES = 200000  # samples reduced at a time for the peak ratios (bounded temporaries)
-
-
-def timing_report(trajectory: Trajectory, robot, samples: TrajectorySamples) -> dict:
-    """Cycle time, peak joint use (|value| / limit over ``samples``, the trajectory's resampling from
-    ``sample_trajectory`` / ``samples_for``), work time, the TCP feed on work measured on ``samples``
-    (``work_feed``: shares of work length within +-1 % / +-2 % of the commanded feed, min / median /
-    max work feed), slowed rows with their binding joint, short leads, share of ruckig pieces and
-    ruckig fallbacks."""
+def timing_report(trajectory: Trajectory, robot, sampled: SampledMotion) -> dict:
+    """Cycle time, peak joint use (|value| / limit over the samples: ``sampled``, from ``sampled_for``),
+    work time, the TCP feed on work measured on the samples (``work_feed``: shares of work length within
+    +-1 % / +-2 % of the commanded feed, min / median / max work feed), slowed rows with their binding
+    joint, short leads, share of ruckig pieces and ruckig fallbacks."""
     tr = trajectory
-    if not isinstance(samples, TrajectorySamples):
-        raise TypeError("timing_report: samples must be the trajectory's TrajectorySamples "
-                        "(samples_for(trajectory, dt_s) or sample_trajectory(trajectory, dt_s))")
-    if not samples.matches(tr):
-        raise ValueError(f"timing_report: the samples ({samples.waypoints} waypoints) are not those of this "
+    if not isinstance(sampled, SampledMotion):
+        raise TypeError("timing_report: sampled must be the trajectory's SampledMotion "
+                        "(sampled_for(trajectory, robot, dt_s))")
+    if not sampled.matches(tr):
+        raise ValueError(f"timing_report: the samples ({sampled.waypoints} waypoints) are not those of this "
                          f"trajectory ({len(tr.t_s)} waypoints)")
-    L = robot.limits
-    per_joint = np.zeros((3, robot.dof))
-    for a in range(0, len(samples.t_s), REPORT_BLOCK_SAMPLES):
-        blk = slice(a, a + REPORT_BLOCK_SAMPLES)
-        for r, (x, lim) in enumerate(((samples.qd, L.velocity), (samples.qdd, L.acceleration),
-                                      (samples.qddd, L.jerk))):
-            np.maximum(per_joint[r], (np.abs(x[blk]) / lim).max(axis=0), out=per_joint[r])
+    per_joint = sampled.peak_ratio
     peaks = per_joint.max(axis=1)
     work = ZONE_CODE["work"]
     both_work = (tr.zone[:-1] == work) & (tr.zone[1:] == work)
@@ -236,7 +239,7 @@ def timing_report(trajectory: Trajectory, robot, samples: TrajectorySamples) -> 
         "tcp_speed_mm_s": getattr(tr, "tcp_speed_mm_s", 0.0),
         "feed_policy": getattr(tr, "feed", ""),
         "slow_scope": getattr(tr, "slow_scope", ""),
-        "work_feed": _feed_figures(tr, robot, samples),
+        "work_feed": _feed_figures(tr, sampled),
         "slowdowns": [dict(s) for s in getattr(tr, "slowdowns", ())],
         "short_leads": [dict(s) for s in getattr(tr, "short_leads", ())],
         **_piece_figures(tr),

@@ -1,16 +1,20 @@
 """Independent limit checker: only the Trajectory and the robot's limits are used.
 
 It does not import any of the timing code; it resamples the trajectory with
-``camtool.trajectory.sample_trajectory`` (the quintic Hermite pieces a
-controller would run), or takes such samples ready-made, and compares every
-joint's position, speed, acceleration and jerk to the robot's limits. Findings
-are one line each, in user units (deg or mm, per s^k).
+``camtool.trajectory.sample_blocks`` (the quintic Hermite pieces a controller
+would run), a block of waypoints at a time, or takes such samples ready-made,
+and compares every joint's position, speed, acceleration and jerk to the
+robot's limits. Findings are one line each, in user units (deg or mm, per s^k).
+A pass finds nothing in bounded memory; only when a block breaks a limit is the
+whole trajectory sampled at once, so that each finding spans its whole interval.
 """
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
-from ..trajectory import Trajectory, TrajectorySamples, sample_trajectory
+from ..trajectory import Trajectory, TrajectorySamples, sample_blocks, sample_trajectory
 
 REL_TOL = 1e-9               # relative slack for round-off
 MAX_LINES_PER_KIND = 20      # findings per joint and quantity before summarising
@@ -60,15 +64,41 @@ def _limit_lines(name, prismatic, t, values, limit, kind, order, lower=None):
     return lines
 
 
+def _slack(limit) -> np.ndarray:
+    return REL_TOL * (1.0 + np.abs(limit))
+
+
+def _breaks(robot, q, qd, qdd, qddd) -> bool:
+    """True if any row of these joint values (waypoints, or a block of samples; no jerk: None) breaks a
+    limit by the rules of ``_limit_lines`` (and, for coupled controller axes, ``_coupled_axis_speeds``)."""
+    L = robot.limits
+    if np.any((q < L.lower - _slack(L.lower)) | (q > L.upper + _slack(L.upper))):
+        return True
+    for values, limit in ((qd, L.velocity), (qdd, L.acceleration), (qddd, L.jerk)):
+        if values is not None and np.any(np.abs(values) > limit + _slack(limit)):
+            return True
+    conv = robot.conventions
+    if conv.coupled:
+        for k in conv.coupled_axes:
+            limit = robot.limits.velocity[conv.axis_joints[k]]
+            if np.any(np.abs(qd @ conv.matrix[k]) > limit + _slack(limit)):
+                return True
+    return False
+
+
 def check_trajectory(trajectory: Trajectory, robot, dt_s: float | None = None,
-                     samples: TrajectorySamples | None = None) -> list[str]:
+                     samples: TrajectorySamples | None = None,
+                     each_block: Callable[[TrajectorySamples], None] | None = None) -> list[str]:
     """Findings (one line each) where ``trajectory`` breaks the robot's limits; empty if none.
 
     Checks array shapes, finite values, strictly increasing time stamps, the
     waypoints themselves, and position, speed, acceleration and jerk of every
     joint on a resampling: ``samples`` (from ``sample_trajectory(trajectory,
-    dt_s)``) if given, else a new ``sample_trajectory(trajectory, dt_s)``.
-    Give ``dt_s`` or ``samples`` (or both: then they must agree).
+    dt_s)``) if given, else ``sample_blocks(trajectory, dt_s)`` one block at a
+    time. Give ``dt_s`` or ``samples`` (or both: then they must agree).
+    ``each_block`` is shown every block of samples checked, in order (once, the
+    whole, when ``samples`` are given): a caller's figures from the very samples
+    checked, with no second resampling.
     """
     if dt_s is None and samples is None:
         raise TypeError("check_trajectory: give dt_s (the resampling step, s) or samples")
@@ -97,10 +127,19 @@ def check_trajectory(trajectory: Trajectory, robot, dt_s: float | None = None,
         return [f"time stamps are not strictly increasing at waypoint {k + 1} (t = {tr.t_s[k + 1]:.6f} s "
                 f"after {tr.t_s[k]:.6f} s)"]
     if samples is None:
-        samples = sample_trajectory(tr, dt_s)
+        broken = _breaks(robot, tr.q, tr.qd, tr.qdd, None)
+        for block in sample_blocks(tr, dt_s):
+            if each_block is not None:
+                each_block(block)
+            broken = _breaks(robot, block.q, block.qd, block.qdd, block.qddd) or broken
+        if not broken:
+            return findings
+        samples = sample_trajectory(tr, dt_s)  # the lines below: each interval whole, at its peak
     elif not samples.matches(tr, dt_s):
         raise ValueError(f"check_trajectory: the samples (dt {samples.dt_s} s, {samples.waypoints} waypoints) "
                          f"are not those of this trajectory ({m} waypoints) at dt {dt_s} s")
+    elif each_block is not None:
+        each_block(samples)
     # position, speed and acceleration: the waypoints and the samples, in time order; jerk: the samples
     t_all = np.concatenate([tr.t_s, samples.t_s])
     order = np.argsort(t_all, kind="stable")

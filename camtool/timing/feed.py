@@ -1,7 +1,7 @@
 """TCP feed of a timed trajectory: TCP distance over time on its resampling, statistics and a plot.
 
 The feed is measured on what a controller runs: the trajectory resampled every
-``dt`` (``TrajectorySamples``), TCP positions by forward kinematics, and the
+``dt`` (``sampled.SampledMotion``), TCP positions by forward kinematics, and the
 feed of each sample interval = TCP distance / time. A sample interval counts
 as *work* when it lies between two consecutive ``work`` waypoints (the same
 rule as ``work_time_s``). Shares are shares of work **length**.
@@ -112,10 +112,10 @@ class FeedProfile:
     run: np.ndarray
 
 
-def feed_profile(trajectory, robot, samples) -> FeedProfile:
-    """TCP feed of ``trajectory`` on its resampling ``samples`` (``TrajectorySamples``)."""
-    t = np.asarray(samples.t_s, float)
-    p = tcp_positions_world(robot, samples.q)
+def feed_profile(trajectory, sampled) -> FeedProfile:
+    """TCP feed of ``trajectory`` on its resampling ``sampled`` (``sampled.SampledMotion``: times, TCP)."""
+    t = np.asarray(sampled.t_s, float)
+    p = np.asarray(sampled.tcp_mm, float)
     dl = np.linalg.norm(np.diff(p, axis=0), axis=1)
     dt = np.diff(t)
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import hashlib
 from collections import OrderedDict
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -555,14 +556,30 @@ def check_section(samples: SectionSamples, limits, share: float = CHECK_SHARE) -
 
 
 RUN_MEMO_SIZE = 2048    # run time laws kept for a second, identical request (lead sizing, then timing)
-_RUN_MEMO: OrderedDict = OrderedDict()
+_RUN_MEMO: OrderedDict | None = None   # while ``remembered_runs`` is open
+
+
+@contextmanager
+def remembered_runs():
+    """Within it each run's time law is planned once (``time_run_section``); on leaving (the outermost),
+    the laws kept are let go: a job's plan and time stages, not the process, hold them."""
+    global _RUN_MEMO
+    outer = _RUN_MEMO
+    _RUN_MEMO = OrderedDict() if outer is None else outer
+    try:
+        yield
+    finally:
+        _RUN_MEMO = outer
 
 
 def time_run_section(spline: PathSpline, target: np.ndarray, limits, fill_s: float = FILL_S):
-    """``time_section`` of a surface run, each run planned once per process: lead sizing
+    """``time_section`` of a surface run, each run planned once within ``remembered_runs``: lead sizing
     (``runs.run_leads``) and the timing of the same joint path (``runs.time_runs``) ask for the very same
     sections, so the second request gets the first's (plan, samples, derate), arrays read-only. Keyed on
-    the exact bytes of the knots, poses, targets, limits and ``fill_s``; at most ``RUN_MEMO_SIZE`` kept."""
+    the exact bytes of the knots, poses, targets, limits and ``fill_s``; at most ``RUN_MEMO_SIZE`` kept.
+    Outside ``remembered_runs``, every request is planned."""
+    if _RUN_MEMO is None:
+        return _read_only(*time_section(spline, target, limits, fill_s))
     h = hashlib.blake2b(digest_size=20)
     for a in (spline.s, spline.q, target, limits.lower, limits.upper, limits.velocity, limits.acceleration,
               limits.jerk, np.array([fill_s], float)):
@@ -574,12 +591,15 @@ def time_run_section(spline: PathSpline, target: np.ndarray, limits, fill_s: flo
     if hit is not None:
         _RUN_MEMO.move_to_end(key)
         return hit
-    plan, smp, derate = time_section(spline, target, limits, fill_s)
-    for arr in (smp.t_s, smp.q, smp.qd, smp.qdd, smp.knot):
-        arr.setflags(write=False)
-    _RUN_MEMO[key] = (plan, smp, derate)
+    _RUN_MEMO[key] = hit = _read_only(*time_section(spline, target, limits, fill_s))
     while len(_RUN_MEMO) > RUN_MEMO_SIZE:
         _RUN_MEMO.popitem(last=False)
+    return hit
+
+
+def _read_only(plan, smp, derate) -> tuple:
+    for arr in (smp.t_s, smp.q, smp.qd, smp.qdd, smp.knot):
+        arr.setflags(write=False)
     return plan, smp, derate
 
 
