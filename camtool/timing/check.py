@@ -39,13 +39,17 @@ def _intervals(bad: np.ndarray):
     return list(zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0]))
 
 
+def _beyond(values, limit, lower=None) -> np.ndarray:
+    """Where ``values`` break ``limit``: |values| above it, or with ``lower`` outside [lower, limit]; a
+    relative slack of ``REL_TOL`` absorbs round-off (the one rule of the lines and of ``_breaks``)."""
+    if lower is None:
+        return np.abs(values) > limit + REL_TOL * (1.0 + np.abs(limit))
+    return (values < lower - REL_TOL * (1.0 + np.abs(lower))) | (values > limit + REL_TOL * (1.0 + np.abs(limit)))
+
+
 def _limit_lines(name, prismatic, t, values, limit, kind, order, lower=None):
     """Finding lines for one joint and one quantity (peak of each violating interval)."""
-    tol = REL_TOL * (1.0 + np.abs(limit))
-    if lower is None:
-        bad = np.abs(values) > limit + tol
-    else:
-        bad = (values < lower - REL_TOL * (1 + abs(lower))) | (values > limit + tol)
+    bad = _beyond(values, limit, lower)
     lines = []
     spans = _intervals(bad)
     for a, b in spans[:MAX_LINES_PER_KIND]:
@@ -64,26 +68,18 @@ def _limit_lines(name, prismatic, t, values, limit, kind, order, lower=None):
     return lines
 
 
-def _slack(limit) -> np.ndarray:
-    return REL_TOL * (1.0 + np.abs(limit))
-
-
 def _breaks(robot, q, qd, qdd, qddd) -> bool:
     """True if any row of these joint values (waypoints, or a block of samples; no jerk: None) breaks a
-    limit by the rules of ``_limit_lines`` (and, for coupled controller axes, ``_coupled_axis_speeds``)."""
+    limit that ``_limit_lines`` (and, for coupled controller axes, ``_coupled_axis_speeds``) would report."""
     L = robot.limits
-    if np.any((q < L.lower - _slack(L.lower)) | (q > L.upper + _slack(L.upper))):
+    if _beyond(q, L.upper, L.lower).any():
         return True
-    for values, limit in ((qd, L.velocity), (qdd, L.acceleration), (qddd, L.jerk)):
-        if values is not None and np.any(np.abs(values) > limit + _slack(limit)):
-            return True
+    if any(_beyond(x, limit).any() for x, limit in ((qd, L.velocity), (qdd, L.acceleration), (qddd, L.jerk))
+           if x is not None):
+        return True
     conv = robot.conventions
-    if conv.coupled:
-        for k in conv.coupled_axes:
-            limit = robot.limits.velocity[conv.axis_joints[k]]
-            if np.any(np.abs(qd @ conv.matrix[k]) > limit + _slack(limit)):
-                return True
-    return False
+    return bool(conv.coupled) and any(_beyond(qd @ conv.matrix[k], L.velocity[conv.axis_joints[k]]).any()
+                                      for k in conv.coupled_axes)
 
 
 def check_trajectory(trajectory: Trajectory, robot, dt_s: float | None = None,
