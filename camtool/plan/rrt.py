@@ -4,8 +4,9 @@
   is valid when it is inside the joint limits and every link, modelled as a
   capsule of ``radius_mm`` round the segment between consecutive joint-frame
   origins (from FK, plus flange and TCP), keeps ``clearance_mm`` from the
-  workpiece mesh (world frame). Distances come from open3d's RaycastingScene
-  (or trimesh's proximity query, ``backend="trimesh"``; the same closest-point query)
+  workpiece mesh (world frame). Distances come from coal's BVH
+  (``collision.mesh_query``; or trimesh's proximity query, ``backend="trimesh"``;
+  the same closest-point query)
   (signed for watertight meshes, so a link inside the part counts too;
   unsigned for open surface patches, pre-filtered by a KD-tree of the
   vertices); link points farther than the capsule radius plus
@@ -160,12 +161,12 @@ class CapsuleChecker(_LinkCapsules):
 
     Watertight meshes use the signed distance (a link inside the part counts as
     overlap); open meshes (a surface patch) the unsigned distance. ``backend``:
-    "open3d" (RaycastingScene, default, fast) or "trimesh" (ProximityQuery); a
-    test checks they agree.
+    "coal" (BVH, ``collision.mesh_query``, default, fast) or "trimesh" (ProximityQuery);
+    a test checks they agree.
     """
 
     def __init__(self, robot, mesh, radius_mm: float = 60.0, clearance_mm: float = 0.0,
-                 skip_links: int = 1, spacing_mm: float | None = None, exempt=(), backend: str = "open3d",
+                 skip_links: int = 1, spacing_mm: float | None = None, exempt=(), backend: str = "coal",
                  outward=None, tip_exempt_mm: float = 0.0):
         import trimesh
 
@@ -174,7 +175,9 @@ class CapsuleChecker(_LinkCapsules):
         # tool side), a point behind the surface (closest-point offset against the oriented face normal)
         # counts as inside the part, however far it is from the surface
         self.outward = None
-        if outward is not None and backend == "open3d":
+        if backend not in ("coal", "trimesh"):
+            raise BadInput(f"collision backend must be 'coal' or 'trimesh', found {backend!r}")
+        if outward is not None and backend == "coal":
             from scipy.spatial import cKDTree
 
             self.outward = (cKDTree(np.asarray(outward[0], float)), np.asarray(outward[1], float))
@@ -184,19 +187,12 @@ class CapsuleChecker(_LinkCapsules):
         self.signed = bool(mesh.is_watertight)
         self.lo, self.hi = mesh.bounds
         self.backend = backend
-        if backend == "open3d":
-            import open3d as o3d
+        if backend == "coal":
+            from ..collision.mesh_query import MeshQuery
 
-            # open3d's RaycastingScene answers the same closest-point query as trimesh.proximity
-            # from a C++ BVH, ~25x faster here; float32 inside, so coordinates are centred first
-            self.origin = np.asarray(mesh.vertices).mean(axis=0)
-            self.scene = o3d.t.geometry.RaycastingScene()
-            self.scene.add_triangles(o3d.core.Tensor((np.asarray(mesh.vertices) - self.origin).astype(np.float32)),
-                                     o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)))
-        elif backend == "trimesh":
-            self.query = trimesh.proximity.ProximityQuery(mesh)
+            self.query = MeshQuery(mesh)
         else:
-            raise BadInput(f"collision backend must be 'open3d' or 'trimesh', found {backend!r}")
+            self.query = trimesh.proximity.ProximityQuery(mesh)
         if not self.signed:
             from scipy.spatial import cKDTree
 
@@ -206,11 +202,8 @@ class CapsuleChecker(_LinkCapsules):
 
     def _behind(self, P) -> np.ndarray:
         """Distance of points from an open mesh, negative for points behind it (``outward`` given)."""
-        import open3d as o3d
-
-        ans = self.scene.compute_closest_points(o3d.core.Tensor((P - self.origin).astype(np.float32)))
-        c = ans["points"].numpy().astype(float) + self.origin
-        n = ans["primitive_normals"].numpy().astype(float)
+        c, triangle = self.query.closest(P)
+        n = self.mesh.face_normals[triangle].copy()
         tree, dirs = self.outward
         hint = dirs[tree.query(c)[1]]
         along = np.sum(n * hint, axis=1)
@@ -224,14 +217,10 @@ class CapsuleChecker(_LinkCapsules):
 
     def _exact(self, P) -> np.ndarray:
         """Exact distance of points from the mesh: signed (negative inside) for watertight meshes."""
-        if self.backend == "open3d":
-            import open3d as o3d
-
+        if self.backend == "coal":
             if self.outward is not None and not self.signed:
                 return self._behind(P)
-            X = o3d.core.Tensor((P - self.origin).astype(np.float32))
-            d = self.scene.compute_signed_distance(X) if self.signed else self.scene.compute_distance(X)
-            return d.numpy().astype(float)
+            return self.query.signed_distance(P) if self.signed else self.query.distance(P)
         if self.signed:
             return -self.query.signed_distance(P)  # trimesh: positive inside
         return self.query.on_surface(P)[1]
