@@ -13,6 +13,13 @@ pools pickle their inputs (a dense job's trajectory is hundreds of MB) where a f
 shares them copy-on-write; ``os.fork`` and ``pickle`` are all it takes. A child never
 outlives the run: ``cancel()`` (and leaving a ``with`` block by an exception) kills it
 and reaps it, and it is in the run's process group, which a batch kills on timeout.
+
+``Standby(prepare)`` forks early, while this process still works on one CPU (planning):
+the child runs ``prepare()`` (heavy imports: open3d, matplotlib) at once, then waits.
+``start(fn)`` hands it ``fn`` by pickle (a module-level function, or a ``functools.partial``
+of one, and its inputs), and ``result()`` is ``fn()``'s as with ``Alongside``. What a
+child imports ahead this way is off the busy end of the run, and the imports never enter
+this process (a dense job's peak memory).
 """
 from __future__ import annotations
 
@@ -21,6 +28,7 @@ import pickle
 import signal
 import sys
 import time
+from abc import ABC, abstractmethod
 from typing import Any, Callable
 
 _OK, _RAISED = "ok", "raised"
@@ -41,6 +49,14 @@ def timed(fn: Callable[[], Any]) -> tuple[Any, tuple[float, float]]:
     return value, (round(time.perf_counter() - wall, 3), round(time.process_time() - cpu, 3))
 
 
+def _outcome(fn: Callable[[], Any]) -> tuple:
+    """(``_OK``, ``fn()``) or (``_RAISED``, what it raised)."""
+    try:
+        return _OK, fn()
+    except Exception as exc:   # handed on: raised where the result is asked for
+        return _RAISED, exc
+
+
 def _payload(fn: Callable[[], Any]) -> bytes:
     """``fn()``'s result, or what it raised, pickled (an exception that does not pickle as its message)."""
     try:
@@ -52,41 +68,38 @@ def _payload(fn: Callable[[], Any]) -> bytes:
             return pickle.dumps((_RAISED, RuntimeError(f"{type(exc).__name__}: {exc}")))
 
 
-class Alongside:
-    """``fn()`` in a forked child while the caller goes on; ``result()`` is its return value.
+class _Child(ABC):
+    """What ``Alongside`` and ``Standby`` share: the result taken from the child, its failure, cancelling it."""
 
-    ``forked`` says whether a child runs it (False: it runs in this process, at
-    ``result()``). Use as a context manager so that an error in the caller's own
-    work cancels the child.
-    """
+    forked: bool
 
-    def __init__(self, fn: Callable[[], Any], forked: bool | None = None):
-        self._fn = fn
+    def __init__(self, forked: bool | None):
         self._pid, self._fd, self._done = None, None, False
         self._outcome = None   # (kind, value) once taken
         self.forked = (hasattr(os, "fork") and cpus_available() > 1) if forked is None else forked
-        if self.forked:
-            self._start()
 
-    def _start(self) -> None:
+    def _fork(self, child: Callable[[int], None]) -> None:
+        """Fork; the child runs ``child(fd to write the result to)`` and leaves without the parent's exit handlers."""
         read_fd, write_fd = os.pipe()
         sys.stdout.flush()
         sys.stderr.flush()  # nothing buffered is written twice
         pid = os.fork()
-        if pid == 0:  # the child: run, hand the result over, leave without the parent's exit handlers
+        if pid == 0:
             os.close(read_fd)
             code = 0
             try:
                 signal.signal(signal.SIGINT, signal.SIG_DFL)   # Ctrl-C stops the child at once
-                data = _payload(self._fn)
-                with os.fdopen(write_fd, "wb") as pipe:
-                    pipe.write(data)
+                child(write_fd)
             except BaseException:
                 code = 1
             finally:
                 os._exit(code)
         os.close(write_fd)
         self._pid, self._fd = pid, read_fd
+
+    @abstractmethod
+    def _inline(self) -> tuple:
+        """The outcome, (kind, value), computed in this process (unforked)."""
 
     def result(self) -> Any:
         """The child's result (it is waited for), or what it raised, raised here; asked again, the same."""
@@ -107,13 +120,10 @@ class Alongside:
 
     def _take(self) -> tuple:
         if self._done:
-            raise RuntimeError("Alongside was cancelled: it has no result")
+            raise RuntimeError(f"{type(self).__name__} was cancelled: it has no result")
         self._done = True
         if not self.forked:
-            try:
-                return _OK, self._fn()
-            except Exception as exc:   # as a child's: raised where the result is asked for
-                return _RAISED, exc
+            return self._inline()
         fd, self._fd = self._fd, None
         with os.fdopen(fd, "rb") as pipe:
             data = pipe.read()
@@ -142,9 +152,93 @@ class Alongside:
                 pass
             self._fd = None
 
-    def __enter__(self) -> "Alongside":
+    def __enter__(self):
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
         if exc_type is not None or not self._done:
             self.cancel()
+
+
+class Alongside(_Child):
+    """``fn()`` in a forked child while the caller goes on; ``result()`` is its return value.
+
+    ``forked`` says whether a child runs it (False: it runs in this process, at
+    ``result()``). Use as a context manager so that an error in the caller's own
+    work cancels the child.
+    """
+
+    def __init__(self, fn: Callable[[], Any], forked: bool | None = None):
+        super().__init__(forked)
+        self._fn = fn
+        if self.forked:
+            self._fork(self._run)
+
+    def _run(self, write_fd: int) -> None:
+        data = _payload(self._fn)
+        with os.fdopen(write_fd, "wb") as pipe:
+            pipe.write(data)
+
+    def _inline(self) -> tuple:
+        return _outcome(self._fn)
+
+
+class Standby(_Child):
+    """A child forked now that runs ``prepare()`` at once, then ``fn()`` once ``start(fn)`` hands it over.
+
+    ``fn`` goes to the child by pickle, so it must be a module-level function or a
+    ``functools.partial`` of one. Unforked (one CPU), ``prepare()`` and ``fn()`` run
+    in this process at ``result()``. A context manager as ``Alongside``: leaving the
+    block by an error, or without starting it, kills the waiting child.
+    """
+
+    def __init__(self, prepare: Callable[[], Any], forked: bool | None = None):
+        super().__init__(forked)
+        self._prepare, self._fn = prepare, None
+        self._task_fd = None   # this process's end of the pipe that hands ``fn`` over
+        if self.forked:
+            task_read, task_write = os.pipe()
+            self._fork(lambda write_fd: self._wait_and_run(task_read, task_write, write_fd))
+            os.close(task_read)
+            self._task_fd = task_write
+
+    def _wait_and_run(self, task_read: int, task_write: int, write_fd: int) -> None:
+        os.close(task_write)
+        prepared = _outcome(self._prepare)
+        with os.fdopen(task_read, "rb") as pipe:
+            try:
+                fn = pickle.load(pipe)
+            except EOFError:  # never started: the run went another way
+                return
+        data = _payload(fn) if prepared[0] == _OK else pickle.dumps(prepared, protocol=pickle.HIGHEST_PROTOCOL)
+        with os.fdopen(write_fd, "wb") as out:
+            out.write(data)
+
+    def start(self, fn: Callable[[], Any]) -> "Standby":
+        """Hand ``fn`` to the child (pickled through a pipe); ``result()`` is then ``fn()``."""
+        if self._fn is not None or self._done:
+            raise RuntimeError("Standby was started already")
+        self._fn = fn
+        if self.forked:
+            fd, self._task_fd = self._task_fd, None
+            try:
+                with os.fdopen(fd, "wb") as pipe:
+                    pickle.dump(fn, pipe, protocol=pickle.HIGHEST_PROTOCOL)
+            except BrokenPipeError:
+                pass   # the child is gone: result() says how
+        return self
+
+    def _take(self) -> tuple:
+        if self._fn is None and not self._done:
+            raise RuntimeError("Standby was not started: it has no result")
+        return super()._take()
+
+    def _inline(self) -> tuple:
+        prepared = _outcome(self._prepare)
+        return _outcome(self._fn) if prepared[0] == _OK else prepared
+
+    def cancel(self) -> None:
+        if self._task_fd is not None:
+            os.close(self._task_fd)
+            self._task_fd = None
+        super().cancel()

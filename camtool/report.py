@@ -136,7 +136,8 @@ def write_points_csv(path: Path, jp: JointPath, robot, file: FsPath) -> None:
         f.write("".join(lines))
 
 
-def _plt():
+def import_plotting():
+    """matplotlib's pyplot on the Agg backend (no display needed)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -152,7 +153,7 @@ def plot_joints(trajectories: dict[str, Trajectory], robot, outdir: FsPath, dt_s
     is drawn as each time bin's lowest and highest value (``timing.feed.display_envelope``): the
     peaks a limit is judged by stay, and a 600 s cycle draws 6000 points a line instead of 30,000.
     """
-    plt = _plt()
+    plt = import_plotting()
     outdir = FsPath(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     sampled = {name: tr.sample(dt_s) for name, tr in trajectories.items()}
@@ -195,7 +196,7 @@ def plot_joints(trajectories: dict[str, Trajectory], robot, outdir: FsPath, dt_s
 
 def plot_unreachable(path: Path, unreachable: list[dict], file: FsPath) -> FsPath:
     """A map of the path with the unreachable poses marked (3-D view and x-z view)."""
-    plt = _plt()
+    plt = import_plotting()
     file = FsPath(file)
     file.parent.mkdir(parents=True, exist_ok=True)
     p = path.poses_mm[:, :3, 3]

@@ -465,14 +465,16 @@ def report_failure(exc: PlanInfeasible, path, joint_path, robot, job: Job, outdi
 
 
 def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, trajectories: dict, outdir: Path,
-               extra_files=(), world=None, figures=None) -> RunResult:
+               extra_files=(), world=None, figures=None, mapping=None) -> RunResult:
     """Write the plots, points.csv and report.json of a successful run; the RunResult lists every file.
 
     ``world``: the job's collision world (the redundancy map's collision layer).
-    ``figures``: an ``Alongside`` drawing ``run_figures.draw_run_figures`` while the
-    run went on (the raster task); its files are taken here, the wait for them is the
-    stage ``figures`` and their own time is report.json's ``stage_seconds_alongside``.
-    Without it the joint plots and the redundancy map are drawn here."""
+    ``figures``: a process (``camtool.alongside``) drawing ``run_figures.draw_run_figures``
+    while the run went on, and ``mapping`` one whose ``result()`` is
+    ``run_figures.draw_redundancy_map``'s (or None: not drawn ahead) (the raster task);
+    their files are taken here, the wait for them is the stage ``figures`` and their own
+    time is report.json's ``stage_seconds_alongside``. Without them the joint plots and
+    the redundancy map are drawn here."""
     outdir = Path(outdir)
     write_points_csv(path, joint_path, robot, outdir / "points.csv")
     log.lap("report")
@@ -482,10 +484,16 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
         log.lap("plots")
     else:
         drawn = figures.result()
-        log.lap("figures")
-        plots, redundancy, extra_files = list(drawn.joint_plots), drawn.redundancy, (drawn.feed_png, *extra_files)
+        plots, extra_files = list(drawn.joint_plots), (drawn.feed_png, *extra_files)
         log.alongside_seconds.update(drawn.seconds)
         log.alongside_cpu_seconds.update(drawn.cpu_seconds)
+    mapped = None if mapping is None else mapping.result()
+    if mapped is not None:
+        redundancy = mapped.redundancy
+        log.alongside_seconds.update(mapped.seconds)
+        log.alongside_cpu_seconds.update(mapped.cpu_seconds)
+    if figures is not None or mapping is not None:
+        log.lap("figures")
     if log.alongside_seconds:
         report["stage_seconds_alongside"] = stage_seconds(log.alongside_seconds)
         report["stage_cpu_seconds_alongside"] = stage_seconds(log.alongside_cpu_seconds)

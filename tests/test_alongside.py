@@ -6,7 +6,9 @@ import time
 import numpy as np
 import pytest
 
-from camtool.alongside import Alongside, cpus_available
+import functools
+
+from camtool.alongside import Alongside, Standby, cpus_available
 from camtool.errors import BadInput
 
 fork_only = pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
@@ -82,3 +84,59 @@ def test_default_forks_only_with_a_second_cpu():
     job = Alongside(lambda: 1)
     assert job.result() == 1
     assert job.forked == (hasattr(os, "fork") and cpus_available() > 1)
+
+
+def _prepared():
+    os.environ["CAMTOOL_TEST_STANDBY"] = str(os.getpid())   # what prepare did, seen by fn in the same process
+
+
+def _where(values):
+    return {"prepared_in": os.environ.pop("CAMTOOL_TEST_STANDBY", None), "pid": os.getpid(), "values": values}
+
+
+def _prepare_fails():
+    raise BadInput("open3d is not installed")
+
+
+@fork_only
+def test_a_standby_child_prepares_then_runs_what_it_is_handed():
+    values = np.arange(300_000, dtype=float)          # handed over a pipe, over its 64 kB buffer
+    with Standby(_prepared, forked=True) as job:
+        out = job.start(functools.partial(_where, values)).result()
+    assert out["pid"] != os.getpid() and out["prepared_in"] == str(out["pid"])
+    assert np.array_equal(out["values"], values) and "CAMTOOL_TEST_STANDBY" not in os.environ
+
+
+def test_an_unforked_standby_prepares_and_runs_at_result():
+    job = Standby(_prepared, forked=False).start(functools.partial(_where, [1, 2]))
+    out = job.result()
+    assert out == {"prepared_in": str(os.getpid()), "pid": os.getpid(), "values": [1, 2]}
+
+
+@fork_only
+@pytest.mark.parametrize("forked", [True, False])
+def test_what_prepare_or_fn_raised_is_raised_by_result(forked):
+    job = Standby(_prepare_fails, forked=forked).start(functools.partial(_where, 1))
+    with pytest.raises(BadInput, match="not installed"):
+        job.result()
+    job = Standby(_prepared, forked=forked).start(functools.partial(_prepare_fails))
+    assert isinstance(job.failure(), BadInput)
+
+
+@fork_only
+def test_a_standby_never_started_is_killed_on_leaving_the_block():
+    with Standby(_prepared, forked=True) as job:
+        pid = job._pid
+    with pytest.raises(ProcessLookupError):
+        os.kill(pid, 0)
+    with pytest.raises(RuntimeError, match="cancelled"):
+        job.result()
+
+
+def test_a_standby_is_started_once_and_has_no_result_before():
+    job = Standby(_prepared, forked=False)
+    with pytest.raises(RuntimeError, match="not started"):
+        job.result()
+    job.start(functools.partial(_where, 1))
+    with pytest.raises(RuntimeError, match="started already"):
+        job.start(functools.partial(_where, 2))

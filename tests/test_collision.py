@@ -135,6 +135,17 @@ def test_manufacturer_robots_use_their_ros_industrial_meshes():
         assert all(b.shape == "convex" for b in bodies if b.kind != "tool")
 
 
+def test_a_world_of_mesh_links_pickles_as_what_it_is_made_from():
+    """coal's convex shapes do not pickle; the world is rebuilt from its robot and cell (a helper process)."""
+    import pickle
+
+    w = CollisionWorld(get_robot("irb2400"), CellSettings(), 30.0)
+    again = pickle.loads(pickle.dumps(w))
+    assert [b.name for b in again.bodies] == [b.name for b in w.bodies] and again.pairs == w.pairs
+    q = np.radians([10.0, 20.0, -15.0, 30.0, 40.0, 0.0])
+    assert np.array_equal(again.valid_many(q[None]), w.valid_many(q[None]))
+
+
 def test_motion_bound_holds_for_every_body_point(robot):
     """Conservative advancement rests on it: no point of a body moves farther than the bound."""
     w = CollisionWorld(robot)

@@ -65,6 +65,7 @@ class CollisionWorld:
     def __init__(self, robot, cell: CellSettings | None = None, tool_radius_mm: float = 25.0,
                  acm: AllowedCollisions | None = None):
         cell = cell or CellSettings()
+        self._made_from = (robot, cell, tool_radius_mm, acm)   # what a pickle rebuilds it from (__reduce__)
         self.robot = robot
         self.cell = cell
         self.clearance_mm = float(cell.clearance_mm)
@@ -105,6 +106,11 @@ class CollisionWorld:
         self._pair_a = np.array([p.a for p in self.pairs], int)
         self._pair_b = np.array([p.b for p in self.pairs], int)
         self.skipped = 0   # pair queries the broad phase left out
+
+    def __reduce__(self):
+        """Pickled as what it is made from (coal's shapes do not pickle): a process on standby
+        (``camtool.alongside.Standby``) rebuilds the same world."""
+        return CollisionWorld, self._made_from
 
     @property
     def has_obstacles(self) -> bool:

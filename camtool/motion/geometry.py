@@ -568,3 +568,9 @@ def part_from_path(workpiece, path, **kwargs) -> PartGeometry:
     if not sel.any():
         sel = np.ones(len(poses), bool)
     return PartGeometry.from_workpiece(workpiece, poses[sel, :3, 3], -poses[sel, :3, 2], **kwargs)
+
+
+def import_part_libraries() -> None:
+    """Import open3d, which the mesh query needs (seconds): a process made ready ahead of the check
+    (``camtool.alongside.Standby``) does it while the run still plans."""
+    import open3d  # noqa: F401

@@ -4,9 +4,11 @@
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
-from ..alongside import Alongside, timed
+from ..alongside import Standby, timed
 from ..collision.stage import collision_world
 from ..errors import BadInput, PlanInfeasible
 from ..face_report import faces_worked
@@ -16,7 +18,9 @@ from ..process.outputs import process_outputs
 from ..process.dwell import check_target_inputs, retime_for_target
 from ..process.stepover import auto_step_over
 from ..raster import raster_path
-from ..run_figures import FigureInputs, draw_run_figures
+from ..motion.geometry import import_part_libraries
+from ..run_figures import (FigureInputs, MapInputs, draw_redundancy_map, draw_run_figures,
+                           import_figure_libraries)
 from ..placement.partial import partial_path, partial_summary, reachable_stretches
 from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
@@ -52,19 +56,50 @@ def partial_plan_path(path, exc: PlanInfeasible):
     return sub, figures
 
 
-def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp, part, surface, path, outdir: Path):
+class MapAhead:
+    """The redundancy map drawn ahead, in a process on standby, as soon as the plan is known (while the
+    trajectory is timed). ``result()``: its ``DrawnMap``, or None when it was not drawn ahead (then
+    report.html draws it)."""
+
+    def __init__(self, standby: Standby, robot, outdir: Path, world):
+        self._standby, self._robot, self._outdir, self._world = standby, robot, outdir, world
+        self._state = "waiting"   # -> "started" -> (done) | "withdrawn"
+
+    def planned(self, path, joint_path) -> None:
+        """Start the map of this plan (once; a later plan withdraws it: that map would be of another path)."""
+        if self._state == "waiting":
+            self._standby.start(partial(draw_redundancy_map,
+                                        MapInputs(self._robot, path, joint_path, self._outdir, self._world)))
+            self._state = "started"
+        else:
+            self.withdraw()
+
+    def withdraw(self) -> None:
+        """Kill the map drawn ahead (a failing plan draws its own, failing poses marked)."""
+        self._standby.cancel()
+        self._state = "withdrawn"
+
+    def result(self):
+        return self._standby.result() if self._state == "started" else None
+
+
+def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp, part, surface, path, outdir: Path,
+                      ahead: MapAhead | None = None):
     """(path, joint path, trajectory, partial figures or None): the plan and time stages of a raster job.
 
+    ``ahead.planned(path, joint_path)`` is told the plan before the time stage.
     Leads grow to what the ramps need (``plan_with_sized_leads``; each run's time law is planned once,
     ``remembered_runs``); with ``task.allow_partial`` the reachable stretches are planned when some poses
     are not. An unreachable plan writes its report (and the nearest shift that would fit) and is raised.
     ``wp`` the workpiece as loaded, ``part`` what the checks measure against (``part_for_checks``)."""
-    partial = None
+    stretches = None
+    tell = ahead.planned if ahead is not None else (lambda path_, joint_path_: None)
     with remembered_runs():  # lead sizing plans each run's time law; the time stage takes it
         try:
             try:
                 with log.clock("plan"):
                     path, joint_path = plan_with_sized_leads(settings, surface, path, robot, workpiece=part)
+                tell(path, joint_path)
                 with log.clock("time"):
                     trajectory = time_for_job(settings, joint_path, path, robot)
                 if joint_path.events.get("leads", {}).get("lead_mm_used", settings.raster.lead_mm) != settings.raster.lead_mm:
@@ -72,10 +107,13 @@ def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp,
             except PlanInfeasible as exc:
                 if not (job.task.allow_partial and exc.report.get("unreachable")):
                     raise
-                path, partial = partial_plan_path(path, exc)
+                path, stretches = partial_plan_path(path, exc)
                 joint_path, trajectory = plan_and_time(settings, path, robot, workpiece=part)
+                tell(path, joint_path)
                 log.done("raster", path)  # the part of the raster that is programmed
         except PlanInfeasible as exc:
+            if ahead is not None:
+                ahead.withdraw()   # the report draws the map with the failing poses
             shift = None
             if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, a bounded search
                 shift = nearest_feasible_shift(job, settings, robot, path)
@@ -84,7 +122,7 @@ def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp,
             if shift is not None and not shift["already_reachable"]:
                 raise PlanInfeasible(f"{exc}; {shift['message']}", report=exc.report) from None
             raise
-    return path, joint_path, trajectory, partial
+    return path, joint_path, trajectory, stretches
 
 
 def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool = False) -> RunResult:
@@ -92,7 +130,35 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     if settings.planner.method == "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: 'arm-angle-sqp' plans task.kind = 'sequential_reach', "
                        f"not {job.task.kind!r} jobs")
-    outdir = Path(outdir)
+    # forked now, while this process plans on one CPU: the motion check's and the figures' libraries are
+    # imported there, and the redundancy map is drawn while the trajectory is timed, off the end of the run
+    # where the check, the figures and the post stage share the CPUs
+    with (Standby(import_part_libraries) as checking, Standby(import_figure_libraries) as mapping,
+          Standby(import_figure_libraries) as figures):
+        return _run(job, settings, robot, Path(outdir), log, compare, _Helpers(checking, mapping, figures))
+
+
+@dataclass(frozen=True)
+class _Helpers:
+    """The processes on standby for a raster run: the motion check, the redundancy map, the plots."""
+
+    checking: Standby
+    mapping: Standby
+    figures: Standby
+
+
+def _drawn_map(ahead: MapAhead):
+    """The map drawn ahead as report.html takes it, or None (drawn there)."""
+    drawn = ahead.result()
+    return None if drawn is None else drawn.redundancy
+
+
+def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
+         helpers: _Helpers) -> RunResult:
+    """``run`` with its helpers on standby (``camtool.alongside.Standby``)."""
+    checking, figures = helpers.checking, helpers.figures
+    world = collision_world(settings, robot)
+    ahead = MapAhead(helpers.mapping, robot, outdir, world)
     wp = log.done("workpiece", workpiece_for_job(job))
     surface = log.done("fit", surface_for_job(job, wp))
     several = isinstance(surface, FaceSet)  # faces.select names several faces: one program for them all
@@ -102,14 +168,14 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
     path = log.done("raster", path_for_job(job, surface) if step_choice is None else raster_path(surface, settings.raster))
     part = part_for_checks(settings, wp, surface)
-    path, joint_path, trajectory, partial = planned_and_timed(job, settings, robot, log, wp, part, surface,
-                                                                   path, outdir)
+    path, joint_path, trajectory, partial_figures = planned_and_timed(job, settings, robot, log, wp, part, surface,
+                                                                      path, outdir, ahead)
     log.done("plan", joint_path)
     retimed, dwell = retime_for_target(job, settings, surface, path, joint_path, robot)  # a target removal map
     trajectory = trajectory if retimed is None else retimed
     log.done("time", trajectory)
     # the independent motion check runs alongside the post stage, which places no program before it passed
-    checking = Alongside(lambda: timed(lambda: motion_check(settings, trajectory, robot, wp, path, surface)))
+    checking.start(partial(timed, partial(motion_check, settings, trajectory, robot, wp, path, surface)))
     trajectories = {settings.planner.method: trajectory}
     compared = None
     if compare:
@@ -121,55 +187,56 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
         except PlanInfeasible as exc:
             compared = {"method": other, "status": "infeasible", "reason": str(exc)}
         log.lap("compare")
-    world = collision_world(settings, robot)
-    drawn = FigureInputs(trajectories, robot, path, joint_path, outdir, settings.timing.check_dt_s, job.path.name, world)
-    figures = Alongside(lambda: draw_run_figures(drawn))
-    with checking, figures:  # the check and the figures run while the programs are written; cancelled on an error
+    drawn = FigureInputs(trajectories, robot, outdir, settings.timing.check_dt_s, job.path.name)
+    figures.start(partial(draw_run_figures, drawn))
+    # the check and the figures run while the programs are written (cancelled on an error: run)
 
-        def motion_checked():   # the programs are placed only once the motion check has passed
-            log.lap("post")
-            figures_, (wall, cpu) = checking.result()
-            log.alongside_seconds["check"], log.alongside_cpu_seconds["check"] = wall, cpu
-            return log.done("check", figures_)
+    def motion_checked():   # the programs are placed only once the motion check has passed
+        log.lap("post")
+        figures_, (wall, cpu) = checking.result()
+        log.alongside_seconds["check"], log.alongside_cpu_seconds["check"] = wall, cpu
+        return log.done("check", figures_)
 
-        simulated: dict = {}
-        try:
-            programs = log.done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated,
-                                                     before_placing=motion_checked))
-        except PlanInfeasible as exc:
-            failed = checking.failure()   # a motion-check finding is the run's, as when the check ran first
-            if not isinstance(failed, PlanInfeasible):
-                raise
-            report_failure(failed, path, joint_path, robot, job, outdir, wp, surface, world=world,
-                           redundancy=figures.result().redundancy)   # the figures finish: none half-written
-            raise failed from None
-        motion = log.outputs["check"]
-        report = run_report(path, joint_path, trajectory, robot, job, settings.planner.method)
-        if "free_moves" in joint_path.events:
-            report["free_moves"] = joint_path.events["free_moves"]
-        report["lifted_connectors"] = joint_path.events.get("lifted_connectors", [])
-        if "leads" in joint_path.events:
-            report["leads"] = joint_path.events["leads"]
-        report["smoothed_runs"] = joint_path.events.get("smoothed_runs", [])
-        if partial is not None:
-            report["partial"] = partial
-        report["motion_check"] = motion
-        report["programs_simulated"] = simulated
-        if segmented(job):   # the faces of the part and which the job works (the fit stage's segmentation)
-            faces = faces_report(job, wp)
-            if several:  # each face worked, in working order: coverage and feed
-                faces["worked"] = faces_worked(surface, path, trajectory,
-                                               sampled_for(trajectory, robot, settings.timing.check_dt_s), motion)
-            log.outputs["faces"] = faces
-            report["faces"] = {k: v for k, v in faces.items() if k != "labels"}
-        report["limits_ok"] = True  # post_checked passed the independent check
-        report["status"] = "ok"
-        process, process_files = process_outputs(job, settings, trajectory, robot, None if several else surface,
-                                                 outdir, dwell=dwell,
-                                                 extra=None if step_choice is None else {"step_over_auto": step_choice})
-        if process is not None:
-            report["process_map"] = process
-        if compared is not None:
-            report["compare"] = compared
-        return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir,
-                          extra_files=tuple(process_files), world=world, figures=figures)
+    simulated: dict = {}
+    try:
+        programs = log.done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated,
+                                                 before_placing=motion_checked))
+    except PlanInfeasible as exc:
+        failed = checking.failure()   # a motion-check finding is the run's, as when the check ran first
+        if not isinstance(failed, PlanInfeasible):
+            raise
+        figures.failure()   # the plots finish: none half-written
+        report_failure(failed, path, joint_path, robot, job, outdir, wp, surface, world=world,
+                       redundancy=_drawn_map(ahead))
+
+        raise failed from None
+    motion = log.outputs["check"]
+    report = run_report(path, joint_path, trajectory, robot, job, settings.planner.method)
+    if "free_moves" in joint_path.events:
+        report["free_moves"] = joint_path.events["free_moves"]
+    report["lifted_connectors"] = joint_path.events.get("lifted_connectors", [])
+    if "leads" in joint_path.events:
+        report["leads"] = joint_path.events["leads"]
+    report["smoothed_runs"] = joint_path.events.get("smoothed_runs", [])
+    if partial_figures is not None:
+        report["partial"] = partial_figures
+    report["motion_check"] = motion
+    report["programs_simulated"] = simulated
+    if segmented(job):   # the faces of the part and which the job works (the fit stage's segmentation)
+        faces = faces_report(job, wp)
+        if several:  # each face worked, in working order: coverage and feed
+            faces["worked"] = faces_worked(surface, path, trajectory,
+                                           sampled_for(trajectory, robot, settings.timing.check_dt_s), motion)
+        log.outputs["faces"] = faces
+        report["faces"] = {k: v for k, v in faces.items() if k != "labels"}
+    report["limits_ok"] = True  # post_checked passed the independent check
+    report["status"] = "ok"
+    process, process_files = process_outputs(job, settings, trajectory, robot, None if several else surface,
+                                             outdir, dwell=dwell,
+                                             extra=None if step_choice is None else {"step_over_auto": step_choice})
+    if process is not None:
+        report["process_map"] = process
+    if compared is not None:
+        report["compare"] = compared
+    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir,
+                      extra_files=tuple(process_files), world=world, figures=figures, mapping=ahead)
