@@ -137,8 +137,9 @@ class CellPass:
     def _tf(self, T):
         return self._coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
 
-    def _distance_at(self, pair, R, P):
-        """coal distance of a pair at one configuration's joint frames (R (dof, 3, 3), P (dof, 3))."""
+    def _distance_at(self, pair, R, P, best: float):
+        """(coal distance, nearest points) of a pair at one configuration's joint frames (R (dof, 3, 3),
+        P (dof, 3)); the points only below ``best`` (a new minimum keeps them), else None."""
         tf = []
         for i in (pair.a, pair.b):
             t = self.static_T.get(i)
@@ -150,11 +151,13 @@ class CellPass:
             tf.append(t)
         self.res.clear()
         d = self._coal.distance(self.geo[pair.a], tf[0], self.geo[pair.b], tf[1], self.req, self.res)
+        if d >= best:
+            return d, None
         return d, (self.res.getNearestPoint1().copy(), self.res.getNearestPoint2().copy())
 
-    def _at_fraction(self, pair, s: float):
+    def _at_fraction(self, pair, s: float, best: float):
         fkb = self.fk(self.q_at(np.array([s], float)), frames=True)
-        return self._distance_at(pair, fkb.joint_R[0], fkb.joint_origins[0])
+        return self._distance_at(pair, fkb.joint_R[0], fkb.joint_origins[0], best)
 
     def feed(self, c0: int, fkb) -> None:
         """Advance every pair through the samples c0 .. c0 + len(fkb.tcp) - 1."""
@@ -172,7 +175,7 @@ class CellPass:
                 continue
             cp = self._pair_bound(n)
             while j < c1:
-                d, pts = self._distance_at(pair, *frames_at(j))
+                d, pts = self._distance_at(pair, *frames_at(j), st.best)
                 st.evaluations += 1
                 if st.k >= 0 and j > st.k:
                     lb_prev = st.d - (cp[j - 1] - cp[st.k])
@@ -213,7 +216,7 @@ class CellPass:
         if depth >= MAX_BISECTIONS or (da + db - m) / 2.0 >= self.thr:
             return
         mid = (a + b) / 2.0
-        d, pts = self._at_fraction(pair, mid)
+        d, pts = self._at_fraction(pair, mid, st.best)
         st.evaluations += 1
         self._offer(st, mid, d, pts)
         if d < self.thr:
