@@ -41,6 +41,8 @@ over Pinocchio (Pinocchio gives FK and Jacobians, used here).
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -127,23 +129,28 @@ class CwlnSolver:
 
     def task(self, q, target):
         """(weighted error e, weighted Jacobian, position error mm, orientation error rad)."""
+        # per pose in Python loops (smoothing, lifts): the norms are sqrt(x . x) as numpy's norm makes
+        # them, and the stacked rows filled in place; the same values, a third of the time
         p, R, J = self.pose_and_jacobian(q)
         dp = target[:3, 3] - p
         if self.free_spin:
             z, zt = R[:, 2], target[:3, 2]
             axis = np.cross(z, zt)
-            s = np.linalg.norm(axis)
+            s = math.sqrt(axis @ axis)
             ang = np.arctan2(s, z @ zt)
             w = axis * (ang / s) if s > 1e-15 else np.zeros(3)
             P = target[:3, :2].T  # 2 x 3: the target's tool x and y axes
             e = np.concatenate([dp, self.L * (P @ w)])
-            Jt = np.vstack([J[:3], self.L * (P @ J[3:])])
+            Jt = np.empty((5, J.shape[1]))
+            Jt[:3] = J[:3]
+            Jt[3:] = self.L * (P @ J[3:])
         else:
             w = pin.log3(target[:3, :3] @ R.T)
-            ang = np.linalg.norm(w)
+            ang = math.sqrt(w @ w)
             e = np.concatenate([dp, self.L * w])
-            Jt = np.vstack([J[:3], self.L * J[3:]])
-        return e, Jt, float(np.linalg.norm(dp)), float(ang)
+            Jt = J.copy()
+            Jt[3:] *= self.L
+        return e, Jt, math.sqrt(dp @ dp), float(ang)
 
     # -- CWLN -------------------------------------------------------------
     def clamp(self, q) -> tuple[np.ndarray, np.ndarray]:
@@ -183,7 +190,7 @@ class CwlnSolver:
             Js = J * self.jscale
             JW = Js * w
             A = JW @ Js.T
-            A[np.diag_indices_from(A)] += lam2
+            A.flat[:: len(A) + 1] += lam2   # the diagonal
             dq = clamp_motion + self.jscale * (JW.T @ np.linalg.solve(A, e - J @ clamp_motion))
             # step limit: keeps the Newton step inside the linear region far from the target
             big = np.max(np.abs(dq) / self.max_step)
