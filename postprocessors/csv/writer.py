@@ -24,8 +24,9 @@ def write(trajectory, robot, profile, outdir: Path) -> list[Path]:
     with open(path, "wb") as f:
         f.write((",".join(columns_for(robot, unit)) + "\n").encode("ascii"))
         for a in range(0, len(table), BLOCK_ROWS):
-            # numpy's float to text is Python's shortest round-trip repr, for a block of rows at once
-            rows = table[a:a + BLOCK_ROWS].astype(str).tolist()
-            f.write(("\n".join(",".join(row) for row in rows) + "\n").encode("ascii"))
+            # Python's shortest round-trip repr of each float (numpy's astype(str) writes the same text,
+            # at half the speed)
+            rows = table[a:a + BLOCK_ROWS].tolist()
+            f.write(("\n".join(",".join(map(repr, row)) for row in rows) + "\n").encode("ascii"))
         f.write((trailer(len(table)) + "\n").encode("ascii"))
     return [path]
