@@ -216,8 +216,10 @@ class Standby(_Child):
 
     def start(self, fn: Callable[[], Any]) -> "Standby":
         """Hand ``fn`` to the child (pickled through a pipe); ``result()`` is then ``fn()``."""
-        if self._fn is not None or self._done:
+        if self._fn is not None:
             raise RuntimeError("Standby was started already")
+        if self._done:
+            raise RuntimeError("Standby was cancelled: it takes no work")
         self._fn = fn
         if self.forked:
             fd, self._task_fd = self._task_fd, None
