@@ -29,6 +29,7 @@ import signal
 import sys
 import time
 from abc import ABC, abstractmethod
+from functools import partial
 from typing import Any, Callable
 
 _OK, _RAISED = "ok", "raised"
@@ -55,6 +56,11 @@ def _outcome(fn: Callable[[], Any]) -> tuple:
         return _OK, fn()
     except Exception as exc:   # handed on: raised where the result is asked for
         return _RAISED, exc
+
+
+def _reraise(exc: BaseException):
+    """Raise ``exc`` (what ``prepare`` raised, handed on as ``fn``'s outcome)."""
+    raise exc
 
 
 def _payload(fn: Callable[[], Any]) -> bytes:
@@ -210,7 +216,7 @@ class Standby(_Child):
                 fn = pickle.load(pipe)
             except EOFError:  # never started: the run went another way
                 return
-        data = _payload(fn) if prepared[0] == _OK else pickle.dumps(prepared, protocol=pickle.HIGHEST_PROTOCOL)
+        data = _payload(fn if prepared[0] == _OK else partial(_reraise, prepared[1]))
         with os.fdopen(write_fd, "wb") as out:
             out.write(data)
 

@@ -203,7 +203,7 @@ class CapsuleChecker(_LinkCapsules):
     def _behind(self, P) -> np.ndarray:
         """Distance of points from an open mesh, negative for points behind it (``outward`` given)."""
         c, triangle = self.query.closest(P)
-        n = self.mesh.face_normals[triangle].copy()
+        n = self.mesh.face_normals[triangle]   # fancy indexing: a copy, flipped in place below
         tree, dirs = self.outward
         hint = dirs[tree.query(c)[1]]
         along = np.sum(n * hint, axis=1)

@@ -208,7 +208,6 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
         figures.failure()   # the plots finish: none half-written
         report_failure(failed, path, joint_path, robot, job, outdir, wp, surface, world=world,
                        redundancy=_drawn_map(ahead))
-
         raise failed from None
     motion = log.outputs["check"]
     report = run_report(path, joint_path, trajectory, robot, job, settings.planner.method)
