@@ -3,8 +3,9 @@
 Every face that ``camtool.segment`` finds on the four sample parts (box_open,
 pipe_half, dome_cylinder, plate_chamfer; the 100k-point meshes and the 60k-point
 noisy scans) is rastered at 10 mm step-over and 5 mm pitch with the default raster
-keys (``raster.edge_margin`` a quarter step); a cylinder or sphere face also with
-``raster.cylinder_rows`` "along". Printed: rows, work points and the coverage of the
+keys (``raster.edge_margin`` a quarter step; ``raster.contour`` "auto": a contour pass along
+the edges where the rows alone cover less than 99.5 %); a cylinder or sphere face also with
+``raster.cylinder_rows`` "along". Printed: rows, contour runs, work points and the coverage of the
 face's own boundary (``raster.coverage``), marked where it is below the 99.5 % the
 issue asks of every selected face; then the count of faces at or above it.
 
@@ -42,7 +43,7 @@ def main() -> None:
                     met += s["coverage"] >= TARGET
                     how = f"{face.model} {side} rows {rows}" if face.model != "plane" else "plane"
                     print(f"{part:<14} {kind} face {face.index} {how:<26} {s['rows']:>3} rows "
-                          f"{s['work_points']:>5} work points, coverage {100 * s['coverage']:6.2f} %"
+                          f"+ {s['contour_runs']:>2} contour runs, {s['work_points']:>5} work points, coverage {100 * s['coverage']:6.2f} %"
                           + ("" if s["coverage"] >= TARGET else "  < 99.5 %"))
     print(f"\n{met} of {total} rasters cover at least {100 * TARGET:.1f} % of their face")
 

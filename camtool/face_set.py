@@ -85,7 +85,7 @@ def working_order(paths: list[Path]) -> list[int]:
 def joined(paths: list[Path], order: list[int], indices: tuple[int, ...], settings: RasterSettings) -> Path:
     """The paths in ``order`` as one Path: segments numbered on, each pose with its face (``indices``); its
     ``step_over_mm`` and ``pitch_mm`` are ``settings``' (the job's, before any face's own keys)."""
-    poses, segment, point, zone, face = [], [], [], [], []
+    poses, segment, point, zone, face, contour = [], [], [], [], [], []
     offset = 0
     for k in order:
         p = paths[k]
@@ -94,10 +94,12 @@ def joined(paths: list[Path], order: list[int], indices: tuple[int, ...], settin
         point.append(p.point)
         zone.append(p.zone)
         face.append(np.full(len(p), indices[k], np.int32))
+        contour.append(np.zeros(len(p), bool) if p.contour is None else p.contour)
         offset += int(p.segment.max()) + 1
     return Path(np.concatenate(poses), np.concatenate(segment).astype(np.int32), np.concatenate(point),
                 np.concatenate(zone), paths[order[0]].free_spin, settings.step_over_mm, settings.pitch_mm,
-                face=np.concatenate(face))
+                face=np.concatenate(face),
+                contour=np.concatenate(contour) if any(paths[k].contour is not None for k in order) else None)
 
 
 def face_runs(path: Path) -> list[tuple[int, np.ndarray]]:
@@ -118,5 +120,6 @@ def face_paths(face_set: FaceSet, path: Path) -> list[tuple[int, np.ndarray, Pat
         change = face_set.raster_changes[k_of[index]]
         out.append((index, idx, Path(path.poses_mm[idx], path.segment[idx] - path.segment[idx].min(), path.point[idx],
                                 path.zone[idx], path.free_spin, change.get("step_over_mm", path.step_over_mm),
-                                change.get("pitch_mm", path.pitch_mm))))
+                                change.get("pitch_mm", path.pitch_mm),
+                                contour=None if path.contour is None else path.contour[idx])))
     return out

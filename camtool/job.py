@@ -91,6 +91,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "tilt_deg": _angle89("Side-tilt angle: tilt of the tool about the travel direction."),
         "free_spin": Key("bool", False, "Rotation about tool z is free (symmetric tools); the planner may use it as redundancy."),
         "edge_margin": Key("float", 0.25, "The first and last rows stay at least this share of step_over_mm inside the face's edges: where rows centred step_over_mm apart would come nearer an edge (a face a little over whole steps wide, a scan's outline weaving by a point spacing), all rows are drawn closer together, never farther apart than step_over_mm. 0 = rows exactly step_over_mm apart, centred, the edges up to half a step from the first and last rows (the seed paper's raster; docs/raster.md).", check=lambda x: 0 <= x <= 0.5, expect="a share of the step-over in 0..0.5"),
+        "contour": Key("str", "auto", "A contour pass after the rows: runs along every edge of the face, half a step-over inside it (at most; the edge stays within the coverage radius), split at corners. \"auto\" adds it where the rows alone cover less than 99.5 % of the face (a ring's curved rim, a strip a little wider than whole steps, a scan's weaving edge); \"on\" always, \"off\" never (docs/raster.md).", choices=("auto", "on", "off")),
         "cylinder_rows": Key("str", "around", "On a cylinder face: rows run around the axis (circles, angle_deg = 0) or along it (lines); angle_deg turns them further (docs/raster.md).", choices=("around", "along")),
     },
     "robot": {

@@ -40,6 +40,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
+from .contour import contour_blocks, contour_runs, spans_full_turn
 from .errors import BadInput
 from .face_set import raster_faces
 from .settings import RasterSettings
@@ -352,22 +353,37 @@ def raster_path(surface, settings: RasterSettings) -> Path:
 
     zone = np.where(pos < n_lead, _LEAD_IN, np.where(pos < n_lead + c_s, _WORK, _LEAD_OUT)).astype(np.int32)
     point = np.where(zone == _WORK, pos - n_lead + 1, 0).astype(np.int32)
-    lift = np.zeros(len(seg))
-    if n_lead:
-        # share of the lead from the work end (0) to the lead's far end (1); the lift rises as its cube, so
-        # the tool path leaves the surface with no kink and no jump in curvature: a linear ramp's kink at
-        # the first and last work pose needs more than a wrist's jerk limit at the feed (the whole row slows)
-        away = np.where(zone == _LEAD_IN, (n_lead - pos) / n_lead,
-                        np.where(zone == _LEAD_OUT, (pos - n_lead - c_s + 1) / n_lead, 0.0))
-        lift = clear * away ** 3
+    # share of the lead from the work end (0) to the lead's far end (1); the lift rises as its cube, so
+    # the tool path leaves the surface with no kink and no jump in curvature: a linear ramp's kink at
+    # the first and last work pose needs more than a wrist's jerk limit at the feed (the whole row slows)
+    away = np.where(zone == _LEAD_IN, (n_lead - pos) / n_lead,
+                    np.where(zone == _LEAD_OUT, (pos - n_lead - c_s + 1) / n_lead, 0.0)) if n_lead else None
+    duv = np.broadcast_to(1e-3 * chart.duv_ds, uv.shape)  # 1 um along the row: a forward difference is exact
+    direction = sign[seg]                                  # to ~1e-6 rad; then the row's way
+
+    n_rows = n_seg  # segments of the rows; a contour's runs follow
+    if _wants_contour(surface, settings, uv[zone == _WORK]):
+        runs = contour_runs(boundary, chart.kx, chart.ky, contour_offset_mm(step, pitch),
+                            periodic=spans_full_turn(surface), start_xy_mm=uv[-1] * (chart.kx, chart.ky))
+        if runs:
+            c = contour_blocks(surface, chart.kx, chart.ky, runs, pitch, lead, n_lead)
+            uv, duv = np.concatenate([uv, c.uv]), np.concatenate([duv, c.duv])
+            direction = np.concatenate([direction, np.ones(len(c.uv))])
+            zone, point = np.concatenate([zone, c.zone]), np.concatenate([point, c.point])
+            if n_lead:
+                away = np.concatenate([away, c.away])
+            seg = np.concatenate([seg, n_seg + c.segment])
+            block = np.concatenate([block, c.block])
+            start = np.concatenate([[0], np.cumsum(block)[:-1]])
+            n_seg = len(block)
+    lift = np.zeros(len(seg)) if away is None else clear * away ** 3
 
     # geometry and orientation of the on-surface samples
     p = surface.point_mm(uv[:, 0], uv[:, 1])
     normal = _unit(surface.normal_at(uv[:, 0], uv[:, 1]))
-    eps = 1e-3 * chart.duv_ds  # 1 um along the row: a forward difference is exact to ~1e-6 rad
-    travel = surface.point_mm(uv[:, 0] + eps[0], uv[:, 1] + eps[1]) - p
+    travel = surface.point_mm(uv[:, 0] + duv[:, 0], uv[:, 1] + duv[:, 1]) - p
     travel = travel - np.sum(travel * normal, axis=1, keepdims=True) * normal
-    travel = _unit(travel) * sign[seg][:, None]
+    travel = _unit(travel) * direction[:, None]
     R = _tool_rotations(normal, travel, settings.tool_x, w, settings.lead_rad, settings.tilt_rad)
     pos_mm = p + lift[:, None] * normal
 
@@ -418,10 +434,29 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     poses[total - A:, :3, :3], poses[total - A:, :3, 3] = R[-1], pos_dp
     segment[total - A:] = n_seg - 1
     zcode[total - A:] = _DEPART
-    return Path(poses, segment, pidx, zcode, settings.free_spin, step, pitch)
+    return Path(poses, segment, pidx, zcode, settings.free_spin, step, pitch,
+                contour=None if n_rows == n_seg else segment >= n_rows)
 
 
 # ----------------------------------------------------------------------------- coverage and summary
+
+
+CONTOUR_BELOW = 0.995  # raster.contour = "auto": a face's rows alone covering less than this share get a contour
+
+
+def contour_offset_mm(step_over_mm: float, pitch_mm: float) -> float:
+    """How far inside the boundary the contour runs (mm): half a step-over, as the outer rows at most are, but
+    no farther than keeps the boundary itself within the coverage radius of points ``pitch_mm`` apart."""
+    r = coverage_radius_mm(step_over_mm, pitch_mm)
+    return min(0.5 * step_over_mm, math.sqrt(max(r * r - 0.25 * pitch_mm * pitch_mm, 0.0)))
+
+
+def _wants_contour(surface, settings: RasterSettings, work_uv: np.ndarray) -> bool:
+    """``raster.contour``: "on", "off", or "auto" (the rows' work points cover less than ``CONTOUR_BELOW``)."""
+    if settings.contour != "auto":
+        return settings.contour == "on"
+    work = surface.point_mm(work_uv[:, 0], work_uv[:, 1])
+    return work_coverage(surface, work, settings.step_over_mm, settings.pitch_mm) < CONTOUR_BELOW
 
 
 def coverage_radius_mm(step_over_mm: float, pitch_mm: float) -> float:
@@ -443,7 +478,12 @@ def coverage(surface, path: Path, step_over_mm: float, grid: int = 400) -> float
     """
     if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or grid < 2:
         raise BadInput(f"coverage grid: expected an integer >= 2, found {grid!r}")
-    work = path.poses_mm[path.is_work, :3, 3]
+    pitch = path.pitch_mm if path.pitch_mm > 0 else step_over_mm
+    return work_coverage(surface, path.poses_mm[path.is_work, :3, 3], step_over_mm, pitch, grid)
+
+
+def work_coverage(surface, work: np.ndarray, step_over_mm: float, pitch: float, grid: int = 400) -> float:
+    """``coverage`` of work points ``work`` (N x 3, mm) rastered at ``step_over_mm`` and ``pitch`` (mm)."""
     if len(work) == 0:
         return 0.0
     b = surface.boundary
@@ -460,7 +500,6 @@ def coverage(surface, path: Path, step_over_mm: float, grid: int = 400) -> float
     if len(uv) == 0:
         return 0.0
     weight = np.prod(surface.metric_scale(uv), axis=1)
-    pitch = path.pitch_mm if path.pitch_mm > 0 else step_over_mm
     dist, _ = cKDTree(work).query(surface.point_mm(uv[:, 0], uv[:, 1]),
                                   distance_upper_bound=coverage_radius_mm(step_over_mm, pitch) * 1.0001)
     covered = dist <= coverage_radius_mm(step_over_mm, pitch)
@@ -472,9 +511,11 @@ def count_rows(path: Path) -> int:
 
     The direction of a segment is taken from its first to its last
     lead-in/work/lead-out pose; a segment with a single pose and no leads
-    counts as continuing the row.
+    counts as continuing the row. A contour's runs are no rows (``count_contour_runs``).
     """
     on = np.isin(path.zone, [_LEAD_IN, _WORK, _LEAD_OUT])
+    if path.contour is not None:
+        on &= ~path.contour
     seg = path.segment[on]
     if len(seg) == 0:
         return 0
@@ -488,6 +529,13 @@ def count_rows(path: Path) -> int:
     return int(1 + np.count_nonzero(dots < 0))
 
 
+def count_contour_runs(path: Path) -> int:
+    """Runs of the contour pass (``raster.contour``) in a raster path."""
+    if path.contour is None:
+        return 0
+    return int(len(np.unique(path.segment[path.contour & path.is_work])))
+
+
 def raster_summary(path: Path, surface=None, grid: int = 400) -> dict:
     """Figures of a raster path: rows, segments, work and zone points, length (mm), coverage.
 
@@ -498,6 +546,7 @@ def raster_summary(path: Path, surface=None, grid: int = 400) -> dict:
     work = zones["work"]
     return {
         "rows": count_rows(path),
+        "contour_runs": count_contour_runs(path),
         "segments": int(len(np.unique(path.segment[path.is_work]))),
         "work_points": work,
         "zone_points": int(len(path) - work),

@@ -169,7 +169,7 @@ _WORKED_NOTE = ('<p class="note">The faces this job works in one program, in the
 
 
 def _worked_table(worked: list, report: dict) -> str:
-    """Per face worked: order, number, model, rows, work points, step-over, coverage, feed within 1 %, min feed,
+    """Per face worked: order, number, model, rows, contour runs, work points, step-over, coverage, feed within 1 %, min feed,
     and its motion-check figures."""
     ok = "passed" if report.get("motion_check", {}).get("ok") else "not run"
 
@@ -182,14 +182,16 @@ def _worked_table(worked: list, report: dict) -> str:
         m = w.get("motion_check") or {}
         cov = w.get("coverage")
         rows.append(f"<tr><td>{n}</td><td>{int(w['index'])}</td><td>{html.escape(str(w['model']))}</td>"
-                    f"<td>{int(w['rows'])}</td><td>{int(w['work_points'])}</td><td>{w['step_over_mm']:g}</td>"
+                    f"<td>{int(w['rows'])}</td><td>{int(w.get('contour_runs', 0))}</td><td>{int(w['work_points'])}</td>"
+                    f"<td>{w['step_over_mm']:g}</td>"
                     f"<td>{'' if cov is None else f'{100 * cov:.2f}'}</td>"
                     f"<td>{100 * feed.get('work_share_within_1pct', float('nan')):.1f}</td>"
                     f"<td>{feed.get('min_work_feed_mm_s', float('nan')):.1f}</td>"
                     f"<td>{mm(m.get('work_deviation_mm'))}</td><td>{mm(m.get('max_penetration_mm'))}</td>"
                     f"<td>{mm(m.get('min_clearance_mm'))}</td>"
                     f"<td>{sum(m.get('failing_samples', {}).values()) if m else ''}</td><td>{ok}</td></tr>")
-    head = ("<tr><th>order</th><th>face</th><th>model</th><th>rows</th><th>work points</th><th>step-over mm</th>"
+    head = ("<tr><th>order</th><th>face</th><th>model</th><th>rows</th><th>contour runs</th><th>work points</th>"
+            "<th>step-over mm</th>"
             "<th>coverage %</th><th>feed within 1 % (%)</th><th>min feed mm/s</th><th>deviation mm</th>"
             "<th>penetration mm</th><th>clearance mm</th><th>failing samples</th><th>motion check</th></tr>")
     return f'<table class="verdict">{head}{"".join(rows)}</table>'

@@ -104,6 +104,7 @@ class RasterSettings(_FromSection):
     step_over_auto: bool = False  # step_over_mm = "auto": chosen from the process map (camtool.process.stepover)
     cylinder_rows: str = "around"  # on a cylinder: rows around the axis or along it
     edge_margin: float = 0.25      # the first and last rows at least this share of a step-over inside the edges
+    contour: str = "auto"          # a contour pass along the boundary: "auto" (where the rows leave slivers), "on", "off"
 
     @classmethod
     def from_section(cls, sec):
@@ -116,7 +117,7 @@ class RasterSettings(_FromSection):
                    tool_x=sec["tool_x"], tool_x_world=tuple(float(x) for x in sec["tool_x_world"]),
                    lead_rad=math.radians(sec["lead_deg"]), tilt_rad=math.radians(sec["tilt_deg"]),
                    free_spin=bool(sec["free_spin"]), cylinder_rows=sec["cylinder_rows"],
-                   edge_margin=float(sec["edge_margin"]))
+                   edge_margin=float(sec["edge_margin"]), contour=sec["contour"])
 
 
 @dataclass(frozen=True)

@@ -73,10 +73,13 @@ class Path:
     step_over_mm: float = 0.0
     pitch_mm: float = 0.0
     face: np.ndarray | None = None  # the part's face of each pose (a job of several faces), else None
+    contour: np.ndarray | None = None  # True on the poses of a contour run (``raster.contour``), else None
 
     def __post_init__(self):
-        if self.face is not None and len(self.face) != len(self.poses_mm):
-            raise ValueError(f"Path.face has {len(self.face)} entries for {len(self.poses_mm)} poses")
+        for name in ("face", "contour"):
+            a = getattr(self, name)
+            if a is not None and len(a) != len(self.poses_mm):
+                raise ValueError(f"Path.{name} has {len(a)} entries for {len(self.poses_mm)} poses")
         freeze_arrays(self)
 
     def __len__(self) -> int:
@@ -91,8 +94,12 @@ class Path:
 
     def segment_text(self, k: int) -> str:
         """Where pose k is, for messages: "segment S", or on a path over several faces "face F, segment S"."""
-        seg = f"segment {int(self.segment[k])}"
+        seg = f"segment {int(self.segment[k])}" + (" (contour)" if self.on_contour(k) else "")
         return seg if self.face is None else f"face {int(self.face[k])}, {seg}"
+
+    def on_contour(self, k: int) -> bool:
+        """Whether pose k belongs to a contour run."""
+        return self.contour is not None and bool(self.contour[k])
 
     def length_mm(self) -> float:
         """Length of the TCP polyline through every pose, in mm."""

@@ -69,6 +69,8 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
         return
     click.echo(f"surface          {surface.model}")
     click.echo(f"rows             {summary['rows']}")
+    if summary.get("contour_runs"):
+        click.echo(f"contour runs     {summary['contour_runs']}  (raster.contour: along the edges, after the rows)")
     click.echo(f"segments         {summary['segments']}")
     click.echo(f"work points      {summary['work_points']}")
     zones = ", ".join(f"{k} {v}" for k, v in summary["zone_counts"].items())

@@ -79,7 +79,8 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
         mc = w.get("motion_check") or {}
         checked = (f", deviation {mc['work_deviation_mm']:.3f} mm" if mc.get("work_deviation_mm") is not None else "") + (
             f", clearance {mc['min_clearance_mm']:.1f} mm" if mc.get("min_clearance_mm") is not None else "")
-        click.echo(f"face {w['index']} ({w['model']}): {w['rows']} rows, {w['work_points']} work points, coverage "
+        contour = f" + {w['contour_runs']} contour runs" if w.get("contour_runs") else ""
+        click.echo(f"face {w['index']} ({w['model']}): {w['rows']} rows{contour}, {w['work_points']} work points, coverage "
                    f"{100 * (w['coverage'] or 0.0):.2f}%, feed {100 * wf.get('work_share_within_1pct', 0.0):.1f}% "
                    f"within 1%{checked}")
     slow = report.get("slowdowns", [])
