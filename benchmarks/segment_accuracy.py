@@ -4,8 +4,8 @@ For every part of scripts/make_samples.py (mesh and noisy scan) the faces found 
 ``camtool.segment`` are matched to the truth in samples/faces_truth.json and the
 errors printed: normal / axis angle (deg), offset / centre / axis distance and
 radius (mm), and the boundary's distance from the true outline (mm; the 95th
-percentile and the largest, over the boundary polygons resampled 50 times per
-edge, a full cylinder's seam left out)
+percentile and the largest, over the boundary polygons resampled every 0.1 mm
+of their length, a full cylinder's seam left out)
 next to half the sampling step (median point spacing / 2).
 
     PYTHONPATH=. python benchmarks/segment_accuracy.py [--json]
@@ -86,8 +86,10 @@ def boundary_errors_mm(face, truth: dict) -> tuple[float, float]:
     tree = cKDTree(dense)
     for poly in polys:
         closed = np.vstack([poly, poly[:1]])
-        uv = np.vstack([closed[k] + np.linspace(0, 1, 50, endpoint=False)[:, None] * (closed[k + 1] - closed[k])
-                        for k in range(len(poly))])
+        # every 0.1 mm along the outline on the surface, so a long straight edge weighs as much as its length
+        edge_mm = np.linalg.norm(np.diff(s.point_mm(closed[:, 0], closed[:, 1]), axis=0), axis=1)
+        uv = np.vstack([closed[k] + np.linspace(0, 1, max(2, int(np.ceil(edge_mm[k] / 0.1))), endpoint=False)[:, None]
+                        * (closed[k + 1] - closed[k]) for k in range(len(poly))])
         if s.model == "cylinder":  # a full cylinder's seam (u = +-pi) is a polygon edge, not an outline
             uv = uv[np.abs(uv[:, 0]) < np.pi - 0.05]
         d, _ = tree.query(s.point_mm(uv[:, 0], uv[:, 1]))

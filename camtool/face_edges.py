@@ -26,7 +26,10 @@ normal on the face (in the face's flat chart), onto
   corner of the two edges' lines is taken instead.
 
 Short gaps between two edges are closed at their corner, and a polygon with no
-vertex moved is returned as it was.
+vertex moved is returned as it was. Last, a long straight run placed by the
+points' extent goes onto its fitted line (``_extent_straightened``), and a chain
+of short edges cutting a corner between two straight edges is replaced by the
+corner of their lines (``_corners_squared``).
 
 Hand-written: trimesh and open3d segment meshes but do not refine a
 segmentation's outlines onto the fitted models' intersections; the maths is a
@@ -228,7 +231,8 @@ def _moved_again(surface, poly_uv, others, free_edges, own) -> np.ndarray | None
     next to it meet their edge head on."""
     out = None
     for k in range(PASSES):  # the face's own points decide only in the last pass, where no edge was met
-        moved = _moved(surface, poly_uv if out is None else out, others, free_edges, own if k == PASSES - 1 else None)
+        last = k == PASSES - 1
+        moved = _moved(surface, poly_uv if out is None else out, others, free_edges, own if last else None, last)
         if moved is not None:
             out = moved
         elif out is not None:
@@ -261,8 +265,9 @@ FREE_EDGE, SEAM, EXTENT = -2, -3, -4
 UNMOVED = -1
 
 
-def _moved(surface, poly_uv, others, free_edges, own) -> np.ndarray | None:
-    """The polygon (uv) with its vertices on the edges they reach, or None when none reaches one."""
+def _moved(surface, poly_uv, others, free_edges, own, square: bool = True) -> np.ndarray | None:
+    """The polygon (uv) with its vertices on the edges they reach, or None when none reaches one; with
+    ``square``, its cut corners squared (``_corners_squared``)."""
     xy = _resampled(flat_mm(surface, np.asarray(poly_uv, float)), VERTEX_MM)
     if len(xy) < 2 * TANGENT_VERTICES + 3:
         return None
@@ -280,7 +285,58 @@ def _moved(surface, poly_uv, others, free_edges, own) -> np.ndarray | None:
     source = _short_estimates_dropped(source)
     new_xy = _gaps_closed(np.where((source != UNMOVED)[:, None], new_xy, xy), source)
     simple = cv2.approxPolyDP(new_xy.reshape(-1, 1, 2).astype(np.float32), SIMPLIFY_MM, True).reshape(-1, 2)
-    return uv_of_flat(surface, simple.astype(float) if len(simple) >= 3 else new_xy)
+    if len(simple) < 3:
+        return uv_of_flat(surface, new_xy)
+    # a plane's or cylinder's flat chart is an isometry: a straight edge there is an edge of the part
+    simple = simple.astype(float)
+    square = square and surface.model in ("plane", "cylinder")
+    return uv_of_flat(surface, _corners_squared(simple) if square else simple)
+
+
+LONG_EDGE_MM = 6.0      # a simplified outline's edge this long is a straight edge of the part
+CORNER_CHAIN_MM = 8.0   # ... and shorter edges between two such, this long in all, cut the corner they meet at
+CORNER_TURN_DEG = 30.0  # ... where the two straight edges turn by at least this much
+
+
+def _corners_squared(xy: np.ndarray) -> np.ndarray:
+    """The closed outline (K x 2, flat mm) with each short chain of edges between two straight edges replaced by
+    the corner where the two edges' lines meet, when it lies within ``CORNER_CHAIN_MM`` of both.
+
+    Snapping moves each vertex along its own normal, and next to a corner the normals turn: the last vertices
+    of one edge land on the other's line past the corner, or on a third face's (a chamfer's mitre met by the
+    side below it), and the simplified outline cuts or notches the corner by up to a few mm."""
+    k = len(xy)
+    length = np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1)
+    straight = np.flatnonzero(length >= LONG_EDGE_MM)
+    if len(straight) < 2:
+        return xy
+    replace_at: dict[int, np.ndarray] = {}
+    drop: set[int] = set()
+    for a, b in zip(straight, np.roll(straight, -1)):
+        chain = [(a + 1 + i) % k for i in range((b - a - 1) % k)]  # the short edges between the two
+        if not chain or length[chain].sum() > CORNER_CHAIN_MM:
+            continue
+        pa, da = xy[(a + 1) % k], xy[(a + 1) % k] - xy[a]
+        pb, db = xy[b], xy[(b + 1) % k] - xy[b]
+        cos = float(da @ db / (np.linalg.norm(da) * np.linalg.norm(db)))
+        if cos > math.cos(math.radians(CORNER_TURN_DEG)):
+            continue
+        A = np.stack([da, -db], axis=1)
+        if abs(np.linalg.det(A)) <= 1e-9:
+            continue
+        sa, sb = np.linalg.solve(A, pb - pa)
+        corner = pa + sa * da
+        if np.linalg.norm(corner - pa) > CORNER_CHAIN_MM or np.linalg.norm(corner - pb) > CORNER_CHAIN_MM:
+            continue
+        verts = [(a + 1 + i) % k for i in range((b - a) % k)]  # the end of a .. the start of b
+        if any(v in drop or v in replace_at for v in verts):
+            continue
+        replace_at[verts[0]] = corner
+        drop.update(verts[1:])
+    if not replace_at:
+        return xy
+    out = [replace_at.get(i, xy[i]) for i in range(k) if i not in drop]
+    return np.asarray(out, float) if len(out) >= 3 else xy
 
 
 def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
@@ -353,7 +409,36 @@ def _onto_extent(surface, xy, own: "_FacePoints", new_xy, source) -> None:
     width_mm = min(cv2.minAreaRect(new_xy.astype(np.float32))[1])   # a disc sees one side of a narrow face
     for radius in END_DISCS_MM:
         _extent_settled(surface, new_xy, source == EXTENT, own, min(radius, END_DISC_WIDTH_SHARE * width_mm))
+    _extent_straightened(new_xy, source == EXTENT)
     source[_extent_into_corners(new_xy, source)] = UNMOVED
+
+
+STRAIGHT_RUN_VERTICES = 15  # a run of vertices placed by the points' extent this long ...
+STRAIGHT_SHARE = 0.8        # ... of which this share stays within STRAIGHT_TOL_MM of the line fitted to them ...
+STRAIGHT_TOL_MM = 1.0       # ... is a straight free edge: the whole run goes onto that line
+STRAY_MM = 3.0              # ... unless a vertex of it is this far off the line (the edge turns there)
+
+
+def _extent_straightened(xy: np.ndarray, on_extent: np.ndarray) -> None:
+    """Each long run of vertices placed by the points' extent that lies along a line, projected onto that line
+    (in place). The line is fitted by total least squares to the run's vertices, then twice again to those
+    within STRAIGHT_TOL_MM of it (a corner's vertices dip off it). Each vertex's estimate scatters by about a
+    point spacing; a scan's straight free edge is better known from all of them than from any one."""
+    for start, n in _runs(on_extent):
+        if n < STRAIGHT_RUN_VERTICES:
+            continue
+        idx = (start + np.arange(n)) % len(xy)
+        pts = xy[idx]
+        near = np.ones(n, bool)
+        for _ in range(3):
+            mid = pts[near].mean(axis=0)
+            normal = np.linalg.svd(pts[near] - mid, full_matrices=False)[2][1]
+            off = (pts - mid) @ normal
+            near = np.abs(off) <= STRAIGHT_TOL_MM
+            if near.sum() < STRAIGHT_SHARE * n:
+                break
+        if near.sum() >= STRAIGHT_SHARE * n and np.abs(off).max() <= STRAY_MM:
+            xy[idx] = pts - off[:, None] * normal
 
 
 def _extent_into_corners(xy: np.ndarray, source: np.ndarray) -> np.ndarray:
