@@ -42,6 +42,7 @@ from .report import (plan_metrics, plot_joints, plot_unreachable, stage_seconds,
 from .report_html import write_run_html
 from .robots import get_robot
 from .settings import FitSettings, JobSettings, PlannerSettings, RasterSettings, TimingSettings, WorkpieceSettings
+from .surface import FaceSet
 from .timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
 from .toolpath import row_segments
 from .transforms import matrix_from_xyz_rpy
@@ -360,6 +361,12 @@ def part_for_checks(settings: JobSettings, workpiece, surface):
     return replace(workpiece, points_mm=P[on], normals=np.asarray(workpiece.normals)[on])
 
 
+def _fit_rms_mm(surface) -> float:
+    """The fit's RMS (mm) of a surface, the largest of its faces' for several faces; 0 where none is known."""
+    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
+    return max((f.stats.rms_mm for f in faces if getattr(f, "stats", None) is not None), default=0.0)
+
+
 def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surface=None) -> dict:
     """The independent motion check of what the controller will run; its figures for report.json.
 
@@ -372,8 +379,8 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
     """
     c = settings.check
     noise = 0.0
-    if workpiece.faces is None and surface is not None and surface.stats is not None:
-        noise = SCAN_NOISE_FACTOR * surface.stats.rms_mm  # a scan is only as exact as its noise
+    if workpiece.faces is None and surface is not None:
+        noise = SCAN_NOISE_FACTOR * _fit_rms_mm(surface)  # a scan is only as exact as its noise
     path_tol, penetration_tol = c.path_tol_mm + noise, c.penetration_tol_mm + noise
     part = part_for_checks(settings, workpiece, surface)
     program = thin_waypoints(trajectory, settings.post.min_move_s)

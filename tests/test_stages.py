@@ -108,3 +108,17 @@ def test_stage_log_times_each_stage_once():
     assert 0.02 <= log.seconds["a"] < 0.045
     assert 0.03 <= log.seconds["b"] < 0.055
     assert log.cpu_seconds["c"] > 0 and log.cpu_seconds["b"] < 0.02   # sleeping is no CPU
+
+
+def test_a_cloud_checks_tolerance_grows_by_its_noisiest_faces_rms():
+    """``motion_check``'s noise term: the fit's RMS of one surface, the largest face's of several, 0 unknown."""
+    from camtool.stages import _fit_rms_mm
+    from camtool.surface import Boundary, FaceSet, FitStats, PlaneSurface
+
+    def face(rms):
+        stats = None if rms is None else FitStats(1.0, rms, 3 * rms, 100, 100)
+        return PlaneSurface(np.zeros(3), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]),
+                            Boundary(np.array([[0, 0], [1, 0], [1, 1.0]])), stats)
+
+    assert _fit_rms_mm(face(0.1)) == 0.1 and _fit_rms_mm(face(None)) == 0.0
+    assert _fit_rms_mm(FaceSet((face(0.1), face(0.25), face(None)), (0, 1, 2), ({}, {}, {}))) == 0.25

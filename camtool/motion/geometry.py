@@ -21,7 +21,11 @@ angular gap > 120 deg round them (and a band of 3 spacings inside them); ``p``
 is beyond it when its in-plane offset from such a point exceeds
 ``lateral_tol_mm`` and points out of the cloud. Inside, in-plane offsets up to
 ``lateral_tol_mm`` are sampling holes, not shape, and come off the distance,
-so a point on the surface between two samples reads ~0.
+so a point on the surface between two samples reads ~0; and a point that near
+the surface is measured from the least-squares plane of its 8 nearest points
+(one step of moving least squares), not from one noisy point along that
+point's normal, which a scanner estimates from a neighbourhood and which blends
+across an edge.
 
 Outward normals are made consistent with a hint: points with outward
 directions, normally the work poses of the path (outward = -tool z). Mesh
@@ -53,6 +57,8 @@ CLOUD_NEIGHBOURS = 30        # neighbours of the angular-gap edge test
 EDGE_GAP_RAD = 2 * np.pi / 3  # a point with a larger angular gap round it is on the cloud's edge
 EDGE_BAND = 3.0              # points this many spacings (p90) from a flagged edge point count as edge too
 CREASE_NEIGHBOURS = 8        # cloud: normals averaged for the sign where the offset is in-plane
+MLS_NEIGHBOURS = 8           # cloud: a point this near the surface is measured from the plane of this many points
+MLS_REACH_SPACINGS = 1.0     # ... when within this many lateral tolerances of its nearest point
 LATERAL_SPACINGS = 3.0       # cloud: in-plane offsets up to this many spacings (p90) are sampling holes
 HINT_NEAR_FACTOR = 3.0       # mesh orientation vote: faces within this many hint spacings vote
 COVER_CELLS = 0.25           # mesh: a point cover of the surface within this many grid cells (``above``)
@@ -334,10 +340,30 @@ class PartGeometry:
         if len(rows):  # offset mostly in-plane (a crease): the neighbours' mean normal decides
             _, nb = self._tree.query(p[rows], k=min(CREASE_NEIGHBOURS, len(self.points_mm)), workers=-1)
             normal_part[rows] = np.einsum("ij,ij->i", off[rows], _unit(self.normals[nb].sum(axis=1)))
+        near = np.nonzero(~side & ~outside & (dist <= MLS_REACH_SPACINGS * self.lateral_tol_mm))[0]
+        if len(near):  # on the surface: the offset from the plane of the nearest points, not from one of them
+            plane = self._local_plane_offset(p[near])
+            normal_part[near] = plane
+            inner[near] = np.abs(plane)
         behind = normal_part < 0
         value = np.where(outside | (dist > self.horizon_mm), dist, np.where(behind, -inner, inner))
         out = (value, dist, c, ~outside, behind)
         return out + (normal_part,) if with_normal else out
+
+    def _local_plane_offset(self, p: np.ndarray) -> np.ndarray:
+        """Signed offset (mm) of each point from the least-squares plane of its MLS_NEIGHBOURS nearest cloud
+        points, along that plane's normal turned to their mean normal. A scan's points scatter by its noise
+        (some 4-5 sigma out among 60,000) and its normals, estimated from neighbourhoods too, blend across an
+        edge: the offset from one nearest point, along its normal, reads a pose on a face beside an edge as
+        behind it by up to a point spacing. One step of moving least squares reads the plane instead."""
+        k = min(MLS_NEIGHBOURS, len(self.points_mm))
+        _, nb = self._tree.query(p, k=k, workers=-1)
+        Q = self.points_mm[nb]
+        mid = Q.mean(axis=1)
+        D = Q - mid[:, None, :]
+        n = np.linalg.eigh(np.einsum("mki,mkj->mij", D, D))[1][:, :, 0]
+        n = np.where((np.einsum("ij,ij->i", n, self.normals[nb].sum(axis=1)) < 0)[:, None], -n, n)
+        return np.einsum("ij,ij->i", p - mid, n)
 
     def _feature(self, c: np.ndarray, prim: np.ndarray):
         """(pseudo-normal, on the patch's edge) of the corner or edge of each triangle nearest ``c``."""
