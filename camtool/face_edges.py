@@ -146,10 +146,13 @@ class FreeEdges:
 
     @staticmethod
     def of_mesh(vertices_mm, triangles) -> "FreeEdges | None":
-        """The free edges of a triangle mesh (merged vertices), or None when it has none."""
+        """The free edges of a triangle mesh, or None when it has none. Vertices within 0.1 um are one vertex
+        first: a STEP part is tessellated face by face, each B-rep face with its own copy of the vertices on
+        its edges (and a cylinder's seam twice), so every face's outline would read as a free edge."""
         if vertices_mm is None or triangles is None or len(triangles) == 0:
             return None
-        V, F = np.asarray(vertices_mm, float), np.asarray(triangles, np.int64)
+        V, inverse = np.unique(np.round(np.asarray(vertices_mm, float), 4), axis=0, return_inverse=True)
+        F = inverse.reshape(-1)[np.asarray(triangles, np.int64)]
         e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
         key = e[:, 0] * (len(V) + 1) + e[:, 1]
         uniq, first, count = np.unique(key, return_index=True, return_counts=True)
@@ -279,6 +282,7 @@ def _moved(surface, poly_uv, others, free_edges, own, square: bool = True) -> np
     _onto_seam(surface, rays, new_xy, source)
     if own is not None:
         _onto_extent(surface, xy, own, new_xy, source)
+    _within_turn(surface, xy, new_xy, source)
     source = _without_short_runs(source, MIN_RUN_VERTICES)
     if (source == UNMOVED).all():
         return None
@@ -537,6 +541,26 @@ def _flat_u_scale(surface, xy: np.ndarray) -> np.ndarray:
     if isinstance(surface, Cylinder):
         return np.ones(len(xy))
     return np.cos(uv_of_flat(surface, xy)[:, 1])
+
+
+def _within_turn(surface, xy: np.ndarray, new_xy: np.ndarray, source: np.ndarray) -> None:
+    """On a face all round its axis, vertices moved past its seam (u beyond +-pi) back to where their move
+    crosses it (in place): a ray that crosses the seam runs on round the axis over the face's own points, and
+    their extent, or a neighbour met there, lies on the far side of the cut. Cylinders only: a sphere's
+    sinusoidal chart has no straight seam, and near its pole u means nothing."""
+    if not isinstance(surface, Cylinder):
+        return
+    u0 = uv_of_flat(surface, xy)[:, 0]
+    if u0.max() - u0.min() < 2 * math.pi - 2 * SEAM_RAD:
+        return
+    u = uv_of_flat(surface, new_xy)[:, 0]
+    past = np.flatnonzero(np.abs(u) > math.pi)
+    if len(past):  # each such vertex to where its move crosses the seam
+        a, b = np.abs(u0[past]), np.abs(u[past])
+        f = np.clip((math.pi - a) / np.maximum(b - a, 1e-12), 0.0, 1.0)
+        new_xy[past] = xy[past] + f[:, None] * (new_xy[past] - xy[past])
+        new_xy[past, 0] = np.sign(u[past]) * math.pi * surface.radius_mm
+        source[past] = SEAM
 
 
 def _on_seam(surface, xy: np.ndarray) -> np.ndarray:

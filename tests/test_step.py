@@ -72,3 +72,38 @@ def test_opencascade_messages_stay_off_stdout(tmp_path):
     bad.write_text("ISO-10303-21;\nHEADER;\nthis is junk\n")
     r = run_camtool("fit", bad, "--json")
     assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_a_boss_all_round_keeps_its_outline_within_one_turn(tmp_path):
+    """A cylindrical boss (R 20, 30 high) on a box, as a STEP solid: its face goes all round its axis, and the
+    face's own points continue across its seam, so a vertex moved out past the seam is put back where its
+    move crosses it. The outline is the exact rectangle u = -pi..pi, z = 40..70 (it reached u = -4.7 rad
+    and 5 mm over the top, an area of 4308 mm2 for 3770)."""
+    import contextlib
+    import io
+    import math
+
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Fuse
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
+    from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
+
+    from camtool.faces import step_segmentation
+    from camtool.segment import SegmentSettings
+
+    box = BRepPrimAPI_MakeBox(gp_Pnt(-100, -60, 0), 200, 120, 40).Shape()
+    boss = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(40, 0, 40), gp_Dir(0, 0, 1)), 20.0, 30.0).Shape()
+    file = tmp_path / "boss.step"
+    writer = STEPControl_Writer()
+    with contextlib.redirect_stdout(io.StringIO()):
+        writer.Transfer(BRepAlgoAPI_Fuse(box, boss).Shape(), STEPControl_AsIs)
+        writer.Write(str(file))
+    seg = step_segmentation(file, load_workpiece(file), np.eye(4), SegmentSettings())
+    cyl = [f for f in seg.faces if f.model == "cylinder"]
+    assert len(cyl) == 1 and [f.model for f in seg.faces].count("plane") == 7
+    s = cyl[0].surface
+    lo, hi = s.boundary.bounds()
+    assert np.allclose([lo[0], hi[0]], [-math.pi, math.pi], atol=1e-6)
+    z = s.point_mm(np.zeros(2), np.array([lo[1], hi[1]]))[:, 2]
+    assert np.allclose(z, [40.0, 70.0], atol=0.05)
+    assert cyl[0].area_mm2 == pytest.approx(2 * math.pi * 20 * 30, rel=0.005)
