@@ -23,6 +23,11 @@ length is integrated with ``metric_scale``) and centred strictly inside the run,
 so each run end is at most about half a pitch from the nearest point and no
 work point sits on a boundary edge.
 
+Where the rows alone cover less than ``CONTOUR_BELOW`` of the face (``raster.contour =
+"auto"``; "on" always, "off" never), a contour pass follows: runs along every edge
+of the face, half a step inside it, after the rows (``camtool.contour``), each a
+segment with leads like a row's, their poses marked in ``Path.contour``.
+
 Around every segment: ``lead_in`` / ``lead_out`` poses continue along the row
 beyond the segment ends by ``lead_mm`` (the lift along the normal rises from 0
 to ``clearance_mm`` as the cube of the distance from the work, tangent to the
