@@ -11,7 +11,8 @@ has (model by model), the worst radius error (mm) against the primitive's (on a 
 holds the tessellation's own chord sag: the capsule's 64 sections are 0.048 mm inside
 its 40 mm), and the
 coverage of every face rastered at 10 mm x 5 mm with the default keys (rows around a
-cylinder or sphere, ``raster.contour`` "auto"), marked where below 99.5 % or refused.
+cylinder or sphere, ``raster.contour`` "auto"), marked where below 99.5 % or refused. On
+2026-12-04: 12 of 12 parts with every face's model right, 50 of 50 faces covered.
 
     PYTHONPATH=. python benchmarks/hostile_parts.py
 """

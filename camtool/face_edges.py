@@ -294,7 +294,10 @@ def _moved(surface, poly_uv, others, free_edges, own, square: bool = True) -> np
     # a plane's or cylinder's flat chart is an isometry: a straight edge there is an edge of the part
     simple = simple.astype(float)
     square = square and surface.model in ("plane", "cylinder")
-    return uv_of_flat(surface, _corners_squared(simple) if square else simple)
+    uv = uv_of_flat(surface, _corners_squared(simple) if square else simple)
+    if surface.model == "sphere":  # past the sinusoidal chart's edge is past the seam: near a pole x / cos v
+        uv[:, 0] = np.clip(uv[:, 0], -math.pi, math.pi)  # would run off to millions of rad (a whole ball)
+    return uv
 
 
 LONG_EDGE_MM = 6.0      # a simplified outline's edge this long is a straight edge of the part

@@ -164,3 +164,22 @@ def test_a_scans_straight_free_edge_goes_onto_its_fitted_line():
     out = turning.copy()
     fe._extent_straightened(out, np.ones(len(x), bool) & (np.arange(len(x)) > 0))
     assert np.array_equal(out, turning)
+
+
+def test_a_whole_ball_keeps_its_outline_within_one_turn(tmp_path):
+    """A whole sphere (trimesh's icosphere, R 100): its outline runs through both poles of the azimuth-elevation
+    chart, where the flat chart's x / cos v ran off to millions of rad; it stays within u = -pi..pi, and the
+    ball is rastered and covered."""
+    import trimesh
+
+    from camtool.raster import raster_path, raster_summary
+    from camtool.settings import RasterSettings
+
+    trimesh.creation.icosphere(subdivisions=5, radius=100).export(tmp_path / "ball.stl")
+    seg = segment(load_workpiece(tmp_path / "ball.stl"))
+    assert [f.model for f in seg.faces] == ["sphere"]
+    s = seg.faces[0].surface
+    lo, hi = s.boundary.bounds()
+    assert lo[0] >= -np.pi and hi[0] <= np.pi
+    assert seg.faces[0].area_mm2 == pytest.approx(4 * np.pi * 100 ** 2, rel=0.02)
+    assert raster_summary(raster_path(s, RasterSettings.make(step_over_mm=10, pitch_mm=5)), s)["coverage"] >= 0.995
