@@ -204,8 +204,12 @@ class ContourBlocks:
     zone: np.ndarray      # (N,) zone codes: lead_in, work, lead_out
     point: np.ndarray     # (N,) 1-based work point of its run, 0 in a lead
     away: np.ndarray      # (N,) share of the lead from the work end (0) to its far end (1)
-    segment: np.ndarray   # (N,) 0-based run
     block: np.ndarray     # (runs,) poses per run
+
+    @property
+    def segment(self) -> np.ndarray:
+        """(N,) each pose's 0-based run."""
+        return np.repeat(np.arange(len(self.block)), self.block)
 
 
 def contour_blocks(surface, kx: float, ky: float, runs: list[ContourRun], pitch_mm: float, lead_mm: float,
@@ -218,7 +222,7 @@ def contour_blocks(surface, kx: float, ky: float, runs: list[ContourRun], pitch_
     scale = np.array([kx, ky])
     lead_step = lead_mm / n_lead if n_lead else 0.0
     parts = []
-    for k, run in enumerate(runs):
+    for run in runs:
         dense = sampled(run)
         uv_d = dense / scale
         arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(surface.point_mm(uv_d[:, 0], uv_d[:, 1]),
@@ -243,11 +247,10 @@ def contour_blocks(surface, kx: float, ky: float, runs: list[ContourRun], pitch_
         point = np.concatenate([np.zeros(n_lead), np.arange(1, c + 1), np.zeros(n_lead)]).astype(np.int32)
         away = (np.concatenate([np.arange(n_lead, 0, -1), np.zeros(c), np.arange(1, n_lead + 1)]) / n_lead
                 if n_lead else np.zeros(c))
-        parts.append((xy_all / scale, 1e-3 * tan_all / scale, zone, point, away, np.full(len(zone), k)))
+        parts.append((xy_all / scale, 1e-3 * tan_all / scale, zone, point, away))
     cols = list(zip(*parts))
     return ContourBlocks(uv=np.concatenate(cols[0]), duv=np.concatenate(cols[1]), zone=np.concatenate(cols[2]),
                          point=np.concatenate(cols[3]), away=np.concatenate(cols[4]),
-                         segment=np.concatenate(cols[5]).astype(np.int64),
                          block=np.array([len(z) for z in cols[2]], np.int64))
 
 

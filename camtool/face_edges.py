@@ -551,11 +551,9 @@ def _within_turn(surface, xy: np.ndarray, new_xy: np.ndarray, source: np.ndarray
     crosses it (in place): a ray that crosses the seam runs on round the axis over the face's own points, and
     their extent, or a neighbour met there, lies on the far side of the cut. Cylinders only: a sphere's
     sinusoidal chart has no straight seam, and near its pole u means nothing."""
-    if not isinstance(surface, Cylinder):
+    if not isinstance(surface, Cylinder) or not _all_round(surface, xy):
         return
     u0 = uv_of_flat(surface, xy)[:, 0]
-    if u0.max() - u0.min() < 2 * math.pi - 2 * SEAM_RAD:
-        return
     u = uv_of_flat(surface, new_xy)[:, 0]
     past = np.flatnonzero(np.abs(u) > math.pi)
     if len(past):  # each such vertex to where its move crosses the seam
@@ -569,12 +567,18 @@ def _within_turn(surface, xy: np.ndarray, new_xy: np.ndarray, source: np.ndarray
 def _on_seam(surface, xy: np.ndarray) -> np.ndarray:
     """Vertices near the seam (u = +-pi) of a face that goes all round its axis (the outline's cut there is
     not an edge: those whose normal runs along u stay)."""
-    if isinstance(surface, PlaneSurface):
+    if not _all_round(surface, xy):
         return np.zeros(len(xy), bool)
     u = uv_of_flat(surface, xy)[:, 0]
-    if u.max() - u.min() < 2 * math.pi - 2 * SEAM_RAD:
-        return np.zeros(len(xy), bool)
     return np.abs(np.angle(np.exp(1j * u))) > math.pi - SEAM_RAD
+
+
+def _all_round(surface, xy: np.ndarray) -> bool:
+    """Whether the outline (flat chart) of a cylinder or sphere face spans the full turn of u, to SEAM_RAD."""
+    if isinstance(surface, PlaneSurface):
+        return False
+    u = uv_of_flat(surface, xy)[:, 0]
+    return bool(u.max() - u.min() >= 2 * math.pi - 2 * SEAM_RAD)
 
 
 def _outward(xy: np.ndarray, k: int = 0) -> np.ndarray:
