@@ -155,3 +155,29 @@ def test_an_open_patch_is_inside_only_behind_the_face_its_work_orients():
     d = chk.distances(np.array([[100.0, 0.0, -30.0], [-30.0, 0.0, 100.0], [30.0, 0.0, 100.0]]))
     assert d[0] == pytest.approx(-30.0, abs=1e-3)  # under the worked floor: inside the part
     assert d[1] == pytest.approx(30.0, abs=1e-3) and d[2] == pytest.approx(30.0, abs=1e-3)  # either side of the wall
+
+
+def test_far_points_of_an_open_patch_are_screened_with_the_exact_answer():
+    """A concave spherical cap (R 600 mm) worked on its inside, the robot near its centre, where every
+    vertex is nearly equidistant: far link points are screened at a vertex, the near ones and those the
+    screen keeps measured exactly. Behind or not agrees with the exact test at every point, near
+    distances are exact and far ones a lower bound."""
+    from camtool.plan.rrt import EXACT_BAND_MM
+
+    robot = get_robot("irb2400")
+    ball = trimesh.creation.icosphere(subdivisions=5, radius=600.0)
+    cap = ball.submesh([np.flatnonzero(ball.triangles_center[:, 0] > 250.0)], append=True)
+    cap.apply_translation((700.0, 0.0, 500.0))
+    work = cap.triangles_center[::7]
+    inward = (np.array([700.0, 0.0, 500.0]) - work) / 600.0
+    chk = CapsuleChecker(robot, cap, radius_mm=60.0, outward=(work, inward))
+    rng = np.random.default_rng(4)
+    Q = rng.uniform(robot.limits.lower, robot.limits.upper, (400, robot.dof))
+    P = np.concatenate([chk.link_points(q) for q in Q] + [rng.uniform((-500, -900, -400), (1800, 900, 1400), (20000, 3))])
+    got, exact = chk.distances(P), chk._behind_exact(P)
+    reach = chk.radius + EXACT_BAND_MM
+    assert (exact < 0).sum() > 1000 and (exact >= 0).sum() > 1000   # both sides are tried
+    assert np.array_equal(got < 0, exact < 0)
+    near = np.abs(exact) < reach
+    assert np.array_equal(got[near], exact[near])
+    assert np.all(got[~near & (exact >= 0)] <= exact[~near & (exact >= 0)])
