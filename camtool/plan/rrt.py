@@ -70,54 +70,51 @@ class _LinkCapsules(Validity):
         self.tip_exempt = float(tip_exempt_mm)
         self.calls = 0
 
-    def _chain_points(self, q, F=None):
-        F = self.chain.frames(np.asarray(q, float)) if F is None else F
-        pts = [np.zeros(3)] + [T[:3, 3] for T in F] + [(F[-1] @ self.robot.tool_T_mm)[:3, 3]]
-        out, to_tip = [], []
-        seg = list(zip(pts[:-1], pts[1:]))
-        lengths = [float(np.linalg.norm(b - a)) for a, b in seg]
-        after = np.cumsum(lengths[::-1])[::-1] - np.array(lengths)  # chain length from each segment's end to the TCP
-        for (a, b), L, rest in list(zip(seg, lengths, after))[self.skip:]:
-            n = max(int(np.ceil(L / self.spacing)), 1)
-            f = _FRACTIONS.get(n)
-            if f is None:
-                f = _FRACTIONS[n] = np.linspace(0.0, 1.0, n + 1)
-            out.append(a + f[:, None] * (b - a))
-            to_tip.append(rest + (1.0 - f) * L)
-        P = np.concatenate(out)
-        P = P @ self.robot.base_T_mm[:3, :3].T + self.robot.base_T_mm[:3, 3]
-        return P, np.concatenate(to_tip)
+    def _points_many(self, Q) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """For every row of Q at once: the link points (M, 3) world frame (exempt balls and the exempt
+        tip removed) with the row of each (M,), and the TCPs (K', 3) outside the exempt balls with theirs.
 
-    def link_points(self, q, F=None) -> np.ndarray:
-        """Points (M, 3) along the link segments, world frame (exempt balls and the exempt tip removed);
-        ``F`` the chain's frames at q when the caller has them."""
-        P, to_tip = self._chain_points(q, F)
+        A segment's points are ``a + f (b - a)`` at ``ceil(length / spacing)`` equal steps, and the
+        rows whose segment has the same count are computed together."""
+        F = self.chain.frames_many(Q)
+        K = len(F)
+        tool, base = self.robot.tool_T_mm, self.robot.base_T_mm
+        pts = np.concatenate([np.zeros((K, 1, 3)), F[:, :, :3, 3], (F[:, -1] @ tool)[:, None, :3, 3]], axis=1)
+        d = pts[:, 1:] - pts[:, :-1]
+        L = np.sqrt(np.einsum("ksi,ksi->ks", d, d))
+        after = np.cumsum(L[:, ::-1], axis=1)[:, ::-1] - L   # chain length from each segment's end to the TCP
+        out, rows, to_tip = [], [], []
+        for j in range(self.skip, L.shape[1]):
+            counts = np.maximum(np.ceil(L[:, j] / self.spacing).astype(int), 1)
+            for n in np.unique(counts):
+                r = np.flatnonzero(counts == n)
+                f = _FRACTIONS.get(int(n))
+                if f is None:
+                    f = _FRACTIONS[int(n)] = np.linspace(0.0, 1.0, n + 1)
+                out.append((pts[r, j, None] + f[None, :, None] * d[r, j, None]).reshape(-1, 3))
+                rows.append(np.repeat(r, n + 1))
+                to_tip.append((after[r, j, None] + (1.0 - f)[None] * L[r, j, None]).ravel())
+        P = np.concatenate(out) @ base[:3, :3].T + base[:3, 3]
+        row, keep = np.concatenate(rows), np.ones(len(P), bool)
         if self.tip_exempt > 0:
-            P = P[to_tip > self.tip_exempt]
+            keep &= np.concatenate(to_tip) > self.tip_exempt
+        tcp = (base @ F[:, -1] @ tool)[:, :3, 3]
+        tcp_row, tcp_keep = np.arange(K), np.ones(K, bool)
         for c, r in self.exempt:
-            P = P[np.linalg.norm(P - c, axis=1) > r]
-        return P
+            keep &= np.linalg.norm(P - c, axis=1) > r
+            tcp_keep &= np.linalg.norm(tcp - c, axis=1) > r
+        return P[keep], row[keep], tcp[tcp_keep], tcp_row[tcp_keep]
 
-    def _tcp(self, q, F=None) -> np.ndarray:
-        F = self.chain.frames(np.asarray(q, float)) if F is None else F
-        T = self.robot.base_T_mm @ F[-1] @ self.robot.tool_T_mm
-        P = T[:3, 3][None]
-        for c, r in self.exempt:
-            P = P[np.linalg.norm(P - c, axis=1) > r]
-        return P
+    def link_points(self, q) -> np.ndarray:
+        """Points (M, 3) along the link segments at q, world frame (exempt balls and the exempt tip removed)."""
+        return self._points_many(np.asarray(q, float)[None])[0]
 
     def distances(self, P) -> np.ndarray:
         raise NotImplementedError
 
     def clearance_mm(self, q) -> float:
         """Smallest distance from a link capsule's surface (or, with a tip exemption, the TCP) to the part."""
-        P = self.link_points(q)
-        c = np.inf if len(P) == 0 else float(self.distances(P).min() - self.radius)
-        if self.tip_exempt > 0:
-            tcp = self._tcp(q)
-            if len(tcp):
-                c = min(c, float(self.distances(tcp).min()))
-        return c
+        return float(self.clearances_mm(np.asarray(q, float)[None])[0])
 
     def __call__(self, q) -> bool:
         self.calls += 1
@@ -137,22 +134,19 @@ class _LinkCapsules(Validity):
 
     def clearances_mm(self, Q) -> np.ndarray:
         """``clearance_mm`` of every row of Q, with one distance query for all their link points."""
-        Q = np.asarray(Q, float)
-        frames = [self.chain.frames(q) for q in Q]   # once a row, for the links and the TCP
-        clear = self._per_row_min([self.link_points(q, F) for q, F in zip(Q, frames)], -self.radius)
-        if self.tip_exempt > 0:
-            clear = np.minimum(clear, self._per_row_min([self._tcp(q, F) for q, F in zip(Q, frames)], 0.0))
+        Q = np.asarray(Q, float).reshape(-1, self.robot.dof)
+        clear = np.full(len(Q), np.inf)
+        if not len(Q):
+            return clear
+        P, row, tcp, tcp_row = self._points_many(Q)
+        if self.tip_exempt > 0 and len(tcp):   # the TCP keeps the clearance as a point
+            P, row = np.concatenate([P, tcp]), np.concatenate([row, tcp_row])
+            shift = np.r_[np.full(len(P) - len(tcp), -self.radius), np.zeros(len(tcp))]
+        else:
+            shift = np.full(len(P), -self.radius)
+        if len(P):
+            np.minimum.at(clear, row, self.distances(P) + shift)
         return clear
-
-    def _per_row_min(self, points: list, shift: float) -> np.ndarray:
-        """Per list entry, the smallest distance of its points (plus ``shift``); inf for none."""
-        sizes = np.array([len(p) for p in points], int)
-        out = np.full(len(points), np.inf)
-        if sizes.sum():
-            d = self.distances(np.concatenate([p for p in points if len(p)])) + shift
-            has = sizes > 0
-            out[has] = np.minimum.reduceat(d, np.r_[0, np.cumsum(sizes[has])[:-1]])
-        return out
 
 
 HINT_COS = 0.5  # a work pose's tool axis orients a mesh face within 60 deg of it (open patches)

@@ -115,6 +115,28 @@ class Chain:
         out.append(T @ self.flange)
         return out
 
+    def frames_many(self, Q) -> np.ndarray:
+        """``frames`` of every row of Q (K, dof): (K, dof + 1, 4, 4), the same products in the same order."""
+        Q = np.asarray(Q, float).reshape(-1, self.n)
+        K = len(Q)
+        out = np.empty((K, self.n + 1, 4, 4))
+        T = np.broadcast_to(np.eye(4), (K, 4, 4))
+        M = np.zeros((K, 4, 4))
+        M[:, 3, 3] = 1.0
+        for i in range(self.n):
+            M[:, :3, :3] = 0.0
+            M[:, :3, 3] = 0.0
+            if self.robot.prismatic[i]:
+                M[:, 0, 0] = M[:, 1, 1] = M[:, 2, 2] = 1.0
+                M[:, 2, 3] = Q[:, i]
+            else:
+                c, s = np.cos(Q[:, i]), np.sin(Q[:, i])
+                M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1], M[:, 2, 2] = c, -s, s, c, 1.0
+            T = T @ self.P[i] @ M
+            out[:, i] = T
+        out[:, self.n] = T @ self.flange
+        return out
+
     def fk(self, q) -> np.ndarray:
         return self.frames(q)[-1]
 
