@@ -4,7 +4,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from camtool.job import load_job
 from camtool.plan.cwln import CwlnSolver
-from camtool.plan.densify import MAX_SPLITS, _midposes, densify_work
+from camtool.plan.densify import MAX_SPLITS, slerp_midposes, densify_work
 from camtool.plan.strategy import ik_settings
 from camtool.settings import JobSettings
 from camtool.stages import path_for_job, plan_for_job, robot_for_job, surface_for_job, workpiece_for_job
@@ -13,13 +13,13 @@ from camtool.toolpath import SURFACE_CODES, ZONE_CODE
 from conftest import SAMPLES
 
 
-def test_batched_midposes_are_scipys_slerp_halfway_pose_by_pose():
+def test_batched_slerp_midposes_are_scipys_slerp_halfway_pose_by_pose():
     A = Rotation.random(50, random_state=1).as_matrix()
     B = Rotation.random(50, random_state=2).as_matrix()
     Ta, Tb = np.tile(np.eye(4), (50, 1, 1)), np.tile(np.eye(4), (50, 1, 1))
     Ta[:, :3, :3], Tb[:, :3, :3] = A, B
     Ta[:, :3, 3], Tb[:, :3, 3] = np.arange(150).reshape(50, 3), -np.arange(150).reshape(50, 3)
-    mid = _midposes(Ta, Tb)
+    mid = slerp_midposes(Ta, Tb)
     for k in range(50):
         R = Slerp([0.0, 1.0], Rotation.from_matrix([A[k], B[k]]))(0.5).as_matrix()
         assert np.array_equal(mid[k, :3, :3], R)
@@ -29,7 +29,7 @@ def test_batched_midposes_are_scipys_slerp_halfway_pose_by_pose():
 def _split_one(solver, Ta, qa, Tb, qb, tol, depth):
     """The reference: one step halved recursively (the algorithm before batching)."""
     q_mid = 0.5 * (qa + qb)
-    T_mid = _midposes(Ta[None], Tb[None])[0]
+    T_mid = slerp_midposes(Ta[None], Tb[None])[0]
     if depth >= MAX_SPLITS or np.linalg.norm(solver.tcp_pose(q_mid)[:3, 3] - T_mid[:3, 3]) <= tol:
         return []
     res = solver.solve(T_mid, q_mid, clamp=False)

@@ -27,7 +27,7 @@ from .cwln import CwlnSolver
 MAX_SPLITS = 4  # a step is halved at most this many times (16 pieces)
 
 
-def _midposes(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
+def slerp_midposes(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
     """(m, 4, 4) midposes of m pose pairs: position midway, orientation slerped halfway.
 
     One batched scipy Rotation call for all pairs; per pair it is exactly
@@ -58,7 +58,7 @@ def _split_steps(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: np.ndarra
         if not len(step):
             break
         q_mid = 0.5 * (qa + qb)
-        T_mid = _midposes(Ta, Tb)
+        T_mid = slerp_midposes(Ta, Tb)
         tcp_base = (tcp_positions_world(robot, q_mid) - base[:3, 3]) @ base[:3, :3]  # = base^-1 world
         far = np.flatnonzero(np.linalg.norm(tcp_base - T_mid[:, :3, 3], axis=1) > tol_mm)
         keep, q_new = [], []

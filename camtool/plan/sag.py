@@ -26,6 +26,7 @@ from ..robots.model import Robot
 from ..toolpath import SURFACE_CODES, WORK, Path
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
+from .densify import slerp_midposes
 
 MAX_SPLITS = 3  # a step is halved at most this many times for its sag (8 pieces), twice more for its bow
 SAG_SCREEN_MM = 1e-6   # the batched screen leaves a step to its own test unless this much within the tolerance
@@ -34,6 +35,14 @@ SAG_SCREEN_MM = 1e-6   # the batched screen leaves a step to its own test unless
 
 def arc_midpose(Ta: np.ndarray, Tb: np.ndarray) -> tuple[np.ndarray, float]:
     """(pose midway along the surface arc between Ta and Tb, the chord's sag in mm)."""
+    T = np.eye(4)
+    T[:3, :3] = Slerp([0.0, 1.0], Rotation.from_matrix([Ta[:3, :3], Tb[:3, :3]]))(0.5).as_matrix()
+    T[:3, 3], sag = _arc_midpoint(Ta, Tb)
+    return T, sag
+
+
+def _arc_midpoint(Ta: np.ndarray, Tb: np.ndarray) -> tuple[np.ndarray, float]:
+    """(the arc's midpoint (3,) mm, the chord's sag in mm) of one step."""
     pa, pb = Ta[:3, 3], Tb[:3, 3]
     za, zb = Ta[:3, 2], Tb[:3, 2]
     c = float(np.linalg.norm(pb - pa))
@@ -41,14 +50,20 @@ def arc_midpose(Ta: np.ndarray, Tb: np.ndarray) -> tuple[np.ndarray, float]:
     sag = 0.5 * c * np.tan(theta / 4.0)
     out = -(za + zb)
     n = np.linalg.norm(out)
-    T = np.eye(4)
-    T[:3, :3] = Slerp([0.0, 1.0], Rotation.from_matrix([Ta[:3, :3], Tb[:3, :3]]))(0.5).as_matrix()
     if n < 1e-9 or sag <= 0.0:
-        T[:3, 3] = 0.5 * (pa + pb)
-        return T, 0.0
+        return 0.5 * (pa + pb), 0.0
     out /= n
     convex = ((-zb) - (-za)) @ (pb - pa) > 0.0   # outward normals diverge along the step
-    T[:3, 3] = 0.5 * (pa + pb) + (sag if convex else -sag) * out
+    return 0.5 * (pa + pb) + (sag if convex else -sag) * out, sag
+
+
+def _arc_midposes(Ta: np.ndarray, Tb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``arc_midpose`` of many steps: (m, 4, 4) poses, (m,) sags. The orientations by one batched slerp
+    (``densify.slerp_midposes``, scipy's Slerp pose by pose), the points one step at a time as above."""
+    T = slerp_midposes(Ta, Tb)
+    sag = np.empty(len(Ta))
+    for i in range(len(Ta)):
+        T[i, :3, 3], sag[i] = _arc_midpoint(Ta[i], Tb[i])
     return T, sag
 
 
@@ -61,25 +76,51 @@ def chord_sags_mm(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
     return np.where(flat | (sag <= 0.0), 0.0, sag)
 
 
-def _split(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, depth):
-    """Inserted joint rows strictly between a and b. A step this module splits is also kept within the
-    bow tolerance (``densify`` no longer sees it as one step of the Path)."""
-    T_mid, sag = arc_midpose(Ta, Tb)
-    q_mid = 0.5 * (qa + qb)
-    if depth >= MAX_SPLITS + 2:
-        return []
-    if depth == 0 and sag <= tol_mm:
-        return []
-    if depth > 0 and sag <= tol_mm:
-        chord_mid = 0.5 * (Ta[:3, 3] + Tb[:3, 3])
-        if np.linalg.norm(solver.tcp_pose(q_mid)[:3, 3] - chord_mid) <= bow_tol_mm:
-            return []
-        T_mid[:3, 3] = chord_mid if sag <= 1e-9 else T_mid[:3, 3]
-    res = solver.solve(T_mid, q_mid, clamp=False)
-    if not res.converged or np.any(res.q < solver.lo) or np.any(res.q > solver.hi):
-        return []
-    return (_split(solver, Ta, qa, T_mid, res.q, tol_mm, bow_tol_mm, depth + 1) + [res.q]
-            + _split(solver, T_mid, res.q, Tb, qb, tol_mm, bow_tol_mm, depth + 1))
+def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm) -> dict[int, np.ndarray]:
+    """{step: inserted q (k, dof) in order} for the steps (Ta[i], qa[i]) -> (Tb[i], qb[i]) (base frame).
+
+    Level by level (every interval of one depth at once, the midposes by one batched slerp): an
+    interval whose sag exceeds ``tol_mm`` gets the arc's midpose, solved (CWLN without the clamp
+    task, from the joint midpoint) and halved again, up to ``MAX_SPLITS`` times. A step this module
+    splits is also kept within the bow tolerance, two levels more (``densify`` no longer sees it as one
+    step of the Path): a half within the sag tolerance whose joint midpoint's TCP leaves the chord by
+    more than ``bow_tol_mm`` is split too.
+    """
+    step = np.arange(len(Ta))
+    key = np.full(len(Ta), 0.5)     # where the midpoint lies in its step (0..1): the order of the inserts
+    half = 0.25
+    found: dict[int, list] = {}
+    for depth in range(MAX_SPLITS + 2):
+        if not len(step):
+            break
+        q_mid = 0.5 * (qa + qb)
+        T_mid, sag = _arc_midposes(Ta, Tb)
+        keep, q_new = [], []
+        for i in range(len(step)):
+            if sag[i] <= tol_mm:
+                if depth == 0:
+                    continue
+                chord_mid = 0.5 * (Ta[i, :3, 3] + Tb[i, :3, 3])
+                if np.linalg.norm(solver.tcp_pose(q_mid[i])[:3, 3] - chord_mid) <= bow_tol_mm:
+                    continue
+                if sag[i] <= 1e-9:
+                    T_mid[i, :3, 3] = chord_mid
+            res = solver.solve(T_mid[i], q_mid[i], clamp=False)
+            if not res.converged or np.any(res.q < solver.lo) or np.any(res.q > solver.hi):
+                continue
+            found.setdefault(int(step[i]), []).append((key[i], res.q))
+            keep.append(i)
+            q_new.append(res.q)
+        if not keep:
+            break
+        keep = np.array(keep)
+        q_new = np.array(q_new)
+        step = np.concatenate([step[keep], step[keep]])   # each kept interval becomes its two halves
+        key = np.concatenate([key[keep] - half, key[keep] + half])
+        Ta, Tb = np.concatenate([Ta[keep], T_mid[keep]]), np.concatenate([T_mid[keep], Tb[keep]])
+        qa, qb = np.concatenate([qa[keep], q_new]), np.concatenate([q_new, qb[keep]])
+        half *= 0.5
+    return {s: np.array([q for _, q in sorted(v, key=lambda e: e[0])]) for s, v in found.items()}
 
 
 def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver,
@@ -100,12 +141,11 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
         sags = chord_sags_mm(poses[jp.path_index[steps]], poses[jp.path_index[steps + 1]])
         steps = steps[sags > tol - SAG_SCREEN_MM]   # the rest: each step's own test below
     inserts = {}
-    for r in steps:
-        Ta = base_inv @ path.poses_mm[jp.path_index[r]]
-        Tb = base_inv @ path.poses_mm[jp.path_index[r + 1]]
-        extra = _split(solver, Ta, jp.q[r], Tb, jp.q[r + 1], tol, chord_tol_mm, 0)
-        if extra:
-            inserts[int(r)] = np.array(extra)
+    if len(steps):
+        T = np.einsum("ij,njk->nik", base_inv, path.poses_mm[jp.path_index[np.r_[steps, steps + 1]]])
+        q = np.asarray(jp.q, float)
+        split = _split_steps(solver, T[:len(steps)], q[steps], T[len(steps):], q[steps + 1], tol, chord_tol_mm)
+        inserts = {int(steps[i]): v for i, v in sorted(split.items())}
     events = {**jp.events, "sag_steps": {"steps": len(inserts), "rows": int(sum(len(v) for v in inserts.values())),
                                          "sag_tol_mm": tol}}
     if not inserts:
