@@ -271,7 +271,7 @@ UNMOVED = -1
 def _moved(surface, poly_uv, others, free_edges, own, square: bool = True) -> np.ndarray | None:
     """The polygon (uv) with its vertices on the edges they reach, or None when none reaches one; with
     ``square``, its cut corners squared (``_corners_squared``)."""
-    xy = _resampled(flat_mm(surface, np.asarray(poly_uv, float)), VERTEX_MM)
+    xy = _flat_outline(surface, np.asarray(poly_uv, float))
     if len(xy) < 2 * TANGENT_VERTICES + 3:
         return None
     rays = _Rays.of(surface, xy, _outward(xy))
@@ -288,16 +288,112 @@ def _moved(surface, poly_uv, others, free_edges, own, square: bool = True) -> np
         return None
     source = _short_estimates_dropped(source)
     new_xy = _gaps_closed(np.where((source != UNMOVED)[:, None], new_xy, xy), source)
+    if surface.model == "sphere" and not _all_round(surface, new_xy, POLE_RAD):
+        return _sphere_outline_uv(surface, new_xy)
     simple = cv2.approxPolyDP(new_xy.reshape(-1, 1, 2).astype(np.float32), SIMPLIFY_MM, True).reshape(-1, 2)
+    if surface.model == "sphere":  # a whole ball's seam
+        return _sphere_uv(surface, new_xy if len(simple) < 3 else simple.astype(float))
     if len(simple) < 3:
         return uv_of_flat(surface, new_xy)
     # a plane's or cylinder's flat chart is an isometry: a straight edge there is an edge of the part
     simple = simple.astype(float)
-    square = square and surface.model in ("plane", "cylinder")
-    uv = uv_of_flat(surface, _corners_squared(simple) if square else simple)
-    if surface.model == "sphere":  # past the sinusoidal chart's edge is past the seam: near a pole x / cos v
-        uv[:, 0] = np.clip(uv[:, 0], -math.pi, math.pi)  # would run off to millions of rad (a whole ball)
+    return uv_of_flat(surface, _corners_squared(simple) if square else simple)
+
+
+# ----------------------------------------------------------------------------- a sphere's outline in (u, v)
+
+SPLIT_DEPTH = 12        # a flat edge is halved at most this many times until (u, v) follows it
+POLE_RAD = 0.1          # an outline that goes all round u this far from the poles (a whole ball's seam) keeps the
+                        # flat chart's simplification: there a seam, not a pole, bends (u, v)
+
+
+def _sphere_uv(surface, xy: np.ndarray) -> np.ndarray:
+    """``uv_of_flat`` on a sphere, u kept within -pi..pi: past the sinusoidal chart's edge is past the seam, and
+    near a pole x / cos v would run off to millions of rad (a whole ball)."""
+    uv = uv_of_flat(surface, xy)
+    uv[:, 0] = np.clip(uv[:, 0], -math.pi, math.pi)
     return uv
+
+
+def _sphere_outline_uv(surface, closed_xy: np.ndarray) -> np.ndarray:
+    """The closed outline (flat chart of a sphere) as a (u, v) polygon whose straight edges in (u, v), the raster's
+    and the checks' reading of it, stay within ``SIMPLIFY_MM`` of the outline on the sphere.
+
+    The sinusoidal chart squeezes a pole's neighbourhood to a point: a short straight edge there, or one passing
+    the pole, is a long sweep in u, and a straight edge in (u, v) from it goes round the pole (a hemisphere's rim
+    runs through both poles of the chart its mean direction spans). So each flat edge is halved until the (u, v)
+    midpoint of its ends lands on the sphere where the flat midpoint does, and the polygon is then simplified by
+    Douglas-Peucker with the deviation measured on the sphere between the (u, v) edge and the vertices it drops.
+    """
+    closed = np.vstack([closed_xy, closed_xy[:1]])
+    a, ab = closed[:-1], np.diff(closed, axis=0)
+    e, lo, hi = np.arange(len(a)), np.zeros(len(a)), np.ones(len(a))
+    edges, fracs = [e], [lo]    # the vertices: (flat edge, share along it); the edges' own first
+    for _ in range(SPLIT_DEPTH):  # level by level, every piece whose (u, v) midpoint is off the flat one is halved
+        if not len(e):
+            break
+        pa, pb, mid = a[e] + lo[:, None] * ab[e], a[e] + hi[:, None] * ab[e], 0.5 * (lo + hi)
+        on = surface.point_mm(*_sphere_uv(surface, 0.5 * (pa + pb)).T)
+        halfway = surface.point_mm(*(0.5 * (_sphere_uv(surface, pa) + _sphere_uv(surface, pb))).T)
+        off = np.linalg.norm(halfway - on, axis=1) > 0.25 * SIMPLIFY_MM
+        e, lo, hi, mid = e[off], lo[off], hi[off], mid[off]
+        edges.append(e)
+        fracs.append(mid)
+        e, lo, hi = np.concatenate([e, e]), np.concatenate([lo, mid]), np.concatenate([mid, hi])
+    edge, frac = np.concatenate(edges), np.concatenate(fracs)
+    order = np.lexsort((frac, edge))
+    xy = a[edge[order]] + frac[order][:, None] * ab[edge[order]]
+    uv = _sphere_uv(surface, xy)
+    keep = _kept_on_sphere(surface, uv, SIMPLIFY_MM)
+    return uv[keep]
+
+
+def _flat_outline(surface, poly_uv: np.ndarray) -> np.ndarray:
+    """The closed (u, v) polygon in the flat chart, with vertices at most ``VERTEX_MM`` apart (its own kept). On a
+    sphere its edges are straight in (u, v), so each is followed there (32 pieces) and resampled by its flat length."""
+    if surface.model != "sphere":
+        return _resampled(flat_mm(surface, poly_uv), VERTEX_MM)
+    closed = np.vstack([poly_uv, poly_uv[:1]])
+    s = np.linspace(0.0, 1.0, 33)
+    fine_uv = closed[:-1, None, :] + s[None, :, None] * np.diff(closed, axis=0)[:, None, :]
+    fine_xy = flat_mm(surface, fine_uv.reshape(-1, 2)).reshape(fine_uv.shape)
+    along = np.concatenate([np.zeros((len(fine_xy), 1)),
+                            np.cumsum(np.linalg.norm(np.diff(fine_xy, axis=1), axis=2), axis=1)], axis=1)
+    out = []
+    for k in range(len(fine_xy)):
+        n = max(int(np.ceil(along[k, -1] / VERTEX_MM)), 1)
+        at = np.arange(n) / n * along[k, -1]
+        out.append(np.stack([np.interp(at, along[k], fine_xy[k, :, 0]), np.interp(at, along[k], fine_xy[k, :, 1])], 1))
+    return np.concatenate(out)
+
+
+def _kept_on_sphere(surface, uv: np.ndarray, tol_mm: float) -> np.ndarray:
+    """Indices of the closed (u, v) polygon's vertices that Douglas-Peucker keeps, with the deviation of a dropped
+    vertex measured on the sphere from the (u, v) edge that replaces it (sampled 32 times, to the nearest piece)."""
+    X = surface.point_mm(uv[:, 0], uv[:, 1])
+    n = len(uv)
+    far = int(np.argmax(np.linalg.norm(X - X[0], axis=1)))
+    keep = np.zeros(n, bool)
+    keep[[0, far]] = True
+    stack = [(0, far), (far, n)]
+    s = np.linspace(0.0, 1.0, 33)
+    while stack:
+        i, j = stack.pop()
+        if j - i < 2:
+            continue
+        jj = j % n
+        inner = np.arange(i + 1, j)
+        curve = surface.point_mm(*(uv[i] + s[:, None] * (uv[jj] - uv[i])).T)
+        p, q = curve[:-1], curve[1:]
+        d = q - p
+        w = np.clip(np.einsum("kij,ij->ki", X[inner][:, None] - p[None], d) / np.maximum(np.einsum("ij,ij->i", d, d),
+                                                                                      1e-24), 0.0, 1.0)
+        dev = np.linalg.norm(X[inner][:, None] - (p[None] + w[..., None] * d[None]), axis=2).min(axis=1)
+        k = int(np.argmax(dev))
+        if dev[k] > tol_mm:
+            keep[inner[k]] = True
+            stack += [(i, inner[k]), (inner[k], j)]
+    return np.flatnonzero(keep)
 
 
 LONG_EDGE_MM = 6.0      # a simplified outline's edge this long is a straight edge of the part
@@ -573,12 +669,14 @@ def _on_seam(surface, xy: np.ndarray) -> np.ndarray:
     return np.abs(np.angle(np.exp(1j * u))) > math.pi - SEAM_RAD
 
 
-def _all_round(surface, xy: np.ndarray) -> bool:
-    """Whether the outline (flat chart) of a cylinder or sphere face spans the full turn of u, to SEAM_RAD."""
+def _all_round(surface, xy: np.ndarray, pole_rad: float = 0.0) -> bool:
+    """Whether the outline (flat chart) of a cylinder or sphere face spans the full turn of u, to SEAM_RAD; with
+    ``pole_rad``, on a sphere, counting only the vertices farther than that from the chart's poles."""
     if isinstance(surface, PlaneSurface):
         return False
-    u = uv_of_flat(surface, xy)[:, 0]
-    return bool(u.max() - u.min() >= 2 * math.pi - 2 * SEAM_RAD)
+    uv = uv_of_flat(surface, xy)
+    u = uv[np.abs(uv[:, 1]) < math.pi / 2 - pole_rad, 0] if pole_rad > 0 else uv[:, 0]
+    return bool(len(u)) and bool(u.max() - u.min() >= 2 * math.pi - 2 * SEAM_RAD)
 
 
 def _outward(xy: np.ndarray, k: int = 0) -> np.ndarray:

@@ -183,3 +183,29 @@ def test_a_whole_ball_keeps_its_outline_within_one_turn(tmp_path):
     assert lo[0] >= -np.pi and hi[0] <= np.pi
     assert seg.faces[0].area_mm2 == pytest.approx(4 * np.pi * 100 ** 2, rel=0.02)
     assert raster_summary(raster_path(s, RasterSettings.make(step_over_mm=10, pitch_mm=5)), s)["coverage"] >= 0.995
+
+
+def test_a_hemisphere_rim_through_the_charts_poles_is_followed_in_u_v():
+    """A dome's rim runs through both poles of the chart its mean direction spans; read as straight (u, v)
+    edges (the raster's reading) the outline stays on the rim, where the flat chart's simplification went round
+    the poles by up to a mm."""
+    from camtool.surface import SpherePatch
+
+    frame = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]])  # e1 = +z (columns e1, e2, e3)
+    s = SpherePatch(np.zeros(3), 100.0, frame, Boundary(np.zeros((3, 2))))
+    a = np.linspace(0, 2 * np.pi, 700, endpoint=False)
+    rim = 100.0 * np.c_[np.cos(a), np.sin(a), np.zeros_like(a)] + 1e-3 * np.c_[0 * a, 0 * a, np.sin(7 * a)]
+    xy = fe.flat_mm(s, s.uv_from_points(rim))
+    truth = cKDTree(100.0 * np.c_[np.cos(np.linspace(0, 2 * np.pi, 63000)), np.sin(np.linspace(0, 2 * np.pi, 63000)),
+                                  np.zeros(63000)])
+
+    def off_mm(uv):
+        closed = np.vstack([uv, uv[:1]])
+        f = np.linspace(0, 1, 200, endpoint=False)
+        pts = np.vstack([closed[k] + f[:, None] * (closed[k + 1] - closed[k]) for k in range(len(uv))])
+        return truth.query(s.point_mm(pts[:, 0], pts[:, 1]))[0].max()
+
+    uv = fe._sphere_outline_uv(s, xy)
+    assert off_mm(uv) < 2 * fe.SIMPLIFY_MM and len(uv) < 100
+    flat_simplified = fe.cv2.approxPolyDP(xy.reshape(-1, 1, 2).astype(np.float32), fe.SIMPLIFY_MM, True)
+    assert off_mm(fe._sphere_uv(s, flat_simplified.reshape(-1, 2).astype(float))) > 0.3   # what it was
