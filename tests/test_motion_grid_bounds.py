@@ -1,10 +1,13 @@
 """The compiled grid lookups (camtool.motion.grid_bounds) give the numbers of the numpy formula
 they replace: nearest node, distance to it, and the ball's lower bound (outside the grid too)."""
+import subprocess
+import sys
+
 import numpy as np
 import trimesh
 
 from camtool.motion.geometry import PartGeometry
-from camtool.motion.grid_bounds import lower_bounds, nearest_nodes
+from camtool.motion.grid_bounds import load_compiled, lower_bounds, nearest_nodes
 from camtool.workpiece import Workpiece
 
 
@@ -38,3 +41,29 @@ def test_compiled_lookups_equal_the_numpy_formula():
                                                                         rtol=0, atol=1e-9)
     assert np.isfinite(lb).mean() > 0.3 and (lb > part.horizon_mm).any()   # both branches are exercised
     assert np.allclose(part.lower_bound(p + part.origin_mm, h)[np.isfinite(lb)], lb[np.isfinite(lb)], atol=1e-9)
+
+
+def test_loading_ahead_covers_the_argument_types_the_check_passes():
+    """``load_compiled`` (run while the check's process waits) loads every signature the part's bounds call:
+    a call with another type would compile in the check itself (0.6 s and more). In a fresh process, as the
+    check's, so that no other test's calls count."""
+    code = """
+import numpy as np, trimesh
+from camtool.motion.geometry import PartGeometry
+from camtool.motion.grid_bounds import load_compiled, lower_bounds, nearest_nodes
+from camtool.workpiece import Workpiece
+load_compiled()
+known = (len(lower_bounds.signatures), len(nearest_nodes.signatures))
+box = trimesh.creation.box([300, 200, 100])
+part = PartGeometry.from_workpiece(Workpiece(box.vertices, np.zeros_like(box.vertices), np.asarray(box.faces),
+                                             "box", vertices_mm=np.asarray(box.vertices)), grid_nodes=5000)
+p = np.random.default_rng(4).uniform(-400, 400, (50, 3)) + part.origin_mm
+part.lower_bound(p, 10.0)
+part.lower_bound(p, np.full(len(p), 10.0))
+part.upper_bound_distance(p)
+part.above(p, np.full(len(p), 10.0), 5.0)
+print(*known, len(lower_bounds.signatures), len(nearest_nodes.signatures))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    known, after = [int(x) for x in out[:2]], [int(x) for x in out[2:]]
+    assert after == known and min(known) > 0

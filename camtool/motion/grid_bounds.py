@@ -55,3 +55,15 @@ def nearest_nodes(p, g_lo, cell, shape):
     for i in range(n):
         flat[i], a[i] = _node(p[i], g_lo, cell, shape)
     return flat, a
+
+
+def load_compiled() -> None:
+    """Load both loops from numba's cache (the first compiled call in a process also sets numba up, about
+    0.6 s) on a one-point grid, with the argument types the check passes: a process made ready ahead of the
+    check (``geometry.import_part_libraries``) does it while the run still plans."""
+    p, v3, shape = np.zeros((1, 3)), np.zeros(3), np.ones(3, np.int64)
+    nearest_nodes(p, v3, 1.0, shape)
+    fixed = np.zeros(1)
+    fixed.setflags(write=False)   # half lengths given per point arrive as a read-only broadcast
+    for h in (np.zeros(1), fixed):
+        lower_bounds(p, h, v3, 1.0, shape, np.zeros(1), np.zeros(1), v3, v3, 0.0, 1.0)
