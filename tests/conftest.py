@@ -31,9 +31,10 @@ def run_camtool(*args, cwd=None, env=None):
 
 # The files with the longest runs (full jobs end to end), in the order `make test`'s two workers
 # should start them: the longest first, so the short files fill the gaps at the end.
-LONGEST_FIRST = ("test_cli_batch.py", "test_cell_samples.py", "test_connectors.py", "test_pipeline.py",
-                 "test_cli_place.py", "test_arm_angle_sqp.py", "test_safe_motion.py", "test_cli_stages.py",
-                 "test_output.py", "test_faces.py", "test_controller_truth.py", "test_cli_check.py")
+LONGEST_FIRST = ("test_cli_batch.py", "test_pipeline.py", "test_faces.py", "test_cell_samples.py",
+                 "test_safe_motion.py", "test_cli_place.py", "test_bad_input_corpus.py", "test_step.py",
+                 "test_arm_angle_sqp.py", "test_output.py", "test_cli_stages.py", "test_connectors.py",
+                 "test_controller_truth.py", "test_cli_check.py")
 
 
 def pytest_collection_modifyitems(config, items):
