@@ -80,22 +80,25 @@ def boundary_errors_mm(face, truth: dict) -> tuple[float, float]:
     dense = np.vstack([outline[k] + np.linspace(0, 1, max(2, int(np.linalg.norm(seg[k]) / 0.1)),
                                                    endpoint=False)[:, None] * seg[k] for k in range(len(seg))
                        if np.linalg.norm(seg[k]) < 10])  # jumps between border runs are not outline
+    d, _ = cKDTree(dense).query(boundary_samples_mm(face))
+    return float(np.percentile(d, 95)), float(d.max())
+
+
+def boundary_samples_mm(face) -> np.ndarray:
+    """Points every 0.1 mm along the face's boundary polygons on its surface (n, 3), so that a long straight
+    edge weighs as much as its length; a full cylinder's seam (u = +-pi), a polygon edge and not an outline,
+    left out."""
     s = face.surface
-    polys = [s.boundary.outer_uv, *s.boundary.holes_uv]
-    d_all = []
-    tree = cKDTree(dense)
-    for poly in polys:
+    out = []
+    for poly in [s.boundary.outer_uv, *s.boundary.holes_uv]:
         closed = np.vstack([poly, poly[:1]])
-        # every 0.1 mm along the outline on the surface, so a long straight edge weighs as much as its length
         edge_mm = np.linalg.norm(np.diff(s.point_mm(closed[:, 0], closed[:, 1]), axis=0), axis=1)
         uv = np.vstack([closed[k] + np.linspace(0, 1, max(2, int(np.ceil(edge_mm[k] / 0.1))), endpoint=False)[:, None]
                         * (closed[k + 1] - closed[k]) for k in range(len(poly))])
-        if s.model == "cylinder":  # a full cylinder's seam (u = +-pi) is a polygon edge, not an outline
+        if s.model == "cylinder":
             uv = uv[np.abs(uv[:, 0]) < np.pi - 0.05]
-        d, _ = tree.query(s.point_mm(uv[:, 0], uv[:, 1]))
-        d_all.append(d)
-    d = np.concatenate(d_all)
-    return float(np.percentile(d, 95)), float(d.max())
+        out.append(s.point_mm(uv[:, 0], uv[:, 1]))
+    return np.concatenate(out)
 
 
 def spacing_mm(points: np.ndarray) -> float:
