@@ -145,7 +145,7 @@ def surface_for_job(job: Job, workpiece):
 
 def path_for_job(job: Job, surface):
     """Raster the job's surface into a tool Path (world frame)."""
-    return raster_path(surface, RasterSettings.from_section(job.raster))
+    return raster_path(surface, RasterSettings.from_section(job.raster).for_part(segmented(job)))
 
 
 # --------------------------------------------------------------------------- plan and time

@@ -190,6 +190,62 @@ def test_leads_continue_along_the_surface_and_lift(sphere):
         assert rotation_angle_rad(Ra, path.poses_mm[idx, :3, :3]) == pytest.approx(total * k / 5, abs=1e-9)
 
 
+def _leads_and_ends(path):
+    """(lead pose indices, the work pose each lead leaves from) of a path, rows' blocks in path order."""
+    leads, ends = [], []
+    for i in np.unique(path.segment):
+        sel = np.flatnonzero((path.segment == i) & np.isin(path.zone, (LEAD_IN, WORK, LEAD_OUT)))
+        work = sel[path.zone[sel] == WORK]
+        for zone, end in ((LEAD_IN, work[0]), (LEAD_OUT, work[-1])):
+            k = sel[path.zone[sel] == zone]
+            leads.append(k)
+            ends.append(np.full(len(k), end))
+    return np.concatenate(leads), np.concatenate(ends)
+
+
+def test_tangent_leads_leave_a_convex_face_along_the_rows_tangent(sphere):
+    """raster.lead_path = "tangent": each lead is straight along the row's tangent at the work's end, with the
+    tool as there, above the sphere by about s^2 / 2R (the surface continued would dip into a neighbour that
+    goes on tangentially); the work is as with "surface", and the self-motion zones start where the leads end."""
+    keys = dict(lead_mm=20, transition_points=4)
+    surf = raster_path(sphere, RasterSettings.make(**keys, lead_path="surface"))
+    tan = raster_path(sphere, RasterSettings.make(**keys, lead_path="tangent"))
+    assert np.array_equal(surf.zone, tan.zone)
+    w = tan.is_work
+    assert np.array_equal(tan.poses_mm[w], surf.poses_mm[w])
+    leads, ends = _leads_and_ends(tan)
+    P, E = tan.poses_mm[leads], tan.poses_mm[ends]
+    off_line = P[:, :3, 3] - E[:, :3, 3]
+    # the row's way out at its end: the chord of its last work step, within half a pitch's turn of the tangent
+    chord = E[:, :3, 3] - tan.poses_mm[ends - np.sign(leads - ends), :3, 3]
+    chord /= np.linalg.norm(chord, axis=1)[:, None]
+    assert (np.einsum("ij,ij->i", off_line, chord) > 0).all()       # ahead of the work's end, away from the work
+    lateral = off_line - np.einsum("ij,ij->i", off_line, chord)[:, None] * chord
+    s = np.linalg.norm(off_line, axis=1)
+    assert (np.linalg.norm(lateral, axis=1) <= s * (5.0 / 600.0) + 1e-9).all()
+    assert np.allclose(P[:, :3, :3], E[:, :3, :3], atol=1e-12)      # the tool as at the work's end
+    height = np.linalg.norm(P[:, :3, 3] - sphere.center_mm, axis=1) - sphere.radius_mm
+    assert np.allclose(height, np.sqrt(600.0 ** 2 + s ** 2) - 600.0, atol=1e-3)  # above the sphere, s^2 / 2R
+    h_surf = np.linalg.norm(surf.poses_mm[leads, :3, 3] - sphere.center_mm, axis=1) - sphere.radius_mm
+    assert np.allclose(h_surf, 0.0, atol=1e-6) and height.max() > 0.3
+    # a self-motion zone leaves from where its lead-out ends, not from the sphere beneath it
+    tr = np.flatnonzero((tan.zone == SELF) & (tan.segment == 2))
+    gap = np.linalg.norm(tan.poses_mm[tr[0], :3, 3] - tan.poses_mm[tr[0] - 1, :3, 3])
+    gap_surf = np.linalg.norm(surf.poses_mm[tr[0], :3, 3] - surf.poses_mm[tr[0] - 1, :3, 3])
+    assert gap < gap_surf + 0.05
+
+
+def test_tangent_leads_stay_on_a_plane_and_a_concave_face(plate, sphere):
+    """On a plane the tangent is the surface; on a concave face the tangent runs into the face's own material,
+    and its leads stay on the surface continued."""
+    keys = dict(lead_mm=20, transition_points=4)
+    for surface in (plate, SpherePatch(sphere.center_mm, sphere.radius_mm, sphere.frame, sphere.boundary,
+                                       concave=True)):
+        a = raster_path(surface, RasterSettings.make(**keys, lead_path="surface"))
+        b = raster_path(surface, RasterSettings.make(**keys, lead_path="tangent"))
+        assert np.array_equal(a.poses_mm, b.poses_mm)
+
+
 def test_approach_and_depart_back_off_along_normal(sphere):
     path = raster_path(sphere, RasterSettings.make(clearance_mm=4))
     p = path.poses_mm[:, :3, 3]
