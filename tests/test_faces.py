@@ -117,6 +117,45 @@ def test_cylinder_job_end_to_end_passes_the_motion_check(tmp_path):
     assert raster.returncode == 0 and json.loads(raster.stdout)["coverage"] >= 0.995
 
 
+DOME_JOB = """
+[workpiece]
+file = "{stl}"
+[faces]
+select = [1]
+[raster]
+step_over_mm = 10.0
+pitch_mm = 5.0
+tool_x = "travel"
+[robot]
+name = "seed8"
+[cell]
+workpiece_xyz_mm = [750.0, 12.0, 440.0]
+workpiece_rpy_deg = [0.0, -90.0, 0.0]
+[tool]
+tcp_xyz_mm = [0.0, 0.0, 150.0]
+[post]
+formats = ["rapid"]
+program_name = "DOME"
+"""
+
+
+def test_a_dome_on_a_cylinder_is_worked_without_leading_into_the_cylinder(tmp_path):
+    """The dome of samples/dome_cylinder.stl (a hemisphere on a cylinder of its radius, meeting it tangentially):
+    its rows' leads run along their tangents (raster.lead_path "auto" with [faces]), not on the sphere continued
+    past the rim, which dips into the cylinder (0.7-2.0 mm in every row's leads, refused by the motion check)."""
+    job = tmp_path / "dome.toml"
+    job.write_text(DOME_JOB.format(stl=(SAMPLES / "dome_cylinder.stl").as_posix()))
+    out = tmp_path / "out"
+    r = run_camtool("run", job, "-o", out)
+    assert r.returncode == 0, r.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert report["status"] == "ok" and report["motion_check"]["ok"]
+    assert report["motion_check"]["max_penetration_mm"] < 0.1
+    assert [f["model"] for f in report["faces"]["faces"]] == ["cylinder", "sphere"]
+    raster = run_camtool("raster", job, "--json")
+    assert raster.returncode == 0 and json.loads(raster.stdout)["coverage"] >= 0.995
+
+
 def test_every_face_of_a_scan_in_one_program_passes_the_motion_check(tmp_path):
     """samples/plate_chamfer_scan.toml as shipped: all nine faces of a noisy scan (sigma 0.1 mm) are segmented,
     covered to 99.5 % or more, and checked against the scan itself; the tolerance grows by 3 x the largest
