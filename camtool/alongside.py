@@ -193,14 +193,16 @@ class Standby(_Child):
     """A child forked now that runs ``prepare()`` at once, then ``fn()`` once ``start(fn)`` hands it over.
 
     ``fn`` goes to the child by pickle, so it must be a module-level function or a
-    ``functools.partial`` of one. Unforked (one CPU), ``prepare()`` and ``fn()`` run
-    in this process at ``result()``. A context manager as ``Alongside``: leaving the
+    ``functools.partial`` of one. With ``hand_on``, ``fn`` is given ``prepare()``'s value
+    (work done ahead on data the run already has: the motion check's part, while the
+    run plans). Unforked (one CPU), ``prepare()`` and ``fn()`` run in this process at
+    ``result()``. A context manager as ``Alongside``: leaving the
     block by an error, or without starting it, kills the waiting child.
     """
 
-    def __init__(self, prepare: Callable[[], Any], forked: bool | None = None):
+    def __init__(self, prepare: Callable[[], Any], forked: bool | None = None, hand_on: bool = False):
         super().__init__(forked)
-        self._prepare, self._fn = prepare, None
+        self._prepare, self._fn, self._hand_on = prepare, None, hand_on
         self._task_fd = None   # this process's end of the pipe that hands ``fn`` over
         if self.forked:
             task_read, task_write = os.pipe()
@@ -216,7 +218,7 @@ class Standby(_Child):
                 fn = pickle.load(pipe)
             except EOFError:  # never started: the run went another way
                 return
-        data = _payload(fn if prepared[0] == _OK else partial(_reraise, prepared[1]))
+        data = _payload(self._task(fn, prepared))
         with os.fdopen(write_fd, "wb") as out:
             out.write(data)
 
@@ -241,9 +243,16 @@ class Standby(_Child):
             raise RuntimeError("Standby was not started: it has no result")
         return super()._take()
 
+    def _task(self, fn: Callable, prepared: tuple) -> Callable[[], Any]:
+        """What runs once ``fn`` is handed over: ``fn()``, ``fn(prepare's value)`` with ``hand_on``, or the
+        re-raise of what ``prepare()`` raised."""
+        if prepared[0] != _OK:
+            return partial(_reraise, prepared[1])
+        return partial(fn, prepared[1]) if self._hand_on else fn
+
     def _inline(self) -> tuple:
         prepared = _outcome(self._prepare)
-        return _outcome(self._fn) if prepared[0] == _OK else prepared
+        return _outcome(self._task(self._fn, prepared)) if prepared[0] == _OK else prepared
 
     def cancel(self) -> None:
         if self._task_fd is not None:

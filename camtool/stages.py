@@ -367,24 +367,33 @@ def _fit_rms_mm(surface) -> float:
     return max((f.stats.rms_mm for f in faces if getattr(f, "stats", None) is not None), default=0.0)
 
 
-def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surface=None) -> dict:
+def motion_check_part(settings: JobSettings, workpiece, path, surface=None):
+    """The part the independent motion check measures against (``motion.PartGeometry``): ``part_for_checks``,
+    oriented by the path's work poses. Made as soon as the raster is (a process on standby builds it while the
+    run plans); the path's later leads do not change it (its work poses only orient the part's normals)."""
+    return part_from_path(part_for_checks(settings, workpiece, surface), path)
+
+
+def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surface=None, part=None) -> dict:
     """The independent motion check of what the controller will run; its figures for report.json.
 
     The program's waypoints (thinned as the post-processors write them) are
     interpolated joint-linearly at ``check.dt_ms`` and measured against the
     placed workpiece: penetration, clearance off work, deviation on work, joint
     steps per mm (``camtool.motion``, which shares no code with the planner).
-    PlanInfeasible (exit 3) naming the first finding when anything fails; the
-    figures are in the exception's report.
+    ``part``: ``motion_check_part``'s, when made ahead. PlanInfeasible (exit 3)
+    naming the first finding when anything fails; the figures are in the
+    exception's report.
     """
     c = settings.check
     noise = 0.0
     if workpiece.faces is None and surface is not None:
         noise = SCAN_NOISE_FACTOR * _fit_rms_mm(surface)  # a scan is only as exact as its noise
     path_tol, penetration_tol = c.path_tol_mm + noise, c.penetration_tol_mm + noise
-    part = part_for_checks(settings, workpiece, surface)
+    if part is None:
+        part = motion_check_part(settings, workpiece, path, surface)
     program = thin_waypoints(trajectory, settings.post.min_move_s)
-    report = check_motion(program.t_s, program.q, program.zone, robot, part_from_path(part, path),
+    report = check_motion(program.t_s, program.q, program.zone, robot, part,
                           MotionCheckSettings(dt_s=c.dt_s, penetration_tol_mm=penetration_tol,
                                               clearance_mm=c.clearance_mm, path_tol_mm=path_tol,
                                               tool_radius_mm=c.tool_radius_mm, link_radius_mm=c.link_radius_mm,

@@ -113,6 +113,24 @@ def test_an_unforked_standby_prepares_and_runs_at_result():
     assert out == {"prepared_in": str(os.getpid()), "pid": os.getpid(), "values": [1, 2]}
 
 
+def _made_ahead():
+    return {"made_in": os.getpid()}
+
+
+def _with_ahead(scale, ahead):
+    return {"made_in": ahead["made_in"], "pid": os.getpid(), "scale": scale}
+
+
+@fork_only
+@pytest.mark.parametrize("forked", [True, False])
+def test_a_standby_hands_what_it_prepared_on_to_its_task(forked):
+    """``hand_on``: the task gets ``prepare()``'s value, made in the child ahead (the motion check's part)."""
+    with Standby(_made_ahead, forked=forked, hand_on=True) as job:
+        out = job.start(functools.partial(_with_ahead, 3)).result()
+    assert out["made_in"] == out["pid"] and out["scale"] == 3
+    assert (out["pid"] != os.getpid()) == forked
+
+
 @fork_only
 @pytest.mark.parametrize("forked", [True, False])
 def test_what_prepare_or_fn_raised_is_raised_by_result(forked):

@@ -4,6 +4,7 @@
 """
 from __future__ import annotations
 
+from contextlib import ExitStack
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -27,9 +28,9 @@ from ..settings import JobSettings
 from ..surface import FaceSet
 from ..timing import sampled_for
 from ..timing.pathlaw import remembered_runs
-from ..stages import (RunResult, StageLog, finish_run, motion_check, part_for_checks, path_for_job, plan_and_time,
-                      plan_with_sized_leads, post_checked, report_failure, report_unreachable, run_report,
-                      surface_for_job, time_for_job, workpiece_for_job)
+from ..stages import (RunResult, StageLog, finish_run, motion_check, motion_check_part, part_for_checks, path_for_job,
+                      plan_and_time, plan_with_sized_leads, post_checked, report_failure, report_unreachable,
+                      run_report, surface_for_job, time_for_job, workpiece_for_job)
 
 
 def check_several_faces(job: Job, settings: JobSettings) -> None:
@@ -130,21 +131,39 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     if settings.planner.method == "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: 'arm-angle-sqp' plans task.kind = 'sequential_reach', "
                        f"not {job.task.kind!r} jobs")
-    # forked now, while this process plans on one CPU: the motion check's and the figures' libraries are
-    # imported there, and the redundancy map is drawn while the trajectory is timed, off the end of the run
-    # where the check, the figures and the post stage share the CPUs
-    with (Standby(import_part_libraries) as checking, Standby(import_figure_libraries) as mapping,
-          Standby(import_figure_libraries) as figures):
-        return _run(job, settings, robot, Path(outdir), log, compare, _Helpers(checking, mapping, figures))
+    # forked now, while this process plans on one CPU: the figures' libraries are imported there, and the
+    # redundancy map is drawn while the trajectory is timed, off the end of the run where the check, the
+    # figures and the post stage share the CPUs; the motion check's process is forked once the raster is made
+    with ExitStack() as helpers, Standby(import_figure_libraries) as mapping, \
+            Standby(import_figure_libraries) as figures:
+        return _run(job, settings, robot, Path(outdir), log, compare, _Helpers(helpers, mapping, figures))
 
 
 @dataclass(frozen=True)
 class _Helpers:
-    """The processes on standby for a raster run: the motion check, the redundancy map, the plots."""
+    """The processes on standby for a raster run: the redundancy map and the plots, and the motion check's
+    (``checking``), which ``helpers`` closes with the run."""
 
-    checking: Standby
+    helpers: ExitStack
     mapping: Standby
     figures: Standby
+
+    def checking(self, settings: JobSettings, wp, path, surface) -> Standby:
+        """The motion check's process, forked now: it imports open3d and builds the part the check measures
+        against from the raster's work poses while the run plans, then checks what it is handed."""
+        return self.helpers.enter_context(Standby(partial(_check_part_ahead, settings, wp, path, surface),
+                                                  hand_on=True))
+
+
+def _check_part_ahead(settings: JobSettings, wp, path, surface):
+    """The motion check's libraries and part (``stages.motion_check_part``), made ahead."""
+    import_part_libraries()
+    return motion_check_part(settings, wp, path, surface)
+
+
+def _timed_check(settings: JobSettings, trajectory, robot, wp, path, surface, part):
+    """``stages.motion_check`` on the part made ahead, with its (wall, CPU) seconds."""
+    return timed(partial(motion_check, settings, trajectory, robot, wp, path, surface, part=part))
 
 
 def _drawn_map(ahead: MapAhead):
@@ -156,7 +175,7 @@ def _drawn_map(ahead: MapAhead):
 def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
          helpers: _Helpers) -> RunResult:
     """``run`` with its helpers on standby (``camtool.alongside.Standby``)."""
-    checking, figures = helpers.checking, helpers.figures
+    figures = helpers.figures
     world = collision_world(settings, robot)
     ahead = MapAhead(helpers.mapping, robot, outdir, world)
     wp = log.done("workpiece", workpiece_for_job(job))
@@ -167,6 +186,7 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
     check_target_inputs(job, settings.process, surface)  # a target removal map it cannot meet: before planning
     settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
     path = log.done("raster", path_for_job(job, surface) if step_choice is None else raster_path(surface, settings.raster))
+    checking = helpers.checking(settings, wp, path, surface)
     part = part_for_checks(settings, wp, surface)
     path, joint_path, trajectory, partial_figures = planned_and_timed(job, settings, robot, log, wp, part, surface,
                                                                       path, outdir, ahead)
@@ -175,7 +195,7 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
     trajectory = trajectory if retimed is None else retimed
     log.done("time", trajectory)
     # the independent motion check runs alongside the post stage, which places no program before it passed
-    checking.start(partial(timed, partial(motion_check, settings, trajectory, robot, wp, path, surface)))
+    checking.start(partial(_timed_check, settings, trajectory, robot, wp, path, surface))
     trajectories = {settings.planner.method: trajectory}
     compared = None
     if compare:
