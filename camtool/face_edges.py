@@ -26,7 +26,9 @@ normal on the face (in the face's flat chart), onto
   corner of the two edges' lines is taken instead.
 
 Short gaps between two edges are closed at their corner, and a polygon with no
-vertex moved is returned as it was. Last, a long straight run placed by the
+vertex moved is returned as it was. A sphere's moved outline goes back to (u, v)
+so that its straight (u, v) edges, which the raster reads, stay on the outline
+near the chart's poles (``_sphere_outline_uv``). Last, a long straight run placed by the
 points' extent goes onto its fitted line (``_extent_straightened``), and a chain
 of short edges cutting a corner between two straight edges is replaced by the
 corner of their lines (``_corners_squared``).
@@ -369,7 +371,9 @@ def _flat_outline(surface, poly_uv: np.ndarray) -> np.ndarray:
 
 def _kept_on_sphere(surface, uv: np.ndarray, tol_mm: float) -> np.ndarray:
     """Indices of the closed (u, v) polygon's vertices that Douglas-Peucker keeps, with the deviation of a dropped
-    vertex measured on the sphere from the (u, v) edge that replaces it (sampled 32 times, to the nearest piece)."""
+    vertex measured on the sphere from the (u, v) edge that replaces it (sampled 32 times, to the nearest piece).
+    Hand-written: OpenCV's and shapely's simplifications measure in their input's plane, not along a chart's
+    straight edges mapped onto a surface."""
     X = surface.point_mm(uv[:, 0], uv[:, 1])
     n = len(uv)
     far = int(np.argmax(np.linalg.norm(X - X[0], axis=1)))

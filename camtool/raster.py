@@ -456,13 +456,12 @@ def raster_path(surface, settings: RasterSettings) -> Path:
 
 def _tangent_leads(p: np.ndarray, normal: np.ndarray, travel: np.ndarray, zone: np.ndarray, start: np.ndarray,
                    block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(anchor, point): for each lead pose whose lead the surface continued takes below the row's tangent at the
-    work's end (a face convex along the row), the index of that end's work pose and the point as far along the
-    tangent (mm) as the pose is along the surface from it; -1 (and the surface point) elsewhere.
+    """(anchor, point): for each pose of a lead that the surface continued would take below the row's tangent at
+    the work's end (a face convex along the row), the index of that end's work pose and the point on the tangent
+    as far from it (mm) as the pose is along the surface; -1 and the surface point elsewhere.
 
     ``p``, ``normal``, ``travel``: the on-surface samples of the segments' blocks [lead-in | work | lead-out]
     (path order; ``start``, ``block`` each block's first index and length)."""
-    n = len(p)
     seg = np.repeat(np.arange(len(block)), block)
     n_in = np.add.reduceat((zone == _LEAD_IN).astype(np.int64), start)
     n_out = np.add.reduceat((zone == _LEAD_OUT).astype(np.int64), start)
@@ -476,11 +475,9 @@ def _tangent_leads(p: np.ndarray, normal: np.ndarray, travel: np.ndarray, zone: 
     point = np.where((anchor >= 0)[:, None], p[a] + (way * dist)[:, None] * travel[a], p)
     # a lead moves only where its far end on the surface lies below the tangent (convex along the row)
     far = np.concatenate([start[n_in > 0], last[n_out > 0] + n_out[n_out > 0]])
-    below = np.zeros(n, bool)
-    dip = np.einsum("ij,ij->i", p[far] - point[far], normal[a[far]])
-    below[far] = dip < -1e-6
+    dip_mm = np.einsum("ij,ij->i", p[far] - point[far], normal[a[far]])
     lead_below = np.zeros(len(block) * 2, bool)   # (segment, lead-in / lead-out)
-    lead_below[2 * seg[far] + (zone[far] == _LEAD_OUT)] = below[far]
+    lead_below[2 * seg[far] + (zone[far] == _LEAD_OUT)] = dip_mm < -1e-6
     keep = (anchor >= 0) & lead_below[2 * seg + lead_out]
     return np.where(keep, anchor, -1), point
 
