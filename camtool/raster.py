@@ -390,11 +390,8 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     travel = travel - np.sum(travel * normal, axis=1, keepdims=True) * normal
     travel = _unit(travel) * direction[:, None]
     R = _tool_rotations(normal, travel, settings.tool_x, w, settings.lead_rad, settings.tilt_rad)
-    moved = None
     if settings.lead_path == "tangent" and n_lead:
-        anchor, p_tangent = _tangent_leads(p, normal, travel, zone, start, block)
-        moved = anchor >= 0
-        p[moved], normal[moved], R[moved] = p_tangent[moved], normal[anchor[moved]], R[anchor[moved]]
+        lift = np.maximum(lift, _tangent_clearing_lift(p, normal, zone, start, block, away))
     pos_mm = p + lift[:, None] * normal
 
     # self-motion transitions between consecutive segments
@@ -408,12 +405,6 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     uv_t = uv_t.reshape(-1, 2)
     n_t = _unit(surface.normal_at(uv_t[:, 0], uv_t[:, 1]))
     pos_t = surface.point_mm(uv_t[:, 0], uv_t[:, 1]) + lift_t.reshape(-1, 1) * n_t
-    if moved is not None and n_seg > 1:  # a transition from or to a tangent lead starts and ends where that lead does
-        on_a = surface.point_mm(uv[a_idx, 0], uv[a_idx, 1]) + lift[a_idx, None] * _unit(surface.normal_at(*uv[a_idx].T))
-        on_b = surface.point_mm(uv[b_idx, 0], uv[b_idx, 1]) + lift[b_idx, None] * _unit(surface.normal_at(*uv[b_idx].T))
-        off_a = np.where(moved[a_idx, None], pos_mm[a_idx] - on_a, 0.0)
-        off_b = np.where(moved[b_idx, None], pos_mm[b_idx] - on_b, 0.0)
-        pos_t += ((1 - f)[None, :, None] * off_a[:, None, :] + f[None, :, None] * off_b[:, None, :]).reshape(-1, 3)
     if n_seg > 1:
         ra, rb = Rotation.from_matrix(R[a_idx]), Rotation.from_matrix(R[b_idx])
         rel = (ra.inv() * rb).as_rotvec()
@@ -454,32 +445,30 @@ def raster_path(surface, settings: RasterSettings) -> Path:
                 contour=None if n_rows == n_seg else segment >= n_rows)
 
 
-def _tangent_leads(p: np.ndarray, normal: np.ndarray, travel: np.ndarray, zone: np.ndarray, start: np.ndarray,
-                   block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(anchor, point): for each pose of a lead that the surface continued would take below the row's tangent at
-    the work's end (a face convex along the row), the index of that end's work pose and the point on the tangent
-    as far from it (mm) as the pose is along the surface; -1 and the surface point elsewhere.
+def _tangent_clearing_lift(p: np.ndarray, normal: np.ndarray, zone: np.ndarray, start: np.ndarray,
+                           block: np.ndarray, away: np.ndarray) -> np.ndarray:
+    """Per pose, the lift (mm along the normal) that keeps each lead of a face convex along its row at or above the
+    row's tangent at the work's end: the lead's ramp ``c * away**3`` with the smallest c that lifts every lead pose
+    to where the surface continued has dipped below that tangent (0 on work, and where the face does not dip).
 
-    ``p``, ``normal``, ``travel``: the on-surface samples of the segments' blocks [lead-in | work | lead-out]
-    (path order; ``start``, ``block`` each block's first index and length)."""
+    A straight tangent lead would leave the row with a jump in curvature at its first and last work point, which
+    slows the whole row to the wrist's jerk limit; the cubic ramp leaves it without one. ``p``, ``normal``: the
+    on-surface samples of the blocks [lead-in | work | lead-out] (path order; ``start``, ``block`` each block's
+    first index and length); ``away``: each lead pose's share of its lead from the work (0..1)."""
     seg = np.repeat(np.arange(len(block)), block)
     n_in = np.add.reduceat((zone == _LEAD_IN).astype(np.int64), start)
     n_out = np.add.reduceat((zone == _LEAD_OUT).astype(np.int64), start)
-    first, last = start + n_in, start + block - n_out - 1            # each block's first and last work pose
     lead_in, lead_out = zone == _LEAD_IN, zone == _LEAD_OUT
-    anchor = np.where(lead_in, first[seg], np.where(lead_out, last[seg], -1))
-    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])  # mm along the path
-    a = np.maximum(anchor, 0)
-    dist = np.where(lead_in, along[a] - along, along - along[a])       # from the work's end, along the lead
-    way = np.where(lead_in, -1.0, 1.0)
-    point = np.where((anchor >= 0)[:, None], p[a] + (way * dist)[:, None] * travel[a], p)
-    # a lead moves only where its far end on the surface lies below the tangent (convex along the row)
-    far = np.concatenate([start[n_in > 0], last[n_out > 0] + n_out[n_out > 0]])
-    dip_mm = np.einsum("ij,ij->i", p[far] - point[far], normal[a[far]])
-    lead_below = np.zeros(len(block) * 2, bool)   # (segment, lead-in / lead-out)
-    lead_below[2 * seg[far] + (zone[far] == _LEAD_OUT)] = dip_mm < -1e-6
-    keep = (anchor >= 0) & lead_below[2 * seg + lead_out]
-    return np.where(keep, anchor, -1), point
+    anchor = np.where(lead_in, (start + n_in)[seg], (start + block - n_out - 1)[seg])  # the work's end of each lead
+    lead = lead_in | lead_out
+    # how far the surface continued lies below the anchor's tangent plane (mm, > 0 where the face curves away)
+    dip_mm = np.where(lead, np.einsum("ij,ij->i", p[anchor] - p, normal[anchor]), 0.0)
+    a3 = np.where(lead, away, 1.0) ** 3
+    need = np.where(lead & (dip_mm > 0), dip_mm / np.maximum(a3, 1e-12), 0.0)  # the ramp's c each pose needs
+    key = 2 * seg + lead_out                                     # (segment, lead-in / lead-out)
+    c = np.zeros(2 * len(block))
+    np.maximum.at(c, key[lead], need[lead])
+    return np.where(lead, c[key] * a3, 0.0)
 
 
 # ----------------------------------------------------------------------------- coverage and summary

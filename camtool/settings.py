@@ -105,8 +105,7 @@ class RasterSettings(_FromSection):
     cylinder_rows: str = "around"  # on a cylinder: rows around the axis or along it
     edge_margin: float = 0.25      # the first and last rows at least this share of a step-over inside the edges
     contour: str = "auto"          # a contour pass along the boundary: "auto" (where the rows leave slivers), "on", "off"
-    lead_path: str = "surface"     # the leads: on the face's surface continued, or along the row's tangent ("tangent");
-                                   # "auto" until ``for_part`` (surface, where a raster is asked for directly)
+    lead_path: str = "surface"     # the leads: on the face's surface continued, or lifted clear of the row's tangent
 
     @classmethod
     def from_section(cls, sec):
@@ -120,12 +119,6 @@ class RasterSettings(_FromSection):
                    lead_rad=math.radians(sec["lead_deg"]), tilt_rad=math.radians(sec["tilt_deg"]),
                    free_spin=bool(sec["free_spin"]), cylinder_rows=sec["cylinder_rows"],
                    edge_margin=float(sec["edge_margin"]), contour=sec["contour"], lead_path=sec["lead_path"])
-
-    def for_part(self, segmented: bool) -> "RasterSettings":
-        """These settings with ``lead_path`` "auto" made "tangent" on a segmented part's faces, else "surface"."""
-        if self.lead_path != "auto":
-            return self
-        return replace(self, lead_path="tangent" if segmented else "surface")
 
 
 @dataclass(frozen=True)
@@ -343,7 +336,7 @@ class JobSettings:
         """All settings of ``job``; ``robot`` (for the home configuration's units) may be omitted."""
         q_home = home_q(job, robot) if robot is not None else None
         return cls(workpiece=WorkpieceSettings.from_section(job.workpiece), fit=FitSettings.from_section(job.fit),
-                   raster=RasterSettings.from_section(job.raster).for_part(job.faces.select != "single"),
+                   raster=RasterSettings.from_section(job.raster),
                    planner=PlannerSettings.from_section(job.planner, q_home),
                    timing=TimingSettings.from_section(job.timing), post=PostSettings.from_section(job.post),
                    check=CheckSettings.from_section(job.check),

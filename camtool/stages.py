@@ -145,7 +145,7 @@ def surface_for_job(job: Job, workpiece):
 
 def path_for_job(job: Job, surface):
     """Raster the job's surface into a tool Path (world frame)."""
-    return raster_path(surface, RasterSettings.from_section(job.raster).for_part(segmented(job)))
+    return raster_path(surface, RasterSettings.from_section(job.raster))
 
 
 # --------------------------------------------------------------------------- plan and time
@@ -403,8 +403,19 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
     figures = report.to_dict()
     if not report.ok:
         raise PlanInfeasible(f"the motion check failed ({len(report.findings)} finding(s)); first: "
-                             f"{report.findings[0]}; no program written", report={"motion_check": figures})
+                             f"{report.findings[0]}; no program written{_lead_hint(settings, report.findings)}",
+                             report={"motion_check": figures})
     return figures
+
+
+def _lead_hint(settings: JobSettings, findings: list[str]) -> str:
+    """What would work where the tool goes into the part in a lead that runs on the face's surface continued:
+    a neighbouring face that goes on tangentially (a dome on a cylinder) is in its way."""
+    in_lead = any("penetrated" in f and " lead_" in f and "body: tcp" in f for f in findings)
+    if not (in_lead and settings.segmented and settings.raster.lead_path == "surface"):
+        return ""
+    return ("; the tool goes into the part in a lead, which runs on the face's surface continued: where a "
+            "neighbouring face goes on tangentially, raster.lead_path = \"tangent\" lifts the leads clear of it")
 
 
 def post_checked(trajectory, robot, job: Job, outdir: Path, path=None, report: dict | None = None,

@@ -126,6 +126,7 @@ select = [1]
 step_over_mm = 10.0
 pitch_mm = 5.0
 tool_x = "travel"
+lead_path = "{lead_path}"
 [robot]
 name = "seed8"
 [cell]
@@ -133,18 +134,27 @@ workpiece_xyz_mm = [750.0, 12.0, 440.0]
 workpiece_rpy_deg = [0.0, -90.0, 0.0]
 [tool]
 tcp_xyz_mm = [0.0, 0.0, 150.0]
+[planner]
+method = "seed"
+[timing]
+method = "quintic"
 [post]
 formats = ["rapid"]
 program_name = "DOME"
 """
 
 
-def test_a_dome_on_a_cylinder_is_worked_without_leading_into_the_cylinder(tmp_path):
+def test_a_dome_on_a_cylinder_is_worked_with_its_leads_clear_of_the_cylinder(tmp_path):
     """The dome of samples/dome_cylinder.stl (a hemisphere on a cylinder of its radius, meeting it tangentially):
-    its rows' leads run along their tangents (raster.lead_path "auto" with [faces]), not on the sphere continued
-    past the rim, which dips into the cylinder (0.7-2.0 mm in every row's leads, refused by the motion check)."""
+    its leads on the sphere continued past the rim dip into the cylinder (0.7-2.0 mm in every row's leads), and
+    the motion check refuses the program, saying what would work; with raster.lead_path = "tangent" the leads
+    rise clear of the row's tangent and the program passes."""
+    stl = (SAMPLES / "dome_cylinder.stl").as_posix()
     job = tmp_path / "dome.toml"
-    job.write_text(DOME_JOB.format(stl=(SAMPLES / "dome_cylinder.stl").as_posix()))
+    job.write_text(DOME_JOB.format(stl=stl, lead_path="surface"))
+    r = run_camtool("run", job, "-o", tmp_path / "refused")
+    assert r.returncode == 3 and "in lead_" in r.stderr and 'raster.lead_path = "tangent"' in r.stderr
+    job.write_text(DOME_JOB.format(stl=stl, lead_path="tangent"))
     out = tmp_path / "out"
     r = run_camtool("run", job, "-o", out)
     assert r.returncode == 0, r.stderr

@@ -67,13 +67,3 @@ def test_settings_are_frozen():
     with pytest.raises(AttributeError):
         s.pitch_mm = 1.0
 
-
-def test_leads_follow_the_tangent_on_a_segmented_parts_faces():
-    """raster.lead_path "auto": tangent leads on the faces of a segmented part ([faces] select), where a neighbour
-    may continue the face tangentially; the surface continued on a fitted surface (the samples' programs)."""
-    auto = RasterSettings.make()
-    assert auto.lead_path == "auto"
-    assert auto.for_part(True).lead_path == "tangent" and auto.for_part(False).lead_path == "surface"
-    assert RasterSettings.make(lead_path="surface").for_part(True).lead_path == "surface"
-    assert JobSettings.from_job(load_job(SAMPLES / "sphere.toml")).raster.lead_path == "surface"
-    assert JobSettings.from_job(load_job(SAMPLES / "pipe_faces.toml")).raster.lead_path == "tangent"
