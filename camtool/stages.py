@@ -408,11 +408,29 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
     return figures
 
 
+def leads_into_part(settings: JobSettings, failed: PlanInfeasible) -> bool:
+    """Whether a motion check's refusal is only the tool in the part in leads that run on a segmented face's
+    surface continued: a neighbouring face that goes on tangentially (a dome on a cylinder) is in their way, and
+    leads lifted clear of the row's tangent (``raster.lead_path = "tangent"``) would miss it."""
+    findings = failed.report.get("motion_check", {}).get("findings", [])
+    more = "more intervals for body tcp"   # (the check lists the first intervals and counts the rest)
+    return (bool(findings) and all(_tool_in_lead(f) or more in f for f in findings)
+            and _leads_in_part(settings, findings))
+
+
+def _tool_in_lead(finding: str) -> bool:
+    """A finding of the tool in the part in a lead, or in the self-motion zone that leaves from one."""
+    return "penetrated" in finding and "body: tcp" in finding and (" lead_" in finding or " self_motion " in finding)
+
+
+def _leads_in_part(settings: JobSettings, findings: list[str]) -> bool:
+    in_lead = any(_tool_in_lead(f) and " lead_" in f for f in findings)
+    return in_lead and settings.segmented and settings.raster.lead_path == "surface"
+
+
 def _lead_hint(settings: JobSettings, findings: list[str]) -> str:
-    """What would work where the tool goes into the part in a lead that runs on the face's surface continued:
-    a neighbouring face that goes on tangentially (a dome on a cylinder) is in its way."""
-    in_lead = any("penetrated" in f and " lead_" in f and "body: tcp" in f for f in findings)
-    if not (in_lead and settings.segmented and settings.raster.lead_path == "surface"):
+    """What would work where ``leads_into_part``: the leads lifted clear."""
+    if not _leads_in_part(settings, findings):
         return ""
     return ("; the tool goes into the part in a lead, which runs on the face's surface continued: where a "
             "neighbouring face goes on tangentially, raster.lead_path = \"tangent\" lifts the leads clear of it")

@@ -127,6 +127,7 @@ step_over_mm = 10.0
 pitch_mm = 5.0
 tool_x = "travel"
 lead_path = "{lead_path}"
+lead_auto = false
 [robot]
 name = "seed8"
 [cell]
@@ -147,19 +148,17 @@ program_name = "DOME"
 def test_a_dome_on_a_cylinder_is_worked_with_its_leads_clear_of_the_cylinder(tmp_path):
     """The dome of samples/dome_cylinder.stl (a hemisphere on a cylinder of its radius, meeting it tangentially):
     its leads on the sphere continued past the rim dip into the cylinder (0.7-2.0 mm in every row's leads), and
-    the motion check refuses the program, saying what would work; with raster.lead_path = "tangent" the leads
-    rise clear of the row's tangent and the program passes."""
-    stl = (SAMPLES / "dome_cylinder.stl").as_posix()
+    the motion check refuses that program; the run plans again with the leads lifted clear of the rows' tangents
+    (raster.lead_path = "tangent"), says so, and that program passes."""
     job = tmp_path / "dome.toml"
-    job.write_text(DOME_JOB.format(stl=stl, lead_path="surface"))
-    r = run_camtool("run", job, "-o", tmp_path / "refused")
-    assert r.returncode == 3 and "in lead_" in r.stderr and 'raster.lead_path = "tangent"' in r.stderr
-    job.write_text(DOME_JOB.format(stl=stl, lead_path="tangent"))
+    job.write_text(DOME_JOB.format(stl=(SAMPLES / "dome_cylinder.stl").as_posix(), lead_path="surface"))
     out = tmp_path / "out"
     r = run_camtool("run", job, "-o", out)
     assert r.returncode == 0, r.stderr
+    assert "in lead_" in r.stderr and 'planned again with the leads lifted' in r.stderr
     report = json.loads((out / "report.json").read_text())
     assert report["status"] == "ok" and report["motion_check"]["ok"]
+    assert report["leads_retried"]["lead_path"] == "tangent" and "penetrated" in report["leads_retried"]["because"]
     assert report["motion_check"]["max_penetration_mm"] < 0.1
     assert [f["model"] for f in report["faces"]["faces"]] == ["cylinder", "sphere"]   # (its coverage: faces_coverage)
 

@@ -4,8 +4,9 @@
 """
 from __future__ import annotations
 
+import logging
 from contextlib import ExitStack
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 
@@ -28,9 +29,12 @@ from ..settings import JobSettings
 from ..surface import FaceSet
 from ..timing import sampled_for
 from ..timing.pathlaw import remembered_runs
-from ..stages import (RunResult, StageLog, finish_run, motion_check, motion_check_part, part_for_checks, path_for_job,
+from ..stages import (RunResult, StageLog, finish_run, leads_into_part, motion_check, motion_check_part, part_for_checks,
                       plan_and_time, plan_with_sized_leads, post_checked, report_failure, report_unreachable,
                       run_report, surface_for_job, time_for_job, workpiece_for_job)
+
+
+_log = logging.getLogger("camtool.run")
 
 
 def check_several_faces(job: Job, settings: JobSettings) -> None:
@@ -134,9 +138,32 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     # forked now, while this process plans on one CPU: the figures' libraries are imported there, and the
     # redundancy map is drawn while the trajectory is timed, off the end of the run where the check, the
     # figures and the post stage share the CPUs; the motion check's process is forked once the raster is made
+    try:
+        return _helped_run(job, settings, robot, Path(outdir), log, compare)
+    except _LeadsIntoPart as first:
+        # first make the motion work: leads lifted clear of the row's tangent, planned again (a neighbouring
+        # face that goes on tangentially, a dome on a cylinder); its failure, if it fails too, is the run's
+        _log.warning("camtool: the motion check found the tool in the part in a lead (%s); planned again with the "
+                     "leads lifted clear of the rows' tangents (raster.lead_path = \"tangent\")", first.finding)
+        tangent = replace(settings, raster=replace(settings.raster, lead_path="tangent"))
+        return _helped_run(job, tangent, robot, Path(outdir), log, compare, leads_retried=first.finding)
+
+
+def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
+                leads_retried: str | None = None) -> RunResult:
+    """``_run`` with its helpers forked, and closed with it."""
     with ExitStack() as helpers, Standby(import_figure_libraries) as mapping, \
             Standby(import_figure_libraries) as figures:
-        return _run(job, settings, robot, Path(outdir), log, compare, _Helpers(helpers, mapping, figures))
+        return _run(job, settings, robot, outdir, log, compare, _Helpers(helpers, mapping, figures), leads_retried)
+
+
+class _LeadsIntoPart(Exception):
+    """The motion check found the tool in the part in a lead that runs on a segmented face's surface
+    continued (``stages.leads_into_part``): the run plans again with the leads lifted clear."""
+
+    def __init__(self, finding: str):
+        super().__init__(finding)
+        self.finding = finding
 
 
 @dataclass(frozen=True)
@@ -173,7 +200,7 @@ def _drawn_map(ahead: MapAhead):
 
 
 def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
-         helpers: _Helpers) -> RunResult:
+         helpers: _Helpers, leads_retried: str | None = None) -> RunResult:
     """``run`` with its helpers on standby (``camtool.alongside.Standby``)."""
     figures = helpers.figures
     world = collision_world(settings, robot)
@@ -185,7 +212,7 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
         check_several_faces(job, settings)
     check_target_inputs(job, settings.process, surface)  # a target removal map it cannot meet: before planning
     settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
-    path = log.done("raster", path_for_job(job, surface) if step_choice is None else raster_path(surface, settings.raster))
+    path = log.done("raster", raster_path(surface, settings.raster))
     checking = helpers.checking(settings, wp, path, surface)
     part = part_for_checks(settings, wp, surface)
     path, joint_path, trajectory, partial_figures = planned_and_timed(job, settings, robot, log, wp, part, surface,
@@ -226,6 +253,8 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
         if not isinstance(failed, PlanInfeasible):
             raise
         figures.failure()   # the plots finish: none half-written
+        if leads_retried is None and leads_into_part(settings, failed):
+            raise _LeadsIntoPart(str(failed.report["motion_check"]["findings"][0])) from None
         report_failure(failed, path, joint_path, robot, job, outdir, wp, surface, world=world,
                        redundancy=_drawn_map(ahead))
         raise failed from None
@@ -237,6 +266,8 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
     if "leads" in joint_path.events:
         report["leads"] = joint_path.events["leads"]
     report["smoothed_runs"] = joint_path.events.get("smoothed_runs", [])
+    if leads_retried is not None:
+        report["leads_retried"] = {"lead_path": "tangent", "because": leads_retried}
     if partial_figures is not None:
         report["partial"] = partial_figures
     report["motion_check"] = motion
