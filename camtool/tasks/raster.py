@@ -135,9 +135,6 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     if settings.planner.method == "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: 'arm-angle-sqp' plans task.kind = 'sequential_reach', "
                        f"not {job.task.kind!r} jobs")
-    # forked now, while this process plans on one CPU: the figures' libraries are imported there, and the
-    # redundancy map is drawn while the trajectory is timed, off the end of the run where the check, the
-    # figures and the post stage share the CPUs; the motion check's process is forked once the raster is made
     try:
         return _helped_run(job, settings, robot, Path(outdir), log, compare)
     except _LeadsIntoPart as first:
@@ -152,6 +149,9 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
 def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
                 leads_retried: str | None = None) -> RunResult:
     """``_run`` with its helpers forked, and closed with it."""
+    # forked now, while this process plans on one CPU: the figures' libraries are imported there, and the
+    # redundancy map is drawn while the trajectory is timed, off the end of the run where the check, the
+    # figures and the post stage share the CPUs; the motion check's process is forked once the raster is made
     with ExitStack() as helpers, Standby(import_figure_libraries) as mapping, \
             Standby(import_figure_libraries) as figures:
         return _run(job, settings, robot, outdir, log, compare, _Helpers(helpers, mapping, figures), leads_retried)
