@@ -52,12 +52,13 @@ def surface_summary(surface) -> dict:
               help="Write the surface as JSON (camtool surface file).")
 def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, model: str, threshold_mm: float,
             units: str, seed: int, drop_nonfinite: bool, as_json: bool, save: Path | None) -> None:
-    """Fit a plane or sphere patch to a JOB's workpiece (placed in the cell, the job's [fit]
-    settings), or to an INPUT mesh or point cloud in its own frame (the options below).
+    """Fit a plane, sphere or cylinder to a JOB's workpiece (placed in the cell, the job's [fit]
+    settings; with [faces] select, the selected face of its segmentation), or to an INPUT mesh
+    or point cloud in its own frame (the options below).
 
-    Meshes: STL, OBJ, PLY, OFF, GLB (STEP with camtool[step]). Point clouds:
-    PLY without faces, PCD, XYZ, CSV, TXT. Prints the parameters in mm, the
-    inlier ratio, RMS and largest residual of the inliers, and the boundary.
+    Meshes: STL, OBJ, PLY, OFF, GLB, STEP. Point clouds: PLY without faces, PCD,
+    XYZ, CSV, TXT. Prints the parameters in mm, the inlier ratio, RMS and largest
+    residual of the inliers, and the boundary.
     """
     from ..fit import fit_surface
     from ..settings import FitSettings
