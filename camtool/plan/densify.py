@@ -40,30 +40,26 @@ def slerp_midposes(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
     return T
 
 
-def _split_steps(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray, qb: np.ndarray,
-                 tol_mm: float) -> dict[int, np.ndarray]:
-    """{step: inserted q (k, dof) in order} for the steps (Ta[i], qa[i]) -> (Tb[i], qb[i]) (base frame).
+def bisected(solver: CwlnSolver, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray, qb: np.ndarray, levels: int,
+             midposes) -> dict[int, np.ndarray]:
+    """{step: inserted q (k, dof) in order} for the steps (Ta[i], qa[i]) -> (Tb[i], qb[i]) (base frame), halved
+    level by level (every interval of one depth at once), up to ``levels`` times.
 
-    Level by level (all intervals of one depth at once): the joint midpoints' TCP by one
-    vectorised FK, the midposes by one batched slerp; only the intervals that bow more than
-    ``tol_mm`` are solved (CWLN without the clamp task, warm-started from the joint
-    midpoint) and halved again, up to ``MAX_SPLITS`` times.
-    """
-    base = np.asarray(robot.base_T_mm, float)
+    ``midposes(depth, Ta, qa, Tb, qb, q_mid)`` gives the intervals' midposes (m, 4, 4) and the indices of those to
+    split; each is solved (CWLN without the clamp task, from the joint midpoint ``q_mid``: the least change),
+    and one solved within the joint limits is inserted and its two halves go on to the next level."""
     step = np.arange(len(Ta))
     key = np.full(len(Ta), 0.5)     # where the midpoint lies in its step (0..1): the order of the inserts
     half = 0.25
     found: dict[int, list] = {}
-    for depth in range(MAX_SPLITS):
+    for depth in range(levels):
         if not len(step):
             break
         q_mid = 0.5 * (qa + qb)
-        T_mid = slerp_midposes(Ta, Tb)
-        tcp_base = (tcp_positions_world(robot, q_mid) - base[:3, 3]) @ base[:3, :3]  # = base^-1 world
-        far = np.flatnonzero(np.linalg.norm(tcp_base - T_mid[:, :3, 3], axis=1) > tol_mm)
+        T_mid, wanted = midposes(depth, Ta, qa, Tb, qb, q_mid)
         keep, q_new = [], []
-        for i in far:
-            res = solver.solve(T_mid[i], q_mid[i], clamp=False)  # the least change from the joint midpoint
+        for i in wanted:
+            res = solver.solve(T_mid[i], q_mid[i], clamp=False)
             if not res.converged or np.any(res.q < solver.lo) or np.any(res.q > solver.hi):
                 continue
             found.setdefault(int(step[i]), []).append((key[i], res.q))
@@ -80,6 +76,20 @@ def _split_steps(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: np.ndarra
         qa, qb = np.concatenate([qa[keep], q_new]), np.concatenate([q_new, qb[keep]])
         half *= 0.5
     return {s: np.array([q for _, q in sorted(v, key=lambda e: e[0])]) for s, v in found.items()}
+
+
+def _split_steps(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray, qb: np.ndarray,
+                 tol_mm: float) -> dict[int, np.ndarray]:
+    """``bisected`` for the chord's bow: the joint midpoints' TCP by one vectorised FK, the midposes by one
+    batched slerp; the intervals that bow more than ``tol_mm`` are split, up to ``MAX_SPLITS`` times."""
+    base = np.asarray(robot.base_T_mm, float)
+
+    def bowing(depth, Ta, qa, Tb, qb, q_mid):
+        T_mid = slerp_midposes(Ta, Tb)
+        tcp_base = (tcp_positions_world(robot, q_mid) - base[:3, 3]) @ base[:3, :3]  # = base^-1 world
+        return T_mid, np.flatnonzero(np.linalg.norm(tcp_base - T_mid[:, :3, 3], axis=1) > tol_mm)
+
+    return bisected(solver, Ta, qa, Tb, qb, MAX_SPLITS, bowing)
 
 
 def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver, tol_mm: float) -> JointPath:

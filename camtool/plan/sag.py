@@ -26,7 +26,7 @@ from ..robots.model import Robot
 from ..toolpath import SURFACE_CODES, WORK, Path
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
-from .densify import slerp_midposes
+from .densify import bisected, slerp_midposes
 
 MAX_SPLITS = 3  # a step is halved at most this many times for its sag (8 pieces), twice more for its bow
 SAG_SCREEN_MM = 1e-6   # the batched screen leaves a step to its own test unless this much within the tolerance
@@ -79,24 +79,16 @@ def chord_sags_mm(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
 def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm) -> dict[int, np.ndarray]:
     """{step: inserted q (k, dof) in order} for the steps (Ta[i], qa[i]) -> (Tb[i], qb[i]) (base frame).
 
-    Level by level (every interval of one depth at once, the midposes by one batched slerp): an
-    interval whose sag exceeds ``tol_mm`` gets the arc's midpose, solved (CWLN without the clamp
-    task, from the joint midpoint) and halved again, up to ``MAX_SPLITS`` times. A step this module
-    splits is also kept within the bow tolerance, two levels more (``densify`` no longer sees it as one
-    step of the Path): a half within the sag tolerance whose joint midpoint's TCP leaves the chord by
-    more than ``bow_tol_mm`` is split too.
+    ``densify.bisected`` with the arc's midposes (the orientations by one batched slerp a level): an interval
+    whose sag exceeds ``tol_mm`` gets the arc's midpose, up to ``MAX_SPLITS`` times. A step this module splits
+    is also kept within the bow tolerance, two levels more (``densify`` no longer sees it as one step of the
+    Path): a half within the sag tolerance whose joint midpoint's TCP leaves the chord by more than
+    ``bow_tol_mm`` is split too.
     """
-    step = np.arange(len(Ta))
-    key = np.full(len(Ta), 0.5)     # where the midpoint lies in its step (0..1): the order of the inserts
-    half = 0.25
-    found: dict[int, list] = {}
-    for depth in range(MAX_SPLITS + 2):
-        if not len(step):
-            break
-        q_mid = 0.5 * (qa + qb)
+    def sagging(depth, Ta, qa, Tb, qb, q_mid):
         T_mid, sag = _arc_midposes(Ta, Tb)
-        keep, q_new = [], []
-        for i in range(len(step)):
+        wanted = []
+        for i in range(len(Ta)):
             if sag[i] <= tol_mm:
                 if depth == 0:
                     continue
@@ -105,22 +97,10 @@ def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm) -> dict[int, np.nda
                     continue
                 if sag[i] <= 1e-9:
                     T_mid[i, :3, 3] = chord_mid
-            res = solver.solve(T_mid[i], q_mid[i], clamp=False)
-            if not res.converged or np.any(res.q < solver.lo) or np.any(res.q > solver.hi):
-                continue
-            found.setdefault(int(step[i]), []).append((key[i], res.q))
-            keep.append(i)
-            q_new.append(res.q)
-        if not keep:
-            break
-        keep = np.array(keep)
-        q_new = np.array(q_new)
-        step = np.concatenate([step[keep], step[keep]])   # each kept interval becomes its two halves
-        key = np.concatenate([key[keep] - half, key[keep] + half])
-        Ta, Tb = np.concatenate([Ta[keep], T_mid[keep]]), np.concatenate([T_mid[keep], Tb[keep]])
-        qa, qb = np.concatenate([qa[keep], q_new]), np.concatenate([q_new, qb[keep]])
-        half *= 0.5
-    return {s: np.array([q for _, q in sorted(v, key=lambda e: e[0])]) for s, v in found.items()}
+            wanted.append(i)
+        return T_mid, wanted
+
+    return bisected(solver, Ta, qa, Tb, qb, MAX_SPLITS + 2, sagging)
 
 
 def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver,
