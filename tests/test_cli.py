@@ -54,16 +54,45 @@ def test_start_up_loads_no_heavy_library(args, needed):
     import subprocess
     import sys
 
-    code = ("import sys\n"
+    code = ("import atexit, sys\n"   # main() leaves by os._exit, after the exit handlers (cli.leave)
             f"sys.argv = ['camtool', *{args!r}]\n"
             "from camtool.cli import main\n"
-            "try:\n"
-            "    main()\n"
-            "finally:\n"
-            f"    print(sorted({{m.partition('.')[0] for m in sys.modules}} & set({HEAVY!r})), file=sys.stderr)\n")
+            f"atexit.register(lambda: print(sorted({{m.partition('.')[0] for m in sys.modules}} & set({HEAVY!r})), "
+            "file=sys.stderr))\n"
+            "main()\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert r.stderr.splitlines()[-1] == repr(sorted(needed))
+
+
+@pytest.mark.parametrize("code, status, stderr", [(3, 3, ""), (None, 0, ""), ("bad", 1, "bad\n")])
+def test_leave_runs_exit_handlers_and_flushes(code, status, stderr):
+    """``cli.leave`` ends the process at once, but only after the exit handlers ran and both streams were
+    flushed: the code as the interpreter's own exit gives it (None 0, a message 1)."""
+    import subprocess
+    import sys
+
+    script = ("import atexit, sys\n"
+              "from camtool.cli import leave\n"
+              "atexit.register(lambda: sys.stdout.write(' handled'))\n"
+              "sys.stdout.write('unflushed')\n"
+              f"leave({code!r})\n"
+              "print('not reached')\n")
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert (r.returncode, r.stdout, r.stderr) == (status, "unflushed handled", stderr)
+
+
+def test_output_cut_short_by_its_reader_is_no_error():
+    """`camtool robots | head -1`: the reader goes away; camtool exits 0, without a traceback."""
+    import subprocess
+    import sys
+
+    p = subprocess.Popen([sys.executable, "-m", "camtool.cli", "robots"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    p.stdout.readline()
+    p.stdout.close()
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 0 and b"Traceback" not in err
 
 
 def test_unknown_robot_one_line_exit_2():

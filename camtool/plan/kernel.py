@@ -349,6 +349,18 @@ class DhKernel:
         return self.solve(target, q)
 
 
+_LOADED = False   # whether this process has loaded the compiled kernels (``load_compiled``)
+
+
+def load_compiled() -> None:
+    """Load the compiled kernels into this process once (``warm_up``; about 0.25 s of numba's own set-up
+    the first time, nothing after): what a kernel's timing leaves out, as a benchmark's warm-up does."""
+    global _LOADED
+    if not _LOADED:
+        warm_up()
+        _LOADED = True
+
+
 def warm_up() -> None:
     """Compile (and cache) the kernels (CWLN, the S-curve test) on a tiny problem; used by the set-up script."""
     from ..robots import get_robot

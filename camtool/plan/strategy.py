@@ -47,7 +47,7 @@ from ..toolpath import ZONE_CODE, ZONES, Path, run_bounds
 from ..trajectory import JointPath
 from .connectors import cartesian_lift
 from .cwln import CwlnSolver, IkResult, IkSettings
-from .kernel import DhKernel
+from .kernel import DhKernel, load_compiled
 
 RESTARTS_WHEN_LOST = 20
 RETRACT_LIFT_STEPS = 5  # poses of each Cartesian lift / descent of a retract
@@ -520,11 +520,14 @@ def plan_path(path: Path, robot: Robot, settings: PlannerSettings, world=None) -
     ``world``: the job's ``CollisionWorld``; a configuration that brings a robot or tool body
     closer than its clearance to an obstacle, the floor or another link is not taken.
     Raises PlanInfeasible (with a report listing them) when poses cannot be reached.
+    ``events['plan_seconds']`` is the planning's own time: the compiled kernels are loaded before it.
     """
     if settings.method not in ("seed", "general"):
         raise BadInput(f"planner.method: {settings.method!r} does not plan raster paths; use 'seed' or 'general'")
     if settings.q_home is not None and len(settings.q_home) != robot.dof:
         raise BadInput(f"robot.home_deg: {robot.name} needs {robot.dof} values, found {len(settings.q_home)}")
+    if robot.dh:   # the compiled kernel's robots
+        load_compiled()
     t0 = time.perf_counter()
     jp = Planner(path, robot, settings, world).plan()
     jp = replace(jp, events={**jp.events, "plan_seconds": time.perf_counter() - t0})
