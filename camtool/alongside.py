@@ -17,7 +17,8 @@ and reaps it, and it is in the run's process group, which a batch kills on timeo
 ``Standby(prepare)`` forks early, while this process still works on one CPU (planning):
 the child runs ``prepare()`` (heavy imports: open3d, matplotlib) at once, then waits.
 ``start(fn)`` hands it ``fn`` by pickle (a module-level function, or a ``functools.partial``
-of one, and its inputs), and ``result()`` is ``fn()``'s as with ``Alongside``. What a
+of one, and its inputs), ``then(fn)`` a further task, and ``result()`` is the last task's
+value, as with ``Alongside``. What a
 child imports ahead this way is off the busy end of the run, and the imports never enter
 this process (a dense job's peak memory).
 """
@@ -190,72 +191,139 @@ class Alongside(_Child):
 
 
 class Standby(_Child):
-    """A child forked now that runs ``prepare()`` at once, then ``fn()`` once ``start(fn)`` hands it over.
+    """A child forked now that runs ``prepare()`` at once, then the tasks handed to it, in order.
 
-    ``fn`` goes to the child by pickle, so it must be a module-level function or a
-    ``functools.partial`` of one. With ``hand_on``, ``fn`` is given ``prepare()``'s value
-    (work done ahead on data the run already has: the motion check's part, while the
-    run plans). Unforked (one CPU), ``prepare()`` and ``fn()`` run in this process at
-    ``result()``. A context manager as ``Alongside``: leaving the
-    block by an error, or without starting it, kills the waiting child.
+    ``start(fn)`` hands the first task, ``then(fn)`` each further one (by pickle, so a
+    module-level function or a ``functools.partial`` of one); ``result()`` is the last
+    task's value. With ``hand_on``, each task is given the value before it: ``prepare()``'s
+    for the first (work done ahead on data the run already has: the motion check's part),
+    the previous task's after that (the redundancy map's sweep of the raster, drawn once
+    the plan is known). A task handed over while the child still works on one is read by
+    a thread of the child as it comes, so this process never waits on a full pipe.
+    Unforked (one CPU), ``prepare()`` and the tasks run in this process at ``result()``.
+    A context manager as ``Alongside``: leaving the block by an error, or without starting
+    it, kills the waiting child.
     """
 
-    def __init__(self, prepare: Callable[[], Any], forked: bool | None = None, hand_on: bool = False):
+    def __init__(self, prepare: Callable[[], Any], forked: bool | None = None, hand_on: bool = False,
+                 nice: int = 0):
         super().__init__(forked)
-        self._prepare, self._fn, self._hand_on = prepare, None, hand_on
-        self._task_fd = None   # this process's end of the pipe that hands ``fn`` over
+        self._prepare, self._tasks, self._hand_on, self._nice = prepare, [], hand_on, nice
+        self._task_pipe = None   # this process's end of the pipe that hands the tasks over
         if self.forked:
             task_read, task_write = os.pipe()
             self._fork(lambda write_fd: self._wait_and_run(task_read, task_write, write_fd))
             os.close(task_read)
-            self._task_fd = task_write
+            self._task_pipe = os.fdopen(task_write, "wb")
 
     def _wait_and_run(self, task_read: int, task_write: int, write_fd: int) -> None:
         os.close(task_write)
-        prepared = _outcome(self._prepare)
-        with os.fdopen(task_read, "rb") as pipe:
-            try:
-                fn = pickle.load(pipe)
-            except EOFError:  # never started: the run went another way
-                return
-        data = _payload(self._task(fn, prepared))
+        if self._nice:
+            os.nice(self._nice)
+        value = _outcome(self._prepare)
+        handed = _HandedTasks(task_read)
+        ran = False
+        for fn in handed:
+            ran = True
+            if value[0] != _OK:   # after a failure the tasks are read and not run: the failure is the result
+                continue
+            value = (_RAISED, fn) if isinstance(fn, BaseException) else _outcome(self._task(fn, value))
+        if not ran:  # never started: the run went another way
+            return
+        data = _payload(lambda: _reraise(value[1]) if value[0] == _RAISED else value[1])
         with os.fdopen(write_fd, "wb") as out:
             out.write(data)
 
     def start(self, fn: Callable[[], Any]) -> "Standby":
-        """Hand ``fn`` to the child (pickled through a pipe); ``result()`` is then ``fn()``."""
-        if self._fn is not None:
-            raise RuntimeError("Standby was started already")
+        """Hand the first task to the child (pickled through a pipe)."""
+        if self._tasks:
+            raise RuntimeError("Standby was started already: hand further tasks with then()")
+        return self._hand(fn)
+
+    def then(self, fn: Callable[..., Any]) -> "Standby":
+        """Hand a further task, run once the ones before it are done; ``result()`` is then its value."""
+        if not self._tasks:
+            raise RuntimeError("Standby was not started: hand the first task with start()")
+        return self._hand(fn)
+
+    def _hand(self, fn: Callable) -> "Standby":
         if self._done:
             raise RuntimeError("Standby was cancelled: it takes no work")
-        self._fn = fn
-        if self.forked:
-            fd, self._task_fd = self._task_fd, None
+        self._tasks.append(fn)
+        if self.forked and self._task_pipe is not None:
             try:
-                with os.fdopen(fd, "wb") as pipe:
-                    pickle.dump(fn, pipe, protocol=pickle.HIGHEST_PROTOCOL)
+                pickle.dump(fn, self._task_pipe, protocol=pickle.HIGHEST_PROTOCOL)
+                self._task_pipe.flush()
             except BrokenPipeError:
-                pass   # the child is gone: result() says how
+                self._close_tasks(tell=False)   # the child is gone: result() says how
         return self
 
+    def _close_tasks(self, tell: bool = True) -> None:
+        """No more tasks: the child hands its result back once the last is done. It is told so in so
+        many words (``_NoMoreTasks``): the end of the pipe alone would not do, as a child forked later
+        holds a copy of this end."""
+        if self._task_pipe is not None:
+            pipe, self._task_pipe = self._task_pipe, None
+            try:
+                if tell:
+                    pickle.dump(_NoMoreTasks, pipe, protocol=pickle.HIGHEST_PROTOCOL)
+                pipe.close()
+            except BrokenPipeError:
+                pass
+
     def _take(self) -> tuple:
-        if self._fn is None and not self._done:
+        if not self._tasks and not self._done:
             raise RuntimeError("Standby was not started: it has no result")
+        self._close_tasks()
         return super()._take()
 
-    def _task(self, fn: Callable, prepared: tuple) -> Callable[[], Any]:
-        """What runs once ``fn`` is handed over: ``fn()``, ``fn(prepare's value)`` with ``hand_on``, or the
-        re-raise of what ``prepare()`` raised."""
-        if prepared[0] != _OK:
-            return partial(_reraise, prepared[1])
-        return partial(fn, prepared[1]) if self._hand_on else fn
+    def _task(self, fn: Callable, before: tuple) -> Callable[[], Any]:
+        """What runs once ``fn`` is handed over: ``fn()``, or ``fn(the value before it)`` with ``hand_on``."""
+        return partial(fn, before[1]) if self._hand_on else fn
 
     def _inline(self) -> tuple:
-        prepared = _outcome(self._prepare)
-        return _outcome(self._task(self._fn, prepared)) if prepared[0] == _OK else prepared
+        value = _outcome(self._prepare)
+        for fn in self._tasks:
+            if value[0] != _OK:
+                break
+            value = _outcome(self._task(fn, value))
+        return value
 
     def cancel(self) -> None:
-        if self._task_fd is not None:
-            os.close(self._task_fd)
-            self._task_fd = None
+        self._close_tasks(tell=False)
         super().cancel()
+
+
+class _NoMoreTasks:
+    """Handed to a ``Standby`` child after its last task."""
+
+
+class _HandedTasks:
+    """The tasks handed to a ``Standby`` child, in order: a thread unpickles each from the pipe as it
+    comes (the parent's write never waits on the child's work), until ``_NoMoreTasks`` (or the pipe's end)."""
+
+    _END = object()
+
+    def __init__(self, fd: int):
+        import queue
+        import threading
+
+        self._queue = queue.SimpleQueue()
+        threading.Thread(target=self._read, args=(fd,), daemon=True).start()
+
+    def _read(self, fd: int) -> None:
+        try:
+            with os.fdopen(fd, "rb") as pipe:
+                while (fn := pickle.load(pipe)) is not _NoMoreTasks:
+                    self._queue.put(fn)
+        except EOFError:   # the parent closed its end: no more tasks
+            pass
+        except Exception as exc:   # a task that cannot be read: its error is handed on as the outcome
+            self._queue.put(exc)
+        finally:
+            self._queue.put(self._END)
+
+    def __iter__(self):
+        """Each task as it comes (or the exception that unpickling it raised), until there are no more."""
+        while (fn := self._queue.get()) is not self._END:
+            yield fn

@@ -24,12 +24,15 @@ import os
 import shutil
 import tempfile
 import time
+from contextlib import ExitStack
 from dataclasses import dataclass
+from functools import partial
 from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 
+from .alongside import Alongside
 from .errors import BadInput, PlanInfeasible
 from .profiles import Profile, default_profile_path
 from .program.candidates import forget_merged
@@ -303,26 +306,27 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
     try:
         written: list[Path] = []
         findings: list[str] = []
-        reference = None
-        for fmt, post in profiles.items():
-            files, found = [], []
-            for scale in MERGE_RETRY_SCALES:
-                for f in files:   # the previous attempt's files, inside the private folder
-                    f.unlink(missing_ok=True)
-                if scale < 1.0:
-                    log.info("%s: the simulated program leaves the planned path; written again with targets "
-                             "merged within %.3g mm", fmt, process.path_tol_mm * scale)
-                writing = replace(process, path_tol_mm=process.path_tol_mm * scale)
-                files, found, figures, reference = _write_checked(fmt, post, trajectory, robot, (tmp, outdir),
-                                                                  written, process, writing, reference, world)
-                if not (found and all(DEVIATION_FINDING in x for x in found)):
-                    break   # written within the tolerance, or a finding merging closer cannot mend
-            written += files
-            findings += found
-            if figures is not None and report is not None:
-                report[fmt] = figures
-            post.plugin.forget()   # what a format kept of its own files (a dense job's: hundreds of MB)
-            forget_solved()
+        reference = _reference(profiles, trajectory, robot, process)
+        with ExitStack() as alongside:
+            # each format's programs are written, checked and simulated on their own; every format but the
+            # last in a forked process (``alongside.Alongside``), as the cores allow
+            chains = [partial(_format_programs, fmt, post, trajectory, robot, (tmp, outdir), process, reference,
+                              world) for fmt, post in profiles.items()]
+            ahead = [alongside.enter_context(Alongside(chain)) for chain in chains[:-1]]
+            last = Alongside(chains[-1], forked=False) if chains else None
+            if last is not None:
+                last.failure()   # run here, now; what it raised comes after the formats before it
+            outcomes = [c.result() for c in [*ahead, last] if c]
+            for post in profiles.values():   # whichever process read them back, none is kept here
+                post.plugin.forget()
+            for fmt, (files, found, figures) in zip(profiles, outcomes):
+                for f in files:
+                    if f in written:
+                        raise BadInput(f"post-processor {fmt!r} wrote {f.name}, which another format also wrote")
+                written += files
+                findings += found
+                if figures is not None and report is not None:
+                    report[fmt] = figures
         findings = list(dict.fromkeys(findings))  # each once, in order
         if findings:
             more = f" (and {len(findings) - MAX_LISTED} more)" if len(findings) > MAX_LISTED else ""
@@ -347,25 +351,62 @@ MERGE_RETRY_SCALES = (1.0, 0.6, 0.36)   # a program its simulator finds off the 
 DEVIATION_FINDING = "from the planned path"
 
 
-def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], written: list, process, writing,
-                   reference, world=None):
-    """Write one format into the private folder with ``writing`` (the process, its tolerance perhaps
-    tightened), check its files and simulate them against ``process``' tolerance; findings name the
-    output folder. Returns (files, findings, figures or None, reference)."""
+def _tcp_robot(robot, post):
+    """``robot`` with the format's profile tool: the simulator measures the job's TCP (the robot given may
+    come without the job's tool)."""
     from .program.plan import profile_tool
 
+    return robot.with_placement(tool_T_mm=profile_tool(post.profile))
+
+
+def _reference(profiles: dict, trajectory, robot, process):
+    """The planned motion the simulated programs are measured against (``simulate.reference_from_trajectory``),
+    with the first simulated format's TCP; None when no format is simulated."""
+    first = next((post for post in profiles.values() if post.plugin.simulated), None)
+    if first is None:
+        return None
+    from .simulate import reference_from_trajectory
+
+    return reference_from_trajectory(trajectory, _tcp_robot(robot, first), process.feed_mm_s)
+
+
+def _format_programs(fmt, post, trajectory, robot, folders: tuple[Path, Path], process, reference, world=None):
+    """One format's programs, written into the private folder, checked and simulated (``_write_checked``);
+    written again with its targets merged closer while the simulator finds them off the path and
+    merging closer can mend it (``MERGE_RETRY_SCALES``). Returns (files, findings, figures or None)."""
+    from dataclasses import replace
+
+    files, found, figures = [], [], None
+    for scale in MERGE_RETRY_SCALES:
+        for f in files:   # the previous attempt's files, inside the private folder
+            f.unlink(missing_ok=True)
+        if scale < 1.0:
+            log.info("%s: the simulated program leaves the planned path; written again with targets "
+                     "merged within %.3g mm", fmt, process.path_tol_mm * scale)
+        writing = replace(process, path_tol_mm=process.path_tol_mm * scale)
+        files, found, figures = _write_checked(fmt, post, trajectory, robot, folders, process, writing, reference,
+                                               world)
+        if not (found and all(DEVIATION_FINDING in x for x in found)):
+            break   # written within the tolerance, or a finding merging closer cannot mend
+    post.plugin.forget()   # what a format kept of its own files (a dense job's: hundreds of MB)
+    forget_solved()
+    return files, found, figures
+
+
+def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], process, writing, reference,
+                   world=None):
+    """Write one format into the private folder with ``writing`` (the process, its tolerance perhaps
+    tightened), check its files and simulate them against ``process``' tolerance and ``reference``;
+    findings name the output folder. Returns (files, findings, figures or None)."""
     tmp, outdir = folders
     plugin, profile = post.plugin, post.profile
-    # the simulator measures the job's TCP (the robot given may come without the job's tool)
-    tcp_robot = robot.with_placement(tool_T_mm=profile_tool(profile))
+    tcp_robot = _tcp_robot(robot, post)
     t0 = time.perf_counter()
     files = [Path(f) for f in plugin.write(trajectory, robot, profile, tmp, writing)]
     t_write = time.perf_counter() - t0
     for f in files:
         if f.parent != tmp:
             raise BadInput(f"post-processor {fmt!r} wrote {f} outside its output folder")
-        if f in written:
-            raise BadInput(f"post-processor {fmt!r} wrote {f.name}, which another format also wrote")
     findings: list[str] = []
     t0 = time.perf_counter()
     # a plugin whose check of the entry file follows every file it loads or calls says so
@@ -377,9 +418,6 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], wri
     figures = None
     if plugin.simulated and files and not findings:
         t0 = time.perf_counter()
-        if reference is None:
-            from .simulate import reference_from_trajectory
-            reference = reference_from_trajectory(trajectory, tcp_robot, process.feed_mm_s)
         sim = simulate_program(plugin, files[0], tcp_robot, profile, trajectory, process, reference, world)
         findings += [s.replace(str(tmp), str(outdir)) for s in sim.findings]
         figures = sim.as_dict()
@@ -388,7 +426,7 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], wri
                        simulate_s=round(time.perf_counter() - t0, 4),
                        bytes=sum(f.stat().st_size for f in files), path_tol_mm=process.path_tol_mm)
         log.info("%s: %s", fmt, "; ".join(summary_lines(sim)))
-    return files, findings, figures, reference
+    return files, findings, figures
 
 
 def write_job_programs(trajectory, robot, job, outdir, path=None, report: dict | None = None,

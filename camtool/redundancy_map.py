@@ -143,24 +143,54 @@ def _spread(n: int, m: int) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n - 1, max(m, 1))).astype(int))
 
 
-def redundancy_map(path: Path, robot, joint_path=None, settings: RedundancySettings | None = None, *,
-                   include=(), world=None) -> RedundancyMap:
-    """The redundancy map of ``path`` for ``robot`` (see the module doc).
+SWEEP_MATCH_MM = 1e-6   # a sweep serves a path whose mapped poses are this close (mm, any matrix entry)
 
-    ``include``: path indices that must be columns (e.g. failing poses).
-    ``world``: the job's ``CollisionWorld``; with it, reachable cells whose best solution collides
-    become ``IN_COLLISION``.
-    Raises BadInput for a robot without closed-form families.
-    """
+
+@dataclass(frozen=True, eq=False)
+class RedundancySweep:
+    """The cells of a redundancy map, before the plan is known: its poses swept (``sweep_map``).
+
+    ``poses_mm`` (nx, 4, 4): the path's poses at ``x``, which the cells were solved for; the
+    rest as ``RedundancyMap`` (``manipulability`` not yet normalised)."""
+
+    robot: str
+    kind: str
+    settings: RedundancySettings
+    free_spin: bool
+    x: np.ndarray
+    poses_mm: np.ndarray
+    y: np.ndarray
+    code: np.ndarray
+    margin: np.ndarray
+    manipulability: np.ndarray
+    notes: tuple[str, ...] = ()
+
+    @property
+    def reachable_any(self) -> bool:
+        return bool((self.code == REACHABLE).any())
+
+    def serves(self, path: Path, x: np.ndarray, robot, settings: RedundancySettings) -> bool:
+        """Whether these cells are the map of ``path``'s poses ``x``: the same robot, settings and tool-spin
+        freedom, and the same poses (within ``SWEEP_MATCH_MM``; a raster whose leads were lengthened
+        keeps its work poses, not their path indices)."""
+        return (self.robot == robot.name and self.settings == settings and self.free_spin == path.free_spin
+                and len(x) == len(self.x)
+                and bool(np.allclose(path.poses_mm[x], self.poses_mm, rtol=0.0, atol=SWEEP_MATCH_MM)))
+
+
+def sweep_map(path: Path, robot, settings: RedundancySettings | None = None, *, include=(),
+              world=None) -> RedundancySweep:
+    """The cells of ``path``'s redundancy map (``redundancy_map`` without the plan): most of its work,
+    which the raster task does while the path is planned. Raises BadInput for a robot without
+    closed-form families."""
     st = settings or RedundancySettings()
     kind = redundancy_kind(robot)
     if kind is None:
         raise BadInput(f"robot {robot.name}: no closed-form IK families (SRS 7R arm, track + SRS arm, or 6R "
                        "spherical wrist); the redundancy map needs one (numerical IK is not mapped)")
     x = map_poses(path, st.max_poses, include)
-    base_inv = np.linalg.inv(robot.base_T_mm)
     tool_inv = np.linalg.inv(robot.tool_T_mm)
-    targets = np.einsum("ij,njk->nik", base_inv, path.poses_mm[x])      # TCP in the base frame
+    targets = _targets(path, robot, x)
     if kind == "arm_angle":
         y = np.arange(-180.0, 180.0, st.arm_angle_step_deg)
         best_q, best_m, has_ik = _sweep_arm_angle(robot, targets @ tool_inv, np.radians(y))
@@ -182,17 +212,43 @@ def redundancy_map(path: Path, robot, joint_path=None, settings: RedundancySetti
     margin = np.where(reach, np.clip(best_m, 0.0, None), np.nan)
     manip = np.full(code.shape, np.nan)
     manip[reach] = _manipulability(robot, best_q[reach])
-    mmax = float(np.nanmax(manip)) if reach.any() else 0.0
-    if mmax > 0:
-        manip = manip / mmax
-    planned = np.full(len(x), np.nan)
-    if joint_path is not None:
-        planned = _planned_values(kind, robot, joint_path, x, targets)
     if kind == "tool_spin" and not path.free_spin:
         notes = ("the path fixes the tool spin: only y = 0 is what the program asks",) + notes
     if kind == "track":
         notes = (f"best of {st.track_arm_angles} arm angles per cell",) + notes
-    return RedundancyMap(robot.name, kind, x, y, code, margin, manip, planned, mmax, notes)
+    return RedundancySweep(robot.name, kind, st, bool(path.free_spin), x, path.poses_mm[x].copy(), y, code, margin,
+                           manip, notes)
+
+
+def _targets(path: Path, robot, x: np.ndarray) -> np.ndarray:
+    """(nx, 4, 4) the TCP poses of ``path`` at ``x`` in the robot's base frame."""
+    return np.einsum("ij,njk->nik", np.linalg.inv(robot.base_T_mm), path.poses_mm[x])
+
+
+def redundancy_map(path: Path, robot, joint_path=None, settings: RedundancySettings | None = None, *,
+                   include=(), world=None, sweep: RedundancySweep | None = None) -> RedundancyMap:
+    """The redundancy map of ``path`` for ``robot`` (see the module doc).
+
+    ``include``: path indices that must be columns (e.g. failing poses).
+    ``world``: the job's ``CollisionWorld``; with it, reachable cells whose best solution collides
+    become ``IN_COLLISION``.
+    ``sweep``: ``sweep_map``'s cells made ahead (of the raster before its leads were sized); taken
+    where it ``serves`` this path, else the poses are swept here.
+    Raises BadInput for a robot without closed-form families.
+    """
+    st = settings or RedundancySettings()
+    x = map_poses(path, st.max_poses, include)
+    if sweep is None or not sweep.serves(path, x, robot, st):
+        sweep = sweep_map(path, robot, st, include=include, world=world)
+    manip = sweep.manipulability
+    mmax = float(np.nanmax(manip)) if sweep.reachable_any else 0.0
+    if mmax > 0:
+        manip = manip / mmax
+    planned = np.full(len(x), np.nan)
+    if joint_path is not None:
+        planned = _planned_values(sweep.kind, robot, joint_path, x, _targets(path, robot, x))
+    return RedundancyMap(robot.name, sweep.kind, x, sweep.y, sweep.code, sweep.margin, manip, planned, mmax,
+                         sweep.notes)
 
 
 def _manipulability(robot, qs: np.ndarray) -> np.ndarray:

@@ -65,6 +65,7 @@ def plan_metrics(path: Path, jp: JointPath, robot, method: str, jump_threshold_d
         "ik_seeds": ev.get("ik_seeds"),
         "reverse_plan_seconds": round(float(ev.get("reverse_plan_seconds", 0.0)), 4),
         "plan_seconds": round(seconds, 4),
+        "plan_cpu_seconds": round(float(ev.get("plan_cpu_seconds", seconds)), 4),
         "points_per_second": round(len(path) / seconds, 1) if seconds > 0 else None,
     }
 

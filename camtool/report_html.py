@@ -104,11 +104,12 @@ def write_html_page(file, title: str, sections: list[tuple[str, str, str]]) -> F
     return safe_io.write_file(file.parent, file.name, page)
 
 
-def redundancy_figure(outdir, robot, path=None, joint_path=None, failing_indices=(), world=None):
+def redundancy_figure(outdir, robot, path=None, joint_path=None, failing_indices=(), world=None, sweep=None):
     """(map, files): the redundancy map of ``path`` and ``OUTDIR/plots/redundancy_map.png``.
 
     The map is computed with failing poses included as columns and its collision
-    layer from ``world`` (the job's ``CollisionWorld``); robots without closed-form
+    layer from ``world`` (the job's ``CollisionWorld``), from ``sweep``'s cells where they
+    serve (``redundancy_map.sweep_map``, made ahead); robots without closed-form
     IK families get none: ``(None, [])``.
     """
     from .redundancy_map import plot_redundancy_map_png, redundancy_kind, redundancy_map
@@ -116,7 +117,7 @@ def redundancy_figure(outdir, robot, path=None, joint_path=None, failing_indices
     if path is None or not len(path) or redundancy_kind(robot) is None:
         return None, []
     try:
-        rmap = redundancy_map(path, robot, joint_path, include=failing_indices, world=world)
+        rmap = redundancy_map(path, robot, joint_path, include=failing_indices, world=world, sweep=sweep)
     except BadInput:
         return None, []
     return rmap, [plot_redundancy_map_png(rmap, FsPath(outdir) / "plots" / "redundancy_map.png")]
@@ -510,11 +511,12 @@ def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, fai
                       legend={"itemsizing": "constant", "x": 0.0, "y": 1.0, "bgcolor": "rgba(255,255,255,0.7)"},
                       scene={"aspectmode": "data", "xaxis_title": "x [mm]", "yaxis_title": "y [mm]",
                              "zaxis_title": "z [mm]"}, uirevision="scene")
-    if steps:
-        fig.update_layout(sliders=[{"active": 0, "currentvalue": {"prefix": "robot at "}, "pad": {"t": 10},
-                                    "steps": [dict(s, args=[s["args"][0], list(range(first_robot, len(traces)))])
-                                              for s in steps]}])
-    return _with_traces(fig, traces)
+    figure = _with_traces(fig, traces)
+    if steps:   # plain data as the traces (keys in plotly's order): its restyle arguments are every step's vertices
+        figure["layout"]["sliders"] = [{"active": 0, "currentvalue": {"prefix": "robot at "}, "pad": {"t": 10},
+                                        "steps": [{"args": [s["args"][0], list(range(first_robot, len(traces)))],
+                                                   "label": s["label"], "method": s["method"]} for s in steps]}]
+    return figure
 
 
 def _path_traces(go, path, feed) -> list:
@@ -634,9 +636,7 @@ def _feed_figure(feed, report):
     s, v, zone = feed["s"], feed["v"], feed["zone"]
     n = len(s)
     if n > MAX_FEED_POINTS:  # the lowest feed per display bin, so slowdowns stay visible
-        edges = np.round(np.linspace(0, n, MAX_FEED_POINTS + 1)).astype(int)
-        pick = np.array([a + int(np.nanargmin(v[a:b])) if np.isfinite(v[a:b]).any() else a
-                         for a, b in zip(edges[:-1], edges[1:]) if b > a])
+        pick = _lowest_per_bin(v, np.round(np.linspace(0, n, MAX_FEED_POINTS + 1)).astype(int))
     else:
         pick = np.arange(n)
     s, v, zone = s[pick], v[pick], zone[pick]
@@ -653,6 +653,17 @@ def _feed_figure(feed, report):
     fig.update_layout(height=360, margin={"l": 60, "r": 20, "t": 30, "b": 50},
                       xaxis_title="TCP path length [mm]", yaxis_title="TCP feed [mm/s]")
     return _with_traces(fig, traces)
+
+
+def _lowest_per_bin(v: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Per bin [edges[i], edges[i+1]) that is not empty, the index of its first lowest value (NaN ignored;
+    a bin of NaN only: its first index)."""
+    start = np.unique(edges[:-1][edges[1:] > edges[:-1]])
+    low = np.fmin.reduceat(v, start)
+    bin_of = np.repeat(np.arange(len(start)), np.diff(np.append(start, len(v))))
+    at_low = np.flatnonzero(v == low[bin_of])     # NaN equals nothing: only a finite lowest value is found
+    first = at_low[np.minimum(np.searchsorted(at_low, start), len(at_low) - 1)] if len(at_low) else start
+    return np.where(np.isfinite(low), first, start)
 
 
 def _joint_use_figure(robot, trajectory):

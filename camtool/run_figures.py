@@ -1,7 +1,8 @@
 """The figures of a run that passed its motion check: feed.png, the joint plots and the redundancy map.
 
-The redundancy map needs only the planned path, so the raster task draws it while the
-trajectory is timed; feed.png and the joint plots need the timed trajectories and are
+The redundancy map's cells need only the path's work poses, so the raster task sweeps
+them while the path is planned (``sweep_ahead``) and draws the map with the plan while
+the trajectory is timed; feed.png and the joint plots need the timed trajectories and are
 drawn while the programs are written. Both run in processes made ready ahead
 (``camtool.alongside.Standby``, ``import_figure_libraries``); report.html takes the map
 from here.
@@ -12,6 +13,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from .errors import BadInput
 from .report import import_plotting, plot_joints
 from .report_html import redundancy_figure
 from .timing import plot_feed_png, sampled_for
@@ -79,10 +81,41 @@ def draw_run_figures(inputs: FigureInputs) -> RunFigures:
     return RunFigures(feed_png, joint_plots, {"plots": round(now[0] - wall, 3)}, {"plots": round(now[1] - cpu, 3)})
 
 
-def draw_redundancy_map(inputs: MapInputs) -> DrawnMap:
-    """Draw the redundancy map of ``inputs`` (``OUTDIR/plots/redundancy_map.png``)."""
+@dataclass(frozen=True)
+class SweptMap:
+    """``redundancy_map.sweep_map``'s cells of a path (None: that robot is not mapped) and the wall / CPU
+    seconds of sweeping them."""
+
+    sweep: object
+    seconds: dict
+    cpu_seconds: dict
+
+
+def sweep_ahead(inputs: MapInputs, _prepared=None) -> SweptMap:
+    """The redundancy map's cells of ``inputs.path`` (the raster, before it is planned): the map's heavy
+    part, done while the run plans; ``draw_redundancy_map`` takes them where the planned path has the
+    same work poses. ``_prepared``: what the process did ahead (``camtool.alongside.Standby``, hand_on)."""
+    from .redundancy_map import redundancy_kind, sweep_map
+
     wall, cpu = _clock()
-    redundancy = redundancy_figure(inputs.outdir, inputs.robot, inputs.path, inputs.joint_path, world=inputs.world)
+    sweep = None
+    if len(inputs.path) and redundancy_kind(inputs.robot) is not None:
+        try:
+            sweep = sweep_map(inputs.path, inputs.robot, world=inputs.world)
+        except BadInput:
+            sweep = None
     now = _clock()
-    return DrawnMap(redundancy, {"redundancy_map": round(now[0] - wall, 3)},
-                    {"redundancy_map": round(now[1] - cpu, 3)})
+    return SweptMap(sweep, {"redundancy_sweep": round(now[0] - wall, 3)},
+                    {"redundancy_sweep": round(now[1] - cpu, 3)})
+
+
+def draw_redundancy_map(inputs: MapInputs, swept: SweptMap | None = None) -> DrawnMap:
+    """Draw the redundancy map of ``inputs`` (``OUTDIR/plots/redundancy_map.png``), from ``swept``'s cells
+    where they are this path's (``sweep_ahead``)."""
+    wall, cpu = _clock()
+    redundancy = redundancy_figure(inputs.outdir, inputs.robot, inputs.path, inputs.joint_path, world=inputs.world,
+                                   sweep=None if swept is None else swept.sweep)
+    now = _clock()
+    seconds, cpu_seconds = ({}, {}) if swept is None else (dict(swept.seconds), dict(swept.cpu_seconds))
+    seconds["redundancy_map"], cpu_seconds["redundancy_map"] = round(now[0] - wall, 3), round(now[1] - cpu, 3)
+    return DrawnMap(redundancy, seconds, cpu_seconds)

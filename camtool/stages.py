@@ -331,9 +331,9 @@ def plan_with_sized_leads(settings: JobSettings, surface, path, robot, workpiece
     return sizing.path, replace(sizing.joint_path, events={**sizing.joint_path.events, "leads": sizing.record})
 
 
-def time_for_job(settings: JobSettings, joint_path, path, robot):
-    """Time a joint path with the job's timing settings."""
-    return time_trajectory(joint_path, path, robot, settings.timing)
+def time_for_job(settings: JobSettings, joint_path, path, robot, before_check: Callable | None = None):
+    """Time a joint path with the job's timing settings (``before_check``: ``time_trajectory``'s)."""
+    return time_trajectory(joint_path, path, robot, settings.timing, before_check=before_check)
 
 
 def plan_and_time(settings: JobSettings, path, robot, method: str | None = None, workpiece=None):

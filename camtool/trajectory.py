@@ -134,12 +134,19 @@ def quintic_at(t_s, q, qd, qdd, k, tt, derivatives: int = 0):
     piece's joint values, or with ``derivatives`` = 1..3 the tuple (q, qd[, qdd[, qddd]]). The one
     evaluation of the planned motion: sampling, the writers' merging and the simulator's reference
     all read the motion through it. A step of zero duration has zero derivatives."""
+    k = np.asarray(k)
     h = (t_s[k + 1] - t_s[k])[:, None]
     s = ((tt - t_s[k])[:, None]) / np.where(h > 0, h, 1.0)
-    c = quintic_coefficients(q[k], qd[k] * h, qdd[k] * h**2, q[k + 1], qd[k + 1] * h, qdd[k + 1] * h**2)
-    p = np.zeros_like(q[k])
+    # each step's coefficients once, then taken for its samples: the same values as per sample
+    step, at = np.unique(k, return_inverse=True)
+    at = at.reshape(-1)
+    hk = (t_s[step + 1] - t_s[step])[:, None]
+    c = quintic_coefficients(q[step], qd[step] * hk, qdd[step] * hk**2, q[step + 1], qd[step + 1] * hk,
+                             qdd[step + 1] * hk**2)
+    p = np.zeros((len(k), np.shape(q)[1]))
     for n in range(5, -1, -1):
-        p = p * s + c[n]
+        p *= s
+        p += c[n][at]
     if not derivatives:
         return p
     hs = np.where(h > 0, h, np.inf)
@@ -150,7 +157,8 @@ def quintic_at(t_s, q, qd, qdd, k, tt, derivatives: int = 0):
             f = 1
             for m in range(order):
                 f *= n - m
-            d = d * s + f * c[n]
+            d *= s
+            d += (f * c[n])[at]
         out.append(d / hs ** order)
     return tuple(out)
 

@@ -158,3 +158,78 @@ def test_a_standby_is_started_once_and_has_no_result_before():
     job.start(functools.partial(_where, 1))
     with pytest.raises(RuntimeError, match="started already"):
         job.start(functools.partial(_where, 2))
+
+
+def _first(prepared):
+    return {"made_in": os.getpid(), "prepared": prepared, "values": np.arange(300_000, dtype=float)}
+
+
+def _second(values, before):
+    return {**before, "second": float(np.sum(values)), "second_in": os.getpid()}
+
+
+def _slow(before):
+    time.sleep(0.5)
+    return before
+
+
+@fork_only
+@pytest.mark.parametrize("forked", [True, False])
+def test_a_standby_runs_its_tasks_in_order_each_given_the_one_before(forked):
+    """``then``: a further task, given the previous task's value with ``hand_on`` (the map's sweep of the
+    raster, drawn once the plan is known); ``result()`` is the last task's."""
+    values = np.arange(300_000, dtype=float)
+    with Standby(lambda: "ready", forked=forked, hand_on=True) as job:
+        out = job.start(_first).then(functools.partial(_second, values)).result()
+    assert out["prepared"] == "ready" and out["made_in"] == out["second_in"]
+    assert out["second"] == float(values.sum()) and (out["made_in"] != os.getpid()) == forked
+
+
+@fork_only
+def test_a_task_handed_while_the_child_works_does_not_wait_for_it():
+    """Handing a task larger than a pipe's buffer returns at once while the child still works on the one
+    before: a thread of the child reads it as it comes."""
+    values = np.arange(1_000_000, dtype=float)   # 8 MB
+    with Standby(dict, forked=True, hand_on=True) as job:
+        job.start(_slow)
+        t0 = time.perf_counter()
+        job.then(functools.partial(_second, values))
+        handed_s = time.perf_counter() - t0
+        out = job.result()
+    assert handed_s < 0.4 and out["second"] == float(values.sum())
+
+
+@fork_only
+@pytest.mark.parametrize("forked", [True, False])
+def test_after_a_task_raised_the_later_ones_do_not_run(forked):
+    job = Standby(dict, forked=forked, hand_on=True)
+    job.start(_fails_with).then(functools.partial(_second, np.ones(3)))
+    with pytest.raises(BadInput, match="not installed"):
+        job.result()
+
+
+def _fails_with(_before):
+    _prepare_fails()
+
+
+def test_then_needs_a_start():
+    with pytest.raises(RuntimeError, match="not started"):
+        Standby(lambda: None, forked=False).then(functools.partial(_where, 1))
+
+
+@fork_only
+def test_a_standby_forked_later_does_not_keep_an_earlier_one_waiting():
+    """A child forked after a standby holds a copy of that standby's task pipe; the standby's child is told
+    that no more tasks come, so it does not wait for the pipe's end (the raster task forks three)."""
+    def timed_out(*_):
+        raise TimeoutError("the standby's child waited for more tasks")
+    old = signal.signal(signal.SIGALRM, timed_out)
+    signal.alarm(20)
+    try:
+        with Standby(dict, forked=True, hand_on=True) as first, Standby(dict, forked=True) as second:
+            first.start(_slow)
+            assert first.result() == {}
+            second.cancel()
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)

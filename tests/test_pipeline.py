@@ -31,7 +31,7 @@ def test_report(sphere_run):
         assert (out / "plots" / f"{name}.png").stat().st_size > 10000
     lines = (out / "points.csv").read_text().splitlines()
     assert lines[0].startswith("row,path_index,segment,point,zone") and len(lines) > 10000
-    assert set(saved["stage_seconds_alongside"]) == {"check", "plots", "redundancy_map", "total"}   # alongside post
+    assert set(saved["stage_seconds_alongside"]) == {"check", "plots", "redundancy_sweep", "redundancy_map", "total"}
     assert {"post", "figures", "report_html"} <= set(saved["stage_seconds"])
 
 

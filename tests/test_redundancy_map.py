@@ -9,7 +9,7 @@ import pytest
 from camtool.errors import BadInput
 from camtool.plan import plan_path
 from camtool.redundancy_map import (NO_IK, REACHABLE, RedundancySettings, plot_redundancy_map_png,
-                                    redundancy_kind, redundancy_map, spherical_wrist_batch)
+                                    redundancy_kind, redundancy_map, spherical_wrist_batch, sweep_map)
 from camtool.robots import get_robot
 from camtool.robots.ik_spherical_wrist import SphericalWristIK
 from camtool.settings import PlannerSettings
@@ -179,3 +179,34 @@ def test_collision_layer_marks_the_cells_an_obstacle_blocks(planned):
         assert changed.any() == blocks and (m.code == REACHABLE).any()
         if blocks:
             assert any("collision layer" in n for n in m.notes)
+
+
+def _same_map(a, b):
+    return all(np.array_equal(getattr(a, f), getattr(b, f), equal_nan=True)
+               for f in ("x", "y", "code", "margin", "manipulability", "planned")) and a.notes == b.notes
+
+
+def test_a_sweep_made_ahead_gives_the_same_map(planned):
+    """The raster task sweeps the cells while the path is planned (``sweep_map``) and draws the map with
+    the plan: the same map as one made at once."""
+    name, robot, path, jp, m = planned
+    ahead = sweep_map(path, robot, SETTINGS)
+    assert ahead.serves(path, m.x, robot, SETTINGS)
+    assert _same_map(redundancy_map(path, robot, jp, SETTINGS, sweep=ahead), m)
+
+
+def test_a_sweep_serves_only_the_poses_it_swept(planned):
+    """Leads lengthened move the work poses' indices, not the poses: the sweep still serves; other poses,
+    other settings or another robot are swept again."""
+    name, robot, path, jp, m = planned
+    ahead = sweep_map(path, robot, SETTINGS)
+    lead = np.flatnonzero(path.zone != 0)[:1]        # one more pose before the work: indices shift by one
+    longer = Path(np.concatenate([path.poses_mm[lead], path.poses_mm]), np.r_[path.segment[lead], path.segment],
+                  np.r_[path.point[lead], path.point], np.r_[path.zone[lead], path.zone], free_spin=path.free_spin)
+    shifted = redundancy_map(longer, robot, None, SETTINGS, sweep=ahead)
+    assert np.array_equal(shifted.x, m.x + 1) and np.array_equal(shifted.code, m.code)
+    shift = np.zeros((4, 4))
+    shift[:3, 3] = 1.0                               # 1 mm along each axis
+    moved = Path(path.poses_mm + shift, path.segment, path.point, path.zone, free_spin=path.free_spin)
+    assert not ahead.serves(moved, m.x, robot, SETTINGS)
+    assert not ahead.serves(path, m.x, robot, replace(SETTINGS, track_values=11))

@@ -196,3 +196,18 @@ def test_the_page_renders_in_a_headless_browser(job, tmp_path):
     assert img.shape[0] >= 800 and img.shape[1] >= 1100
     assert img[..., :3].std() > 0.05                              # not a blank page
     assert (img[..., :3].min(axis=2) < 0.9).mean() > 0.01         # some ink
+
+
+def test_the_feed_shown_keeps_each_bins_first_lowest_value():
+    """``_lowest_per_bin`` (vectorised) picks what a loop over the bins picks: each bin's first lowest feed,
+    NaN ignored, a bin of NaN only shown at its first sample."""
+    from camtool.report_html import _lowest_per_bin
+
+    rng = np.random.default_rng(3)
+    v = np.round(rng.random(10_007) * 50, 0)   # ties within a bin: the first is kept
+    v[100:260] = np.nan                          # whole bins of NaN, and bins partly NaN
+    v[-3:] = np.nan
+    edges = np.round(np.linspace(0, len(v), 800 + 1)).astype(int)
+    loop = np.array([a + int(np.nanargmin(v[a:b])) if np.isfinite(v[a:b]).any() else a
+                     for a, b in zip(edges[:-1], edges[1:]) if b > a])
+    assert np.array_equal(_lowest_per_bin(v, edges), loop)

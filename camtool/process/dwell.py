@@ -198,6 +198,13 @@ def _as_map(grid, values, process):
     return ProcessMap(grid, values, process.kind, "", "", "", 0.0, 0.0, 0)
 
 
+def target_removal(settings) -> bool:
+    """Whether the job gives a target removal map (``process.target_removal_file``): its trajectory is timed
+    again for it (``retime_for_target``)."""
+    process = settings.process
+    return process is not None and process.enabled and bool(process.target_removal_file)
+
+
 def retime_for_target(job, settings, surface, path, joint_path, robot):
     """(trajectory, plan) with ``process.target_removal_file``: the dwell plan of ``path`` and the joint path timed
     again with its feed factors as caps (``timing.feed = "max"``: the speed follows them within the joint
@@ -208,7 +215,7 @@ def retime_for_target(job, settings, surface, path, joint_path, robot):
     from ..timing import time_trajectory
 
     process = settings.process
-    if process is None or not process.enabled or not process.target_removal_file:
+    if not target_removal(settings):
         return None, None
     plan = plan_dwell(surface, path, process, settings.timing.tcp_speed_mm_s,
                       target_file=job.resolve(process.target_removal_file))

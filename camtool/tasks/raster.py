@@ -9,6 +9,7 @@ from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
+from typing import Callable
 
 from ..alongside import Standby, timed
 from ..collision.stage import collision_world
@@ -17,12 +18,12 @@ from ..face_report import faces_worked
 from ..faces import faces_report, segmented
 from ..job import Job
 from ..process.outputs import process_outputs
-from ..process.dwell import check_target_inputs, retime_for_target
+from ..process.dwell import check_target_inputs, retime_for_target, target_removal
 from ..process.stepover import auto_step_over
 from ..raster import raster_path
 from ..motion.geometry import import_part_libraries
 from ..run_figures import (FigureInputs, MapInputs, draw_redundancy_map, draw_run_figures,
-                           import_figure_libraries)
+                           import_figure_libraries, sweep_ahead)
 from ..placement.partial import partial_path, partial_summary, reachable_stretches
 from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
@@ -62,19 +63,27 @@ def partial_plan_path(path, exc: PlanInfeasible):
 
 
 class MapAhead:
-    """The redundancy map drawn ahead, in a process on standby, as soon as the plan is known (while the
-    trajectory is timed). ``result()``: its ``DrawnMap``, or None when it was not drawn ahead (then
+    """The redundancy map made ahead, in a process on standby (``hand_on``): its cells swept as soon as
+    the raster is made (while the path is planned), the map drawn as soon as the plan is known (while
+    the trajectory is timed). ``result()``: its ``DrawnMap``, or None when it was not drawn ahead (then
     report.html draws it)."""
 
     def __init__(self, standby: Standby, robot, outdir: Path, world):
         self._standby, self._robot, self._outdir, self._world = standby, robot, outdir, world
-        self._state = "waiting"   # -> "started" -> (done) | "withdrawn"
+        self._state = "waiting"   # -> "swept" -> "started" -> (done) | "withdrawn"
+
+    def rastered(self, path) -> None:
+        """Sweep the map's cells of the raster (``run_figures.sweep_ahead``); the map takes them where the
+        planned path keeps its work poses (the leads sized for the ramps move only the leads)."""
+        if self._state == "waiting":
+            self._standby.start(partial(sweep_ahead, MapInputs(self._robot, path, None, self._outdir, self._world)))
+            self._state = "swept"
 
     def planned(self, path, joint_path) -> None:
-        """Start the map of this plan (once; a later plan withdraws it: that map would be of another path)."""
-        if self._state == "waiting":
-            self._standby.start(partial(draw_redundancy_map,
-                                        MapInputs(self._robot, path, joint_path, self._outdir, self._world)))
+        """Draw the map of this plan (once; a later plan withdraws it: that map would be of another path)."""
+        if self._state in ("waiting", "swept"):
+            draw = partial(draw_redundancy_map, MapInputs(self._robot, path, joint_path, self._outdir, self._world))
+            (self._standby.start if self._state == "waiting" else self._standby.then)(draw)
             self._state = "started"
         else:
             self.withdraw()
@@ -88,17 +97,34 @@ class MapAhead:
         return self._standby.result() if self._state == "started" else None
 
 
+class Ahead:
+    """What the run hands its helpers as soon as it has it: the raster and the plan to the redundancy map
+    (``MapAhead``); the timed trajectory to the motion check (``check(path, trajectory)``), before the
+    time stage's own 4 ms check, while this process makes it. ``checked_trajectory``: the one handed."""
+
+    def __init__(self, mapping: MapAhead, check: Callable | None = None):
+        self.mapping, self._check = mapping, check
+        self.checked_trajectory = None
+
+    def timed(self, path, trajectory) -> None:
+        """Hand ``trajectory`` (of ``path``) to the motion check, once."""
+        if self._check is not None and self.checked_trajectory is None:
+            self._check(path, trajectory)
+            self.checked_trajectory = trajectory
+
+
 def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp, part, surface, path, outdir: Path,
-                      ahead: MapAhead | None = None):
+                      ahead: Ahead | None = None):
     """(path, joint path, trajectory, partial figures or None): the plan and time stages of a raster job.
 
-    ``ahead.planned(path, joint_path)`` is told the plan before the time stage.
+    ``ahead.mapping.planned(path, joint_path)`` is told the plan before the time stage, ``ahead.timed(path,
+    trajectory)`` the trajectory before the time stage's 4 ms check (not a partial plan's).
     Leads grow to what the ramps need (``plan_with_sized_leads``; each run's time law is planned once,
     ``remembered_runs``); with ``task.allow_partial`` the reachable stretches are planned when some poses
     are not. An unreachable plan writes its report (and the nearest shift that would fit) and is raised.
     ``wp`` the workpiece as loaded, ``part`` what the checks measure against (``part_for_checks``)."""
     stretches = None
-    tell = ahead.planned if ahead is not None else (lambda path_, joint_path_: None)
+    tell = ahead.mapping.planned if ahead is not None else (lambda path_, joint_path_: None)
     with remembered_runs():  # lead sizing plans each run's time law; the time stage takes it
         try:
             try:
@@ -106,7 +132,8 @@ def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp,
                     path, joint_path = plan_with_sized_leads(settings, surface, path, robot, workpiece=part)
                 tell(path, joint_path)
                 with log.clock("time"):
-                    trajectory = time_for_job(settings, joint_path, path, robot)
+                    trajectory = time_for_job(settings, joint_path, path, robot,
+                                              before_check=None if ahead is None else partial(ahead.timed, path))
                 if joint_path.events.get("leads", {}).get("lead_mm_used", settings.raster.lead_mm) != settings.raster.lead_mm:
                     log.done("raster", path)  # rastered again with the leads the ramps need
             except PlanInfeasible as exc:
@@ -118,7 +145,7 @@ def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp,
                 log.done("raster", path)  # the part of the raster that is programmed
         except PlanInfeasible as exc:
             if ahead is not None:
-                ahead.withdraw()   # the report draws the map with the failing poses
+                ahead.mapping.withdraw()   # the report draws the map with the failing poses
             shift = None
             if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, a bounded search
                 shift = nearest_feasible_shift(job, settings, robot, path)
@@ -149,11 +176,12 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
 def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
                 leads_retried: str | None = None) -> RunResult:
     """``_run`` with its helpers forked, and closed with it."""
-    # forked now, while this process plans on one CPU: the figures' libraries are imported there, and the
-    # redundancy map is drawn while the trajectory is timed, off the end of the run where the check, the
-    # figures and the post stage share the CPUs; the motion check's process is forked once the raster is made
-    with ExitStack() as helpers, Standby(import_figure_libraries) as mapping, \
-            Standby(import_figure_libraries) as figures:
+    # forked now, while this process plans on one CPU: the figures' libraries are imported there, the
+    # redundancy map's cells are swept while the path is planned and the map drawn while the trajectory is
+    # timed, off the end of the run where the check, the figures and the post stage share the CPUs; the
+    # motion check's process is forked once the raster is made
+    with ExitStack() as helpers, Standby(import_figure_libraries, hand_on=True, nice=10) as mapping, \
+            Standby(import_figure_libraries, nice=10) as figures:
         return _run(job, settings, robot, outdir, log, compare, _Helpers(helpers, mapping, figures), leads_retried)
 
 
@@ -213,16 +241,25 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
     check_target_inputs(job, settings.process, surface)  # a target removal map it cannot meet: before planning
     settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
     path = log.done("raster", raster_path(surface, settings.raster))
+    ahead.rastered(path)
     checking = helpers.checking(settings, wp, path, surface)
+
+    def check(path_, trajectory_):   # the independent motion check, alongside the rest of the run
+        checking.start(partial(_timed_check, settings, trajectory_, robot, wp, path_, surface))
+    retimed_later = target_removal(settings)   # then the check takes the trajectory timed again for it
+    handed = Ahead(ahead, None if retimed_later else check)
     part = part_for_checks(settings, wp, surface)
     path, joint_path, trajectory, partial_figures = planned_and_timed(job, settings, robot, log, wp, part, surface,
-                                                                      path, outdir, ahead)
+                                                                      path, outdir, handed)
     log.done("plan", joint_path)
     retimed, dwell = retime_for_target(job, settings, surface, path, joint_path, robot)  # a target removal map
     trajectory = trajectory if retimed is None else retimed
     log.done("time", trajectory)
-    # the independent motion check runs alongside the post stage, which places no program before it passed
-    checking.start(partial(_timed_check, settings, trajectory, robot, wp, path, surface))
+    # the post stage places no program before the motion check passed
+    if handed.checked_trajectory is None:
+        check(path, trajectory)
+    elif handed.checked_trajectory is not trajectory:
+        raise RuntimeError("the motion check was handed another trajectory than the one programmed")
     trajectories = {settings.planner.method: trajectory}
     compared = None
     if compare:

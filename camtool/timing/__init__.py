@@ -27,7 +27,7 @@ measures the TCP feed. See docs/timing.md.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -127,7 +127,8 @@ def _validate(joint_path, path, robot) -> None:
                              "its limits; it cannot be timed")
 
 
-def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedTrajectory:
+def time_trajectory(joint_path, path, robot, settings: TimingSettings,
+                    before_check: Callable[[TimedTrajectory], None] | None = None) -> TimedTrajectory:
     """Time ``joint_path`` (rad / mm per row) into a TimedTrajectory within every joint limit.
 
     ``path`` gives the TCP positions (mm, world frame) used for the TCP speed on
@@ -139,7 +140,9 @@ def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedT
     pose), and
     ``check_dt_s``: the result is verified by ``check_trajectory`` on a
     resampling at that step (what the figures need kept as ``sampled``), and a CamtoolError is
-    raised if it breaks a limit.
+    raised if it breaks a limit. ``before_check(trajectory)`` is told the trajectory before that check
+    (the raster task starts the independent motion check on it, alongside; a finding of the 4 ms
+    check is raised all the same and ends the run).
     """
     _validate(joint_path, path, robot)
     L = robot.limits
@@ -165,6 +168,8 @@ def time_trajectory(joint_path, path, robot, settings: TimingSettings) -> TimedT
         piece_ruckig=np.asarray(surface.interpolation.piece_ruckig, bool),
         piece_reason=np.asarray(surface.interpolation.piece_reason, str),
     )
+    if before_check is not None:
+        before_check(traj)
     gather = MotionGatherer(traj, robot, settings.check_dt_s)
     findings = check_trajectory(traj, robot, settings.check_dt_s, each_block=gather)
     if findings:
