@@ -44,17 +44,18 @@ FAILING_NAME = "unreachable or failing poses"
 
 
 def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,
-                      trajectory=None, failing_indices=(), redundancy=None, faces=None, world=None) -> FsPath:
+                      trajectory=None, failing_indices=(), redundancy=None, faces=None, world=None,
+                      figures: list | None = None) -> FsPath:
     """Write the interactive report of a run (or of a failed plan) to ``file``; returns its path.
 
     Only ``report`` and ``robot`` are required: a failed job passes its path
     and ``failing_indices`` (path indices; ``report['unreachable']`` entries
     are marked too). ``redundancy`` is a ``RedundancyMap``; ``faces`` the job's
     ``faces.faces_report`` (a segmented part: its faces, numbered, the worked ones marked);
-    ``world`` the job's ``CollisionWorld`` (the robot's link shapes drawn).
+    ``world`` the job's ``CollisionWorld`` (the robot's link shapes drawn). ``figures``:
+    ``figure_sections``' of these inputs, when rendered already (then not rendered again).
     """
     file = FsPath(file)
-    feed = _feed(robot, trajectory) if trajectory is not None else None
     sections = [_verdict_section(report), _summary_section(report, robot, surface, path, failing_indices)]
     process = _process_section(report, surface)
     if process is not None:
@@ -64,6 +65,29 @@ def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None
                          + fig_html(_faces_figure(faces, workpiece), FACES_DIV)))
         if faces.get("worked"):
             sections.append(("Each face worked", _WORKED_NOTE, _worked_table(faces["worked"], report)))
+    if figures is None:
+        figures = figure_sections(report, robot, workpiece=workpiece, surface=surface, path=path,
+                                  joint_path=joint_path, trajectory=trajectory, failing_indices=failing_indices,
+                                  redundancy=redundancy, world=world)
+    sections += figures
+    title = f"camtool report: {robot.name}"
+    if report.get("status"):
+        title += f" ({report['status']})"
+    return write_html_page(file, title, sections)
+
+
+def figure_sections(report: dict, robot, *, workpiece=None, surface=None, path=None, joint_path=None,
+                    trajectory=None, failing_indices=(), redundancy=None, world=None) -> list[tuple[str, str, str]]:
+    """The page's figures as sections (heading, note HTML, content HTML): the scene, the TCP feed and the
+    joint use (or a note that there is no trajectory) and the redundancy map.
+
+    Of ``report`` they show ``tcp_speed_mm_s``, ``unreachable`` and, without a ``world``, the cell's
+    bodies (``motion_check.cell``); with one, its own. So a run renders them before its motion check
+    has given its verdict (``write_report_html(figures=)``)."""
+    feed = _feed(robot, trajectory) if trajectory is not None else None
+    if world is not None:   # the bodies as the motion check reports them (``CollisionWorld.describe``)
+        report = {**report, "motion_check": {**(report.get("motion_check") or {}), "cell": world.describe()}}
+    sections = []
     scene = _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, failing_indices, world)
     sections.append(("Workpiece, path and robot", _SCENE_NOTE, fig_html(scene, DIV["scene"])))
     if trajectory is not None:
@@ -80,10 +104,7 @@ def write_report_html(file, *, report: dict, robot, workpiece=None, surface=None
             what += " (" + "; ".join(redundancy.notes) + ")"
         sections.append(("Redundancy map", f'<p class="note"><b>{html.escape(what)}.</b></p>' + _REDUNDANCY_NOTE,
                          fig_html(_redundancy_figure(redundancy), DIV["redundancy"])))
-    title = f"camtool report: {robot.name}"
-    if report.get("status"):
-        title += f" ({report['status']})"
-    return write_html_page(file, title, sections)
+    return sections
 
 
 def write_html_page(file, title: str, sections: list[tuple[str, str, str]]) -> FsPath:
@@ -124,18 +145,21 @@ def redundancy_figure(outdir, robot, path=None, joint_path=None, failing_indices
 
 
 def write_run_html(outdir, *, report: dict, robot, workpiece=None, surface=None, path=None, joint_path=None,
-                   trajectory=None, failing_indices=(), faces=None, world=None, redundancy=None) -> list[FsPath]:
+                   trajectory=None, failing_indices=(), faces=None, world=None, redundancy=None,
+                   figures: list | None = None) -> list[FsPath]:
     """``OUTDIR/report.html`` and, for robots with closed-form IK, ``OUTDIR/plots/redundancy_map.png``.
 
     ``redundancy``: ``redundancy_figure``'s (map, files) when drawn already (alongside
-    the post stage), else it is drawn here. Returns the files written.
+    the post stage), else it is drawn here; ``figures``: ``figure_sections``' when rendered
+    already. Returns the files written.
     """
     outdir = FsPath(outdir)
     rmap, files = redundancy if redundancy is not None else redundancy_figure(
         outdir, robot, path, joint_path, failing_indices, world)
     html_file = write_report_html(outdir / "report.html", report=report, robot=robot, workpiece=workpiece,
                                   surface=surface, path=path, joint_path=joint_path, trajectory=trajectory,
-                                  failing_indices=failing_indices, redundancy=rmap, faces=faces, world=world)
+                                  failing_indices=failing_indices, redundancy=rmap, faces=faces, world=world,
+                                  figures=figures)
     return [html_file, *files]
 
 

@@ -510,7 +510,7 @@ def report_failure(exc: PlanInfeasible, path, joint_path, robot, job: Job, outdi
 
 
 def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, trajectories: dict, outdir: Path,
-               extra_files=(), world=None, figures=None, mapping=None) -> RunResult:
+               extra_files=(), world=None, figures=None, mapping=None, html_figures=None) -> RunResult:
     """Write the plots, points.csv and report.json of a successful run; the RunResult lists every file.
 
     ``world``: the job's collision world (the redundancy map's collision layer).
@@ -519,7 +519,8 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
     ``run_figures.draw_redundancy_map``'s (or None: not drawn ahead) (the raster task);
     their files are taken here, the wait for them is the stage ``figures`` and their own
     time is report.json's ``stage_seconds_alongside``. Without them the joint plots and
-    the redundancy map are drawn here."""
+    the redundancy map are drawn here. ``html_figures``: report.html's figures, rendered while
+    the motion check finished (``report_html.figure_sections``)."""
     outdir = Path(outdir)
     write_points_csv(path, joint_path, robot, outdir / "points.csv")
     log.lap("report")
@@ -550,7 +551,7 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
     html = write_run_html(outdir, report=report, robot=robot, workpiece=log.outputs.get("workpiece"),
                           surface=log.outputs.get("fit"), path=path, joint_path=joint_path,
                           trajectory=next(iter(trajectories.values())), faces=log.outputs.get("faces"),
-                          world=world, redundancy=redundancy)
+                          world=world, redundancy=redundancy, figures=html_figures)
     log.lap("report_html")
     report["stage_seconds"], report["stage_cpu_seconds"] = stage_seconds(log.seconds), stage_seconds(log.cpu_seconds)
     write_json_atomic(report, outdir / "report.json")  # again, with the page's own time (11 kB)

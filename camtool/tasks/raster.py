@@ -21,6 +21,7 @@ from ..process.outputs import process_outputs
 from ..process.dwell import check_target_inputs, retime_for_target, target_removal
 from ..process.stepover import auto_step_over
 from ..raster import raster_path
+from ..report_html import figure_sections
 from ..motion.geometry import import_part_libraries
 from ..run_figures import (FigureInputs, MapInputs, draw_redundancy_map, draw_run_figures,
                            import_figure_libraries, sweep_ahead)
@@ -275,8 +276,17 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
     figures.start(partial(draw_run_figures, drawn))
     # the check and the figures run while the programs are written (cancelled on an error: run)
 
+    rendered = {}
+
     def motion_checked():   # the programs are placed only once the motion check has passed
         log.lap("post")
+        drawn_map = _drawn_map(ahead)
+        if drawn_map is not None:   # report.html's figures need no verdict: rendered while the check finishes
+            rendered["html"] = figure_sections({"tcp_speed_mm_s": getattr(trajectory, "tcp_speed_mm_s", 0.0)},
+                                               robot, workpiece=wp, surface=surface, path=path,
+                                               joint_path=joint_path, trajectory=trajectory, world=world,
+                                               redundancy=drawn_map[0])
+            log.lap("report_html")
         figures_, (wall, cpu) = checking.result()
         log.alongside_seconds["check"], log.alongside_cpu_seconds["check"] = wall, cpu
         return log.done("check", figures_)
@@ -326,4 +336,5 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
     if compared is not None:
         report["compare"] = compared
     return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir,
-                      extra_files=tuple(process_files), world=world, figures=figures, mapping=ahead)
+                      extra_files=tuple(process_files), world=world, figures=figures, mapping=ahead,
+                      html_figures=rendered.get("html"))
