@@ -8,6 +8,10 @@ child raised (``failure()`` returns it), and gives the same when asked again. Wh
 ``fn`` runs in this process when its result is asked for: the same files, the same
 result, only later.
 
+Before each fork the objects that exist are frozen (``gc.freeze``, as CPython's documentation advises for
+a process that forks): the cyclic collector then never writes to the pages the child shares, which
+would copy them (a tenth fewer page faults and 0.3 s less CPU on the sample run, measured).
+
 Why by hand: threads would hold the GIL (matplotlib draws in Python), and the standard
 pools pickle their inputs (a dense job's trajectory is hundreds of MB) where a fork
 shares them copy-on-write; ``os.fork`` and ``pickle`` are all it takes. A child never
@@ -24,9 +28,11 @@ this process (a dense job's peak memory).
 """
 from __future__ import annotations
 
+import gc
 import os
 import pickle
 import signal
+import struct
 import sys
 import time
 from abc import ABC, abstractmethod
@@ -90,6 +96,7 @@ class _Child(ABC):
         read_fd, write_fd = os.pipe()
         sys.stdout.flush()
         sys.stderr.flush()  # nothing buffered is written twice
+        gc.freeze()   # what exists now is shared with the child: the collector no longer writes to it here or there
         pid = os.fork()
         if pid == 0:
             os.close(read_fd)
@@ -212,6 +219,7 @@ class Standby(_Child):
         self._task_pipe = None   # this process's end of the pipe that hands the tasks over
         if self.forked:
             task_read, task_write = os.pipe()
+            _widen(task_write)
             self._fork(lambda write_fd: self._wait_and_run(task_read, task_write, write_fd))
             os.close(task_read)
             self._task_pipe = os.fdopen(task_write, "wb")
@@ -220,14 +228,15 @@ class Standby(_Child):
         os.close(task_write)
         if self._nice:
             os.nice(self._nice)
+        handed = _HandedTasks(task_read)   # read from now on: a task handed while this prepares waits here
         value = _outcome(self._prepare)
-        handed = _HandedTasks(task_read)
         ran = False
-        for fn in handed:
+        for task in handed:
             ran = True
             if value[0] != _OK:   # after a failure the tasks are read and not run: the failure is the result
                 continue
-            value = (_RAISED, fn) if isinstance(fn, BaseException) else _outcome(self._task(fn, value))
+            fn = _outcome(partial(pickle.loads, task))
+            value = fn if fn[0] != _OK else _outcome(self._task(fn[1], value))
         if not ran:  # never started: the run went another way
             return
         data = _payload(lambda: _reraise(value[1]) if value[0] == _RAISED else value[1])
@@ -252,21 +261,20 @@ class Standby(_Child):
         self._tasks.append(fn)
         if self.forked and self._task_pipe is not None:
             try:
-                pickle.dump(fn, self._task_pipe, protocol=pickle.HIGHEST_PROTOCOL)
-                self._task_pipe.flush()
+                _write_frame(self._task_pipe, pickle.dumps(fn, protocol=pickle.HIGHEST_PROTOCOL))
             except BrokenPipeError:
                 self._close_tasks(tell=False)   # the child is gone: result() says how
         return self
 
     def _close_tasks(self, tell: bool = True) -> None:
         """No more tasks: the child hands its result back once the last is done. It is told so in so
-        many words (``_NoMoreTasks``): the end of the pipe alone would not do, as a child forked later
+        many words (an empty frame): the end of the pipe alone would not do, as a child forked later
         holds a copy of this end."""
         if self._task_pipe is not None:
             pipe, self._task_pipe = self._task_pipe, None
             try:
                 if tell:
-                    pickle.dump(_NoMoreTasks, pipe, protocol=pickle.HIGHEST_PROTOCOL)
+                    _write_frame(pipe, b"")
                 pipe.close()
             except BrokenPipeError:
                 pass
@@ -294,13 +302,45 @@ class Standby(_Child):
         super().cancel()
 
 
-class _NoMoreTasks:
-    """Handed to a ``Standby`` child after its last task."""
+_FRAME = struct.Struct("<Q")   # a task's length in bytes, before its pickle; 0: no more tasks
+PIPE_BYTES = 1 << 20           # a task pipe's capacity where the system allows it (Linux: F_SETPIPE_SZ)
+
+
+def _widen(fd: int) -> None:
+    """Give the task pipe ``PIPE_BYTES`` of room where the system allows: the child's reader thread then
+    takes a large task in a few reads, each waiting for the interpreter lock its busy main thread holds
+    (64 kB at a time, a 3 MB plan cost the parent a quarter of a second, measured)."""
+    import fcntl
+
+    try:
+        fcntl.fcntl(fd, getattr(fcntl, "F_SETPIPE_SZ", 1031), PIPE_BYTES)
+    except OSError:   # more than this system gives a pipe: its default stands
+        pass
+
+
+def _write_frame(pipe, data: bytes) -> None:
+    pipe.write(_FRAME.pack(len(data)))
+    pipe.write(data)
+    pipe.flush()
+
+
+def _read_exactly(pipe, size: int) -> bytes:
+    """``size`` bytes of ``pipe`` (a buffered reader), taken in as few reads as the pipe allows."""
+    chunks, left = [], size
+    while left:
+        chunk = pipe.read1(min(left, PIPE_BYTES))
+        if not chunk:
+            break
+        chunks.append(chunk)
+        left -= len(chunk)
+    return b"".join(chunks)
 
 
 class _HandedTasks:
-    """The tasks handed to a ``Standby`` child, in order: a thread unpickles each from the pipe as it
-    comes (the parent's write never waits on the child's work), until ``_NoMoreTasks`` (or the pipe's end)."""
+    """The tasks handed to a ``Standby`` child, in order, as pickled bytes: a thread reads each frame from the
+    pipe as it comes, from the child's start (the parent's write never waits on the child's work, its
+    ``prepare`` included), until an empty frame (or the pipe's end). The child unpickles them itself, one
+    by one: a thread reading bytes imports nothing while ``prepare`` imports."""
 
     _END = object()
 
@@ -314,16 +354,18 @@ class _HandedTasks:
     def _read(self, fd: int) -> None:
         try:
             with os.fdopen(fd, "rb") as pipe:
-                while (fn := pickle.load(pipe)) is not _NoMoreTasks:
-                    self._queue.put(fn)
-        except EOFError:   # the parent closed its end: no more tasks
-            pass
-        except Exception as exc:   # a task that cannot be read: its error is handed on as the outcome
-            self._queue.put(exc)
+                while True:
+                    head = pipe.read(_FRAME.size)
+                    if len(head) < _FRAME.size:
+                        break    # the parent's end closed
+                    (size,) = _FRAME.unpack(head)
+                    if not size:
+                        break    # no more tasks
+                    self._queue.put(_read_exactly(pipe, size))
         finally:
             self._queue.put(self._END)
 
     def __iter__(self):
-        """Each task as it comes (or the exception that unpickling it raised), until there are no more."""
-        while (fn := self._queue.get()) is not self._END:
-            yield fn
+        """Each task's pickle as it comes, until there are no more (an incomplete one: the pipe closed)."""
+        while (task := self._queue.get()) is not self._END:
+            yield task

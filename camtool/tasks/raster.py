@@ -5,7 +5,6 @@
 from __future__ import annotations
 
 import logging
-from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
@@ -23,9 +22,10 @@ from ..process.stepover import auto_step_over
 from ..raster import raster_path
 from ..report_html import figure_sections
 from ..motion.geometry import import_part_libraries
-from ..run_figures import (FigureInputs, MapInputs, draw_redundancy_map, draw_run_figures,
+from ..run_figures import (FigureInputs, MapInputs, draw_joint_plots, draw_redundancy_map, draw_run_figures,
                            import_figure_libraries, sweep_ahead)
 from ..placement.partial import partial_path, partial_summary, reachable_stretches
+from ..plan.kernel import load_compiled
 from ..placement.shift import nearest_feasible_shift
 from ..settings import JobSettings
 from ..surface import FaceSet
@@ -100,18 +100,20 @@ class MapAhead:
 
 class Ahead:
     """What the run hands its helpers as soon as it has it: the raster and the plan to the redundancy map
-    (``MapAhead``); the timed trajectory to the motion check (``check(path, trajectory)``), before the
-    time stage's own 4 ms check, while this process makes it. ``checked_trajectory``: the one handed."""
+    (``MapAhead``); the timed trajectory to the motion check and the joint plots (each ``timed`` callable
+    is called as ``(path, trajectory)``), before the time stage's own 4 ms check, while this process makes
+    it. ``timed_trajectory``: the one handed (None before, or with nothing to hand it to)."""
 
-    def __init__(self, mapping: MapAhead, check: Callable | None = None):
-        self.mapping, self._check = mapping, check
-        self.checked_trajectory = None
+    def __init__(self, mapping: MapAhead, timed: tuple[Callable, ...] = ()):
+        self.mapping, self._timed = mapping, timed
+        self.timed_trajectory = None
 
     def timed(self, path, trajectory) -> None:
-        """Hand ``trajectory`` (of ``path``) to the motion check, once."""
-        if self._check is not None and self.checked_trajectory is None:
-            self._check(path, trajectory)
-            self.checked_trajectory = trajectory
+        """Hand ``trajectory`` (of ``path``) on, once."""
+        if self._timed and self.timed_trajectory is None:
+            for hand in self._timed:
+                hand(path, trajectory)
+            self.timed_trajectory = trajectory
 
 
 def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp, part, surface, path, outdir: Path,
@@ -181,9 +183,15 @@ def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: Stage
     # redundancy map's cells are swept while the path is planned and the map drawn while the trajectory is
     # timed, off the end of the run where the check, the figures and the post stage share the CPUs; the
     # motion check's process is forked once the raster is made
-    with ExitStack() as helpers, Standby(import_figure_libraries, hand_on=True, nice=10) as mapping, \
-            Standby(import_figure_libraries, nice=10) as figures:
-        return _run(job, settings, robot, outdir, log, compare, _Helpers(helpers, mapping, figures), leads_retried)
+    # numba's compiled code is loaded first (its set-up, a quarter of a second, is then not paid again by the
+    # map's and the check's processes, which fork with it: the map's Jacobians and the check's grid loops)
+    with Standby(import_figure_libraries, hand_on=True, nice=5) as figures:
+        load_compiled()
+        log.lap("kernels")
+        with Standby(import_figure_libraries, hand_on=True, nice=10) as mapping, \
+                Standby(import_part_libraries, hand_on=True) as checking:
+            return _run(job, settings, robot, outdir, log, compare, _Helpers(mapping, figures, checking),
+                        leads_retried)
 
 
 class _LeadsIntoPart(Exception):
@@ -197,23 +205,20 @@ class _LeadsIntoPart(Exception):
 
 @dataclass(frozen=True)
 class _Helpers:
-    """The processes on standby for a raster run: the redundancy map and the plots, and the motion check's
-    (``checking``), which ``helpers`` closes with the run."""
+    """The processes on standby for a raster run: the redundancy map, the plots and the motion check's."""
 
-    helpers: ExitStack
     mapping: Standby
     figures: Standby
+    checking: Standby
 
-    def checking(self, settings: JobSettings, wp, path, surface) -> Standby:
-        """The motion check's process, forked now: it imports open3d and builds the part the check measures
-        against from the raster's work poses while the run plans, then checks what it is handed."""
-        return self.helpers.enter_context(Standby(partial(_check_part_ahead, settings, wp, path, surface),
-                                                  hand_on=True))
+    def rastered(self, settings: JobSettings, wp, path, surface) -> Standby:
+        """The motion check's process, told the raster: it builds the part the check measures against from the
+        raster's work poses while the run plans, then checks the trajectory it is handed (``then``)."""
+        return self.checking.start(partial(_check_part, settings, wp, path, surface))
 
 
-def _check_part_ahead(settings: JobSettings, wp, path, surface):
-    """The motion check's libraries and part (``stages.motion_check_part``), made ahead."""
-    import_part_libraries()
+def _check_part(settings: JobSettings, wp, path, surface, _prepared=None):
+    """The motion check's part (``stages.motion_check_part``), made ahead."""
     return motion_check_part(settings, wp, path, surface)
 
 
@@ -243,12 +248,18 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
     settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
     path = log.done("raster", raster_path(surface, settings.raster))
     ahead.rastered(path)
-    checking = helpers.checking(settings, wp, path, surface)
+    checking = helpers.rastered(settings, wp, path, surface)
+
+    def figure_inputs(trajectories):
+        return FigureInputs(trajectories, robot, outdir, settings.timing.check_dt_s, job.path.name)
 
     def check(path_, trajectory_):   # the independent motion check, alongside the rest of the run
-        checking.start(partial(_timed_check, settings, trajectory_, robot, wp, path_, surface))
-    retimed_later = target_removal(settings)   # then the check takes the trajectory timed again for it
-    handed = Ahead(ahead, None if retimed_later else check)
+        checking.then(partial(_timed_check, settings, trajectory_, robot, wp, path_, surface))
+
+    def plots(path_, trajectory_):   # the joint plots need no more than the trajectory (feed.png: after the time)
+        figures.start(partial(draw_joint_plots, figure_inputs({settings.planner.method: trajectory_})))
+    # a target removal map times the trajectory again: then the helpers take that one, after the time stage
+    handed = Ahead(ahead, () if target_removal(settings) else (check,) + (() if compare else (plots,)))
     part = part_for_checks(settings, wp, surface)
     path, joint_path, trajectory, partial_figures = planned_and_timed(job, settings, robot, log, wp, part, surface,
                                                                       path, outdir, handed)
@@ -257,10 +268,10 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
     trajectory = trajectory if retimed is None else retimed
     log.done("time", trajectory)
     # the post stage places no program before the motion check passed
-    if handed.checked_trajectory is None:
+    if handed.timed_trajectory is None:
         check(path, trajectory)
-    elif handed.checked_trajectory is not trajectory:
-        raise RuntimeError("the motion check was handed another trajectory than the one programmed")
+    elif handed.timed_trajectory is not trajectory:
+        raise RuntimeError("the helpers were handed another trajectory than the one programmed")
     trajectories = {settings.planner.method: trajectory}
     compared = None
     if compare:
@@ -272,8 +283,10 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
         except PlanInfeasible as exc:
             compared = {"method": other, "status": "infeasible", "reason": str(exc)}
         log.lap("compare")
-    drawn = FigureInputs(trajectories, robot, outdir, settings.timing.check_dt_s, job.path.name)
-    figures.start(partial(draw_run_figures, drawn))
+    if handed.timed_trajectory is None or compare:
+        figures.start(partial(draw_run_figures, figure_inputs(trajectories)))
+    else:   # the joint plots are under way (``plots``): feed.png, from the trajectory sampled by the 4 ms check
+        figures.then(partial(draw_run_figures, figure_inputs(trajectories)))
     # the check and the figures run while the programs are written (cancelled on an error: run)
 
     rendered = {}
