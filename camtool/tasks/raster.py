@@ -179,12 +179,11 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
 def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
                 leads_retried: str | None = None) -> RunResult:
     """``_run`` with its helpers forked, and closed with it."""
-    # forked now, while this process plans on one CPU: the figures' libraries are imported there, the
-    # redundancy map's cells are swept while the path is planned and the map drawn while the trajectory is
-    # timed, off the end of the run where the check, the figures and the post stage share the CPUs; the
-    # motion check's process is forked once the raster is made
-    # numba's compiled code is loaded first (its set-up, a quarter of a second, is then not paid again by the
-    # map's and the check's processes, which fork with it: the map's Jacobians and the check's grid loops)
+    # forked now, while this process plans on one CPU: the figures' and the check's libraries are imported
+    # there; the redundancy map's cells are swept and the check's part is made while the path is planned, the
+    # map drawn while the trajectory is timed, off the end of the run where the check, the figures and the post
+    # stage share the CPUs. numba's compiled code is loaded before the map's and the check's processes fork:
+    # its set-up (a quarter of a second) is not paid again there (the map's Jacobians, the check's grid loops)
     with Standby(import_figure_libraries, hand_on=True, nice=5) as figures:
         load_compiled()
         log.lap("kernels")
