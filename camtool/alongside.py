@@ -310,8 +310,8 @@ PIPE_BYTES = 1 << 20           # a task pipe's capacity where the system allows 
 
 def _widen(fd: int) -> None:
     """Give the task pipe ``PIPE_BYTES`` of room where the system allows: the child's reader thread then
-    takes a large task in a few reads, each waiting for the interpreter lock its busy main thread holds
-    (64 kB at a time, a 3 MB plan cost the parent a quarter of a second, measured)."""
+    takes a large task (a plan, a trajectory: megabytes) in a few reads instead of 64 kB ones, and each
+    read waits for the interpreter lock that the child's busy main thread holds."""
     import fcntl
 
     try:
