@@ -21,10 +21,9 @@ import numpy as np
 import trimesh
 
 from .errors import PlanInfeasible
-from .faces import face_surface_for_job, segmented
-from .fit import fit_surface
 from .job import Job
 from .motion import MotionCheckSettings, check_motion, part_from_path
+from .part_stages import surface_for_job, workpiece_for_job  # noqa: F401  (the stages of every task)
 from .placement.margins import reach_margins
 from .plan import plan_path
 from .plan.connectors import LiftSettings, lift_reconfigurations
@@ -41,12 +40,11 @@ from .report import (plan_metrics, plot_joints, plot_unreachable, stage_seconds,
                      write_points_csv)
 from .report_html import write_run_html
 from .robots import get_robot
-from .settings import FitSettings, JobSettings, PlannerSettings, RasterSettings, TimingSettings, WorkpieceSettings
+from .settings import JobSettings, PlannerSettings, RasterSettings, TimingSettings
 from .surface import FaceSet
 from .timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
 from .toolpath import row_segments
 from .transforms import matrix_from_xyz_rpy
-from .workpiece import load_workpiece
 
 FREE_MOVE_RADIUS_MM = 60.0   # link capsule radius of the approach / depart collision check
 CONTACT_ALLOWANCE_MM = 20.0  # the exempt ball round the first / last tool contact: capsule radius + this
@@ -126,21 +124,6 @@ def robot_for_job(job: Job):
     return get_robot(job.robot.name, job.robot.params, job.dir).with_placement(
         matrix_from_xyz_rpy(job.cell.base_xyz_mm, job.cell.base_rpy_deg),
         matrix_from_xyz_rpy(job.tool.tcp_xyz_mm, job.tool.tcp_rpy_deg))
-
-
-def workpiece_for_job(job: Job):
-    """Load the job's workpiece and place it in the world frame (cell.workpiece_*)."""
-    s = WorkpieceSettings.from_section(job.workpiece)
-    wp = load_workpiece(job.resolve(s.file), units=s.units, sample_points=s.sample_points,
-                        normal_neighbours=s.normal_neighbours, seed=job.fit.seed, drop_nonfinite=s.drop_nonfinite)
-    return wp.transformed(matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg))
-
-
-def surface_for_job(job: Job, workpiece):
-    """Fit the job's surface (world frame) to a placed workpiece; with [faces] select, the selected face's."""
-    if segmented(job):
-        return face_surface_for_job(job, workpiece)
-    return fit_surface(workpiece, FitSettings.from_section(job.fit))
 
 
 def path_for_job(job: Job, surface):

@@ -1,4 +1,5 @@
 """``camtool run``: the whole pipeline for one job."""
+from contextlib import nullcontext
 from pathlib import Path
 
 import click
@@ -35,9 +36,11 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     and every program passed `camtool check`. Exit 3 when the plan cannot be
     done (report.json and plots/unreachable.png say where and why).
     """
-    from ..pipeline import run_job
+    from ..part_stages import PartAhead
 
     job = load_job(job_file, list(overrides) + (["task.allow_partial=true"] if allow_partial else []))
+    # the workpiece is read and fitted in a process of its own while this one imports the pipeline
+    part = PartAhead(job) if job.task.kind in ("raster", "sequential_reach") else None
     outdir = outdir or Path("out") / job_file.stem
     # scripts read --json: no progress with it unless asked for (--progress, as batch jobs do for their log)
     progress = StageProgress(quiet=quiet or (as_json and not log_stages), log=log_stages)
@@ -47,10 +50,13 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
             click.echo(f"camtool: warning: {warning}", err=True)
         progress.done(name)
 
-    try:
-        result = run_job(job, outdir, compare=compare, on_stage=on_stage)
-    finally:
-        progress.close()
+    with part if part is not None else nullcontext():
+        from ..pipeline import run_job
+
+        try:
+            result = run_job(job, outdir, compare=compare, on_stage=on_stage, part=part)
+        finally:
+            progress.close()
     report = result.outputs["report"]
     if as_json:
         echo_json(report)

@@ -239,8 +239,10 @@ def trajectory_deviation_mm(trajectory, robot, path: Path, prims: list[Primitive
     return worst
 
 
-def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: bool = False) -> RunResult:
-    """Run a ``task.kind = "cartesian"`` job (see module doc). ``compare`` does not apply and is ignored."""
+def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: bool = False,
+        part=None) -> RunResult:
+    """Run a ``task.kind = "cartesian"`` job (see module doc). ``compare`` and ``part`` (a workpiece made
+    ahead) do not apply and are ignored."""
     outdir = FsPath(outdir)
     T_start = matrix_from_xyz_rpy(job.task.cart_start_mm, job.task.cart_start_rpy_deg)
     moves = seed001_moves(job)

@@ -16,6 +16,7 @@ from ..errors import BadInput, PlanInfeasible
 from ..face_report import faces_worked
 from ..faces import faces_report, segmented
 from ..job import Job
+from ..part_stages import PartAhead
 from ..process.outputs import process_outputs
 from ..process.dwell import check_target_inputs, retime_for_target, target_removal
 from ..process.stepover import auto_step_over
@@ -160,24 +161,26 @@ def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp,
     return path, joint_path, trajectory, stretches
 
 
-def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool = False) -> RunResult:
-    """Run a raster job; programs, report.json, points.csv and plots go into ``outdir``."""
+def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool = False,
+        part: PartAhead | None = None) -> RunResult:
+    """Run a raster job; programs, report.json, points.csv and plots go into ``outdir``. ``part``: its
+    workpiece and surface made ahead (``part_stages.PartAhead``), else they are made here."""
     if settings.planner.method == "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: 'arm-angle-sqp' plans task.kind = 'sequential_reach', "
                        f"not {job.task.kind!r} jobs")
     try:
-        return _helped_run(job, settings, robot, Path(outdir), log, compare)
+        return _helped_run(job, settings, robot, Path(outdir), log, compare, part)
     except _LeadsIntoPart as first:
         # first make the motion work: leads lifted clear of the row's tangent, planned again (a neighbouring
         # face that goes on tangentially, a dome on a cylinder); its failure, if it fails too, is the run's
         _log.warning("camtool: the motion check found the tool in the part in a lead (%s); planned again with the "
                      "leads lifted clear of the rows' tangents (raster.lead_path = \"tangent\")", first.finding)
         tangent = replace(settings, raster=replace(settings.raster, lead_path="tangent"))
-        return _helped_run(job, tangent, robot, Path(outdir), log, compare, leads_retried=first.finding)
+        return _helped_run(job, tangent, robot, Path(outdir), log, compare, part, leads_retried=first.finding)
 
 
 def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
-                leads_retried: str | None = None) -> RunResult:
+                part: PartAhead | None, leads_retried: str | None = None) -> RunResult:
     """``_run`` with its helpers forked, and closed with it."""
     # forked now, while this process plans on one CPU: the figures' and the check's libraries are imported
     # there; the redundancy map's cells are swept and the check's part is made while the path is planned, the
@@ -189,7 +192,7 @@ def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: Stage
         log.lap("kernels")
         with Standby(import_figure_libraries, hand_on=True, nice=10) as mapping, \
                 Standby(import_part_libraries, hand_on=True) as checking:
-            return _run(job, settings, robot, outdir, log, compare, _Helpers(mapping, figures, checking),
+            return _run(job, settings, robot, outdir, log, compare, _Helpers(mapping, figures, checking), part,
                         leads_retried)
 
 
@@ -233,13 +236,13 @@ def _drawn_map(ahead: MapAhead):
 
 
 def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
-         helpers: _Helpers, leads_retried: str | None = None) -> RunResult:
+         helpers: _Helpers, part: PartAhead | None, leads_retried: str | None = None) -> RunResult:
     """``run`` with its helpers on standby (``camtool.alongside.Standby``)."""
     figures = helpers.figures
     world = collision_world(settings, robot)
     ahead = MapAhead(helpers.mapping, robot, outdir, world)
-    wp = log.done("workpiece", workpiece_for_job(job))
-    surface = log.done("fit", surface_for_job(job, wp))
+    wp = log.done("workpiece", part.workpiece() if part is not None else workpiece_for_job(job))
+    surface = log.done("fit", part.surface() if part is not None else surface_for_job(job, wp))
     several = isinstance(surface, FaceSet)  # faces.select names several faces: one program for them all
     if several:
         check_several_faces(job, settings)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job
+from ..part_stages import PartAhead
 from ..plan.arm_angle_sqp import plan_arm_angle_sqp
 from ..report import write_json_atomic
 from ..collision.stage import collision_world
@@ -117,8 +118,10 @@ def family_table_text(res) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: bool = False) -> RunResult:
-    """Run a sequential_reach job (see module doc). ``compare`` does not apply and is ignored."""
+def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: bool = False,
+        part: PartAhead | None = None) -> RunResult:
+    """Run a sequential_reach job (see module doc). ``compare`` does not apply and is ignored; ``part``: the
+    workpiece and surface made ahead (``part_stages.PartAhead``), else they are made here."""
     if settings.planner.method != "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: task.kind = 'sequential_reach' is planned by "
                        f"'arm-angle-sqp', found {job.planner.method!r}")
@@ -127,8 +130,8 @@ def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: 
 
     surface = wp = None
     if job.task.plane == "fit":
-        wp = done("workpiece", workpiece_for_job(job))
-        surface = done("fit", surface_for_job(job, wp))
+        wp = done("workpiece", part.workpiece() if part is not None else workpiece_for_job(job))
+        surface = done("fit", part.surface() if part is not None else surface_for_job(job, wp))
     point, normal = target_plane(job, surface)
     path = done("raster", reach_path(job, point, normal, job.cell.base_xyz_mm))
     try:
