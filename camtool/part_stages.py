@@ -4,7 +4,8 @@
 (or the selected face's). Both need only the workpiece readers and the fit, so this module
 imports nothing else heavy (``camtool.stages`` re-exports them).
 
-``PartAhead`` makes both in a child forked as ``camtool run`` starts (``alongside.Alongside``),
+A task takes them through a ``JobPart``, each at its own stage: ``PartHere`` makes them in the
+run's process when asked; ``PartAhead`` makes both in a child forked as ``camtool run`` starts (``alongside.Alongside``),
 while the run's own process imports the pipeline: for most of a second that process uses one
 core, and the child's imports, reading and fitting take the other. The run then takes the
 workpiece and the surface from the child, each at its own stage (``workpiece()``, ``surface()``):
@@ -13,6 +14,7 @@ stage, with the same message as when they are made in the run's process.
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from functools import partial
 
 from .alongside import Alongside
@@ -49,7 +51,34 @@ def _workpiece_and_surface(job: Job) -> tuple:
         return wp, exc
 
 
-class PartAhead:
+class JobPart(ABC):
+    """The job's workpiece and fitted surface, each taken at its own stage, the workpiece first."""
+
+    @abstractmethod
+    def workpiece(self):
+        """The placed workpiece (what reading it raised is raised here)."""
+
+    @abstractmethod
+    def surface(self):
+        """The fitted surface (what the fit raised is raised here)."""
+
+
+class PartHere(JobPart):
+    """The job's workpiece and surface made in this process when asked (the workpiece once)."""
+
+    def __init__(self, job: Job):
+        self._job, self._workpiece = job, None
+
+    def workpiece(self):
+        if self._workpiece is None:
+            self._workpiece = workpiece_for_job(self._job)
+        return self._workpiece
+
+    def surface(self):
+        return surface_for_job(self._job, self.workpiece())
+
+
+class PartAhead(JobPart):
     """The job's workpiece and surface, made in a forked child (``Alongside``; a context manager: the child
     is killed if the run ends first)."""
 
@@ -57,11 +86,9 @@ class PartAhead:
         self._child = Alongside(partial(_workpiece_and_surface, job))
 
     def workpiece(self):
-        """The placed workpiece (what reading it raised is raised here)."""
         return self._child.result()[0]
 
     def surface(self):
-        """The fitted surface (what the fit raised is raised here)."""
         surface = self._child.result()[1]
         if isinstance(surface, CamtoolError):
             raise surface

@@ -20,7 +20,7 @@ from .job import Job
 from .output import final_path, place, staged_output
 from .post import preflight
 from .settings import JobSettings
-from .part_stages import PartAhead
+from .part_stages import JobPart, PartHere
 from .stages import (RunResult, StageLog, path_for_job, plan_and_time, robot_for_job, surface_for_job,
                      workpiece_for_job)
 from .tasks import TASKS
@@ -30,12 +30,12 @@ __all__ = ["RunResult", "run_job", "robot_for_job", "workpiece_for_job", "surfac
 
 
 def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | None = None,
-            part: PartAhead | None = None) -> RunResult:
+            part: JobPart | None = None) -> RunResult:
     """Run every stage of ``job``; programs, report.json, points.csv and plots go into ``outdir``.
 
     No program is written unless planning, timing, the independent trajectory
-    check and every program check succeed. ``part``: the job's workpiece and surface made ahead
-    (``part_stages.PartAhead``; ``camtool run`` forks it as it starts), else they are made here.
+    check and every program check succeed. ``part``: the job's workpiece and surface (``part_stages``:
+    ``camtool run`` makes them ahead, ``PartAhead``); by default they are made here (``PartHere``).
     """
     robot = robot_for_job(job)
     outdir = Path(outdir)
@@ -44,7 +44,8 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
     log = StageLog(on_stage=on_stage)
     with staged_output(outdir) as stage:
         try:
-            result = TASKS[job.task.kind](job, settings, robot, stage, log, compare=compare, part=part)
+            result = TASKS[job.task.kind](job, settings, robot, stage, log, compare=compare,
+                                          part=part if part is not None else PartHere(job))
         except CamtoolError as exc:
             if (stage / "report.json").is_file():  # a failure report: placed, and the old programs go
                 place(stage, outdir)

@@ -313,10 +313,10 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
             chains = [partial(_format_programs, fmt, post, trajectory, robot, (tmp, outdir), process, reference,
                               world) for fmt, post in profiles.items()]
             ahead = [alongside.enter_context(Alongside(chain)) for chain in chains[:-1]]
-            last = Alongside(chains[-1], forked=False) if chains else None
-            if last is not None:
+            here = [Alongside(chain, forked=False) for chain in chains[-1:]]
+            for last in here:
                 last.failure()   # run here, now; what it raised comes after the formats before it
-            outcomes = [c.result() for c in [*ahead, last] if c]
+            outcomes = [c.result() for c in ahead + here]
             for post in profiles.values():   # whichever process read them back, none is kept here
                 post.plugin.forget()
             for fmt, (files, found, figures) in zip(profiles, outcomes):

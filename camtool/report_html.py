@@ -536,10 +536,10 @@ def _scene_figure(report, robot, workpiece, surface, path, joint_path, feed, fai
                       scene={"aspectmode": "data", "xaxis_title": "x [mm]", "yaxis_title": "y [mm]",
                              "zaxis_title": "z [mm]"}, uirevision="scene")
     figure = _with_traces(fig, traces)
-    if steps:   # plain data as the traces (keys in plotly's order): its restyle arguments are every step's vertices
+    if steps:   # plain data as the traces: its restyle arguments are every step's vertices
         figure["layout"]["sliders"] = [{"active": 0, "currentvalue": {"prefix": "robot at "}, "pad": {"t": 10},
-                                        "steps": [{"args": [s["args"][0], list(range(first_robot, len(traces)))],
-                                                   "label": s["label"], "method": s["method"]} for s in steps]}]
+                                        "steps": [dict(s, args=[s["args"][0], list(range(first_robot, len(traces)))])
+                                                  for s in steps]}]
     return figure
 
 
@@ -644,7 +644,7 @@ def _robot_traces(go, robot, path, joint_path, shapes=None):
         i = int(joint_path.path_index[k])
         zone = ZONES[joint_path.zone[k]]
         label = f"pose {i} ({zone})" if i >= 0 else f"row {int(k)} ({zone})"
-        steps.append({"method": "restyle", "label": label, "args": [args]})
+        steps.append({"args": [args], "label": label, "method": "restyle"})   # keys in plotly's order
     traces = [_trace("scatter3d", mode="lines+markers", name="robot joints (slider below)", **first, line=line,
                      marker=marker, hoverinfo="skip")]
     if shapes is not None:

@@ -95,13 +95,10 @@ def draw_run_figures(inputs: FigureInputs, joint_plots: JointPlots | None = None
     own = next(iter(inputs.trajectories.values()))
     feed_png = plot_feed_png(own, sampled_for(own, inputs.robot, inputs.dt_s),
                              Path(inputs.outdir) / "plots" / "feed.png", title=inputs.title)
-    ahead = joint_plots is not None   # drawn before: their time is added to this
-    if not ahead:
-        joint_plots = draw_joint_plots(inputs)
     now = _clock()
-    before = (joint_plots.seconds, joint_plots.cpu_seconds) if ahead else (0.0, 0.0)
-    return RunFigures(feed_png, joint_plots.files, {"plots": round(now[0] - wall + before[0], 3)},
-                      {"plots": round(now[1] - cpu + before[1], 3)})
+    joint_plots = joint_plots if joint_plots is not None else draw_joint_plots(inputs)
+    return RunFigures(feed_png, joint_plots.files, {"plots": round(now[0] - wall + joint_plots.seconds, 3)},
+                      {"plots": round(now[1] - cpu + joint_plots.cpu_seconds, 3)})
 
 
 @dataclass(frozen=True)

@@ -134,13 +134,12 @@ def quintic_at(t_s, q, qd, qdd, k, tt, derivatives: int = 0):
     piece's joint values, or with ``derivatives`` = 1..3 the tuple (q, qd[, qdd[, qddd]]). The one
     evaluation of the planned motion: sampling, the writers' merging and the simulator's reference
     all read the motion through it. A step of zero duration has zero derivatives."""
-    k = np.asarray(k)
-    h = (t_s[k + 1] - t_s[k])[:, None]
-    s = ((tt - t_s[k])[:, None]) / np.where(h > 0, h, 1.0)
-    # each step's coefficients once, then taken for its samples: the same values as per sample
-    step, at = np.unique(k, return_inverse=True)
+    # each step's duration and coefficients once, then taken for its samples: the same values as per sample
+    step, at = np.unique(np.asarray(k), return_inverse=True)
     at = at.reshape(-1)
     hk = (t_s[step + 1] - t_s[step])[:, None]
+    h = hk[at]
+    s = ((tt - t_s[k])[:, None]) / np.where(h > 0, h, 1.0)
     c = quintic_coefficients(q[step], qd[step] * hk, qdd[step] * hk**2, q[step + 1], qd[step + 1] * hk,
                              qdd[step + 1] * hk**2)
     p = np.zeros((len(k), np.shape(q)[1]))

@@ -1,6 +1,8 @@
 """The task registry: what a job does, by ``task.kind``.
 
-    TASKS[kind](job, settings, robot, outdir, log) -> RunResult
+    TASKS[kind](job, settings, robot, outdir, log, compare=..., part=...) -> RunResult
+
+(``part``: the job's workpiece and surface, ``part_stages.JobPart``.)
 
 - ``raster`` (``tasks/raster.py``): the main seed's surface raster.
 - ``sequential_reach`` (``tasks/reach.py``): seed 002's target grid by arm-angle SQP.

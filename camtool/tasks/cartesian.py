@@ -31,6 +31,7 @@ from pathlib import Path as FsPath
 
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job
+from ..part_stages import JobPart
 from ..plan.cwln import CwlnSolver, IkSettings
 from ..robots.ik_spherical_wrist import SphericalWristIK
 from ..collision.stage import collision_world
@@ -239,10 +240,10 @@ def trajectory_deviation_mm(trajectory, robot, path: Path, prims: list[Primitive
     return worst
 
 
-def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: bool = False,
-        part=None) -> RunResult:
-    """Run a ``task.kind = "cartesian"`` job (see module doc). ``compare`` and ``part`` (a workpiece made
-    ahead) do not apply and are ignored."""
+def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: bool = False, *,
+        part: JobPart) -> RunResult:
+    """Run a ``task.kind = "cartesian"`` job (see module doc). ``compare`` and ``part`` (a workpiece) do not
+    apply and are ignored."""
     outdir = FsPath(outdir)
     T_start = matrix_from_xyz_rpy(job.task.cart_start_mm, job.task.cart_start_rpy_deg)
     moves = seed001_moves(job)

@@ -16,7 +16,7 @@ from ..errors import BadInput, PlanInfeasible
 from ..face_report import faces_worked
 from ..faces import faces_report, segmented
 from ..job import Job
-from ..part_stages import PartAhead
+from ..part_stages import JobPart
 from ..process.outputs import process_outputs
 from ..process.dwell import check_target_inputs, retime_for_target, target_removal
 from ..process.stepover import auto_step_over
@@ -34,7 +34,7 @@ from ..timing import sampled_for
 from ..timing.pathlaw import remembered_runs
 from ..stages import (RunResult, StageLog, finish_run, leads_into_part, motion_check, motion_check_part, part_for_checks,
                       plan_and_time, plan_with_sized_leads, post_checked, report_failure, report_unreachable,
-                      run_report, surface_for_job, time_for_job, workpiece_for_job)
+                      run_report, time_for_job)
 
 
 _log = logging.getLogger("camtool.run")
@@ -161,10 +161,10 @@ def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp,
     return path, joint_path, trajectory, stretches
 
 
-def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool = False,
-        part: PartAhead | None = None) -> RunResult:
+def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool = False, *,
+        part: JobPart) -> RunResult:
     """Run a raster job; programs, report.json, points.csv and plots go into ``outdir``. ``part``: its
-    workpiece and surface made ahead (``part_stages.PartAhead``), else they are made here."""
+    workpiece and surface (``part_stages.JobPart``)."""
     if settings.planner.method == "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: 'arm-angle-sqp' plans task.kind = 'sequential_reach', "
                        f"not {job.task.kind!r} jobs")
@@ -180,7 +180,7 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
 
 
 def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
-                part: PartAhead | None, leads_retried: str | None = None) -> RunResult:
+                job_part: JobPart, leads_retried: str | None = None) -> RunResult:
     """``_run`` with its helpers forked, and closed with it."""
     # forked now, while this process plans on one CPU: the figures' and the check's libraries are imported
     # there; the redundancy map's cells are swept and the check's part is made while the path is planned, the
@@ -192,8 +192,8 @@ def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: Stage
         log.lap("kernels")
         with Standby(import_figure_libraries, hand_on=True, nice=10) as mapping, \
                 Standby(import_part_libraries, hand_on=True) as checking:
-            return _run(job, settings, robot, outdir, log, compare, _Helpers(mapping, figures, checking), part,
-                        leads_retried)
+            return _run(job, settings, robot, outdir, log, compare, _Helpers(mapping, figures, checking),
+                        job_part, leads_retried)
 
 
 class _LeadsIntoPart(Exception):
@@ -236,13 +236,13 @@ def _drawn_map(ahead: MapAhead):
 
 
 def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
-         helpers: _Helpers, part: PartAhead | None, leads_retried: str | None = None) -> RunResult:
+         helpers: _Helpers, job_part: JobPart, leads_retried: str | None = None) -> RunResult:
     """``run`` with its helpers on standby (``camtool.alongside.Standby``)."""
     figures = helpers.figures
     world = collision_world(settings, robot)
     ahead = MapAhead(helpers.mapping, robot, outdir, world)
-    wp = log.done("workpiece", part.workpiece() if part is not None else workpiece_for_job(job))
-    surface = log.done("fit", part.surface() if part is not None else surface_for_job(job, wp))
+    wp = log.done("workpiece", job_part.workpiece())
+    surface = log.done("fit", job_part.surface())
     several = isinstance(surface, FaceSet)  # faces.select names several faces: one program for them all
     if several:
         check_several_faces(job, settings)

@@ -25,13 +25,13 @@ import numpy as np
 
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job
-from ..part_stages import PartAhead
+from ..part_stages import JobPart
 from ..plan.arm_angle_sqp import plan_arm_angle_sqp
 from ..report import write_json_atomic
 from ..collision.stage import collision_world
 from ..settings import JobSettings
 from ..stages import (RunResult, StageLog, finish_run, lift_connectors, motion_check, part_for_checks, post_checked,
-                      report_failure, run_report, surface_for_job, time_for_job, workpiece_for_job)
+                      report_failure, run_report, time_for_job)
 from ..toolpath import ZONE_CODE, Path
 
 FAMILY_TABLE_FILE = "arm_angle_families.txt"
@@ -118,10 +118,10 @@ def family_table_text(res) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: bool = False,
-        part: PartAhead | None = None) -> RunResult:
-    """Run a sequential_reach job (see module doc). ``compare`` does not apply and is ignored; ``part``: the
-    workpiece and surface made ahead (``part_stages.PartAhead``), else they are made here."""
+def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: bool = False, *,
+        part: JobPart) -> RunResult:
+    """Run a sequential_reach job (see module doc). ``compare`` does not apply and is ignored; ``part``: its
+    workpiece and surface (``part_stages.JobPart``)."""
     if settings.planner.method != "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: task.kind = 'sequential_reach' is planned by "
                        f"'arm-angle-sqp', found {job.planner.method!r}")
@@ -130,8 +130,8 @@ def run(job: Job, settings: JobSettings, robot, outdir, log: StageLog, compare: 
 
     surface = wp = None
     if job.task.plane == "fit":
-        wp = done("workpiece", part.workpiece() if part is not None else workpiece_for_job(job))
-        surface = done("fit", part.surface() if part is not None else surface_for_job(job, wp))
+        wp = done("workpiece", part.workpiece())
+        surface = done("fit", part.surface())
     point, normal = target_plane(job, surface)
     path = done("raster", reach_path(job, point, normal, job.cell.base_xyz_mm))
     try:
