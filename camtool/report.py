@@ -15,6 +15,7 @@ from .timing.feed import display_envelope
 from .toolpath import ZONE_CODE, ZONES, Path
 from .trajectory import JointPath, Trajectory
 from . import safe_io
+from .program.text import column_names
 
 WORK = ZONE_CODE["work"]
 
@@ -112,7 +113,7 @@ def write_points_csv(path: Path, jp: JointPath, robot, file: FsPath) -> None:
     CSV as the csv module writes it (comma-separated, CRLF), one format string a row:
     no field holds a comma, a quote or a line break."""
     file = FsPath(file)
-    names = [f"{n}_{'mm' if p else 'deg'}" for n, p in zip(robot.joint_names, robot.prismatic)]
+    names = [f"{n}_{'mm' if p else 'deg'}" for n, p in zip(column_names(robot.joint_names), robot.prismatic)]
     step = np.zeros(len(jp.q))
     step[1:] = np.degrees(np.abs(np.diff(jp.q, axis=0))[:, ~robot.prismatic].max(axis=1))
     idx = np.asarray(jp.path_index, int)

@@ -212,18 +212,18 @@ def _strict_table(rows: list[str], ncols: int, path: Path, first_line: int, what
         if table.shape == (len(rows), ncols):
             return table
         problem = f"{table.shape[0]} rows of {table.shape[1]} numbers"
-    except ValueError as exc:
-        problem = (str(exc).splitlines() or [""])[0][:120]
+    except ValueError:  # numpy's message quotes the file's text: never passed on (it may be a secret)
+        problem = "a value that is not a number"
     for i, row in enumerate(rows):
         tokens = row.split()
         if len(tokens) != ncols:
             raise BadInput(f"{path}: line {first_line + i}: expected {ncols} numbers for {what}, "
                            f"found {len(tokens)}; the file is truncated or corrupt, export it again")
-        for tok in tokens:
+        for k, tok in enumerate(tokens):
             try:
                 float(tok)
             except ValueError:
-                raise BadInput(f"{path}: line {first_line + i}: {tok[:24]!r} is not a number; "
+                raise BadInput(f"{path}: line {first_line + i}: value {k + 1} is not a number; "
                                "the file is corrupt, export it again") from None
     raise BadInput(f"{path}: lines {first_line}..{first_line + len(rows) - 1} are not a table of "
                    f"{ncols} numbers per {what} ({problem}); the file is corrupt, export it again")
@@ -357,8 +357,8 @@ def _check_ascii_stl(path: Path, data: bytes) -> tuple[int, np.ndarray]:
     for i, row in enumerate(rows):
         tokens = row.split()
         if len(tokens) != 3 or not all(_is_float(t) for t in tokens):
-            raise BadInput(f"{path}: ASCII STL vertex {i} (triangle {i // 3}) is not 3 numbers "
-                           f"({row.strip()[:40]!r}); the file is corrupt, export it again")
+            raise BadInput(f"{path}: ASCII STL vertex {i} (triangle {i // 3}) is not 3 numbers; "
+                           "the file is corrupt, export it again")
     raise BadInput(f"{path}: ASCII STL vertex lines are not numbers; the file is corrupt, export it again")
 
 
@@ -386,7 +386,7 @@ def _load_obj(path: Path) -> _Raw:
         if not tokens or tokens[0] != "v":
             continue
         if len(tokens) - 1 not in (3, 4, 6, 7) or not all(_is_float(t) for t in tokens[1:]):
-            raise BadInput(f"{path}: line {no}: a vertex needs x y z numbers, found {line.strip()[:40]!r}; "
+            raise BadInput(f"{path}: line {no}: a vertex needs x y z numbers; "
                            "the file is truncated or corrupt, export it again")
         v_lines.append(no)
     raw = _mesh_from_trimesh(_trimesh_load(path, "obj"), path)
@@ -417,15 +417,15 @@ def _load_off(path: Path) -> _Raw:
     verts = [_floats3(line) for line in rest[:nv]]
     bad = next((i for i, v in enumerate(verts) if v is None), None)
     if bad is not None:
-        raise BadInput(f"{path}: OFF vertex {bad} is not x y z numbers ({rest[bad][:40]!r}); "
+        raise BadInput(f"{path}: OFF vertex {bad} is not x y z numbers; "
                        "the file is corrupt, export it again")
     triangles = 0
     for i, line in enumerate(rest[nv:nv + nf]):  # n i1 .. in [colour]: trimesh skips a short one
         tokens = line.split()
         n = int(tokens[0]) if tokens[0].isdigit() else 0
         if n < 3 or len(tokens) < 1 + n or not all(_INT_TOKEN.fullmatch(t) for t in tokens[1:1 + n]):
-            raise BadInput(f"{path}: OFF face {i} is not a vertex count >= 3 and that many indices "
-                           f"({line[:40]!r}); the file is truncated or corrupt, export it again")
+            raise BadInput(f"{path}: OFF face {i} is not a vertex count >= 3 and that many indices; "
+                           "the file is truncated or corrupt, export it again")
         triangles += n - 2
     raw = _mesh_from_trimesh(_trimesh_load(path, "off"), path)
     got = 0 if raw.faces is None else len(raw.faces)
@@ -497,7 +497,7 @@ def _ply_header(path: Path, data: bytes) -> tuple[str, list[_PlyElement], int, i
         tok = line.split()
         if not tok or tok[0] in ("comment", "obj_info"):
             continue
-        bad = BadInput(f"{path}: PLY header line {no} ({line.strip()[:40]!r}) is malformed; the file is corrupt")
+        bad = BadInput(f"{path}: PLY header line {no} is malformed; the file is corrupt")
         if _CONTROL.search(line.rstrip("\r")):
             raise bad
         if tok[0] == "format":
@@ -640,8 +640,8 @@ def _check_ply_list_rows(rows: list[str], e: _PlyElement, path: Path, line0: int
             if not ok:
                 break
         if not ok or at != len(tokens):
-            raise BadInput(f"{path}: line {line0 + i}: {e.name} {i} does not match the header's properties "
-                           f"({row.strip()[:40]!r}); the file is truncated or corrupt, export it again")
+            raise BadInput(f"{path}: line {line0 + i}: {e.name} {i} does not match the header's properties; "
+                           "the file is truncated or corrupt, export it again")
     return all_three
 
 
@@ -730,7 +730,7 @@ def _pcd_header(path: Path, data: bytes) -> dict:
                            "export it again")
         key = tok[0]
         if key not in _PCD_KEYS or key in h:
-            raise BadInput(f"{path}: PCD header line {no} ({line[:40]!r}) is not a PCD header field or repeats one; "
+            raise BadInput(f"{path}: PCD header line {no} is not a PCD header field or repeats one; "
                            "the file is corrupt, export it again")
         h[key] = tok[1:]
     h["_body_at"], h["_header_lines"] = pos, no
@@ -850,8 +850,8 @@ def _load_text_cloud(path: Path) -> _Raw:
         for no, ln in numbered:
             tokens = ln.split()
             if len(tokens) != ncols or not all(_is_float(t) for t in tokens):
-                raise BadInput(f"{path}: line {no}: not a row of {ncols} numbers x y z [nx ny nz] like the first "
-                               f"({ln.strip()[:40]!r}); the file is truncated or corrupt")
+                raise BadInput(f"{path}: line {no}: not a row of {ncols} numbers x y z [nx ny nz] like the first; "
+                               "the file is truncated or corrupt")
         raise BadInput(f"{path}: not a table of numbers x y z [nx ny nz]")
     if data.shape[1] < 3:
         raise BadInput(f"{path}: expected at least 3 columns (x y z), found {data.shape[1]}")
@@ -895,8 +895,8 @@ def load_workpiece(path: Path, units: str = "mm", sample_points: int = 100000,
         except BadInput:
             raise
         except Exception as exc:  # parser errors of trimesh / open3d / numpy: one line for the user
-            first = (str(exc).splitlines() or [""])[0][:200]
-            raise BadInput(f"{path}: cannot read as {ext[1:].upper()} ({type(exc).__name__}: {first}); "
+            # the library's own message may quote the file's text (a secret, if the file is one): never passed on
+            raise BadInput(f"{path}: cannot read as {ext[1:].upper()} ({type(exc).__name__}); "
                            "the file may be truncated or corrupt, export it again") from None
         return _workpiece_from_raw(raw, path, units, sample_points, normal_neighbours, seed, drop_nonfinite)
 

@@ -15,6 +15,7 @@ import time
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from camtool import safe_io
@@ -485,3 +486,79 @@ def test_a_file_where_a_folder_goes_is_one_line(tmp_path):
     (tmp_path / "plots").write_text("not a folder")
     with pytest.raises(BadInput, match="plots: is a file where camtool needs a folder"):
         safe_io.check_target(tmp_path, "plots/joint_angle.png")
+
+
+# ---------------------------------------------------------------- 11. code dropped in a folder (issue #49)
+
+PLANTED = ("numpy", "click", "camtool")
+# launched as a user launches it, by its console script (``python -m`` would put the folder first itself)
+CAMTOOL_SCRIPT = str(Path(sys.executable).with_name("camtool"))
+
+
+def _plant(folder: Path, marks: Path) -> None:
+    """A numpy.py, click.py and camtool.py that leave a mark when imported, then fail loudly."""
+    for name in PLANTED:
+        (folder / f"{name}.py").write_text(
+            f"open({str(marks / name)!r}, 'w').write('imported')\nraise SystemExit('planted {name} ran')\n")
+
+
+def test_code_dropped_in_the_batch_folder_or_the_job_folder_is_never_imported(tmp_path):
+    jobs, marks = tmp_path / "jobs", tmp_path / "marks"
+    jobs.mkdir()
+    marks.mkdir()
+    (jobs / "a.toml").write_text(SPHERE.read_text().replace('file = "', f'file = "{SAMPLES}/'))
+    _plant(jobs, marks)  # the folder batch runs from, and the job's own folder
+    r = subprocess.run([CAMTOOL_SCRIPT, "batch", jobs / "a.toml", "-o", tmp_path / "out",
+                        "-j", "1", *SMALL], capture_output=True, text=True, timeout=LIMIT_S, cwd=jobs)
+    assert not list(marks.iterdir()), r.stderr
+    assert r.returncode == 0, r.stderr + (tmp_path / "out" / "a" / "camtool.log").read_text()
+
+
+def test_code_dropped_in_the_hot_folder_is_never_imported(tmp_path):
+    hot, marks = tmp_path / "hot", tmp_path / "marks"
+    hot.mkdir()
+    marks.mkdir()
+    (hot / "part.stl").write_bytes((SAMPLES / "plate_hole.stl").read_bytes())
+    _plant(hot, marks)  # the watcher's working folder and the folder its jobs come from
+    r = subprocess.run([CAMTOOL_SCRIPT, "watch", hot, "-o", tmp_path / "out", "--template",
+                        SAMPLES / "plate_hole.toml", "--set", "raster.step_over_mm=40", "--set", "raster.pitch_mm=8",
+                        "--set", 'post.formats=["csv"]', "--once", "--interval", "0.1", "-j", "1"],
+                       capture_output=True, text=True, timeout=LIMIT_S, cwd=hot)
+    assert not list(marks.iterdir()), r.stderr
+    assert r.returncode == 0, r.stderr
+
+
+# ---------------------------------------------------------------- 12. text that leaves the run (issue #49)
+
+def test_joint_names_never_become_spreadsheet_formulas():
+    import dataclasses
+
+    from camtool.program.text import column_names
+    from camtool.robots.library import get_robot
+    from postprocessors.csv.dialect import columns_for
+    from postprocessors.csv.parser import columns
+
+    hostile = ["=1+1", "+1+2", "@SUM(A1:A9)", "-2+3", "j5", "j5", "cmd|' /C calc'!A0", "ok_name", "\t=x"]
+    names = column_names(hostile)
+    assert len(set(names)) == len(names)
+    assert all(n[:1].isalpha() and n.replace("_", "").isalnum() for n in names), names
+    robot = get_robot("seed8")
+    robot = dataclasses.replace(robot, joint_names=tuple(hostile[:robot.dof]))
+    header = columns_for(robot, "deg")
+    assert not [c for c in header if c[:1] in "=+-@\t\r"], header
+    t, q = columns("x.csv", header, np.zeros((2, robot.dof + 1)), robot)  # read back by the same names
+    assert q.shape == (2, robot.dof)
+
+
+def test_a_workpiece_line_is_never_quoted_into_an_error(tmp_path):
+    secret = "root-password-hunter2-do-not-leak"
+    for name, text in [("a.xyz", f"1 2 3\n{secret} 5 6\n"), ("b.obj", f"v 1 2 3\nv {secret}\n"),
+                       ("c.ply", f"ply\nformat ascii 1.0\n{secret}\nend_header\n"),
+                       ("d.stl", f"solid x\nfacet normal 0 0 1\nouter loop\nvertex {secret} 0 0\n"),
+                       ("e.off", f"OFF\n3 1 0\n{secret}\n0 1 0\n0 0 1\n3 0 1 2\n"),
+                       ("f.pcd", f"# .PCD\n{secret}\n")]:
+        f = tmp_path / name
+        f.write_text(text)
+        r = camtool("fit", f, "-o", tmp_path / f"out_{name}")
+        assert r.returncode == 2, r.stderr
+        assert "hunter2" not in r.stderr + r.stdout, (name, r.stderr)

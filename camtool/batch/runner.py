@@ -29,6 +29,7 @@ from . import cache
 LOG_NAME = "camtool.log"
 TIMEOUT_EXIT = 124  # the exit code `timeout(1)` uses; camtool run itself never returns it
 STATUS_BY_EXIT = {0: "ok", 2: "bad_input", 3: "infeasible", 4: "unavailable"}
+JOB_CWD = "/"  # a job runs from a folder only root can write to, never from the hot or batch folder
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 _live: set[subprocess.Popen] = set()
@@ -184,7 +185,10 @@ def _decided(base: dict, status: str, code: int, reason: str, t0: float, log: st
 
 def job_command(spec: JobSpec) -> list[str]:
     """The command line that runs one job."""
-    cmd = [sys.executable, "-m", "camtool.cli", "--debug", "run", spec.job, "-o", spec.outdir, "--json", "--progress"]
+    # -P: no folder goes on the job's import path. Without it ``-m`` puts the working folder first, and a
+    # ``numpy.py`` or ``click.py`` dropped there (a hot folder, a batch folder) would run as the job's user.
+    cmd = [sys.executable, "-P", "-m", "camtool.cli", "--debug", "run", os.path.abspath(spec.job),
+           "-o", os.path.abspath(spec.outdir), "--json", "--progress"]
     for o in spec.overrides:
         cmd += ["--set", o]
     return cmd
@@ -249,7 +253,7 @@ def run_one(spec: JobSpec) -> JobResult:
                        + " ".join(cmd) + "\n").encode())
             log.flush()
             proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=log, stdin=subprocess.DEVNULL,
-                                    env=job_env(), start_new_session=True)
+                                    env=job_env(), start_new_session=True, cwd=JOB_CWD)
             with _live_lock:
                 _live.add(proc)
             try:

@@ -41,3 +41,18 @@ def joint_values_edge(trajectory_q: np.ndarray, prismatic: np.ndarray) -> np.nda
 def chunks(n: int, size: int) -> list[range]:
     """Split range(n) into consecutive ranges of at most ``size``."""
     return [range(i, min(i + size, n)) for i in range(0, n, size)] or [range(0)]
+
+
+def column_names(joint_names) -> list[str]:
+    """Joint names as CSV column stems a spreadsheet reads as text: identifiers (letters, digits, ``_``,
+    a letter first), never a cell starting with ``=``, ``+``, ``-`` or ``@`` (a formula), made unique."""
+    out: list[str] = []
+    for raw in joint_names:
+        s = re.sub(r"[^A-Za-z0-9_]", "_", str(raw).encode("ascii", "replace").decode("ascii"))[:64]
+        if not s[:1].isalpha():
+            s = "j" + s
+        base, k = s, 2
+        while s in out:
+            s, k = f"{base}_{k}", k + 1
+        out.append(s)
+    return out

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 from camtool.errors import BadInput
+from camtool.program.text import column_names
 
 COLUMN_RE = re.compile(r"^(?P<joint>.+)_(?P<unit>mm|deg|rad)$")
 TRAILER_RE = re.compile(r"^# END (?P<rows>[0-9]+) rows$")
@@ -17,7 +18,8 @@ def trailer(n_rows: int) -> str:
 
 def columns_for(robot, angle_unit: str) -> list[str]:
     """The header for a robot: t_s then <joint>_<unit>."""
-    return ["t_s"] + [f"{n}_{'mm' if p else angle_unit}" for n, p in zip(robot.joint_names, robot.prismatic)]
+    names = column_names(robot.joint_names)  # identifiers: a joint name never becomes a spreadsheet formula
+    return ["t_s"] + [f"{n}_{'mm' if p else angle_unit}" for n, p in zip(names, robot.prismatic)]
 
 
 OPTIONS = {

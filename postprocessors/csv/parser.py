@@ -7,6 +7,8 @@ import numpy as np
 
 from camtool.errors import BadInput
 
+from camtool.program.text import column_names
+
 from .dialect import COLUMN_RE
 
 
@@ -82,7 +84,7 @@ def columns(path, header, data, robot) -> tuple[np.ndarray, np.ndarray]:
     if len(header) != robot.dof + 1:
         raise BadInput(f"{path}:1: {len(header) - 1} joint columns, robot {robot.name} has {robot.dof}")
     q = np.empty((len(data), robot.dof))
-    for i, (col, jn, pr) in enumerate(zip(header[1:], robot.joint_names, robot.prismatic)):
+    for i, (col, jn, pr) in enumerate(zip(header[1:], column_names(robot.joint_names), robot.prismatic)):
         m = COLUMN_RE.match(col)
         if not m or m.group("joint") != jn:
             raise BadInput(f"{path}:1: column {i + 2} is {col!r}, expected {jn}_<unit>")
