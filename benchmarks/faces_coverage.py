@@ -1,6 +1,6 @@
 """Raster coverage of every face of the multi-face samples (issue 26), meshes and scans.
 
-Every face that ``camtool.segment`` finds on the four sample parts (box_open,
+Every face that ``camtool.part.segment`` finds on the four sample parts (box_open,
 pipe_half, dome_cylinder, plate_chamfer; the 100k-point meshes and the 60k-point
 noisy scans) is rastered at 10 mm step-over and 5 mm pitch with the default raster
 keys (``raster.edge_margin`` a quarter step; ``raster.contour`` "auto": a contour pass along
@@ -19,10 +19,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from camtool.raster import raster_path, raster_summary  # noqa: E402
-from camtool.segment import segment  # noqa: E402
+from camtool.path.raster import raster_path, raster_summary  # noqa: E402
+from camtool.part.segment import segment  # noqa: E402
 from camtool.settings import RasterSettings  # noqa: E402
-from camtool.workpiece import load_workpiece  # noqa: E402
+from camtool.part.workpiece import load_workpiece  # noqa: E402
 
 PARTS = ("box_open", "pipe_half", "dome_cylinder", "plate_chamfer")
 TARGET = 0.995

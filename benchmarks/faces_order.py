@@ -3,7 +3,7 @@
 For every multi-face sample mesh (scripts/make_samples.py; 100k points) all its faces
 are segmented and rastered (10 mm step-over, 5 mm pitch, 20 mm leads; the chamfered
 plate, whose strips are 7-10 mm wide, at 2 mm and 2 mm), then ordered
-by ``camtool.face_set.working_order`` (nearest neighbour from the largest face, then
+by ``camtool.path.face_set.working_order`` (nearest neighbour from the largest face, then
 2-opt). Printed: the air distance (straight, from each face's exit to the next face's
 entry) in index order, greedy nearest neighbour, and the order taken; the seconds to
 raster, order and join; and each face's coverage by its own rows.
@@ -21,12 +21,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from camtool.face_set import _ends_mm, air_mm, joined, working_order  # noqa: E402
-from camtool.surface import FaceSet  # noqa: E402
-from camtool.raster import coverage, raster_path  # noqa: E402
-from camtool.segment import segment  # noqa: E402
+from camtool.path.face_set import _ends_mm, air_mm, joined, working_order  # noqa: E402
+from camtool.part.surface import FaceSet  # noqa: E402
+from camtool.path.raster import coverage, raster_path  # noqa: E402
+from camtool.part.segment import segment  # noqa: E402
 from camtool.settings import RasterSettings  # noqa: E402
-from camtool.workpiece import load_workpiece  # noqa: E402
+from camtool.part.workpiece import load_workpiece  # noqa: E402
 
 
 def greedy(entries: np.ndarray, exits: np.ndarray) -> list[int]:

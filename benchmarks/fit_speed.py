@@ -18,7 +18,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from camtool.fit import fit_model, fit_surface  # noqa: E402
+from camtool.part.fit import fit_model, fit_surface  # noqa: E402
 from test_fit import CENTER, _with_outliers, plane_points, sphere_patch_points  # noqa: E402
 from camtool.settings import FitSettings
 

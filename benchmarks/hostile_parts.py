@@ -40,11 +40,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from camtool.errors import BadInput  # noqa: E402
-from camtool.faces import step_segmentation  # noqa: E402
-from camtool.raster import raster_path, raster_summary  # noqa: E402
-from camtool.segment import SegmentSettings, segment  # noqa: E402
+from camtool.part.faces import step_segmentation  # noqa: E402
+from camtool.path.raster import raster_path, raster_summary  # noqa: E402
+from camtool.part.segment import SegmentSettings, segment  # noqa: E402
 from camtool.settings import RasterSettings  # noqa: E402
-from camtool.workpiece import load_workpiece  # noqa: E402
+from camtool.part.workpiece import load_workpiece  # noqa: E402
 from segment_accuracy import boundary_samples_mm, spacing_mm  # noqa: E402
 
 TARGET = 0.995

@@ -26,9 +26,9 @@ def synthetic(samples: int, points: int, seed: int = 0):
     import trimesh
 
     from camtool.robots import get_robot
-    from camtool.toolpath import ZONE_CODE
+    from camtool.path.toolpath import ZONE_CODE
     from camtool.transforms import matrix_from_xyz_rpy
-    from camtool.workpiece import Workpiece
+    from camtool.part.workpiece import Workpiece
     from camtool.motion.fk_batch import BatchFK
 
     robot = get_robot("seed8").with_placement(tool_T_mm=matrix_from_xyz_rpy([0, 0, 150], [0, 0, 0]))

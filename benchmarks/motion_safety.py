@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 from camtool.errors import CamtoolError  # noqa: E402
 from camtool.job import load_job  # noqa: E402
-from camtool.pipeline import run_job  # noqa: E402
+from camtool.run.pipeline import run_job  # noqa: E402
 
 SAMPLES = ROOT / "samples"
 

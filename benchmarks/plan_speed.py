@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 
 from camtool.job import load_job  # noqa: E402
-from camtool.pipeline import path_for_job, robot_for_job, surface_for_job, workpiece_for_job  # noqa: E402
+from camtool.run.pipeline import path_for_job, robot_for_job, surface_for_job, workpiece_for_job  # noqa: E402
 from camtool.plan import plan_path  # noqa: E402
 from camtool.plan.cwln import IkSettings  # noqa: E402
 from camtool.plan.kernel import DhKernel, warm_up  # noqa: E402

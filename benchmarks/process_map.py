@@ -42,13 +42,13 @@ from pathlib import Path
 import numpy as np
 
 from camtool.job import load_job
-from camtool.pipeline import run_job
+from camtool.run.pipeline import run_job
 from camtool.process.figures import edge_distance_mm, map_figures
 from camtool.process.footprint import Footprint
 from camtool.process.grid import MapGrid
 from camtool.process.integrate import contacts_from_tcp, process_map, tcp_track
 from camtool.settings import ProcessSettings
-from camtool.surface import Boundary, PlaneSurface
+from camtool.part.surface import Boundary, PlaneSurface
 
 ROOT = Path(__file__).resolve().parents[1]
 DT_S = 0.004
@@ -156,7 +156,7 @@ def real_run(case: str, profile: str) -> dict:
     report = result.outputs["report"]
     figures = report["process_map"]
     surface, trajectory = result.outputs["fit"], result.outputs["time"]
-    from camtool.stages import robot_for_job
+    from camtool.run.stages import robot_for_job
     from camtool.settings import JobSettings
 
     robot = robot_for_job(job)
@@ -226,7 +226,7 @@ def auto_run() -> dict:
 
 
 def target_run() -> dict:
-    from camtool.stages import surface_for_job, workpiece_for_job
+    from camtool.run.stages import surface_for_job, workpiece_for_job
 
     job_file = ROOT / "samples" / "irb2400_plate.toml"
     surface = surface_for_job(load_job(job_file), workpiece_for_job(load_job(job_file)))

@@ -23,7 +23,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from camtool.errors import CamtoolError  # noqa: E402
 from camtool.job import load_job  # noqa: E402
-from camtool.pipeline import run_job  # noqa: E402
+from camtool.run.pipeline import run_job  # noqa: E402
 from motion_safety import job_file, sphere_patch  # noqa: E402
 
 RAPID_RE = re.compile(r"^\s*(MoveAbsJ|MoveJ|MoveL|MoveC)\b", re.M)

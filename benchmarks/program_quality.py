@@ -2,7 +2,7 @@
 never asserts).
 
 For each job (the sample sphere job and the irb2400 plate) the trajectory is planned and
-timed with camtool.stages, then ``camtool.post.write_programs`` writes, checks and
+timed with camtool.run.stages, then ``camtool.program.post.write_programs`` writes, checks and
 simulates every RAPID / INFORM program (``camtool.simulate``: the program re-executed as
 the controller interpolates it, at 4 ms, against the planned path). Per program:
 
@@ -53,8 +53,14 @@ BASELINE_POST_S = {"sphere": 1.12, "irb2400_plate": 0.094}
 def trajectory_for(job):
     """(robot, raster path, timed trajectory) of a job, as `camtool run` plans them."""
     from camtool.settings import JobSettings
-    from camtool.stages import (part_for_checks, path_for_job, plan_and_time, robot_for_job, surface_for_job,
-                                workpiece_for_job)
+    from camtool.run.stages import (
+        part_for_checks,
+        path_for_job,
+        plan_and_time,
+        robot_for_job,
+        surface_for_job,
+        workpiece_for_job,
+    )
 
     robot = robot_for_job(job)
     settings = JobSettings.from_job(job, robot)
@@ -67,7 +73,7 @@ def trajectory_for(job):
 
 def measure(job_file: Path, overrides: list[str]) -> list[dict]:
     from camtool.job import load_job
-    from camtool.post import write_job_programs
+    from camtool.program.post import write_job_programs
 
     job = load_job(job_file, overrides)
     t0 = time.perf_counter()

@@ -15,8 +15,8 @@ import time
 
 import numpy as np
 
-from camtool.raster import coverage, raster_path
-from camtool.surface import Boundary, SpherePatch
+from camtool.path.raster import coverage, raster_path
+from camtool.part.surface import Boundary, SpherePatch
 from camtool.settings import RasterSettings
 
 

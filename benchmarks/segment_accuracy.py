@@ -1,7 +1,7 @@
 """Segmentation accuracy on the multi-face samples (issue 26): models, parameters, boundaries.
 
 For every part of scripts/make_samples.py (mesh and noisy scan) the faces found by
-``camtool.segment`` are matched to the truth in samples/faces_truth.json and the
+``camtool.part.segment`` are matched to the truth in samples/faces_truth.json and the
 errors printed: normal / axis angle (deg), offset / centre / axis distance and
 radius (mm), and the boundary's distance from the true outline (mm; the 95th
 percentile and the largest, over the boundary polygons resampled every 0.1 mm
@@ -22,8 +22,8 @@ from scipy.spatial import cKDTree
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from camtool.segment import SegmentSettings, segment  # noqa: E402
-from camtool.workpiece import load_workpiece  # noqa: E402
+from camtool.part.segment import SegmentSettings, segment  # noqa: E402
+from camtool.part.workpiece import load_workpiece  # noqa: E402
 
 
 def _angle_deg(a, b, signed=False) -> float:

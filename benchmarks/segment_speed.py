@@ -1,9 +1,9 @@
-"""Segmentation speed (issue 26): a 5-face part of 1M points, camtool.segment next to two anchors.
+"""Segmentation speed (issue 26): a 5-face part of 1M points, camtool.part.segment next to two anchors.
 
 The part is samples/box_open.stl (five planes) sampled with 1,000,000 points.
 Side by side, on the same points:
 
-- camtool.segment: planes, spheres and cylinders, normal consistency, boundaries;
+- camtool.part.segment: planes, spheres and cylinders, normal consistency, boundaries;
 - open3d: the usual loop of ``segment_plane`` (threshold 0.5 mm, 1000 iterations)
   removing each plane's inliers, five times (planes only, no boundaries);
 - pyransac3d: ``Plane().fit`` (threshold 0.5 mm, 1000 iterations) in the same loop
@@ -27,8 +27,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from camtool.segment import SegmentSettings, segment  # noqa: E402
-from camtool.workpiece import load_workpiece  # noqa: E402
+from camtool.part.segment import SegmentSettings, segment  # noqa: E402
+from camtool.part.workpiece import load_workpiece  # noqa: E402
 
 
 def best_of(fn, repeat: int):
@@ -74,7 +74,7 @@ def main() -> None:
     args = ap.parse_args()
     wp = load_workpiece(ROOT / "samples" / "box_open.stl", sample_points=args.points)
     t, cpu, seg = best_of(lambda: segment(wp, SegmentSettings()), args.repeat)
-    print(f"camtool.segment   {t:7.3f} s (cpu {cpu:.3f} s)  {len(seg.faces)} faces "
+    print(f"camtool.part.segment   {t:7.3f} s (cpu {cpu:.3f} s)  {len(seg.faces)} faces "
           f"({', '.join(f.model for f in seg.faces)}), {seg.unassigned} of {seg.n_points} points unassigned")
     t, cpu, found = best_of(lambda: open3d_loop(wp.points_mm), args.repeat)
     print(f"open3d loop       {t:7.3f} s (cpu {cpu:.3f} s)  5 planes, inliers {found}")

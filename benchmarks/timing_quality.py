@@ -1,7 +1,7 @@
 """Timing quality on real jobs beside TOPP-RA: cycle time, work time, feed on work.
 
 For each job variant (the seed sphere sample, its 2.5 mm pitch variant and a harder
-placement) the joint path is planned once with camtool.stages, timed by
+placement) the joint path is planned once with camtool.run.stages, timed by
 ``camtool.timing.time_trajectory`` with the job's timing settings, and measured on
 the trajectory resampled at ``timing.check_dt_ms`` (TCP by FK, feed = TCP distance /
 time; shares are shares of work length). The anchor is TOPP-RA (``toppra``, the
@@ -31,13 +31,19 @@ import numpy as np
 
 from camtool.job import load_job
 from camtool.settings import JobSettings
-from camtool.stages import (part_for_checks, path_for_job, plan_with_sized_leads, robot_for_job, surface_for_job,
-                            workpiece_for_job)
+from camtool.run.stages import (
+    part_for_checks,
+    path_for_job,
+    plan_with_sized_leads,
+    robot_for_job,
+    surface_for_job,
+    workpiece_for_job,
+)
 from camtool.timing import time_trajectory
 from camtool.timing.assemble import run_layout, tcp_positions_mm
 from camtool.timing.feed import feed_profile, feed_statistics, plot_feed
 from camtool.timing.flow import hard_steps
-from camtool.toolpath import ZONE_CODE
+from camtool.path.toolpath import ZONE_CODE
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "samples" / "sphere.toml"

@@ -17,7 +17,7 @@ from test_timing_fixtures import joint_path_and_path, seed8, two_runs  # noqa: E
 
 from camtool.settings import TimingSettings  # noqa: E402
 from camtool.timing import time_trajectory, timing_report  # noqa: E402
-from camtool.toolpath import ZONE_CODE  # noqa: E402
+from camtool.path.toolpath import ZONE_CODE  # noqa: E402
 
 
 def main():

@@ -135,8 +135,22 @@ def _register() -> None:
 _register()
 
 
+def drop_working_folder_from_path() -> None:
+    """Take the working folder off the import path (``python -m`` puts it first), so a ``numpy.py``
+    dropped in a hot or batch folder is never imported by a later import of this process or of a
+    helper it forks: camtool often runs as root there. Folders PYTHONPATH names stay (the caller's)."""
+    try:
+        here = os.getcwd()
+    except OSError:
+        return
+    chosen = {os.path.abspath(p) for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p}
+    if here not in chosen:
+        sys.path[:] = [p for p in sys.path if p != "" and os.path.abspath(p) != here]
+
+
 def main() -> None:
     """Console-script entry point: the command, then a quick exit (``leave``)."""
+    drop_working_folder_from_path()
     try:
         cli(prog_name="camtool")
         code = 0

@@ -329,7 +329,7 @@ class JobSettings:
     check: CheckSettings
     process: ProcessSettings | None = None
     cell: "CellSettings | None" = None   # obstacles, floor, clearance (camtool.collision); None = an empty cell
-    segmented: bool = False  # [faces] select splits the workpiece into faces (camtool.faces)
+    segmented: bool = False  # [faces] select splits the workpiece into faces (camtool.part.faces)
 
     @classmethod
     def from_job(cls, job: Job, robot=None) -> "JobSettings":

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .toolpath import freeze_arrays
+from .path.toolpath import freeze_arrays
 
 
 @dataclass(frozen=True)
@@ -26,7 +26,7 @@ class JointPath:
 
     q: np.ndarray                 # (N, dof) rad / mm
     path_index: np.ndarray        # (N,) index into Path poses, -1 if inserted
-    zone: np.ndarray              # (N,) zone codes (camtool.toolpath.ZONES)
+    zone: np.ndarray              # (N,) zone codes (camtool.path.toolpath.ZONES)
     position_error_mm: np.ndarray # (N,)
     orientation_error_rad: np.ndarray  # (N,)
     jump: np.ndarray              # (N,) bool: step into this pose exceeded the jump threshold

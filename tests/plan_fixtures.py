@@ -1,7 +1,7 @@
 """Small hand-built paths for planner tests (independent of the raster stage)."""
 import numpy as np
 
-from camtool.toolpath import ZONE_CODE, Path
+from camtool.path.toolpath import ZONE_CODE, Path
 
 
 def tool_pose(p, n_out, x_hint=(0.0, 0.0, 1.0)):

@@ -7,7 +7,7 @@ import pytest
 from camtool.errors import PlanInfeasible
 from camtool.job import load_job
 from camtool.plan.arm_angle_sqp import LIMIT_MARGIN_RAD, optimise_arm_angles, path_length_rad, plan_arm_angle_sqp
-from camtool.tasks.reach import reach_path, target_plane
+from camtool.run.tasks.reach import reach_path, target_plane
 from camtool.robots import get_robot
 from camtool.robots.ik_srs import FAMILIES
 from camtool.transforms import rotation_angle_rad

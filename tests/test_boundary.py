@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from camtool.boundary import boundary_from_uv
-from camtool.fit import fit_surface
-from camtool.workpiece import load_workpiece
+from camtool.part.boundary import boundary_from_uv
+from camtool.part.fit import fit_surface
+from camtool.part.workpiece import load_workpiece
 from camtool.settings import FitSettings
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
@@ -73,9 +73,9 @@ def test_too_few_points():
 
 def test_a_sparse_scan_ends_within_half_a_step_of_its_points():
     """A plate scanned every 20 mm: the boundary (and the work rows) stay within 10 mm of the points."""
-    from camtool.raster import raster_path
+    from camtool.path.raster import raster_path
     from camtool.settings import RasterSettings
-    from camtool.surface import PlaneSurface
+    from camtool.part.surface import PlaneSurface
 
     xs, ys = np.meshgrid(np.arange(0.0, 401.0, 20.0), np.arange(0.0, 301.0, 20.0))
     uv = np.column_stack([xs.ravel(), ys.ravel()])

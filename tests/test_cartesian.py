@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from camtool.settings import TimingSettings
-from camtool.tasks.cartesian import arc_poses, arc_through_points, line_poses, solve_poses
+from camtool.run.tasks.cartesian import arc_poses, arc_through_points, line_poses, solve_poses
 from camtool.errors import BadInput
 from camtool.robots import get_robot
 from camtool.transforms import matrix_from_xyz_rpy, rotation_angle_rad
@@ -70,9 +70,9 @@ def test_coarse_points_are_densified_until_within_tolerance(tmp_path):
 
 def test_deviation_measure_is_independent_of_the_solver(tmp_path):
     """Re-measure the sample's timed trajectory against the analytic line / circle here."""
-    from camtool.tasks.cartesian import build_moves, path_of_moves, seed001_moves
+    from camtool.run.tasks.cartesian import build_moves, path_of_moves, seed001_moves
     from camtool.job import load_job
-    from camtool.pipeline import robot_for_job
+    from camtool.run.pipeline import robot_for_job
     from camtool.timing import time_trajectory
     from camtool.trajectory import JointPath
 
@@ -96,7 +96,7 @@ def test_deviation_measure_is_independent_of_the_solver(tmp_path):
     assert d.max() < 0.05   # the timed joint motion through the points follows the line and the circle
     # but a controller's straight moves between 40 points of a circle of r = 100 mm cut its chords:
     # the chord measure equals the analytic sagitta r (1 - cos(dtheta / 2)), the lines have none
-    from camtool.tasks.cartesian import chord_deviation_mm
+    from camtool.run.tasks.cartesian import chord_deviation_mm
     _, prims = build_moves(matrix_from_xyz_rpy(job.task.cart_start_mm, job.task.cart_start_rpy_deg),
                            seed001_moves(job), [1, 1, 1])
     chord = chord_deviation_mm(poses, prims)

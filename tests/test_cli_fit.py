@@ -5,7 +5,7 @@ import struct
 import numpy as np
 import pytest
 
-from camtool.surface import load_surface
+from camtool.part.surface import load_surface
 
 from conftest import SAMPLES, run_camtool
 

@@ -4,8 +4,8 @@ import json
 import numpy as np
 import pytest
 
-from camtool.stage_files import load_stage as load_path
-from camtool.toolpath import ZONE_CODE
+from camtool.run.stage_files import load_stage as load_path
+from camtool.path.toolpath import ZONE_CODE
 from camtool.transforms import matrix_from_xyz_rpy
 
 from conftest import SAMPLES, run_camtool

@@ -14,9 +14,9 @@ from camtool.job import load_job
 from camtool.motion import MotionCheckSettings, PartGeometry, check_motion
 from camtool.motion.cell_check import check_sampled_motion, motion_bounds
 from camtool.robots import get_robot
-from camtool.toolpath import ZONE_CODE
+from camtool.path.toolpath import ZONE_CODE
 from camtool.transforms import matrix_from_xyz_rpy
-from camtool.workpiece import Workpiece
+from camtool.part.workpiece import Workpiece
 
 Q0 = np.array([0.0, 0.3, 0.2, -0.4, 0.8, 0.1, -0.9, 0.2])
 SELF = ZONE_CODE["self_motion"]

@@ -7,8 +7,8 @@ from camtool.plan.connectors import cartesian_lift, is_reconfiguration, LiftSett
 from camtool.plan.cwln import CwlnSolver, IkSettings
 from camtool.robots import get_robot
 from camtool.settings import JobSettings
-from camtool.stages import path_for_job, plan_for_job, robot_for_job, surface_for_job, workpiece_for_job
-from camtool.toolpath import ZONE_CODE
+from camtool.run.stages import path_for_job, plan_for_job, robot_for_job, surface_for_job, workpiece_for_job
+from camtool.path.toolpath import ZONE_CODE
 
 from conftest import SAMPLES
 
@@ -90,7 +90,7 @@ def test_no_non_work_motion_enters_the_part(forced):
 def test_a_forced_reconfiguration_job_passes_the_independent_motion_check(forced):
     """The job the forcing settings make, timed and checked as `camtool run` does: the independent
     4 ms motion check passes (no penetration, on the surface, 5 mm clear off work) with the lifts."""
-    from camtool.stages import motion_check, time_for_job
+    from camtool.run.stages import motion_check, time_for_job
 
     robot, settings, surface, path, jp, wp = forced
     m = motion_check(settings, time_for_job(settings, jp, path, robot), robot, wp, path, surface)

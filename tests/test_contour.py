@@ -1,4 +1,4 @@
-"""Tests of camtool.contour and the contour pass of camtool.raster: runs along the edges, split at corners,
+"""Tests of camtool.path.contour and the contour pass of camtool.path.raster: runs along the edges, split at corners,
 the material on their left, none on a full turn's seam, and the slivers of oblique edges covered."""
 import math
 
@@ -6,14 +6,20 @@ import numpy as np
 import pytest
 from matplotlib.path import Path as MplPath
 
-from camtool.contour import CORNER_DEG, SIMPLIFY_MM, contour_runs, spans_full_turn
-from camtool.face_set import joined
-from camtool.raster import CONTOUR_BELOW, contour_offset_mm, count_contour_runs, count_rows, raster_path, \
-    raster_summary
+from camtool.path.contour import CORNER_DEG, SIMPLIFY_MM, contour_runs, spans_full_turn
+from camtool.path.face_set import joined
+from camtool.path.raster import (
+    CONTOUR_BELOW,
+    contour_offset_mm,
+    count_contour_runs,
+    count_rows,
+    raster_path,
+    raster_summary,
+)
 from camtool.settings import RasterSettings
-from camtool.stage_files import load_stage, save_stage
-from camtool.surface import Boundary, Cylinder, PlaneSurface
-from camtool.toolpath import ZONE_CODE
+from camtool.run.stage_files import load_stage, save_stage
+from camtool.part.surface import Boundary, Cylinder, PlaneSurface
+from camtool.path.toolpath import ZONE_CODE
 
 WORK = ZONE_CODE["work"]
 

@@ -9,7 +9,7 @@ from camtool.design import DesignProblem, Variable
 from camtool.design.objectives import arm_length_mm, check_variables, robot_params, screen_path
 from camtool.errors import BadInput
 from camtool.job import load_job
-from camtool.pipeline import robot_for_job
+from camtool.run.pipeline import robot_for_job
 
 from conftest import SAMPLES
 

@@ -9,7 +9,7 @@ import pytest
 
 import camtool.program.registry as registry
 from camtool.errors import PlanInfeasible
-from camtool.post import ResolvedPost, write_programs
+from camtool.program.post import ResolvedPost, write_programs
 from camtool.program.profiles import defaults_profile
 from camtool.robots import get_robot
 from camtool.settings import PostSettings

@@ -1,4 +1,4 @@
-"""camtool.face_edges: boundary vertices moved onto neighbours' intersections, tangent seams, mesh free edges
+"""camtool.part.face_edges: boundary vertices moved onto neighbours' intersections, tangent seams, mesh free edges
 and a scan's extent; corners closed; a full cylinder's seam kept at u = +-pi."""
 import json
 
@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from camtool import face_edges as fe
-from camtool.segment import segment
-from camtool.surface import Boundary, PlaneSurface
-from camtool.workpiece import load_workpiece
+from camtool.part import face_edges as fe
+from camtool.part.segment import segment
+from camtool.part.surface import Boundary, PlaneSurface
+from camtool.part.workpiece import load_workpiece
 
 from conftest import SAMPLES
 
@@ -172,7 +172,7 @@ def test_a_whole_ball_keeps_its_outline_within_one_turn(tmp_path):
     ball is rastered and covered."""
     import trimesh
 
-    from camtool.raster import raster_path, raster_summary
+    from camtool.path.raster import raster_path, raster_summary
     from camtool.settings import RasterSettings
 
     trimesh.creation.icosphere(subdivisions=5, radius=100).export(tmp_path / "ball.stl")
@@ -189,7 +189,7 @@ def test_a_hemisphere_rim_through_the_charts_poles_is_followed_in_u_v():
     """A dome's rim runs through both poles of the chart its mean direction spans; read as straight (u, v)
     edges (the raster's reading) the outline stays on the rim, where the flat chart's simplification went round
     the poles by up to a mm."""
-    from camtool.surface import SpherePatch
+    from camtool.part.surface import SpherePatch
 
     frame = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]])  # e1 = +z (columns e1, e2, e3)
     s = SpherePatch(np.zeros(3), 100.0, frame, Boundary(np.zeros((3, 2))))

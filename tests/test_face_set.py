@@ -1,14 +1,14 @@
-"""camtool.face_set: several faces in one path (order, join, per-face settings), saved and read back, and one
+"""camtool.path.face_set: several faces in one path (order, join, per-face settings), saved and read back, and one
 program for two faces of the half pipe."""
 import json
 
 import numpy as np
 import pytest
 
-from camtool.face_set import face_runs, joined, raster_changes, working_order
+from camtool.path.face_set import face_runs, joined, raster_changes, working_order
 from camtool.settings import RasterSettings
-from camtool.surface import Boundary, FaceSet, PlaneSurface, surface_from_dict
-from camtool.toolpath import ZONE_CODE, Path
+from camtool.part.surface import Boundary, FaceSet, PlaneSurface, surface_from_dict
+from camtool.path.toolpath import ZONE_CODE, Path
 
 from conftest import SAMPLES, run_camtool
 
@@ -36,7 +36,7 @@ def test_two_opt_mends_a_greedy_tour():
     exits = [[0, 0, 0], [490, 0, 0], [0, -15, 0], [0, -20, 0]]
     paths = [_line_path(a, b) for a, b in zip(entries, exits)]
     order = working_order(paths)
-    from camtool.face_set import air_mm
+    from camtool.path.face_set import air_mm
 
     greedy = [0, 1, 2, 3]
     assert air_mm(order, np.array(entries, float), np.array(exits, float)) <= \

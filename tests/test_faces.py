@@ -1,15 +1,15 @@
-"""camtool.faces and `camtool faces JOB`: segmentation per job, selection, the picture, per-face raster keys."""
+"""camtool.part.faces and `camtool faces JOB`: segmentation per job, selection, the picture, per-face raster keys."""
 import json
 
 import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.faces import face_surface_for_job, segment_job, select_faces, segmented
+from camtool.part.faces import face_surface_for_job, segment_job, select_faces, segmented
 from camtool.job import load_job
 from camtool.settings import JobSettings
-from camtool.stages import path_for_job, surface_for_job, workpiece_for_job
-from camtool.surface import FaceSet
+from camtool.run.stages import path_for_job, surface_for_job, workpiece_for_job
+from camtool.part.surface import FaceSet
 
 from conftest import SAMPLES, run_camtool
 

@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.fit import fit_surface
-from camtool.surface import PlaneSurface, SpherePatch
-from camtool.workpiece import Workpiece
+from camtool.part.fit import fit_surface
+from camtool.part.surface import PlaneSurface, SpherePatch
+from camtool.part.workpiece import Workpiece
 from camtool.settings import FitSettings
 
 CENTER = np.array([1000.0, 0.0, 100.0])
@@ -117,7 +117,7 @@ def test_degenerate_inputs():
 
 def test_a_bowl_is_worked_from_inside():
     """A concave sphere patch (normals to the centre): the material side comes from the data's normals."""
-    from camtool.raster import raster_path
+    from camtool.path.raster import raster_path
     from camtool.settings import RasterSettings
 
     rng = np.random.default_rng(5)

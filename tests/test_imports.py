@@ -97,4 +97,4 @@ def test_no_import_cycles():
 
 def test_stages_import_no_task():
     graph = import_graph()
-    assert not {m for m in graph["camtool.stages"] if m.startswith("camtool.tasks")}
+    assert not {m for m in graph["camtool.run.stages"] if m.startswith("camtool.run.tasks")}

@@ -26,7 +26,7 @@ import pytest
 import trimesh
 
 from camtool.errors import BadInput
-from camtool.workpiece import TINY_COORDINATE, load_workpiece
+from camtool.part.workpiece import TINY_COORDINATE, load_workpiece
 
 SEED = 20240611
 TIME_BUDGET_S = 12.0  # the whole test stays well below 30 s

@@ -15,9 +15,9 @@ import trimesh
 from camtool.errors import BadInput
 from camtool.motion import BatchFK, MotionCheckSettings, PartGeometry, check_motion
 from camtool.robots import BUILTIN_ROBOTS, get_robot
-from camtool.toolpath import ZONE_CODE
+from camtool.path.toolpath import ZONE_CODE
 from camtool.transforms import matrix_from_xyz_rpy
-from camtool.workpiece import Workpiece
+from camtool.part.workpiece import Workpiece
 
 GRID = 20_000            # small part grids keep the tests fast
 R_SPHERE = 300.0
@@ -425,8 +425,8 @@ def test_shares_no_code_with_planner_or_timing():
     import sys
     from pathlib import Path
 
-    forbidden = ("camtool.plan", "camtool.timing", "camtool.pipeline", "camtool.raster", "camtool.fit",
-                 "camtool.stages")
+    forbidden = ("camtool.plan", "camtool.timing", "camtool.run.pipeline", "camtool.path.raster", "camtool.part.fit",
+                 "camtool.run.stages")
     for file in (Path(__file__).resolve().parents[1] / "camtool" / "motion").glob("*.py"):
         for node in ast.walk(ast.parse(file.read_text())):
             if isinstance(node, ast.ImportFrom):

@@ -8,7 +8,7 @@ import trimesh
 
 from camtool.motion.geometry import PartGeometry
 from camtool.motion.grid_bounds import load_compiled, lower_bounds, nearest_nodes
-from camtool.workpiece import Workpiece
+from camtool.part.workpiece import Workpiece
 
 
 def _part():
@@ -51,7 +51,7 @@ def test_loading_ahead_covers_the_argument_types_the_check_passes():
 import numpy as np, trimesh
 from camtool.motion.geometry import PartGeometry
 from camtool.motion.grid_bounds import load_compiled, lower_bounds, nearest_nodes
-from camtool.workpiece import Workpiece
+from camtool.part.workpiece import Workpiece
 load_compiled()
 known = (len(lower_bounds.signatures), len(nearest_nodes.signatures))
 box = trimesh.creation.box([300, 200, 100])

@@ -4,7 +4,7 @@ import os
 import subprocess
 import sys
 
-from camtool.output import MANIFEST, STAGING_PREFIX, place, remove_leftovers, staged_output
+from camtool.run.output import MANIFEST, STAGING_PREFIX, place, remove_leftovers, staged_output
 
 from conftest import SAMPLES, run_camtool
 

@@ -1,10 +1,10 @@
-"""The workpiece and fit stages (camtool.part_stages), and the same made ahead in a forked process."""
+"""The workpiece and fit stages (camtool.run.part_stages), and the same made ahead in a forked process."""
 import numpy as np
 import pytest
 
 from camtool.errors import BadInput
 from camtool.job import load_job
-from camtool.part_stages import PartAhead, surface_for_job, workpiece_for_job
+from camtool.run.part_stages import PartAhead, surface_for_job, workpiece_for_job
 
 from conftest import ROOT
 

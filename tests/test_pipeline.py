@@ -114,7 +114,7 @@ COARSE = ["raster.step_over_mm=60.0", "raster.pitch_mm=8.0", "raster.contour=off
 @pytest.fixture(scope="module")
 def home_run(tmp_path_factory):
     from camtool.job import load_job
-    from camtool.pipeline import run_job
+    from camtool.run.pipeline import run_job
 
     out = tmp_path_factory.mktemp("home")
     job = load_job(SAMPLES / "sphere.toml", [*COARSE, f"robot.home_deg={HOME}"])
@@ -124,9 +124,9 @@ def home_run(tmp_path_factory):
 def test_rrt_approach_and_depart_keep_clear_of_the_part(home_run):
     import numpy as np
 
-    from camtool.stages import free_move_checker, robot_for_job
+    from camtool.run.stages import free_move_checker, robot_for_job
     from camtool.plan.rrt import edge_valid
-    from camtool.toolpath import ZONE_CODE
+    from camtool.path.toolpath import ZONE_CODE
 
     job, out, r = home_run
     jp, tr, report = r.outputs["plan"], r.outputs["time"], r.outputs["report"]

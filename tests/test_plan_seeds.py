@@ -6,7 +6,7 @@ import pytest
 from camtool.errors import BadInput
 from camtool.plan import plan_path
 from camtool.plan.strategy import AnalyticSeeds
-from camtool.report import plan_metrics
+from camtool.report.run_report import plan_metrics
 from camtool.robots import get_robot
 from camtool.robots.ik_srs import SrsIK
 

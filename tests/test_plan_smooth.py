@@ -8,8 +8,8 @@ from camtool.plan.cwln import CwlnSolver
 from camtool.plan.smooth import SmoothSettings, derivatives, divided_difference, run_ratios, smooth_runs
 from camtool.plan.strategy import ik_settings
 from camtool.settings import JobSettings
-from camtool.stages import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
-from camtool.toolpath import row_segments, run_bounds
+from camtool.run.stages import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
+from camtool.path.toolpath import row_segments, run_bounds
 from camtool.transforms import rotation_angle_rad
 
 from conftest import ROOT

@@ -5,12 +5,12 @@ import pytest
 
 from camtool.errors import BadInput, PlanInfeasible
 from camtool.job import load_job
-from camtool.pipeline import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
+from camtool.run.pipeline import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
 from camtool.plan import plan_path
 from camtool.plan.strategy import split_runs
-from camtool.report import plan_metrics
+from camtool.report.run_report import plan_metrics
 from camtool.robots import get_robot
-from camtool.toolpath import ZONE_CODE
+from camtool.path.toolpath import ZONE_CODE
 from camtool.transforms import rotation_angle_rad
 
 from conftest import SAMPLES

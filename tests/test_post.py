@@ -1,4 +1,4 @@
-"""camtool.post.write_programs: profiles from the job, check before placing, no partial output."""
+"""camtool.program.post.write_programs: profiles from the job, check before placing, no partial output."""
 from pathlib import Path
 
 import re
@@ -8,7 +8,7 @@ import pytest
 
 from camtool.errors import BadInput, PlanInfeasible
 from camtool.job import load_job
-from camtool.post import write_job_programs
+from camtool.program.post import write_job_programs
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory, with_q
 
@@ -21,7 +21,7 @@ def rows_trajectory(robot, rows: int = 3, per_row: int = 40, free: int = 6, **kw
     in ``CENTRES``)."""
     from dataclasses import replace
 
-    from camtool.toolpath import ZONE_CODE
+    from camtool.path.toolpath import ZONE_CODE
 
     centre = kw.pop("centre", CENTRES.get(robot.name))
 
@@ -173,7 +173,7 @@ def test_same_input_gives_identical_files(tmp_path):
 def test_thin_waypoints_keeps_path_poses_and_drops_short_inserted_moves():
     from dataclasses import replace
 
-    from camtool.post import thin_waypoints
+    from camtool.program.post import thin_waypoints
 
     r = get_robot("seed8")
     tr = smooth_trajectory(r, 200)
@@ -205,18 +205,18 @@ def test_a_rerun_with_fewer_parts_leaves_no_stale_part(tmp_path):
 
 
 def test_post_has_no_format_of_its_own():
-    """Every plugin, built-in or not, goes through the protocol: no format names in camtool.post."""
+    """Every plugin, built-in or not, goes through the protocol: no format names in camtool.program.post."""
     import inspect
 
-    import camtool.post
+    import camtool.program.post
 
-    src = inspect.getsource(camtool.post)
+    src = inspect.getsource(camtool.program.post)
     for word in ('"csv"', '"rapid"', '"inform"', "format_of", "check_program"):
         assert word not in src
 
 
 def test_a_plugin_takes_options_from_the_job(tmp_path, monkeypatch):
-    from camtool.post import profile_for_job
+    from camtool.program.post import profile_for_job
     from camtool.program.registry import get_plugin
 
     r = get_robot("irb2400")
@@ -258,7 +258,7 @@ def test_a_program_that_leaves_the_path_is_not_placed(tmp_path, monkeypatch):
 def test_the_job_names_the_rows_and_dates_the_programs(tmp_path):
     import os
 
-    from camtool.toolpath import Path as ToolPath
+    from camtool.path.toolpath import Path as ToolPath
 
     r = get_robot("seed8")
     tr = rows_trajectory(r, rows=2)
@@ -282,7 +282,7 @@ def test_a_program_its_simulator_finds_off_the_path_is_written_again_closer(tmp_
     """The writer merges moves within post.path_tol_mm; where the simulated program still leaves the
     planned path (a finding "from the planned path"), the format is written again with its moves
     merged within a tighter share, and only the last attempt's files are placed."""
-    import camtool.post as post_mod
+    import camtool.program.post as post_mod
 
     calls, real = [], post_mod.simulate_program
 

@@ -250,7 +250,7 @@ def test_sia20_rows_on_circles_become_movc_arcs(tmp_path):
     back as circular moves and the simulation keeps it within the tolerance. (With position
     levels of a few mm: the default PL=1 of 12.5 mm cuts the corner between two arcs by more
     than the tolerance, and FitArcs gives such arcs up.)"""
-    from camtool.post import ResolvedPost, write_programs
+    from camtool.program.post import ResolvedPost, write_programs
     from camtool.settings import PostSettings
 
     r = get_robot("sia20")  # joint moves in pulses (test factors): this synthetic job passes near the

@@ -5,7 +5,7 @@ import pytest
 from camtool.errors import BadInput
 from camtool.process.dwell import load_target, plan_dwell
 from camtool.process.grid import map_grid
-from camtool.raster import raster_path
+from camtool.path.raster import raster_path
 from camtool.settings import ProcessSettings, RasterSettings
 from tests.test_process_integrate import plate
 

@@ -3,7 +3,7 @@ import numpy as np
 
 from camtool.process.figures import map_figures, save_map_npz
 from camtool.process.html import process_heat_map_figure, process_note
-from camtool.report_html import _verdict_rows
+from camtool.report.html import _verdict_rows
 from tests.test_process_figures import known_map
 from tests.test_process_integrate import plate
 

@@ -7,7 +7,7 @@ import pytest
 from camtool.process.footprint import Footprint
 from camtool.process.integrate import process_map
 from camtool.settings import ProcessSettings
-from camtool.surface import Boundary, PlaneSurface, SpherePatch
+from camtool.part.surface import Boundary, PlaneSurface, SpherePatch
 
 
 def plate(w=300.0, h=200.0):

@@ -4,7 +4,7 @@ import pytest
 from camtool.errors import BadInput
 from camtool.process.footprint import Footprint
 from camtool.process.stepover import choose_step_over, predicted_map, ripple_limit_mm, ripple_share
-from camtool.raster import raster_path
+from camtool.path.raster import raster_path
 from camtool.settings import ProcessSettings, RasterSettings
 from tests.test_process_integrate import plate
 

@@ -8,7 +8,7 @@ from camtool.program.plan import profile_tool
 from camtool.program.process import ProcessInfo
 from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
-from camtool.toolpath import ZONE_CODE
+from camtool.path.toolpath import ZONE_CODE
 from test_post import rows_trajectory
 
 WORK = ZONE_CODE["work"]

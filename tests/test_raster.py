@@ -1,15 +1,22 @@
-"""Tests of camtool.raster: rows, pitch, segments, zones, orientation, coverage, bad input."""
+"""Tests of camtool.path.raster: rows, pitch, segments, zones, orientation, coverage, bad input."""
 import math
 
 import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.raster import (APPROACH_POINTS, _row_offsets, coverage, count_rows, coverage_radius_mm, raster_path,
-                            raster_summary)
-from camtool.surface import Boundary, PlaneSurface, SpherePatch
-from camtool.stage_files import load_stage as load_path, save_stage as save_path
-from camtool.toolpath import ZONE_CODE, Path
+from camtool.path.raster import (
+    APPROACH_POINTS,
+    _row_offsets,
+    coverage,
+    count_rows,
+    coverage_radius_mm,
+    raster_path,
+    raster_summary,
+)
+from camtool.part.surface import Boundary, PlaneSurface, SpherePatch
+from camtool.run.stage_files import load_stage as load_path, save_stage as save_path
+from camtool.path.toolpath import ZONE_CODE, Path
 from camtool.settings import RasterSettings
 
 WORK, SELF = ZONE_CODE["work"], ZONE_CODE["self_motion"]
@@ -401,7 +408,7 @@ def test_hole_covering_everything_is_empty(plate):
 @pytest.fixture(scope="module")
 def pipe():
     """The outside of half a pipe: R 120 mm, axis along world x, u -90..90 deg about +z, v -150..150 mm."""
-    from camtool.surface import Cylinder
+    from camtool.part.surface import Cylinder
 
     frame = np.array([[0.0, 0, 1], [0, -1.0, 0], [1.0, 0, 0]]).T  # e1 = +z (the middle), e2 = -y, e3 = +x
     return Cylinder(np.zeros(3), 120.0, frame, Boundary(np.array([[-math.pi / 2, -150], [math.pi / 2, -150],
@@ -433,7 +440,7 @@ def test_cylinder_rows_around_or_along_the_axis_geodesic_step(pipe, rows):
 
 
 def test_cylinder_tool_axis_radial_outside_and_inside(pipe):
-    from camtool.surface import Cylinder
+    from camtool.part.surface import Cylinder
 
     for concave in (False, True):
         cyl = Cylinder(pipe.center_mm, pipe.radius_mm, pipe.frame, pipe.boundary, None, concave)

@@ -5,9 +5,9 @@ import pytest
 from camtool.errors import BadInput
 from camtool.job import load_job
 from camtool.plan.arm_angle_sqp import ArmAngleResult, FamilyResult
-from camtool.surface import Boundary, PlaneSurface, SpherePatch
-from camtool.tasks.reach import family_table_text, reach_path, target_plane
-from camtool.toolpath import ZONE_CODE
+from camtool.part.surface import Boundary, PlaneSurface, SpherePatch
+from camtool.run.tasks.reach import family_table_text, reach_path, target_plane
+from camtool.path.toolpath import ZONE_CODE
 
 WORK, APPROACH = ZONE_CODE["work"], ZONE_CODE["approach"]
 

@@ -8,12 +8,20 @@ import pytest
 
 from camtool.errors import BadInput
 from camtool.plan import plan_path
-from camtool.redundancy_map import (NO_IK, REACHABLE, RedundancySettings, plot_redundancy_map_png,
-                                    redundancy_kind, redundancy_map, spherical_wrist_batch, sweep_map)
+from camtool.report.redundancy_map import (
+    NO_IK,
+    REACHABLE,
+    RedundancySettings,
+    plot_redundancy_map_png,
+    redundancy_kind,
+    redundancy_map,
+    spherical_wrist_batch,
+    sweep_map,
+)
 from camtool.robots import get_robot
 from camtool.robots.ik_spherical_wrist import SphericalWristIK
 from camtool.settings import PlannerSettings
-from camtool.toolpath import Path
+from camtool.path.toolpath import Path
 from camtool.transforms import matrix_from_xyz_rpy
 
 from plan_fixtures import sphere_rows
@@ -160,7 +168,7 @@ def test_collision_layer_marks_the_cells_an_obstacle_blocks(planned):
     an obstacle far away changes nothing."""
     from camtool.collision import CellSettings, CollisionWorld
     from camtool.collision.shapes import WORLD, Body
-    from camtool.redundancy_map import IN_COLLISION
+    from camtool.report.redundancy_map import IN_COLLISION
 
     name, robot, path, jp, plain = planned
     alone = redundancy_map(path, robot, jp, SETTINGS, world=CollisionWorld(robot))   # self-collision only

@@ -1,4 +1,4 @@
-"""camtool.report on hand-made paths, joint paths and trajectories: metrics, JSON, CSV and plots."""
+"""camtool.report.run_report on hand-made paths, joint paths and trajectories: metrics, JSON, CSV and plots."""
 import csv
 import json
 import struct
@@ -6,10 +6,16 @@ import struct
 import numpy as np
 import pytest
 
-from camtool.report import (adjacent_work_steps, plan_metrics, plot_joints, plot_unreachable, write_json_atomic,
-                            write_points_csv)
+from camtool.report.run_report import (
+    adjacent_work_steps,
+    plan_metrics,
+    plot_joints,
+    plot_unreachable,
+    write_json_atomic,
+    write_points_csv,
+)
 from camtool.robots import get_robot
-from camtool.toolpath import ZONE_CODE, Path
+from camtool.path.toolpath import ZONE_CODE, Path
 from camtool.trajectory import JointPath, Trajectory
 from camtool.transforms import matrix_from_xyz_rpy
 

@@ -8,17 +8,16 @@ import numpy as np
 import pytest
 
 from camtool.plan import plan_path
-from camtool.redundancy_map import RedundancySettings, redundancy_map
-from camtool.report import plan_metrics
-from camtool.report_html import (DIV, FAILING_NAME, MAX_WORKPIECE_POINTS, _feed, write_report_html,
-                                 write_run_html)
+from camtool.report.redundancy_map import RedundancySettings, redundancy_map
+from camtool.report.run_report import plan_metrics
+from camtool.report.html import DIV, FAILING_NAME, MAX_WORKPIECE_POINTS, _feed, write_report_html, write_run_html
 from camtool.robots import get_robot
 from camtool.settings import PlannerSettings, TimingSettings
-from camtool.surface import Boundary, SpherePatch
+from camtool.part.surface import Boundary, SpherePatch
 from camtool.timing import time_trajectory
-from camtool.toolpath import Path
+from camtool.path.toolpath import Path
 from camtool.trajectory import JointPath, Trajectory
-from camtool.workpiece import Workpiece
+from camtool.part.workpiece import Workpiece
 
 from plan_fixtures import sphere_rows
 
@@ -201,7 +200,7 @@ def test_the_page_renders_in_a_headless_browser(job, tmp_path):
 def test_the_feed_shown_keeps_each_bins_first_lowest_value():
     """``_lowest_per_bin`` (vectorised) picks what a loop over the bins picks: each bin's first lowest feed,
     NaN ignored, a bin of NaN only shown at its first sample."""
-    from camtool.report_html import _lowest_per_bin
+    from camtool.report.html import _lowest_per_bin
 
     rng = np.random.default_rng(3)
     v = np.round(rng.random(10_007) * 50, 0)   # ties within a bin: the first is kept

@@ -1,17 +1,28 @@
-"""The run's figures (camtool.run_figures): the same files drawn alongside (forked) as in this process."""
+"""The run's figures (camtool.report.figures): the same files drawn alongside (forked) as in this process."""
 import functools
 
 import numpy as np
 import pytest
 
-from camtool.alongside import Standby
+from camtool.run.alongside import Standby
 from camtool.collision.stage import collision_world
 from camtool.job import load_job
-from camtool.run_figures import (FigureInputs, MapInputs, draw_redundancy_map, draw_run_figures,
-                                 import_figure_libraries)
+from camtool.report.figures import (
+    FigureInputs,
+    MapInputs,
+    draw_redundancy_map,
+    draw_run_figures,
+    import_figure_libraries,
+)
 from camtool.settings import JobSettings
-from camtool.stages import (part_for_checks, path_for_job, plan_and_time, robot_for_job, surface_for_job,
-                            workpiece_for_job)
+from camtool.run.stages import (
+    part_for_checks,
+    path_for_job,
+    plan_and_time,
+    robot_for_job,
+    surface_for_job,
+    workpiece_for_job,
+)
 
 from conftest import SAMPLES
 

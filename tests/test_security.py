@@ -20,7 +20,7 @@ import pytest
 
 from camtool import safe_io
 from camtool.errors import BadInput
-from camtool.output import MANIFEST, place, staged_output
+from camtool.run.output import MANIFEST, place, staged_output
 
 from conftest import SAMPLES
 
@@ -201,7 +201,7 @@ def test_watch_once_with_a_fifo_workpiece_ends_within_its_timeout(tmp_path):
 
 
 def test_a_fifo_stage_file_is_refused(tmp_path):
-    from camtool.stage_files import load_stage
+    from camtool.run.stage_files import load_stage
 
     with pytest.raises(BadInput, match="FIFO"):
         load_stage(_fifo(tmp_path, "trajectory.npz"))
@@ -331,7 +331,7 @@ def test_cli_maps_disk_errors_to_exit_2(tmp_path, monkeypatch):
         raise OSError(errno.ENOSPC, "No space left on device", "/out/x")
 
     # run imports run_job when called (the speed branch's lazy imports): patch it where it lives
-    monkeypatch.setattr("camtool.pipeline.run_job", full)
+    monkeypatch.setattr("camtool.run.pipeline.run_job", full)
     r = CliRunner().invoke(cli_module.cli, ["run", str(SPHERE), "-o", str(tmp_path / "o")])
     assert r.exit_code == 2 and "the disk is full" in r.output and "please report" not in r.output
 

@@ -1,4 +1,4 @@
-"""camtool.segment: every face of the multi-face samples with the right model and parameters, seeded."""
+"""camtool.part.segment: every face of the multi-face samples with the right model and parameters, seeded."""
 import json
 import math
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.segment import SegmentSettings, segment
-from camtool.surface import Cylinder, PlaneSurface, SpherePatch
-from camtool.workpiece import Workpiece, load_workpiece
+from camtool.part.segment import SegmentSettings, segment
+from camtool.part.surface import Cylinder, PlaneSurface, SpherePatch
+from camtool.part.workpiece import Workpiece, load_workpiece
 
 from conftest import SAMPLES
 

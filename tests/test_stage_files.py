@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.stage_files import load_stage, save_stage
-from camtool.toolpath import ZONE_CODE, Path
+from camtool.run.stage_files import load_stage, save_stage
+from camtool.path.toolpath import ZONE_CODE, Path
 from camtool.trajectory import JointPath
 
 

@@ -1,4 +1,4 @@
-"""Stage helpers shared by the tasks (camtool.stages): leads sized for the ramps, densified rows' zones."""
+"""Stage helpers shared by the tasks (camtool.run.stages): leads sized for the ramps, densified rows' zones."""
 import numpy as np
 import pytest
 
@@ -6,10 +6,17 @@ from camtool.job import load_job
 from camtool.plan import plan_path
 from camtool.plan.smooth import smooth_runs
 from camtool.settings import JobSettings
-from camtool.stages import (part_for_checks, path_for_job, plan_for_job, plan_with_sized_leads, robot_for_job,
-                            surface_for_job, workpiece_for_job)
+from camtool.run.stages import (
+    part_for_checks,
+    path_for_job,
+    plan_for_job,
+    plan_with_sized_leads,
+    robot_for_job,
+    surface_for_job,
+    workpiece_for_job,
+)
 from camtool.timing import lead_needed_mm
-from camtool.toolpath import SURFACE_CODES, ZONE_CODE
+from camtool.path.toolpath import SURFACE_CODES, ZONE_CODE
 
 from conftest import SAMPLES
 
@@ -47,7 +54,7 @@ def test_leads_are_lengthened_to_what_the_ramps_need(short_leads_job):
 def test_lead_sizing_makes_the_whole_plan_once(short_leads_job, monkeypatch):
     """Leads are sized on the planning kernel's plan; smoothing, lifts and densifying run once, on the path
     with the leads chosen (they used to run again for every longer lead)."""
-    import camtool.stages as stages
+    import camtool.run.stages as stages
     settings, surface, path, robot, part = short_leads_job
     kernel, smoothed = [], []
     monkeypatch.setattr(stages, "plan_path", lambda p, *a, **k: kernel.append(len(p)) or plan_path(p, *a, **k))
@@ -93,7 +100,7 @@ def test_rows_densified_next_to_the_self_motion_zone_belong_to_it():
 def test_stage_log_times_each_stage_once():
     import time
 
-    from camtool.stages import StageLog
+    from camtool.run.stages import StageLog
 
     seen = []
     log = StageLog(on_stage=lambda name, value: (seen.append(name), time.sleep(0.05)))
@@ -112,8 +119,8 @@ def test_stage_log_times_each_stage_once():
 
 def test_a_cloud_checks_tolerance_grows_by_its_noisiest_faces_rms():
     """``motion_check``'s noise term: the fit's RMS of one surface, the largest face's of several, 0 unknown."""
-    from camtool.stages import _fit_rms_mm
-    from camtool.surface import Boundary, FaceSet, FitStats, PlaneSurface
+    from camtool.run.stages import _fit_rms_mm
+    from camtool.part.surface import Boundary, FaceSet, FitStats, PlaneSurface
 
     def face(rms):
         stats = None if rms is None else FitStats(1.0, rms, 3 * rms, 100, 100)

@@ -1,13 +1,13 @@
-"""camtool.step: a STEP part's B-rep faces read exactly (OCP), its mesh, and its faces in a job."""
+"""camtool.part.step: a STEP part's B-rep faces read exactly (OCP), its mesh, and its faces in a job."""
 import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.faces import segment_job
+from camtool.part.faces import segment_job
 from camtool.job import load_job
-from camtool.stages import workpiece_for_job
-from camtool.step import read_step_faces, step_mesh
-from camtool.workpiece import load_workpiece
+from camtool.run.stages import workpiece_for_job
+from camtool.part.step import read_step_faces, step_mesh
+from camtool.part.workpiece import load_workpiece
 
 from conftest import SAMPLES
 
@@ -88,8 +88,8 @@ def test_a_boss_all_round_keeps_its_outline_within_one_turn(tmp_path):
     from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
     from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
 
-    from camtool.faces import step_segmentation
-    from camtool.segment import SegmentSettings
+    from camtool.part.faces import step_segmentation
+    from camtool.part.segment import SegmentSettings
 
     box = BRepPrimAPI_MakeBox(gp_Pnt(-100, -60, 0), 200, 120, 40).Shape()
     boss = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(40, 0, 40), gp_Dir(0, 0, 1)), 20.0, 30.0).Shape()

@@ -1,4 +1,4 @@
-"""camtool.surface: plane and sphere parameterisations, the boundary, and the surface file."""
+"""camtool.part.surface: plane and sphere parameterisations, the boundary, and the surface file."""
 import json
 
 import numpy as np
@@ -6,8 +6,17 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from camtool.errors import BadInput
-from camtool.surface import (SURFACE_FORMAT, SURFACE_VERSION, Boundary, FitStats, PlaneSurface, SpherePatch,
-                             load_surface, save_surface, surface_from_dict)
+from camtool.part.surface import (
+    SURFACE_FORMAT,
+    SURFACE_VERSION,
+    Boundary,
+    FitStats,
+    PlaneSurface,
+    SpherePatch,
+    load_surface,
+    save_surface,
+    surface_from_dict,
+)
 
 
 def rect(u0, u1, v0, v1):
@@ -222,7 +231,7 @@ def test_save_surface_onto_a_folder_is_bad_input(tmp_path):
 
 
 def _cylinder():
-    from camtool.surface import Cylinder
+    from camtool.part.surface import Cylinder
 
     frame = np.array([[0.0, 0, 1], [0, -1.0, 0], [1.0, 0, 0]]).T
     return Cylinder(np.array([10.0, 20, 30]), 120.0, frame,

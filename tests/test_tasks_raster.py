@@ -1,8 +1,8 @@
-"""The raster task's map drawn ahead (camtool.tasks.raster.MapAhead): started once, withdrawn on a re-plan."""
+"""The raster task's map drawn ahead (camtool.run.tasks.raster.MapAhead): started once, withdrawn on a re-plan."""
 import functools
 
-from camtool.run_figures import MapInputs, draw_redundancy_map
-from camtool.tasks.raster import MapAhead
+from camtool.report.figures import MapInputs, draw_redundancy_map
+from camtool.run.tasks.raster import MapAhead
 
 
 class _Recorder:

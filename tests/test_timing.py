@@ -5,7 +5,7 @@ import pytest
 from camtool.errors import BadInput, PlanInfeasible
 from camtool.settings import TimingSettings
 from camtool.timing import check_trajectory, time_trajectory, timing_report
-from camtool.toolpath import ZONE_CODE
+from camtool.path.toolpath import ZONE_CODE
 from test_timing_fixtures import retract_path, seed8, tcp_speed_mm_s, two_runs
 
 ROBOT = seed8()

@@ -19,7 +19,7 @@ from camtool.timing.quintic import MARGIN
 from camtool.timing.ruckig_moves import RuckigMover, rest_to_rest_chain
 from camtool.timing.ruckig_through import TIME_GRID_S, through_pieces
 from camtool.timing.runs import time_runs
-from camtool.toolpath import ZONE_CODE, ZONES
+from camtool.path.toolpath import ZONE_CODE, ZONES
 from camtool.trajectory import Trajectory
 from test_timing_fixtures import joint_path_and_path, retract_path, seed8, transition_path, two_runs
 

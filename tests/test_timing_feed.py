@@ -11,7 +11,7 @@ from camtool.timing import (check_trajectory, feed_profile, lead_bound_mm, lead_
                             tcp_positions_world, time_trajectory, timing_report)
 from camtool.timing.pathlaw import PathSpline, plan_section, sample_section, scurve, speed_bounds
 from camtool.timing.quintic import MARGIN
-from camtool.toolpath import ZONE_CODE
+from camtool.path.toolpath import ZONE_CODE
 from camtool.transforms import matrix_from_xyz_rpy
 from test_timing_fixtures import joint_path_and_path, seed8, two_runs
 

@@ -2,7 +2,7 @@
 import numpy as np
 
 from camtool.robots import get_robot
-from camtool.toolpath import ZONE_CODE, Path
+from camtool.path.toolpath import ZONE_CODE, Path
 from camtool.trajectory import JointPath
 
 BASE_RAD = np.radians([0, 30, 10, 60, 5, 40, 10])

@@ -4,7 +4,7 @@ import pytest
 from ruckig import InputParameter, Ruckig
 from ruckig import Trajectory as RuckigTrajectory
 
-from camtool.post import thin_waypoints
+from camtool.program.post import thin_waypoints
 from camtool.settings import TimingSettings
 from camtool.timing import check_trajectory, time_trajectory, timing_report
 from camtool.timing import ruckig_through
@@ -12,7 +12,7 @@ from camtool.timing.assemble import run_layout, tcp_positions_mm
 from camtool.timing.quintic import MARGIN, piece_peaks
 from camtool.timing.runs import time_runs
 from camtool.timing.ruckig_through import CHECK_SHARE, JERK_FACTORS, REASONS, TIME_GRID_S, through_pieces
-from camtool.toolpath import ZONE_CODE
+from camtool.path.toolpath import ZONE_CODE
 from camtool.trajectory import Trajectory
 from test_timing_fixtures import seed8, two_runs
 

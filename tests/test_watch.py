@@ -43,7 +43,7 @@ def test_a_growing_or_touched_file_is_not_stable(tmp_path):
 
 
 def test_scan_takes_jobs_and_every_loader_extension_only(tmp_path):
-    from camtool.workpiece import supported_extensions
+    from camtool.part.workpiece import supported_extensions
 
     for name in ("a.toml", "b.STL", "c.pcd", "d.xyz", "e.ply", "notes.md", "x.json", ".hidden.stl", "tpl.toml"):
         (tmp_path / name).write_text("1")

@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from camtool.errors import BadInput
-from camtool.workpiece import LOADERS, Workpiece, load_workpiece
+from camtool.part.workpiece import LOADERS, Workpiece, load_workpiece
 
 
 def _box_mesh():

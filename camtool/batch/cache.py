@@ -107,7 +107,7 @@ def forget(outdir: Path) -> None:
     """Before a rerun: drop the manifest, the outputs it lists and everything the last run placed
     (report.html and plots too, ``output.forget_previous``), so a failed or killed rerun never leaves
     an old program, report or plot looking current. Only regular files inside ``outdir`` go."""
-    from ..output import forget_previous
+    from ..run.output import forget_previous
 
     outdir = Path(outdir)
     m = read_manifest(outdir)

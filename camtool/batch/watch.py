@@ -2,7 +2,7 @@
 
 A ``*.toml`` file is a job and runs as it is (with the ``--set`` overrides,
 like ``camtool batch``). A file whose extension the workpiece loader accepts
-(``camtool.workpiece.LOADERS``) runs with the template job, its
+(``camtool.part.workpiece.LOADERS``) runs with the template job, its
 ``workpiece.file`` set to the file's absolute path; that derived job is
 written to OUTDIR/<file name>/job.toml first. Both go through the batch
 runner (``run_one``: one process per job, logs, statuses, caching), and
@@ -35,7 +35,7 @@ SUCCEEDED = ("ok", "cached")
 
 def workpiece_extensions() -> frozenset[str]:
     """Lower-case extensions (with dot) the workpiece loader registry accepts."""
-    from ..workpiece import supported_extensions
+    from ..part.workpiece import supported_extensions
 
     return frozenset(supported_extensions())
 

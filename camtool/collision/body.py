@@ -121,7 +121,7 @@ def mesh_points(path: Path, units: str, drop_damaged: bool = False) -> np.ndarra
     """Vertices (mm) of a mesh file (the workpiece loader: every format and check it has).
     ``drop_damaged``: leave out triangles with non-finite or denormal coordinates (robot meshes:
     ROS-Industrial's carry 1e-33 m values) instead of refusing the file."""
-    from ..workpiece import load_workpiece
+    from ..part.workpiece import load_workpiece
 
     wp = load_workpiece(Path(path), units=units, sample_points=100, drop_nonfinite=drop_damaged)
     pts = wp.vertices_mm if wp.vertices_mm is not None else wp.points_mm

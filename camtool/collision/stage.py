@@ -1,4 +1,4 @@
-"""The collision world of a job's stages (the small hooks ``camtool.stages`` calls)."""
+"""The collision world of a job's stages (the small hooks ``camtool.run.stages`` calls)."""
 from __future__ import annotations
 
 from .world import CollisionWorld, WorldChecker

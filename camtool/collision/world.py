@@ -109,7 +109,7 @@ class CollisionWorld:
 
     def __reduce__(self):
         """Pickled as what it is made from (coal's shapes do not pickle): a process on standby
-        (``camtool.alongside.Standby``) rebuilds the same world."""
+        (``camtool.run.alongside.Standby``) rebuilds the same world."""
         return CollisionWorld, self._made_from
 
     @property

@@ -22,7 +22,7 @@ def _simulation(program: Path, robot, profile, fmt: str, against: Path | None, j
         if not Path(against).is_file():
             raise BadInput(f"{against}: planned path file not found")
         if Path(against).suffix.lower() == ".npz":
-            from ..stage_files import load_stage
+            from ..run.stage_files import load_stage
 
             box = load_stage(against, expect=("Trajectory", "TimedTrajectory"))
             reference = reference_from_trajectory(box, robot, feed)
@@ -38,7 +38,7 @@ class _JobPost:
     tolerance), its cell and the profile of the checked format."""
 
     def __init__(self, raw_job, robot):
-        from ..post import process_for_job
+        from ..program.post import process_for_job
         from ..settings import PostSettings
 
         self._job, self._robot = raw_job, robot
@@ -53,7 +53,7 @@ class _JobPost:
         return collision_world(JobSettings.from_job(self._job, self._robot), self._robot)
 
     def profile(self, fmt: str):
-        from ..post import profile_for_job
+        from ..program.post import profile_for_job
         from ..program.registry import get_plugin
 
         return profile_for_job(fmt, get_plugin(fmt), self._robot, self._job, self.settings)
@@ -105,7 +105,7 @@ def command(program: Path, robot_name: str | None, profile_file: Path | None, fm
     job = None  # what the post stage takes from the job (settings, process facts, profiles)
     if job_file is not None:
         from ..job import load_job
-        from ..stages import robot_for_job
+        from ..run.stages import robot_for_job
 
         raw_job = load_job(job_file, [])
         robot = robot_for_job(raw_job)

@@ -68,7 +68,7 @@ def command(job_file: Path, vary: tuple[str, ...], particles: int, iters: int, e
     from ..design import DesignProblem, MopsoSettings, design_arm, parse_vary
     from ..design.plots import plot_design_html, plot_design_space, plot_front
     from ..design.study import write_chosen_job, write_chosen_robot
-    from ..report import write_json_atomic
+    from ..report.run_report import write_json_atomic
 
     if particles < 2:
         raise BadInput(f"--particles: expected at least 2, found {particles}")

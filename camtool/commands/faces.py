@@ -24,8 +24,8 @@ def command(job_file: Path, overrides: tuple[str, ...], outdir: Path | None, as_
     and RMS residual; `selected` marks the faces the job's selection takes.
     Settings: [faces] and fit.threshold_mm, fit.seed (docs/faces.md).
     """
-    from ..faces import faces_png, segment_job, select_faces, segmented   # heavy: only when the command runs
-    from ..stages import workpiece_for_job
+    from ..part.faces import faces_png, segment_job, select_faces, segmented   # heavy: only when the command runs
+    from ..run.stages import workpiece_for_job
 
     job = load_job(job_file, list(overrides))
     wp = workpiece_for_job(job)

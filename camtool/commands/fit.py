@@ -13,7 +13,7 @@ SURFACE_FILE = "surface.json"
 def surface_summary(surface) -> dict:
     """The JSON summary of a fitted surface (parameters, statistics, boundary); of a job's several faces
     (``surface.FaceSet``), ``{"model": "faces", "faces": [{"index": ..., summary}, ...]}``."""
-    from ..surface import FaceSet, PlaneSurface
+    from ..part.surface import FaceSet, PlaneSurface
 
     if isinstance(surface, FaceSet):
         return {"model": "faces", "faces": [{"index": i, **surface_summary(f)}
@@ -60,11 +60,11 @@ def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, m
     XYZ, CSV, TXT. Prints the parameters in mm, the inlier ratio, RMS and largest
     residual of the inliers, and the boundary.
     """
-    from ..fit import fit_surface
+    from ..part.fit import fit_surface
     from ..settings import FitSettings
-    from ..stages import surface_for_job, workpiece_for_job
-    from ..surface import PlaneSurface, save_surface
-    from ..workpiece import load_workpiece
+    from ..run.stages import surface_for_job, workpiece_for_job
+    from ..part.surface import PlaneSurface, save_surface
+    from ..part.workpiece import load_workpiece
 
     if input_file.suffix.lower() == ".toml":
         job = load_job(input_file, list(overrides))
@@ -84,7 +84,7 @@ def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, m
     if as_json:
         echo_json(surface_summary(surface))
         return
-    from ..surface import FaceSet
+    from ..part.surface import FaceSet
 
     if isinstance(surface, FaceSet):  # one line per face, in the job's selection
         for f in surface_summary(surface)["faces"]:

@@ -84,7 +84,7 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
     from ..placement.screen import ScreenSettings
     from ..placement.search import (DEFAULT_VARY, PlacementProblem, format_offset, parse_vary, placement_of,
                                     write_placed_job)
-    from ..report import write_json_atomic
+    from ..report.run_report import write_json_atomic
     from ..settings import JobSettings
 
     for name, value, least in (("--grid", grid_max, 8), ("--verify", verify, 1), ("--max-checks", max_checks, 1),
@@ -105,7 +105,7 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
         if live:
             click.echo(f"  {msg}  {time.perf_counter() - t0:6.1f} s", err=True)
 
-    from ..stages import robot_for_job
+    from ..run.stages import robot_for_job
 
     robot = robot_for_job(job)
     st = JobSettings.from_job(job, robot)

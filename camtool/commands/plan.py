@@ -27,8 +27,8 @@ def command(job_file: Path, from_file: Path | None, outdir: Path, overrides: tup
     of reach.
     """
     from ..settings import JobSettings
-    from ..stage_files import save_stage
-    from ..stages import robot_for_job
+    from ..run.stage_files import save_stage
+    from ..run.stages import robot_for_job
 
     job = load_job(job_file, list(overrides))
     robot = robot_for_job(job)

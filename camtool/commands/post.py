@@ -25,9 +25,9 @@ def command(job_file: Path, from_file: Path | None, path_file: Path | None, outd
     is read back and checked before it is placed, as in `camtool run`.
     """
     from .. import safe_io
-    from ..post import preflight
+    from ..program.post import preflight
     from ..settings import JobSettings
-    from ..stages import post_checked, robot_for_job
+    from ..run.stages import post_checked, robot_for_job
     from .resume import trajectory_of
 
     job = load_job(job_file, list(overrides))

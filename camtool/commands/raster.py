@@ -38,10 +38,10 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
     surface within half the diagonal of a pitch x step-over cell, plus 2 % of
     the step-over, of a work point).
     """
-    from ..face_report import path_figures
-    from ..stage_files import save_stage
-    from ..stages import path_for_job, surface_for_job, workpiece_for_job
-    from ..surface import load_surface
+    from ..report.faces import path_figures
+    from ..run.stage_files import save_stage
+    from ..run.stages import path_for_job, surface_for_job, workpiece_for_job
+    from ..part.surface import load_surface
 
     for f, ext in ((plot_file, ".png"), (save_file, ".npz")):
         if f is not None and f.suffix.lower() != ext:
@@ -85,7 +85,7 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
 def plot_raster(surface, path, file: Path, title: str = "") -> None:
     """PNG of the path in 3D over the surface (zones coloured) beside the (u, v) map."""
     from ..files import output_file
-    from ..toolpath import ZONES
+    from ..path.toolpath import ZONES
 
     import matplotlib
 

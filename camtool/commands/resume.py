@@ -1,7 +1,7 @@
 """What the stage commands (fit, raster, plan, time, post) share: reading the input box of a stage.
 
 Each stage command runs its stage on a JOB. With ``--from FILE`` it takes the
-previous stage's saved output (``camtool.stage_files``); without it, it runs
+previous stage's saved output (``camtool.run.stage_files``); without it, it runs
 the stages before it first. Either way the same settings of the same job are
 used, so resumed stages reproduce ``camtool run`` byte for byte.
 """
@@ -19,7 +19,7 @@ SURFACE_FILE, PATH_FILE, JOINT_PATH_FILE, TRAJECTORY_FILE = "surface.json", "pat
 
 def workpiece(job):
     """The job's placed workpiece; its warnings go to stderr."""
-    from ..stages import workpiece_for_job
+    from ..run.stages import workpiece_for_job
 
     wp = workpiece_for_job(job)
     for w in wp.warnings:
@@ -29,16 +29,16 @@ def workpiece(job):
 
 def surface_of(job, from_file: Path | None):
     """The fitted surface: from ``from_file`` (surface.json) or fitted now."""
-    from ..stages import surface_for_job
-    from ..surface import load_surface
+    from ..run.stages import surface_for_job
+    from ..part.surface import load_surface
 
     return load_surface(from_file) if from_file is not None else surface_for_job(job, workpiece(job))
 
 
 def path_of(job, from_file: Path | None):
     """The tool Path: from ``from_file`` (path.npz) or rastered now."""
-    from ..stage_files import load_stage
-    from ..stages import path_for_job
+    from ..run.stage_files import load_stage
+    from ..run.stages import path_for_job
 
     if from_file is not None:
         return load_stage(from_file, expect=("Path",))
@@ -59,8 +59,8 @@ def sibling(from_file: Path | None, given: Path | None, name: str, what: str) ->
 
 def joint_path_of(job, settings, robot, from_file: Path | None, path_file: Path | None):
     """(Path, JointPath): from saved files, or planned now (with home moves when the job has a home)."""
-    from ..stage_files import load_stage
-    from ..stages import part_for_checks, path_for_job, plan_with_sized_leads, surface_for_job
+    from ..run.stage_files import load_stage
+    from ..run.stages import part_for_checks, path_for_job, plan_with_sized_leads, surface_for_job
 
     path_file = sibling(from_file, path_file, PATH_FILE, "path")
     if from_file is not None:
@@ -73,8 +73,8 @@ def joint_path_of(job, settings, robot, from_file: Path | None, path_file: Path 
 
 def trajectory_of(job, settings, robot, from_file: Path | None, path_file: Path | None = None):
     """(Path, timed trajectory): from saved files (the Path beside the trajectory), or planned and timed now."""
-    from ..stage_files import load_stage
-    from ..stages import time_for_job
+    from ..run.stage_files import load_stage
+    from ..run.stages import time_for_job
 
     if from_file is not None:
         path = load_stage(sibling(from_file, path_file, PATH_FILE, "path"), expect=("Path",))

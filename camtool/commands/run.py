@@ -36,7 +36,7 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     and every program passed `camtool check`. Exit 3 when the plan cannot be
     done (report.json and plots/unreachable.png say where and why).
     """
-    from ..part_stages import PartAhead
+    from ..run.part_stages import PartAhead
 
     job = load_job(job_file, list(overrides) + (["task.allow_partial=true"] if allow_partial else []))
     # the workpiece is read and fitted in a process of its own while this one imports the pipeline
@@ -51,7 +51,7 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
         progress.done(name)
 
     with part if part is not None else nullcontext():
-        from ..pipeline import run_job
+        from ..run.pipeline import run_job
 
         try:
             result = run_job(job, outdir, compare=compare, on_stage=on_stage, part=part)

@@ -117,7 +117,7 @@ def plot_design_html(study, file: Path) -> Path:
     """design.html: the design space and the Pareto front as interactive plotly figures (offline page)."""
     import plotly.graph_objects as go
 
-    from ..report_html import fig_html, write_html_page
+    from ..report.html import fig_html, write_html_page
 
     names = study.names
     bad = study.violation > 0

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import BadInput
-from ..toolpath import WORK, ZONE_CODE, ZONES
+from ..path.toolpath import WORK, ZONE_CODE, ZONES
 from .fk_batch import BatchFK
 from .geometry import PartGeometry
 
@@ -178,7 +178,7 @@ def _zone_codes(zone, M) -> np.ndarray:
         return np.array([ZONE_CODE[str(x)] for x in z], dtype=np.int64)
     z = z.astype(np.int64)
     if len(z) and (z.min() < 0 or z.max() >= len(ZONES)):
-        raise BadInput(f"motion check: zone codes must be 0..{len(ZONES) - 1} (camtool.toolpath.ZONES)")
+        raise BadInput(f"motion check: zone codes must be 0..{len(ZONES) - 1} (camtool.path.toolpath.ZONES)")
     return z
 
 
@@ -231,7 +231,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
     """Measure the joint-linear motion through the waypoints against the part.
 
     ``t_s`` (M,) strictly increasing waypoint times; ``q`` (M, dof) joint values
-    (rad / mm); ``zone`` (M,) zone codes or names (camtool.toolpath.ZONES);
+    (rad / mm); ``zone`` (M,) zone codes or names (camtool.path.toolpath.ZONES);
     ``robot`` placed (base and tool); ``part`` the placed part;
     ``path_index`` (M,) optional index per waypoint used in the findings
     (``index_label`` names it, e.g. "segment"; -1 = none); ``world`` a

@@ -1,7 +1,7 @@
 """Workpiece placement: where to put the part so that the robot reaches all of it with margin.
 
 Modules (import them directly; this package file imports nothing, so that the
-low-level ones can be used from ``camtool.stages`` and the tasks without an
+low-level ones can be used from ``camtool.run.stages`` and the tasks without an
 import cycle):
 
 - ``kinematics``: the robot's closed-form IK families, batched over many poses

@@ -234,7 +234,7 @@ class ClosedForm:
         for S in self.spins:
             F = T @ S @ self.tool_inv
             if self.kind == "spherical_wrist":
-                from ..redundancy_map import spherical_wrist_batch
+                from ..report.redundancy_map import spherical_wrist_batch
 
                 with np.errstate(invalid="ignore"):
                     out.append(spherical_wrist_batch(self.ik, F))

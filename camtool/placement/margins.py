@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..toolpath import WORK
+from ..path.toolpath import WORK
 from .kinematics import ClosedForm, dexterity, yoshikawa
 
 MAX_ROWS = 4000

@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..toolpath import SURFACE_CODES as SURFACE
-from ..toolpath import WORK, ZONE_CODE, Path, run_bounds
+from ..path.toolpath import SURFACE_CODES as SURFACE
+from ..path.toolpath import WORK, ZONE_CODE, Path, run_bounds
 
 
 @dataclass(frozen=True)

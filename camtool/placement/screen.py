@@ -51,7 +51,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..toolpath import WORK, Path
+from ..path.toolpath import WORK, Path
 from .kinematics import ClosedForm, dexterity
 
 AXES = ("x", "y", "z", "yaw")

@@ -28,7 +28,7 @@ from ..errors import BadInput, PlanInfeasible
 from ..job import Job, Section
 from ..settings import JobSettings
 from ..vary import parse_range
-from ..stages import path_for_job, robot_for_job, surface_for_job, time_for_job, workpiece_for_job
+from ..run.stages import path_for_job, robot_for_job, surface_for_job, time_for_job, workpiece_for_job
 from .kinematics import ClosedForm
 from .margins import reach_margins
 from .screen import AXES, UNITS, PathGeometry, ScreenResult, ScreenSettings, screen_batch
@@ -189,7 +189,7 @@ def verify_placement(job: Job, offset, settings: ScreenSettings) -> dict:
     their penalty (``plan_penalty``); the cost is set by the search
     (``PlacementProblem.planned_cost``).
     """
-    from .. import stages
+    from ..run import stages
     from ..timing import limit_findings
     from ..timing.pathlaw import remembered_runs
 

@@ -14,7 +14,7 @@ not fail at the very edge. If no translation up to ``max_mm`` works, yaws
 about world z through the workpiece origin (``yaws_deg``, nearest first) are
 tried, alone and with translations.
 
-It imports nothing of the pipeline (``camtool.stages``), so a task can call
+It imports nothing of the pipeline (``camtool.run.stages``), so a task can call
 it; the path is the one the failed run planned (world frame).
 """
 from __future__ import annotations

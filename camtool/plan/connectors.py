@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import PlanInfeasible
 from ..robots.model import Robot
-from ..toolpath import ZONE_CODE, Path, row_segments, run_bounds
+from ..path.toolpath import ZONE_CODE, Path, row_segments, run_bounds
 from ..trajectory import JointPath
 from ..collision.world import WorldChecker
 from .cwln import CwlnSolver

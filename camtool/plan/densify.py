@@ -19,7 +19,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..robots.model import Robot
-from ..toolpath import SURFACE_CODES, ZONE_CODE, Path
+from ..path.toolpath import SURFACE_CODES, ZONE_CODE, Path
 from ..trajectory import JointPath
 from ..timing.feed import tcp_positions_world
 from .cwln import CwlnSolver

@@ -19,7 +19,7 @@
 - ``CloudChecker(robot, points)``: the same capsules against a point cloud
   (KD-tree distance; no inside test).
 - ``free_move`` / ``insert_home_moves``: the approach and depart moves of
-  raster jobs with ``robot.home_deg`` (``camtool.stages.add_home_moves``).
+  raster jobs with ``robot.home_deg`` (``camtool.run.stages.add_home_moves``).
 - ``plan_free_move(robot, q_start, q_goal, valid=None, mesh=None, ...)``: all
   of it, then timed by the common timing stage (rest-to-rest ruckig moves
   between waypoints); timed samples that break validity get their move split
@@ -36,7 +36,7 @@ import numpy as np
 from ..collision.validity import Validity, reason_of, valid_rows
 from ..errors import BadInput, PlanInfeasible
 from ..robots.ik_common import Chain
-from ..toolpath import ZONE_CODE, Path
+from ..path.toolpath import ZONE_CODE, Path
 from ..trajectory import JointPath
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..robots.model import Robot
-from ..toolpath import SURFACE_CODES, WORK, Path
+from ..path.toolpath import SURFACE_CODES, WORK, Path
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
 from .densify import bisected, slerp_midposes

@@ -42,7 +42,7 @@ import scipy.sparse.linalg as spla
 from scipy.interpolate import CubicSpline
 
 from ..robots.model import Robot
-from ..toolpath import Path, row_segments, run_bounds
+from ..path.toolpath import Path, row_segments, run_bounds
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
 

@@ -43,7 +43,7 @@ from ..robots.ik_common import limit_equivalents
 from ..robots.ik_srs import track_shift
 from ..robots.model import Robot
 from ..settings import PlannerSettings
-from ..toolpath import ZONE_CODE, ZONES, Path, run_bounds
+from ..path.toolpath import ZONE_CODE, ZONES, Path, run_bounds
 from ..trajectory import JointPath
 from .connectors import cartesian_lift
 from .cwln import CwlnSolver, IkResult, IkSettings

@@ -31,7 +31,7 @@ from scipy.interpolate import RegularGridInterpolator
 
 from ..errors import BadInput
 from ..settings import ProcessSettings
-from ..toolpath import SURFACE_CODES, WORK
+from ..path.toolpath import SURFACE_CODES, WORK
 from .figures import edge_distance_mm
 from .footprint import Footprint
 from .grid import MapGrid, map_grid

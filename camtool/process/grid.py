@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..toolpath import freeze_arrays
+from ..path.toolpath import freeze_arrays
 
 MAX_CELLS = 4_000_000  # a finer grid is refused: coarsen process.grid_mm
 

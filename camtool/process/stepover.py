@@ -30,7 +30,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..settings import ProcessSettings, RasterSettings
-from ..toolpath import SURFACE_CODES
+from ..path.toolpath import SURFACE_CODES
 from .figures import edge_distance_mm, map_figures
 from .footprint import Footprint
 from .integrate import process_map
@@ -88,7 +88,7 @@ def _track(path, feed_mm_s: float, spacing_mm: float, lift_mm: float) -> tuple[n
 
 def predicted_map(surface, raster: RasterSettings, process: ProcessSettings, feed_mm_s: float):
     """(path, map) of the raster of ``surface`` with ``raster`` run at constant feed (see the module doc)."""
-    from ..raster import raster_path
+    from ..path.raster import raster_path
 
     path = raster_path(surface, raster)
     t, tcp = _track(path, feed_mm_s, 0.5 * process.grid_mm, 10.0 * process.contact_tol_mm + 1.0)

@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from camtool.toolpath import ZONE_CODE
+from camtool.path.toolpath import ZONE_CODE
 
 from .kinematics import Kinematics
 

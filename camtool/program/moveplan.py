@@ -41,7 +41,7 @@ class MovePlan:
     R: np.ndarray          # (n, 3, 3) TCP rotation of each target, base frame
     q: np.ndarray          # (n, dof) joint values of each target
     rows: int = 0
-    zone: np.ndarray | None = None   # (n,) zone code of each target (``camtool.toolpath.ZONES``)
+    zone: np.ndarray | None = None   # (n,) zone code of each target (``camtool.path.toolpath.ZONES``)
     via_P: np.ndarray | None = None  # (n, 3) circle point of each circular move (kind C), NaN elsewhere
     via_R: np.ndarray | None = None  # (n, 3, 3) its TCP rotation
     via_q: np.ndarray | None = None  # (n, dof) its joint values

@@ -52,7 +52,7 @@ def reference_from_trajectory(trajectory, robot, feed_mm_s: float | None = None)
     stretches; and, where the timed motion itself bows off that polyline by more than
     ``REF_SAG_MM`` (its quintic pieces between waypoints), that motion's TCP curve as
     ``Reference.motion``."""
-    from camtool.toolpath import ZONE_CODE
+    from camtool.path.toolpath import ZONE_CODE
 
     zone = np.asarray(trajectory.zone)
     t = np.asarray(trajectory.t_s, float)
@@ -89,7 +89,7 @@ def reference_from_trajectory(trajectory, robot, feed_mm_s: float | None = None)
 def reference_from_path(path, robot, duration_s: float | None = None, feed_mm_s: float | None = None) -> Reference:
     """The planned path from the raster ``Path`` itself: its poses of the process zones (world
     frame) in the robot base frame, broken between stretches."""
-    from camtool.toolpath import ZONE_CODE
+    from camtool.path.toolpath import ZONE_CODE
 
     zone = np.asarray(path.zone)
     proc = np.isin(zone, [ZONE_CODE["work"], ZONE_CODE["lead_in"], ZONE_CODE["lead_out"]])

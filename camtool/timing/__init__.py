@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from ..errors import BadInput, CamtoolError, PlanInfeasible
-from ..toolpath import ZONE_CODE, ZONES
+from ..path.toolpath import ZONE_CODE, ZONES
 from ..trajectory import Trajectory, TrajectorySamples, sample_trajectory
 from .assemble import (SURFACE_ZONES, lead_needed_mm, place, run_layout, short_leads, slowdowns, time_surface,
                        timeline_pieces)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..toolpath import SURFACE_ZONES, ZONES, ZONE_CODE, row_segments, run_bounds
+from ..path.toolpath import SURFACE_ZONES, ZONES, ZONE_CODE, row_segments, run_bounds
 from ..trajectory import quintic_coefficients
 from .flow import corner_poses, flow_chain, hard_steps
 from .quintic import MARGIN

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..toolpath import ZONE_CODE
+from ..path.toolpath import ZONE_CODE
 from .. import safe_io
 
 FEED_TOLERANCES = (0.01, 0.02)   # shares of the commanded feed reported (within +-1 %, +-2 %)

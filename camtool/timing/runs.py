@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import CamtoolError
-from ..toolpath import ZONE_CODE
+from ..path.toolpath import ZONE_CODE
 from .pathlaw import PathSpline, SectionPlan, scurve, speed_bounds, time_run_section, transition_limits
 from .quintic import MARGIN
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..toolpath import freeze_arrays
+from ..path.toolpath import freeze_arrays
 from ..trajectory import Trajectory, TrajectorySamples, sample_blocks
 from .feed import tcp_positions_world
 

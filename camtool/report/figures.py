@@ -4,7 +4,7 @@ The redundancy map's cells need only the path's work poses, so the raster task s
 them while the path is planned (``sweep_ahead``) and draws the map with the plan while
 the trajectory is timed; feed.png and the joint plots need the timed trajectories and are
 drawn while the programs are written. Both run in processes made ready ahead
-(``camtool.alongside.Standby``, ``import_figure_libraries``); report.html takes the map
+(``camtool.run.alongside.Standby``, ``import_figure_libraries``); report.html takes the map
 from here.
 """
 from __future__ import annotations
@@ -13,10 +13,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import BadInput
-from .report import import_plotting, plot_joints
-from .report_html import redundancy_figure
-from .timing import plot_feed_png, sampled_for
+from ..errors import BadInput
+from .run_report import import_plotting, plot_joints
+from .html import redundancy_figure
+from ..timing import plot_feed_png, sampled_for
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class DrawnMap:
 
 def import_figure_libraries() -> None:
     """Import matplotlib (a second or more): a process made ready ahead of the figures
-    (``camtool.alongside.Standby``) does it while the run still plans."""
+    (``camtool.run.alongside.Standby``) does it while the run still plans."""
     import_plotting()
 
 
@@ -114,7 +114,7 @@ class SweptMap:
 def sweep_ahead(inputs: MapInputs, _prepared=None) -> SweptMap:
     """The redundancy map's cells of ``inputs.path`` (the raster, before it is planned): the map's heavy
     part, done while the run plans; ``draw_redundancy_map`` takes them where the planned path has the
-    same work poses. ``_prepared``: what the process did ahead (``camtool.alongside.Standby``, hand_on)."""
+    same work poses. ``_prepared``: what the process did ahead (``camtool.run.alongside.Standby``, hand_on)."""
     from .redundancy_map import redundancy_kind, sweep_map
 
     wall, cpu = _clock()

@@ -12,7 +12,7 @@ when a trajectory is given), reverse plans, retracts, singular, not-reached
 and failing poses, the cell's obstacles, and the robot (its joint origins and the link
 shapes the motion check measures) on a slider along the path;
 TCP feed along the path length; joint use as a share of the limits (one heat
-map, joint x time); and the redundancy map (``camtool.redundancy_map``).
+map, joint x time); and the redundancy map (``camtool.report.redundancy_map``).
 """
 from __future__ import annotations
 
@@ -21,10 +21,10 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
-from .collision.plot import obstacle_traces
-from .errors import BadInput
-from .robots.dh import MM_TO_M
-from .toolpath import WORK, ZONES
+from ..collision.plot import obstacle_traces
+from ..errors import BadInput
+from ..robots.dh import MM_TO_M
+from ..path.toolpath import WORK, ZONES
 
 MAX_WORKPIECE_POINTS = 20_000
 MAX_PATH_POINTS = 20_000
@@ -120,7 +120,7 @@ def write_html_page(file, title: str, sections: list[tuple[str, str, str]]) -> F
             f'<script type="text/javascript">{get_plotlyjs()}</script>\n</head>\n<body>\n'
             f'<h1>{html.escape(title)}</h1>\n{body}\n</body>\n</html>\n')
     file.parent.mkdir(parents=True, exist_ok=True)
-    from . import safe_io  # never half-written, never through a planted link
+    from .. import safe_io  # never half-written, never through a planted link
 
     return safe_io.write_file(file.parent, file.name, page)
 
@@ -298,7 +298,7 @@ def _world(robot, p_base: np.ndarray) -> np.ndarray:
 
 def tcp_positions(robot, q: np.ndarray) -> np.ndarray:
     """(N, 3) TCP positions (world frame, mm) at joint rows q (vectorised FK, ``timing.feed``)."""
-    from .timing.feed import tcp_positions_world
+    from ..timing.feed import tcp_positions_world
 
     return tcp_positions_world(robot, np.asarray(q, float).reshape(-1, robot.dof))
 
@@ -452,7 +452,7 @@ def _verdict_section(report: dict):
 
 def _process_section(report: dict, surface):
     """The process map on the 3-D surface (``camtool.process.html``), or None without one."""
-    from .process.html import process_heat_map_figure, process_note
+    from ..process.html import process_heat_map_figure, process_note
 
     figures = report.get("process_map")
     fig = process_heat_map_figure(figures, surface) if figures else None
@@ -466,7 +466,7 @@ def _process_section(report: dict, surface):
 def _boundary_lines(surface) -> np.ndarray | None:
     """The material boundary on the fitted surface (every face of a ``FaceSet``) as polylines (None-separated
     rows of NaN)."""
-    from .surface import FaceSet
+    from ..part.surface import FaceSet
 
     if isinstance(surface, FaceSet):
         parts = [p for p in (_boundary_lines(s) for s in surface.surfaces) if p is not None]
@@ -603,8 +603,8 @@ def _event_traces(go, report, robot, path, joint_path, failing_indices) -> list:
 def _robot_shapes(report: dict, robot, world=None):
     """The robot's bodies as the motion check measured them: the job's collision world, else one made
     with the tool report.json's cell bodies describe."""
-    from .collision.plot import RobotShapes
-    from .collision.world import CellSettings, CollisionWorld
+    from ..collision.plot import RobotShapes
+    from ..collision.world import CellSettings, CollisionWorld
 
     if world is None:
         cell = (report.get("motion_check") or {}).get("cell") or {}

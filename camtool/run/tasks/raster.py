@@ -11,27 +11,34 @@ from pathlib import Path
 from typing import Callable
 
 from ..alongside import Standby, timed
-from ..collision.stage import collision_world
-from ..errors import BadInput, PlanInfeasible
-from ..face_report import faces_worked
-from ..faces import faces_report, segmented
-from ..job import Job
+from ...collision.stage import collision_world
+from ...errors import BadInput, PlanInfeasible
+from ...report.faces import faces_worked
+from ...part.faces import faces_report, segmented
+from ...job import Job
 from ..part_stages import JobPart
-from ..process.outputs import process_outputs
-from ..process.dwell import check_target_inputs, retime_for_target, target_removal
-from ..process.stepover import auto_step_over
-from ..raster import raster_path
-from ..report_html import figure_sections
-from ..motion.geometry import import_part_libraries
-from ..run_figures import (FigureInputs, MapInputs, draw_joint_plots, draw_redundancy_map, draw_run_figures,
-                           import_figure_libraries, sweep_ahead)
-from ..placement.partial import partial_path, partial_summary, reachable_stretches
-from ..plan.kernel import load_compiled
-from ..placement.shift import nearest_feasible_shift
-from ..settings import JobSettings
-from ..surface import FaceSet
-from ..timing import sampled_for
-from ..timing.pathlaw import remembered_runs
+from ...process.outputs import process_outputs
+from ...process.dwell import check_target_inputs, retime_for_target, target_removal
+from ...process.stepover import auto_step_over
+from ...path.raster import raster_path
+from ...report.html import figure_sections
+from ...motion.geometry import import_part_libraries
+from ...report.figures import (
+    FigureInputs,
+    MapInputs,
+    draw_joint_plots,
+    draw_redundancy_map,
+    draw_run_figures,
+    import_figure_libraries,
+    sweep_ahead,
+)
+from ...placement.partial import partial_path, partial_summary, reachable_stretches
+from ...plan.kernel import load_compiled
+from ...placement.shift import nearest_feasible_shift
+from ...settings import JobSettings
+from ...part.surface import FaceSet
+from ...timing import sampled_for
+from ...timing.pathlaw import remembered_runs
 from ..stages import (RunResult, StageLog, finish_run, leads_into_part, motion_check, motion_check_part, part_for_checks,
                       plan_and_time, plan_with_sized_leads, post_checked, report_failure, report_unreachable,
                       run_report, time_for_job)
@@ -237,7 +244,7 @@ def _drawn_map(ahead: MapAhead):
 
 def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
          helpers: _Helpers, job_part: JobPart, leads_retried: str | None = None) -> RunResult:
-    """``run`` with its helpers on standby (``camtool.alongside.Standby``)."""
+    """``run`` with its helpers on standby (``camtool.run.alongside.Standby``)."""
     figures = helpers.figures
     world = collision_world(settings, robot)
     ahead = MapAhead(helpers.mapping, robot, outdir, world)

@@ -3,9 +3,9 @@
     load job -> workpiece -> fit -> raster -> plan -> time -> check -> post
 
 ``run_job`` checks the plugins, profiles and output folder first, builds the
-job's settings once, and hands the job to its task (``camtool.tasks.TASKS``).
+job's settings once, and hands the job to its task (``camtool.run.tasks.TASKS``).
 No program is ever written by a run that failed a stage or a check, and the
-output folder always holds one consistent run (``camtool/output.py``).
+output folder always holds one consistent run (``camtool/run/output.py``).
 """
 from __future__ import annotations
 
@@ -15,11 +15,11 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Callable
 
-from .errors import CamtoolError
-from .job import Job
+from ..errors import CamtoolError
+from ..job import Job
 from .output import final_path, place, staged_output
-from .post import preflight
-from .settings import JobSettings
+from ..program.post import preflight
+from ..settings import JobSettings
 from .part_stages import JobPart, PartHere
 from .stages import (RunResult, StageLog, path_for_job, plan_and_time, robot_for_job, surface_for_job,
                      workpiece_for_job)

@@ -25,7 +25,7 @@ work point sits on a boundary edge.
 
 Where the rows alone cover less than ``CONTOUR_BELOW`` of the face (``raster.contour =
 "auto"``; "on" always, "off" never), a contour pass follows: runs along every edge
-of the face, half a step inside it, after the rows (``camtool.contour``), each a
+of the face, half a step inside it, after the rows (``camtool.path.contour``), each a
 segment with leads like a row's, their poses marked in ``Path.contour``.
 
 Around every segment: ``lead_in`` / ``lead_out`` poses continue along the row
@@ -46,10 +46,10 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from .contour import contour_blocks, contour_runs, spans_full_turn
-from .errors import BadInput
+from ..errors import BadInput
 from .face_set import raster_faces
-from .settings import RasterSettings
-from .surface import FaceSet
+from ..settings import RasterSettings
+from ..part.surface import FaceSet
 from .toolpath import ZONE_CODE, ZONES, Path
 
 APPROACH_POINTS = 3  # poses in the approach and in the depart zone

@@ -1,17 +1,17 @@
-"""report.json's ``faces.worked`` and the figures of a path over several faces (``camtool.face_set``)."""
+"""report.json's ``faces.worked`` and the figures of a path over several faces (``camtool.path.face_set``)."""
 from __future__ import annotations
 
 from dataclasses import replace
 
 import numpy as np
 
-from .face_set import face_paths
-from .raster import coverage as face_coverage
-from .raster import raster_summary
-from .segment import area_mm2
-from .surface import FaceSet
-from .timing.feed import feed_profile, feed_statistics
-from .toolpath import Path, row_segments
+from ..path.face_set import face_paths
+from ..path.raster import coverage as face_coverage
+from ..path.raster import raster_summary
+from ..part.segment import area_mm2
+from ..part.surface import FaceSet
+from ..timing.feed import feed_profile, feed_statistics
+from ..path.toolpath import Path, row_segments
 
 
 def coverage(face_set: FaceSet, path: Path, grid: int = 400) -> float:

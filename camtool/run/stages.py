@@ -4,7 +4,7 @@
 
 Each function takes the job (or its settings) and the previous stage's box and
 returns the next box; none of them writes files except ``post_checked`` and
-``finish_run``. Task modules (``camtool.tasks``) compose these; this module
+``finish_run``. Task modules (``camtool.run.tasks``) compose these; this module
 imports no task, so the import graph stays acyclic.
 """
 from __future__ import annotations
@@ -20,31 +20,37 @@ from typing import Callable
 import numpy as np
 import trimesh
 
-from .errors import PlanInfeasible
-from .job import Job
-from .motion import MotionCheckSettings, check_motion, part_from_path
+from ..errors import PlanInfeasible
+from ..job import Job
+from ..motion import MotionCheckSettings, check_motion, part_from_path
 from .part_stages import surface_for_job, workpiece_for_job  # noqa: F401  (the stages of every task)
-from .placement.margins import reach_margins
-from .plan import plan_path
-from .plan.connectors import LiftSettings, lift_reconfigurations
-from .plan.cwln import CwlnSolver
-from .plan.densify import densify_work
-from .plan.sag import add_surface_poses
-from .plan.smooth import SmoothSettings, smooth_runs
-from .plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
-from .plan.strategy import ik_settings
-from .collision.stage import collision_world, with_world
-from .post import thin_waypoints, write_job_programs
-from .raster import raster_path
-from .report import (plan_metrics, plot_joints, plot_unreachable, stage_seconds, write_json_atomic,
-                     write_points_csv)
-from .report_html import write_run_html
-from .robots import get_robot
-from .settings import JobSettings, PlannerSettings, RasterSettings, TimingSettings
-from .surface import FaceSet
-from .timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
-from .toolpath import row_segments
-from .transforms import matrix_from_xyz_rpy
+from ..placement.margins import reach_margins
+from ..plan import plan_path
+from ..plan.connectors import LiftSettings, lift_reconfigurations
+from ..plan.cwln import CwlnSolver
+from ..plan.densify import densify_work
+from ..plan.sag import add_surface_poses
+from ..plan.smooth import SmoothSettings, smooth_runs
+from ..plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
+from ..plan.strategy import ik_settings
+from ..collision.stage import collision_world, with_world
+from ..program.post import thin_waypoints, write_job_programs
+from ..path.raster import raster_path
+from ..report.run_report import (
+    plan_metrics,
+    plot_joints,
+    plot_unreachable,
+    stage_seconds,
+    write_json_atomic,
+    write_points_csv,
+)
+from ..report.html import write_run_html
+from ..robots import get_robot
+from ..settings import JobSettings, PlannerSettings, RasterSettings, TimingSettings
+from ..part.surface import FaceSet
+from ..timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
+from ..path.toolpath import row_segments
+from ..transforms import matrix_from_xyz_rpy
 
 FREE_MOVE_RADIUS_MM = 60.0   # link capsule radius of the approach / depart collision check
 CONTACT_ALLOWANCE_MM = 20.0  # the exempt ball round the first / last tool contact: capsule radius + this
@@ -497,7 +503,7 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
     """Write the plots, points.csv and report.json of a successful run; the RunResult lists every file.
 
     ``world``: the job's collision world (the redundancy map's collision layer).
-    ``figures``: a process (``camtool.alongside``) drawing ``run_figures.draw_run_figures``
+    ``figures``: a process (``camtool.run.alongside``) drawing ``run_figures.draw_run_figures``
     while the run went on, and ``mapping`` one whose ``result()`` is
     ``run_figures.draw_redundancy_map``'s (or None: not drawn ahead) (the raster task);
     their files are taken here, the wait for them is the stage ``figures`` and their own

@@ -11,7 +11,7 @@ One format for every box (``Path``, ``JointPath``, ``Trajectory`` and
 Arrays round-trip exactly and JSON floats are written with ``repr``, so a
 resumed stage reproduces the run's programs byte for byte. Fields marked
 ``metadata={"transient": True}`` (caches) are not saved. Surfaces keep their
-JSON format (``camtool.surface.save_surface``, versioned the same way). See
+JSON format (``camtool.part.surface.save_surface``, versioned the same way). See
 docs/stage-files.md.
 """
 from __future__ import annotations
@@ -24,12 +24,12 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
-from . import safe_io
-from .errors import BadInput
-from .files import output_file
-from .timing import TimedTrajectory
-from .toolpath import ZONES, Path
-from .trajectory import JointPath, Trajectory
+from .. import safe_io
+from ..errors import BadInput
+from ..files import output_file
+from ..timing import TimedTrajectory
+from ..path.toolpath import ZONES, Path
+from ..trajectory import JointPath, Trajectory
 
 FORMAT = "camtool-stage"
 VERSION = 1

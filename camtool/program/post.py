@@ -32,17 +32,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .alongside import Alongside
-from .errors import BadInput, PlanInfeasible
-from .profiles import Profile, default_profile_path
-from .program.candidates import forget_merged
-from .program.check import check_file
-from .program.plugin import PostProcessor
-from .program.process import DATE_FORMAT, DEFAULT_ORI_TOL_DEG, DEFAULT_PATH_TOL_MM, ProcessInfo  # noqa: F401
-from .program.profiles import defaults_profile, load_profile
-from .program.targets import forget_solved
-from .program.registry import get_plugin
-from .settings import PostSettings, TimingSettings
+from ..run.alongside import Alongside
+from ..errors import BadInput, PlanInfeasible
+from ..profiles import Profile, default_profile_path
+from .candidates import forget_merged
+from .check import check_file
+from .plugin import PostProcessor
+from .process import DATE_FORMAT, DEFAULT_ORI_TOL_DEG, DEFAULT_PATH_TOL_MM, ProcessInfo  # noqa: F401
+from .profiles import defaults_profile, load_profile
+from .targets import forget_solved
+from .registry import get_plugin
+from ..settings import PostSettings, TimingSettings
 
 log = logging.getLogger("camtool.post")
 MAX_LISTED = 10
@@ -101,7 +101,7 @@ def workpiece_wobj(job, robot) -> dict:
     rpy_deg): Cartesian targets are written in it, so the work object is the workpiece."""
     from scipy.spatial.transform import Rotation
 
-    from .transforms import invert, matrix_from_xyz_rpy
+    from ..transforms import invert, matrix_from_xyz_rpy
 
     wp = matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg)
     T = invert(np.asarray(robot.base_T_mm, float)) @ wp
@@ -158,7 +158,7 @@ def preflight(robot, job, outdir) -> PostInputs:
 def row_labels(trajectory, path) -> tuple:
     """A label per work row of ``trajectory`` naming its raster segment (``path.segment``), and on a path
     over several faces its face (``path.face``), e.g. "face 2, segment 26"."""
-    from .toolpath import WORK
+    from ..path.toolpath import WORK
 
     work = np.asarray(trajectory.zone) == WORK
     first = np.flatnonzero(work & ~np.r_[False, work[:-1]])
@@ -167,14 +167,14 @@ def row_labels(trajectory, path) -> tuple:
 
 
 def summary_lines(sim):
-    from .simulate import summary_lines as lines
+    from ..simulate import summary_lines as lines
     return lines(sim)
 
 
 def simulate_program(plugin, entry, robot, profile, trajectory, process, reference=None, world=None):
     """The simulator's report of one written program (``camtool.simulate``), against the
     planned path of ``trajectory``; with ``world``, the cell's pairs on the simulated motion too."""
-    from .simulate import reference_from_trajectory, simulate
+    from ..simulate import reference_from_trajectory, simulate
 
     prog = plugin.read_program(entry, robot, profile)
     if reference is None:
@@ -260,7 +260,7 @@ def _forget_stale_programs(outdir: Path, final: list[Path]) -> None:
 
     manifest = outdir / PROGRAMS_MANIFEST
     names = sorted(f.name for f in final)
-    from . import safe_io
+    from .. import safe_io
 
     try:
         before = json.loads(safe_io.read_input_bytes(manifest, "manifest", follow=False)).get("programs", [])
@@ -332,7 +332,7 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
             more = f" (and {len(findings) - MAX_LISTED} more)" if len(findings) > MAX_LISTED else ""
             raise PlanInfeasible(f"{len(findings)} program check finding(s), no program written: "
                                  + " | ".join(findings[:MAX_LISTED]) + more, {"findings": findings})
-        from . import safe_io
+        from .. import safe_io
 
         if before_placing is not None:
             before_placing()
@@ -354,7 +354,7 @@ DEVIATION_FINDING = "from the planned path"
 def _tcp_robot(robot, post):
     """``robot`` with the format's profile tool: the simulator measures the job's TCP (the robot given may
     come without the job's tool)."""
-    from .program.plan import profile_tool
+    from .plan import profile_tool
 
     return robot.with_placement(tool_T_mm=profile_tool(post.profile))
 
@@ -365,7 +365,7 @@ def _reference(profiles: dict, trajectory, robot, process):
     first = next((post for post in profiles.values() if post.plugin.simulated), None)
     if first is None:
         return None
-    from .simulate import reference_from_trajectory
+    from ..simulate import reference_from_trajectory
 
     return reference_from_trajectory(trajectory, _tcp_robot(robot, first), process.feed_mm_s)
 

@@ -4,7 +4,7 @@ One call, :func:`load_workpiece`, dispatches on the file extension to a loader
 registered in ``LOADERS`` (trimesh style), so a new format touches one place.
 
 - Meshes (STL, OBJ, OFF, GLB/GLTF, PLY with faces) are read with trimesh, STEP
-  with OCP (``camtool.step``: its B-rep faces tessellated); all are sampled
+  with OCP (``camtool.part.step``: its B-rep faces tessellated); all are sampled
   area-weighted into points with the face normals (seeded, deterministic).
 - Point clouds (PLY without faces, PCD, XYZ/CSV/TXT/PTS) are read with
   trimesh, open3d or numpy; normals stored in the file are kept, missing ones
@@ -44,7 +44,7 @@ libraries, and every loader checks what they read against the file:
 
 Library messages never reach stdout (which ``--json`` keeps for results):
 open3d runs at Error verbosity during reads, and trimesh's log records and the
-Python warnings raised while reading go to the ``camtool.workpiece`` logger at
+Python warnings raised while reading go to the ``camtool.part.workpiece`` logger at
 debug level; the checks above produce the one message the user sees.
 """
 from __future__ import annotations
@@ -61,7 +61,7 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from .errors import BadInput
+from ..errors import BadInput
 
 log = logging.getLogger("camtool.workpiece")
 
@@ -270,7 +270,7 @@ def _mesh_from_trimesh(obj, path: Path) -> _Raw:
 
 def _read_checked(path: Path) -> bytes:
     """The workpiece's bytes through ``safe_io``: a regular file under the workpiece cap, never a FIFO or device."""
-    from .safe_io import read_input_bytes
+    from ..safe_io import read_input_bytes
 
     return read_input_bytes(path, "workpiece")
 
@@ -280,10 +280,10 @@ def _trimesh_load(path: Path, file_type: str):
     load_workpiece checks the values first and merges vertices afterwards."""
     import trimesh
 
-    from .safe_io import opened_input
+    from ..safe_io import opened_input
 
     if file_type == "gltf":  # a .gltf names its buffers beside it: trimesh needs the real path
-        from .safe_io import check_input
+        from ..safe_io import check_input
 
         check_input(path, "workpiece")
         return trimesh.load(str(path), file_type=file_type, process=False)
@@ -452,7 +452,7 @@ def _load_gltf(path: Path) -> _Raw:
 
 @register_loader(".step", ".stp")
 def _load_step(path: Path) -> _Raw:
-    """STEP through OCP (``camtool.step``): every B-rep face tessellated, triangles facing out of the material."""
+    """STEP through OCP (``camtool.part.step``): every B-rep face tessellated, triangles facing out of the material."""
     from .step import step_mesh
 
     verts, tris, _ = step_mesh(path)
@@ -795,7 +795,7 @@ def _load_pcd(path: Path) -> _Raw:
         if unpacked != n * h["_point_bytes"] or len(body) < 8 + packed:
             raise BadInput(f"{path}: compressed PCD is truncated or corrupt (the header says {n} points); "
                            "export it again")
-    from .safe_io import opened_input
+    from ..safe_io import opened_input
 
     with _open3d_quiet(), opened_input(path, "workpiece") as name:
         pc = o3d.io.read_point_cloud(name, format="pcd", remove_nan_points=False,
@@ -885,7 +885,7 @@ def load_workpiece(path: Path, units: str = "mm", sample_points: int = 100000,
                        f"use one of {' '.join(supported_extensions())}")
     if not path.exists():
         raise BadInput(f"{path}: workpiece file not found; check the name and the folder")
-    from .safe_io import check_input
+    from ..safe_io import check_input
 
     if check_input(path, "workpiece").st_size == 0:  # regular file under the cap (O_NONBLOCK open, fstat)
         raise BadInput(f"{path}: the file is empty; export the workpiece again")

@@ -33,8 +33,8 @@ import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
-from . import safe_io
-from .errors import BadInput
+from .. import safe_io
+from ..errors import BadInput
 
 STAGING_PREFIX = ".camtool-run-"
 LEFTOVER_PREFIXES = (STAGING_PREFIX, ".camtool-post-", ".camtool-write-")

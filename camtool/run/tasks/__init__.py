@@ -8,7 +8,7 @@
 - ``sequential_reach`` (``tasks/reach.py``): seed 002's target grid by arm-angle SQP.
 - ``cartesian`` (``tasks/cartesian.py``): seed 001's line and arc moves.
 
-Every task composes the shared stage functions of ``camtool.stages``, which
+Every task composes the shared stage functions of ``camtool.run.stages``, which
 import no task; adding a task touches this table and one new module.
 """
 from __future__ import annotations

@@ -42,7 +42,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .errors import BadInput
+from ..errors import BadInput
 from .fit import (LARGE_SPHERE_FACTOR, _refine_plane, _refine_sphere, cylinder_hypotheses, cylinder_radial,
                   cylinder_residuals, cylinder_surface, plane_surface, refine_cylinder, sphere_patch)
 from .face_edges import FreeEdges, flat_mm, on_edges, spacing_mm, uv_of_flat

@@ -2,7 +2,7 @@
 
 ``workpiece_for_job`` loads and places the job's workpiece; ``surface_for_job`` fits its surface
 (or the selected face's). Both need only the workpiece readers and the fit, so this module
-imports nothing else heavy (``camtool.stages`` re-exports them).
+imports nothing else heavy (``camtool.run.stages`` re-exports them).
 
 A task takes them through a ``JobPart``, each at its own stage: ``PartHere`` makes them in the
 run's process when asked; ``PartAhead`` makes both in a child forked as ``camtool run`` starts (``alongside.Alongside``),
@@ -18,13 +18,13 @@ from abc import ABC, abstractmethod
 from functools import partial
 
 from .alongside import Alongside
-from .errors import CamtoolError
-from .faces import face_surface_for_job, segmented
-from .fit import fit_surface
-from .job import Job
-from .settings import FitSettings, WorkpieceSettings
-from .transforms import matrix_from_xyz_rpy
-from .workpiece import load_workpiece
+from ..errors import CamtoolError
+from ..part.faces import face_surface_for_job, segmented
+from ..part.fit import fit_surface
+from ..job import Job
+from ..settings import FitSettings, WorkpieceSettings
+from ..transforms import matrix_from_xyz_rpy
+from ..part.workpiece import load_workpiece
 
 
 def workpiece_for_job(job: Job):

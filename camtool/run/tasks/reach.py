@@ -23,16 +23,16 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
-from ..errors import BadInput, PlanInfeasible
-from ..job import Job
+from ...errors import BadInput, PlanInfeasible
+from ...job import Job
 from ..part_stages import JobPart
-from ..plan.arm_angle_sqp import plan_arm_angle_sqp
-from ..report import write_json_atomic
-from ..collision.stage import collision_world
-from ..settings import JobSettings
+from ...plan.arm_angle_sqp import plan_arm_angle_sqp
+from ...report.run_report import write_json_atomic
+from ...collision.stage import collision_world
+from ...settings import JobSettings
 from ..stages import (RunResult, StageLog, finish_run, lift_connectors, motion_check, part_for_checks, post_checked,
                       report_failure, run_report, time_for_job)
-from ..toolpath import ZONE_CODE, Path
+from ...path.toolpath import ZONE_CODE, Path
 
 FAMILY_TABLE_FILE = "arm_angle_families.txt"
 START_MERGE_MM = 1e-3  # a start point this close to the first target is that target

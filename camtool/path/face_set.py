@@ -22,8 +22,8 @@ from dataclasses import asdict
 
 import numpy as np
 
-from .settings import RasterSettings
-from .surface import FaceSet
+from ..settings import RasterSettings
+from ..part.surface import FaceSet
 from .toolpath import Path
 
 MAX_TWO_OPT_ROUNDS = 50  # improving 2-opt passes over the order (each is O(n^2) for n faces)

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .boundary import boundary_from_uv
-from .errors import BadInput
-from .settings import FitSettings
+from ..errors import BadInput
+from ..settings import FitSettings
 from .surface import Cylinder, FitStats, PlaneSurface, SpherePatch
 
 MIN_POINTS = {"plane": 3, "sphere": 4, "cylinder": 5}

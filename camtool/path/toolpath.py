@@ -2,7 +2,7 @@
 
 Each pose k carries ``segment[k]`` (i, 0-based), ``point[k]`` (j, 1-based on
 work points, 0 elsewhere) and ``zone[k]`` (a code from ``ZONES``); a path over
-several faces of a part also ``face[k]``, the face's number (``camtool.face_set``). Poses are
+several faces of a part also ``face[k]``, the face's number (``camtool.path.face_set``). Poses are
 4x4 TCP poses in the **world (cell) frame**, translations in mm; the tool z
 axis points into the surface.
 """

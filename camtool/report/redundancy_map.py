@@ -39,11 +39,11 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
-from .errors import BadInput, PlanInfeasible
-from .robots.ik_common import rz_batch, wrap_pi
-from .robots.ik_srs import track_shift
-from .toolpath import WORK, Path
-from . import safe_io
+from ..errors import BadInput, PlanInfeasible
+from ..robots.ik_common import rz_batch, wrap_pi
+from ..robots.ik_srs import track_shift
+from ..path.toolpath import WORK, Path
+from .. import safe_io
 
 NO_IK, OUTSIDE_LIMITS, REACHABLE, IN_COLLISION = 0, 1, 2, 3
 CODE_NAMES = {NO_IK: "no IK solution", OUTSIDE_LIMITS: "outside joint limits", REACHABLE: "reachable",
@@ -105,8 +105,8 @@ class RedundancyMap:
 
 def redundancy_kind(robot) -> str | None:
     """"arm_angle", "track" or "tool_spin" when ``robot`` has closed-form families, else None."""
-    from .robots.ik_spherical_wrist import SphericalWristIK
-    from .robots.ik_srs import SrsIK
+    from ..robots.ik_spherical_wrist import SphericalWristIK
+    from ..robots.ik_srs import SrsIK
 
     try:
         if robot.dof == 7:
@@ -256,8 +256,8 @@ def _manipulability(robot, qs: np.ndarray) -> np.ndarray:
     (``DhKernel.jacobians``, checked against Pinocchio when built), else one ``robot.jacobian`` per row."""
     if not len(qs):
         return np.zeros(0)
-    from .plan.cwln import IkSettings
-    from .plan.kernel import DhKernel
+    from ..plan.cwln import IkSettings
+    from ..plan.kernel import DhKernel
 
     kernel = DhKernel.build(robot, IkSettings(), False, np.full(robot.dof, np.inf))
     if kernel is not None:
@@ -293,7 +293,7 @@ def _best(cands: np.ndarray, lower: np.ndarray, upper: np.ndarray, revolute: np.
 
 def _srs_candidates(ik, st: dict, angles: np.ndarray) -> np.ndarray:
     """(8 * len(angles), n, 7): every family at every arm angle for n stacked poses (``prepare_batch``)."""
-    from .robots.ik_srs import FAMILIES
+    from ..robots.ik_srs import FAMILIES
 
     n, A = len(st["u"]), len(angles)
     tiled = {"u": np.tile(st["u"], (A, 1)), "R7": np.tile(st["R7"], (A, 1, 1)),
@@ -306,7 +306,7 @@ def _srs_candidates(ik, st: dict, angles: np.ndarray) -> np.ndarray:
 
 
 def _sweep_arm_angle(robot, flanges: np.ndarray, psi: np.ndarray):
-    from .robots.ik_srs import FAMILIES, SrsIK
+    from ..robots.ik_srs import FAMILIES, SrsIK
 
     ik = SrsIK(robot)
     L = robot.limits
@@ -330,7 +330,7 @@ def _sweep_arm_angle(robot, flanges: np.ndarray, psi: np.ndarray):
 
 
 def _sweep_track(robot, flanges: np.ndarray, tracks: np.ndarray, n_angles: int):
-    from .robots.ik_srs import SrsIK
+    from ..robots.ik_srs import SrsIK
 
     L = robot.limits
     t_mid = 0.5 * (L.lower[0] + L.upper[0])
@@ -387,7 +387,7 @@ def spherical_wrist_batch(ik, T_flange: np.ndarray) -> np.ndarray:
     The batched form of ``SphericalWristIK.solve`` (same steps, same geometry);
     branch order (shoulder, elbow, wrist) = product((1, -1), repeat=3).
     """
-    from .robots.ik_common import spherical_group_batch
+    from ..robots.ik_common import spherical_group_batch
 
     ch = ik.ch
     P = ch.P
@@ -430,7 +430,7 @@ def _spin(a: np.ndarray) -> np.ndarray:
 
 
 def _sweep_tool_spin(robot, targets: np.ndarray, tool_inv: np.ndarray, spins: np.ndarray):
-    from .robots.ik_spherical_wrist import SphericalWristIK
+    from ..robots.ik_spherical_wrist import SphericalWristIK
 
     ik = SphericalWristIK(robot)
     L = robot.limits
@@ -451,7 +451,7 @@ def _planned_values(kind: str, robot, joint_path, x: np.ndarray, targets: np.nda
     out = np.full(len(x), np.nan)
     ik = None
     if kind == "arm_angle":
-        from .robots.ik_srs import SrsIK
+        from ..robots.ik_srs import SrsIK
         ik = SrsIK(robot)
     for j, i in enumerate(x):
         k = rows.get(int(i))

@@ -29,17 +29,17 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from pathlib import Path as FsPath
 
-from ..errors import BadInput, PlanInfeasible
-from ..job import Job
+from ...errors import BadInput, PlanInfeasible
+from ...job import Job
 from ..part_stages import JobPart
-from ..plan.cwln import CwlnSolver, IkSettings
-from ..robots.ik_spherical_wrist import SphericalWristIK
-from ..collision.stage import collision_world
-from ..settings import JobSettings
+from ...plan.cwln import CwlnSolver, IkSettings
+from ...robots.ik_spherical_wrist import SphericalWristIK
+from ...collision.stage import collision_world
+from ...settings import JobSettings
 from ..stages import RunResult, StageLog, finish_run, post_checked, run_report, time_for_job
-from ..toolpath import ZONE_CODE, Path
-from ..trajectory import JointPath
-from ..transforms import matrix_from_xyz_rpy
+from ...path.toolpath import ZONE_CODE, Path
+from ...trajectory import JointPath
+from ...transforms import matrix_from_xyz_rpy
 
 MAX_DENSIFY = 8
 

@@ -19,7 +19,7 @@ import math
 import cv2
 import numpy as np
 
-from .errors import BadInput
+from ..errors import BadInput
 from .surface import Boundary
 
 

@@ -26,7 +26,7 @@ from typing import Iterator
 
 import numpy as np
 
-from .errors import BadInput
+from ..errors import BadInput
 
 log = logging.getLogger("camtool.step")
 _fd_lock = threading.Lock()

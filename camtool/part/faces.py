@@ -4,10 +4,10 @@
 
 - ``"single"`` (the default): no segmentation; [fit] finds one surface, as before;
 - ``"all"``, a model name, ``[indices]``, ``{largest = N}``, ``{nearest_mm = [x, y, z]}``:
-  the placed workpiece is split into faces (``camtool.segment``), numbered
+  the placed workpiece is split into faces (``camtool.part.segment``), numbered
   largest first, and the selection picks from them.
 
-A selection of several faces is worked in one program (``camtool.face_set``).
+A selection of several faces is worked in one program (``camtool.path.face_set``).
 """
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import BadInput
-from .job import Job
+from ..errors import BadInput
+from ..job import Job
 from .segment import Face, Segmentation, SegmentSettings, segment
 
 
@@ -74,7 +74,7 @@ def _segment_job(job: Job, workpiece) -> Segmentation:
 
 def placement_mm(job: Job) -> np.ndarray:
     """The 4x4 pose (mm) that places the workpiece file's coordinates in the cell, units included."""
-    from .transforms import matrix_from_xyz_rpy
+    from ..transforms import matrix_from_xyz_rpy
     from .workpiece import UNIT_TO_MM
 
     T = matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg)
@@ -84,7 +84,7 @@ def placement_mm(job: Job) -> np.ndarray:
 
 
 def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: SegmentSettings) -> Segmentation:
-    """The faces of a STEP part: plane, sphere and cylinder B-rep faces exactly (``camtool.step``), the
+    """The faces of a STEP part: plane, sphere and cylinder B-rep faces exactly (``camtool.part.step``), the
     others' points segmented by RANSAC. Each workpiece point belongs to the B-rep face of its nearest triangle."""
     import trimesh
 
@@ -178,7 +178,7 @@ def select_faces(seg: Segmentation, select, workpiece=None, source: str = "job")
 
 def face_surface_for_job(job: Job, workpiece):
     """The surface of the job's selected face (world frame), or a ``surface.FaceSet`` of its selected faces."""
-    from .face_set import raster_changes
+    from ..path.face_set import raster_changes
     from .surface import FaceSet
 
     seg = segment_job(job, workpiece)
@@ -197,7 +197,7 @@ def faces_png(seg: Segmentation, workpiece, path: Path, title: str = "") -> Path
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .files import output_file
+    from ..files import output_file
 
     P = np.asarray(workpiece.points_mm)
     fig = plt.figure(figsize=(8, 7), dpi=110)

@@ -11,11 +11,11 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
-from .timing.feed import display_envelope
-from .toolpath import ZONE_CODE, ZONES, Path
-from .trajectory import JointPath, Trajectory
-from . import safe_io
-from .program.text import column_names
+from ..timing.feed import display_envelope
+from ..path.toolpath import ZONE_CODE, ZONES, Path
+from ..trajectory import JointPath, Trajectory
+from .. import safe_io
+from ..program.text import column_names
 
 WORK = ZONE_CODE["work"]
 

@@ -30,9 +30,9 @@ from pathlib import Path as FsPath
 import numpy as np
 from matplotlib.path import Path as MplPath
 
-from .errors import BadInput
-from .files import output_file
-from . import safe_io
+from ..errors import BadInput
+from ..files import output_file
+from .. import safe_io
 
 
 @dataclass(frozen=True)
@@ -252,7 +252,7 @@ Surface = PlaneSurface | SpherePatch | Cylinder
 
 @dataclass(frozen=True)
 class FaceSet:
-    """The faces a job works in one program (``camtool.face_set``), as surfaces (world frame), with their
+    """The faces a job works in one program (``camtool.path.face_set``), as surfaces (world frame), with their
     segmentation numbers and raster changes.
 
     ``raster_changes[k]``: the ``RasterSettings`` fields face k's ``faces.raster`` keys set
@@ -278,7 +278,7 @@ class FaceSet:
 
     @staticmethod
     def from_dict(d: dict) -> "FaceSet":
-        from .settings import RasterSettings
+        from ..settings import RasterSettings
 
         names = {f for f in RasterSettings.__dataclass_fields__}
         changes = tuple(dict(c) for c in d["raster_changes"])

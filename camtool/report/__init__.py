@@ -1,0 +1,1 @@
+"""The report: report.json and points.csv, report.html, figures, the redundancy map, the faces' picture."""
