@@ -157,7 +157,7 @@ def real_run(case: str, profile: str) -> dict:
     figures = report["process_map"]
     surface, trajectory = result.outputs["fit"], result.outputs["time"]
     from camtool.run.stages import robot_for_job
-    from camtool.settings import JobSettings
+    from camtool.run.job_settings import JobSettings
 
     robot = robot_for_job(job)
     s = JobSettings.from_job(job, robot).process

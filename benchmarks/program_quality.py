@@ -52,7 +52,7 @@ BASELINE_POST_S = {"sphere": 1.12, "irb2400_plate": 0.094}
 
 def trajectory_for(job):
     """(robot, raster path, timed trajectory) of a job, as `camtool run` plans them."""
-    from camtool.settings import JobSettings
+    from camtool.run.job_settings import JobSettings
     from camtool.run.stages import (
         part_for_checks,
         path_for_job,
@@ -73,7 +73,7 @@ def trajectory_for(job):
 
 def measure(job_file: Path, overrides: list[str]) -> list[dict]:
     from camtool.job import load_job
-    from camtool.program.post import write_job_programs
+    from camtool.run.post_inputs import write_job_programs
 
     job = load_job(job_file, overrides)
     t0 = time.perf_counter()

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from camtool.job import load_job
-from camtool.settings import JobSettings
+from camtool.run.job_settings import JobSettings
 from camtool.run.stages import (
     part_for_checks,
     path_for_job,

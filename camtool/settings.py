@@ -23,7 +23,7 @@ from typing import ClassVar
 import numpy as np
 
 from .errors import BadInput
-from .job import Job, validate
+from .job import validate
 
 
 def _section(name: str, keys: dict) -> dict:
@@ -304,48 +304,3 @@ class ProcessSettings(_FromSection):
     def make(cls, tool_radius_mm: float = 25.0, **job_keys):
         """Settings from [process] keys (job-file units); the tool's radius for the default diameter."""
         return cls.from_section(_section(cls.SECTION, job_keys), tool_radius_mm)
-
-
-def home_q(job: Job, robot) -> np.ndarray | None:
-    """``robot.home_deg`` in native joint units (rad / mm), or None when the job gives none."""
-    values = job.robot.home_deg
-    if not values:
-        return None
-    if len(values) != robot.dof:
-        raise BadInput(f"{job.path}: robot.home_deg: {robot.name} needs {robot.dof} values, found {len(values)}")
-    return robot.q_from_edge(values)
-
-
-@dataclass(frozen=True)
-class JobSettings:
-    """Every stage's settings of one job."""
-
-    workpiece: WorkpieceSettings
-    fit: FitSettings
-    raster: RasterSettings
-    planner: PlannerSettings
-    timing: TimingSettings
-    post: PostSettings
-    check: CheckSettings
-    process: ProcessSettings | None = None
-    cell: "CellSettings | None" = None   # obstacles, floor, clearance (camtool.collision); None = an empty cell
-    segmented: bool = False  # [faces] select splits the workpiece into faces (camtool.part.faces)
-
-    @classmethod
-    def from_job(cls, job: Job, robot=None) -> "JobSettings":
-        """All settings of ``job``; ``robot`` (for the home configuration's units) may be omitted."""
-        q_home = home_q(job, robot) if robot is not None else None
-        return cls(workpiece=WorkpieceSettings.from_section(job.workpiece), fit=FitSettings.from_section(job.fit),
-                   raster=RasterSettings.from_section(job.raster),
-                   planner=PlannerSettings.from_section(job.planner, q_home),
-                   timing=TimingSettings.from_section(job.timing), post=PostSettings.from_section(job.post),
-                   check=CheckSettings.from_section(job.check),
-                   process=ProcessSettings.from_section(job.process, job.check.tool_radius_mm),
-                   cell=_cell_settings(job), segmented=job.faces.select != "single")
-
-
-def _cell_settings(job: Job):
-    """The job's collision cell (``camtool.collision.CellSettings``)."""
-    from .collision import CellSettings
-
-    return CellSettings.from_job(job)

@@ -1,4 +1,4 @@
-"""Work done alongside (camtool.run.alongside): a forked child's result, its errors, its cancellation."""
+"""Work done alongside (camtool.alongside): a forked child's result, its errors, its cancellation."""
 import os
 import signal
 import time
@@ -8,7 +8,7 @@ import pytest
 
 import functools
 
-from camtool.run.alongside import Alongside, Standby, cpus_available
+from camtool.alongside import Alongside, Standby, cpus_available
 from camtool.errors import BadInput
 
 fork_only = pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")

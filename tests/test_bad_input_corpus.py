@@ -137,7 +137,7 @@ class Workspace:
         """A clean program of a smooth trajectory, as the post-processor writes it (CAMTOOL.*)."""
         from post_fixtures import smooth_trajectory
 
-        from camtool.profiles import Profile
+        from camtool.program.profiles import Profile
         from camtool.program.profiles import default_options, load_profile
         from camtool.robots import get_robot
         from postprocessors.abb_rapid import RapidPost

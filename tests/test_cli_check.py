@@ -7,7 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from camtool.cli import cli
-from camtool.profiles import Profile
+from camtool.program.profiles import Profile
 from camtool.program.profiles import default_options, load_profile
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory

@@ -7,7 +7,7 @@ from click.testing import CliRunner
 from camtool.cli import cli as group
 from camtool.commands import place
 from camtool.job import load_job
-from camtool.settings import JobSettings
+from camtool.run.job_settings import JobSettings
 from camtool.run.stages import path_for_job, plan_for_job, robot_for_job, surface_for_job, workpiece_for_job
 
 from conftest import SAMPLES

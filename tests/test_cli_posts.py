@@ -5,7 +5,7 @@ import re
 from click.testing import CliRunner
 
 from camtool.cli import cli
-from camtool.profiles import default_profile_path
+from camtool.program.profiles import default_profile_path
 from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
 from post_fixtures import profile_for_tests, smooth_trajectory

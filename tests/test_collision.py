@@ -11,6 +11,7 @@ from camtool.collision.shapes import WORLD, Body
 from camtool.collision.spec import obstacle_specs, parse_obstacles
 from camtool.errors import BadInput
 from camtool.job import load_job
+from camtool.run.job_settings import JobSettings
 from camtool.motion import MotionCheckSettings, PartGeometry, check_motion
 from camtool.motion.cell_check import check_sampled_motion, motion_bounds
 from camtool.robots import get_robot
@@ -80,7 +81,7 @@ def test_job_with_obstacles_loads_and_places_a_workpiece_fixture(tmp_path):
     job.write_text('[workpiece]\nfile = "part.stl"\n[cell]\nworkpiece_xyz_mm = [1000, 0, 0]\nfloor_z_mm = -300\n'
                    '[[cell.obstacles]]\nname = "post"\ncylinder_mm = [30, 500]\nxyz_mm = [10, 20, 30]\n'
                    'frame = "workpiece"\n')
-    cell = CellSettings.from_job(load_job(job))
+    cell = JobSettings.from_job(load_job(job)).cell
     post, floor = cell.obstacles
     assert np.allclose(post.local_T_mm[:3, 3], [1010, 20, 30]) and post.shape == "cylinder"
     assert floor.shape == "halfspace" and floor.size_mm == (-300.0,)
@@ -98,7 +99,7 @@ def test_mesh_obstacle_is_its_convex_hull(tmp_path, robot):
     job = tmp_path / "job.toml"
     job.write_text('[workpiece]\nfile = "block.stl"\n[[cell.obstacles]]\nname = "block"\nmesh = "block.stl"\n'
                    'units = "m"\nxyz_mm = [2000, 0, 0]\n')
-    cell = CellSettings.from_job(load_job(job))
+    cell = JobSettings.from_job(load_job(job)).cell
     (block,) = cell.obstacles
     assert block.shape == "convex" and len(block.points_mm) == 8
     assert np.abs(block.points_mm).max() == pytest.approx(100.0)

@@ -6,7 +6,7 @@ from camtool.job import load_job
 from camtool.plan.connectors import cartesian_lift, is_reconfiguration, LiftSettings
 from camtool.plan.cwln import CwlnSolver, IkSettings
 from camtool.robots import get_robot
-from camtool.settings import JobSettings
+from camtool.run.job_settings import JobSettings
 from camtool.run.stages import path_for_job, plan_for_job, robot_for_job, surface_for_job, workpiece_for_job
 from camtool.path.toolpath import ZONE_CODE
 

@@ -76,7 +76,7 @@ def test_sia20_jbi_targets_on_the_planned_path_within_the_tolerance(sia_wall):
 
 def test_pulses_need_every_factor(tmp_path):
     """A profile with some pulse factors but not all: one line naming the missing key, no program."""
-    prof = (SAMPLES.parent / "camtool" / "profiles" / "sia20_inform.toml").read_text()
+    prof = (SAMPLES.parent / "camtool" / "program" / "profile_data" / "sia20_inform.toml").read_text()
     prof = prof.replace('s = { axis = "RB1:1", sign = 1, offset = 0.0, unit = "deg", max_speed = 130.0 }',
                         's = { axis = "RB1:1", sign = 1, offset = 0.0, unit = "deg", pulses = 1000.0, max_speed = 130.0 }')
     (tmp_path / "p.toml").write_text(prof)

@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.part.faces import face_surface_for_job, segment_job, select_faces, segmented
+from camtool.part.faces import segment_faces, select_faces
+from camtool.run.part_stages import face_surface, faces_settings
 from camtool.job import load_job
-from camtool.settings import JobSettings
+from camtool.run.job_settings import JobSettings
 from camtool.run.stages import path_for_job, surface_for_job, workpiece_for_job
 from camtool.part.surface import FaceSet
 
@@ -24,7 +25,7 @@ def write_job(tmp_path, faces: str, extra: str = "", part: str = "pipe_half.stl"
 def pipe(tmp_path_factory):
     job = load_job(write_job(tmp_path_factory.mktemp("pipe"), 'select = "all"'))
     wp = workpiece_for_job(job)
-    return job, wp, segment_job(job, wp)
+    return job, wp, segment_faces(faces_settings(job), wp)
 
 
 def test_select_all_indices_model_largest_nearest(pipe):
@@ -45,12 +46,13 @@ def test_select_all_indices_model_largest_nearest(pipe):
 
 def test_single_is_the_old_fit_and_a_selection_gives_that_faces_surface(tmp_path):
     job = load_job(write_job(tmp_path, 'select = [1]'))
-    assert segmented(job) and JobSettings.from_job(job).segmented
+    assert faces_settings(job).segmented and JobSettings.from_job(job).segmented
     s = surface_for_job(job, workpiece_for_job(job))
     assert s.model == "cylinder" and s.concave and abs(s.radius_mm - 100) < 0.5
     plain = load_job(write_job(tmp_path, "", "[fit]\nmodel = \"cylinder\"\n"))
-    assert not segmented(plain) and not JobSettings.from_job(plain).segmented
-    both = face_surface_for_job(load_job(write_job(tmp_path, 'select = "cylinder"')), workpiece_for_job(job))
+    assert not faces_settings(plain).segmented and not JobSettings.from_job(plain).segmented
+    cylinders = load_job(write_job(tmp_path, 'select = "cylinder"'))
+    both = face_surface(cylinders, faces_settings(cylinders), workpiece_for_job(job))
     assert isinstance(both, FaceSet) and both.indices == (0, 1)  # two cylinders: one program for both
     assert [f.model for f in both.surfaces] == ["cylinder", "cylinder"]
 

@@ -11,7 +11,7 @@ from camtool.placement.screen import PathGeometry, ScreenSettings, move_path, pl
 from camtool.placement.search import parse_vary, placed_job, placement_of
 from camtool.placement.shift import nearest_feasible_shift
 from camtool.robots import get_robot
-from camtool.settings import JobSettings
+from camtool.run.job_settings import JobSettings
 from camtool.run.stages import path_for_job, plan_for_job, robot_for_job, surface_for_job, workpiece_for_job
 from camtool.path.toolpath import Path, ZONE_CODE
 from camtool.transforms import matrix_from_xyz_rpy

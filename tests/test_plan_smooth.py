@@ -7,7 +7,7 @@ from camtool.plan import plan_path
 from camtool.plan.cwln import CwlnSolver
 from camtool.plan.smooth import SmoothSettings, derivatives, divided_difference, run_ratios, smooth_runs
 from camtool.plan.strategy import ik_settings
-from camtool.settings import JobSettings
+from camtool.run.job_settings import JobSettings
 from camtool.run.stages import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
 from camtool.path.toolpath import row_segments, run_bounds
 from camtool.transforms import rotation_angle_rad

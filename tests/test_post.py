@@ -8,7 +8,7 @@ import pytest
 
 from camtool.errors import BadInput, PlanInfeasible
 from camtool.job import load_job
-from camtool.program.post import write_job_programs
+from camtool.run.post_inputs import write_job_programs
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory, with_q
 
@@ -191,7 +191,7 @@ def test_a_rerun_with_fewer_parts_leaves_no_stale_part(tmp_path):
     r = get_robot("seed8")
     out = tmp_path / "out"
     prof = tmp_path / "split.toml"
-    src = Path(__file__).resolve().parents[1] / "camtool" / "profiles" / "seed8_inform.toml"
+    src = Path(__file__).resolve().parents[1] / "camtool" / "program" / "profile_data" / "seed8_inform.toml"
     text = src.read_text()
     assert "lines_per_job" in text
     prof.write_text(re.sub(r"lines_per_job\s*=\s*\d+", "lines_per_job = 80", text))
@@ -216,7 +216,7 @@ def test_post_has_no_format_of_its_own():
 
 
 def test_a_plugin_takes_options_from_the_job(tmp_path, monkeypatch):
-    from camtool.program.post import profile_for_job
+    from camtool.run.post_inputs import profile_for_job
     from camtool.program.registry import get_plugin
 
     r = get_robot("irb2400")

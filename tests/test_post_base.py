@@ -94,7 +94,7 @@ def test_third_party_plugin_runs_through_write_programs(tmp_path):
 import sys; sys.path.insert(0, {str(Path(__file__).parent)!r})
 from pathlib import Path
 from camtool.job import load_job
-from camtool.program.post import write_job_programs
+from camtool.run.post_inputs import write_job_programs
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory
 job_file = Path({str(tmp_path)!r}) / "job.toml"
@@ -112,7 +112,7 @@ print([p.name for p in write_job_programs(smooth_trajectory(r, 20), r, load_job(
 def test_discovery_scans_the_entry_points_once_and_can_be_cleared(monkeypatch, tmp_path):
     import camtool.program.registry as base
     from camtool.job import load_job
-    from camtool.program.post import write_job_programs
+    from camtool.run.post_inputs import write_job_programs
     from camtool.robots import get_robot
     from test_post import rows_trajectory
 
@@ -176,10 +176,10 @@ class _NoCheckPost(PostProcessor):
 @pytest.mark.parametrize("spoil,message", [(None, None), (float("nan"), "move 4: j1: value is not a finite number"),
                                            (9.0, "move 4: j1 = 515.6620 deg outside the limits")])
 def test_a_plugin_without_check_is_read_back_and_checked(spoil, message, monkeypatch, tmp_path):
-    import camtool.program.post as post
+    import camtool.run.post_inputs as post
     from camtool.errors import PlanInfeasible
     from camtool.job import load_job
-    from camtool.program.post import write_job_programs
+    from camtool.run.post_inputs import write_job_programs
     from camtool.robots import get_robot
     from post_fixtures import smooth_trajectory
 

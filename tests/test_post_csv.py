@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.profiles import Profile
+from camtool.program.profiles import Profile
 from camtool.program.profiles import default_options
 from camtool.robots import BUILTIN_ROBOTS, get_robot
 from post_fixtures import smooth_trajectory

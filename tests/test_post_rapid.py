@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.profiles import parse_profile
+from camtool.program.profiles import parse_profile
 from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
 from post_fixtures import smooth_trajectory

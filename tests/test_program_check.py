@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.profiles import Profile
+from camtool.program.profiles import Profile
 from camtool.program.profiles import default_options, load_profile
 from camtool.robots import get_robot
 from post_fixtures import profile_for_tests, smooth_trajectory, with_q

@@ -4,7 +4,7 @@ import functools
 import numpy as np
 import pytest
 
-from camtool.run.alongside import Standby
+from camtool.alongside import Standby
 from camtool.collision.stage import collision_world
 from camtool.job import load_job
 from camtool.report.figures import (
@@ -14,7 +14,7 @@ from camtool.report.figures import (
     draw_run_figures,
     import_figure_libraries,
 )
-from camtool.settings import JobSettings
+from camtool.run.job_settings import JobSettings
 from camtool.run.stages import (
     part_for_checks,
     path_for_job,

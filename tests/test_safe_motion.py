@@ -6,7 +6,7 @@ import numpy as np
 from camtool.job import load_job
 from camtool.plan.cwln import CwlnSolver, IkSettings
 from camtool.plan.densify import densify_work
-from camtool.settings import JobSettings
+from camtool.run.job_settings import JobSettings
 from camtool.run.stages import path_for_job, plan_for_job, robot_for_job, surface_for_job, workpiece_for_job
 from camtool.path.toolpath import WORK
 

@@ -7,8 +7,8 @@ import pytest
 from camtool.errors import BadInput
 from camtool.job import SCHEMA, load_job
 from camtool.robots import get_robot
-from camtool.settings import (FitSettings, JobSettings, PlannerSettings, PostSettings, RasterSettings,
-                              TimingSettings, home_q)
+from camtool.run.job_settings import JobSettings, home_q
+from camtool.settings import FitSettings, PlannerSettings, PostSettings, RasterSettings, TimingSettings
 
 from conftest import SAMPLES
 

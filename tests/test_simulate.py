@@ -138,7 +138,7 @@ def test_reference_breaks_between_rows():
 
 
 def test_cli_check_simulate_against_the_csv(tmp_path):
-    from camtool.profiles import Profile
+    from camtool.program.profiles import Profile
     from camtool.program.profiles import default_options
     from postprocessors.csv_joint import CsvPost
 

@@ -5,7 +5,7 @@ import pytest
 from camtool.job import load_job
 from camtool.plan import plan_path
 from camtool.plan.smooth import smooth_runs
-from camtool.settings import JobSettings
+from camtool.run.job_settings import JobSettings
 from camtool.run.stages import (
     part_for_checks,
     path_for_job,

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from camtool.errors import BadInput
-from camtool.part.faces import segment_job
+from camtool.part.faces import segment_faces
+from camtool.run.part_stages import faces_settings
 from camtool.job import load_job
 from camtool.run.stages import workpiece_for_job
 from camtool.part.step import read_step_faces, step_mesh
@@ -50,7 +51,7 @@ def test_job_faces_are_the_brep_faces_placed(tmp_path):
     job.write_text(f'[workpiece]\nfile = "{STEP}"\nsample_points = 20000\n[faces]\nselect = [0]\n'
                    '[cell]\nworkpiece_xyz_mm = [600.0, 0.0, 300.0]\nworkpiece_rpy_deg = [0.0, -90.0, 0.0]\n')
     j = load_job(job)
-    seg = segment_job(j, workpiece_for_job(j))
+    seg = segment_faces(faces_settings(j), workpiece_for_job(j))
     assert [f.model for f in seg.faces][:2] == ["cylinder", "cylinder"] and len(seg.faces) == 6
     outer = seg.faces[0].surface
     assert outer.radius_mm == 120.0 and not outer.concave and np.allclose(outer.axis, [0, 0, 1])

@@ -19,7 +19,7 @@ import numpy as np
 
 from .acm import AllowedCollisions, robot_acm
 from ..robots.joint_frames import JointFrames, joint_frames_mm
-from .shapes import BASE, WORLD, Body, obstacle_bodies, robot_bodies
+from .shapes import BASE, WORLD, Body, robot_bodies
 from .validity import Validity, reason_of, valid_rows
 
 MM_PER_M = 1000.0
@@ -43,20 +43,6 @@ class CellSettings:
     allow: tuple[tuple[str, str], ...] = ()
     check: tuple[tuple[str, str], ...] = ()
     tool_points_mm: np.ndarray | None = field(default=None, repr=False)
-
-    @classmethod
-    def from_job(cls, job) -> "CellSettings":
-        """The job's ``[cell]`` obstacles, floor, clearance and matrix overrides, ``[tool] mesh``."""
-        from ..transforms import matrix_from_xyz_rpy
-        from .shapes import mesh_points
-        from .spec import obstacle_specs
-
-        c = job.cell
-        wp_T = matrix_from_xyz_rpy(c.workpiece_xyz_mm, c.workpiece_rpy_deg)
-        obstacles = obstacle_bodies(obstacle_specs(c.obstacles), wp_T, job.dir, c.floor_z_mm)
-        tool = mesh_points(job.resolve(job.tool.mesh), job.tool.mesh_units) if job.tool.mesh else None
-        return cls(obstacles, float(c.clearance_mm), tuple(map(tuple, c.allow_collision)),
-                   tuple(map(tuple, c.check_collision)), tool)
 
 
 class CollisionWorld:
@@ -109,7 +95,7 @@ class CollisionWorld:
 
     def __reduce__(self):
         """Pickled as what it is made from (coal's shapes do not pickle): a process on standby
-        (``camtool.run.alongside.Standby``) rebuilds the same world."""
+        (``camtool.alongside.Standby``) rebuilds the same world."""
         return CollisionWorld, self._made_from
 
     @property

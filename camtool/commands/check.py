@@ -38,7 +38,7 @@ class _JobPost:
     tolerance), its cell and the profile of the checked format."""
 
     def __init__(self, raw_job, robot):
-        from ..program.post import process_for_job
+        from ..run.post_inputs import process_for_job
         from ..settings import PostSettings
 
         self._job, self._robot = raw_job, robot
@@ -48,12 +48,12 @@ class _JobPost:
     def world(self):
         """The job's collision world (obstacles, floor, the robot's own links)."""
         from ..collision.stage import collision_world
-        from ..settings import JobSettings
+        from ..run.job_settings import JobSettings
 
         return collision_world(JobSettings.from_job(self._job, self._robot), self._robot)
 
     def profile(self, fmt: str):
-        from ..program.post import profile_for_job
+        from ..run.post_inputs import profile_for_job
         from ..program.registry import get_plugin
 
         return profile_for_job(fmt, get_plugin(fmt), self._robot, self._job, self.settings)

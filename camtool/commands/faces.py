@@ -24,17 +24,19 @@ def command(job_file: Path, overrides: tuple[str, ...], outdir: Path | None, as_
     and RMS residual; `selected` marks the faces the job's selection takes.
     Settings: [faces] and fit.threshold_mm, fit.seed (docs/faces.md).
     """
-    from ..part.faces import faces_png, segment_job, select_faces, segmented   # heavy: only when the command runs
+    from ..part.faces import faces_png, segment_faces, select_faces   # heavy: only when the command runs
+    from ..run.part_stages import faces_settings
     from ..run.stages import workpiece_for_job
 
     job = load_job(job_file, list(overrides))
     wp = workpiece_for_job(job)
     for w in wp.warnings:
         click.echo(f"camtool: warning: {w}", err=True)
-    seg = segment_job(job, wp)
+    faces = faces_settings(job)
+    seg = segment_faces(faces, wp)
     chosen = set()
-    if segmented(job):
-        chosen = {f.index for f in select_faces(seg, job.faces.select, wp, str(job.path))}
+    if faces.segmented:
+        chosen = {f.index for f in select_faces(seg, faces.select, wp, faces.source)}
     rows = [{**f.summary(), "selected": f.index in chosen} for f in seg.faces]
     png = faces_png(seg, wp, outdir / PNG_FILE, title=f"{job_file.name}: {len(seg.faces)} faces") \
         if outdir is not None else None

@@ -85,7 +85,7 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
     from ..placement.search import (DEFAULT_VARY, PlacementProblem, format_offset, parse_vary, placement_of,
                                     write_placed_job)
     from ..report.run_report import write_json_atomic
-    from ..settings import JobSettings
+    from ..run.job_settings import JobSettings
 
     for name, value, least in (("--grid", grid_max, 8), ("--verify", verify, 1), ("--max-checks", max_checks, 1),
                                ("--top", top, 1), ("-j", jobs, 1)):

@@ -26,7 +26,7 @@ def command(job_file: Path, from_file: Path | None, outdir: Path, overrides: tup
     `camtool time JOB --from OUTDIR/joint_path.npz`. Exit 3 when poses are out
     of reach.
     """
-    from ..settings import JobSettings
+    from ..run.job_settings import JobSettings
     from ..run.stage_files import save_stage
     from ..run.stages import robot_for_job
 

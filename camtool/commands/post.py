@@ -25,8 +25,8 @@ def command(job_file: Path, from_file: Path | None, path_file: Path | None, outd
     is read back and checked before it is placed, as in `camtool run`.
     """
     from .. import safe_io
-    from ..program.post import preflight
-    from ..settings import JobSettings
+    from ..run.post_inputs import preflight
+    from ..run.job_settings import JobSettings
     from ..run.stages import post_checked, robot_for_job
     from .resume import trajectory_of
 

@@ -25,7 +25,7 @@ def command(job_file: Path, from_file: Path | None, path_file: Path | None, outd
 
     Writes OUTDIR/trajectory.npz for `camtool post JOB --from OUTDIR/trajectory.npz`.
     """
-    from ..settings import JobSettings
+    from ..run.job_settings import JobSettings
     from ..run.stage_files import save_stage
     from ..run.stages import robot_for_job, time_for_job
     from ..timing.pathlaw import remembered_runs

@@ -42,7 +42,8 @@ from ..job import Job, Section
 from ..plan import plan_path
 from ..plan.strategy import split_runs
 from ..robots.library import robot_toml_data
-from ..settings import PlannerSettings, home_q
+from ..settings import PlannerSettings
+from ..run.job_settings import home_q
 from ..run.stages import path_for_job, robot_for_job, surface_for_job, workpiece_for_job
 from ..path.toolpath import Path
 from ..vary import parse_range

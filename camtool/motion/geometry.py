@@ -598,7 +598,7 @@ def part_from_path(workpiece, path, **kwargs) -> PartGeometry:
 
 def import_part_libraries() -> None:
     """Import open3d, which the mesh query needs, and load the grid bounds' compiled loops (seconds): a
-    process made ready ahead of the check (``camtool.run.alongside.Standby``) does it while the run still plans."""
+    process made ready ahead of the check (``camtool.alongside.Standby``) does it while the run still plans."""
     import open3d  # noqa: F401
 
     from .grid_bounds import load_compiled

@@ -11,76 +11,67 @@ A selection of several faces is worked in one program (``camtool.path.face_set``
 """
 from __future__ import annotations
 
-import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import BadInput
-from ..job import Job
 from .segment import Face, Segmentation, SegmentSettings, segment
 
 
-def segmented(job: Job) -> bool:
-    """True when the job works faces of a segmentation (``faces.select`` is not 'single')."""
-    return job.faces.select != "single"
+@dataclass(frozen=True)
+class FacesSettings:
+    """What the faces of a job depend on, read from the job once (``camtool.run.part_stages.faces_settings``):
+    the ``[faces] select`` value, the segmentation settings, the workpiece file, its placement (4x4, mm,
+    units included) and the job's name for messages."""
 
+    select: object
+    segment: SegmentSettings
+    workpiece_file: Path
+    placement_mm: np.ndarray
+    source: str = "job"
 
-def segment_settings(job: Job) -> SegmentSettings:
-    """The segmentation settings of a job: [faces] keys, with [fit]'s threshold, seed and boundary keys."""
-    f, fit = job.faces, job.fit
-    return SegmentSettings(threshold_mm=float(fit.threshold_mm), normal_tol_rad=math.radians(f.normal_tol_deg),
-                           min_area_mm2=float(f.min_area_mm2), small_faces=f.small_faces,
-                           max_faces=int(f.max_faces), seed=int(fit.seed),
-                           boundary_cell_mm=float(fit.boundary_cell_mm), close_gaps_mm=float(fit.close_gaps_mm),
-                           simplify_mm=float(fit.simplify_mm))
+    @property
+    def segmented(self) -> bool:
+        """True when the job works faces of a segmentation (``faces.select`` is not 'single')."""
+        return self.select != "single"
 
 
 _LAST: dict = {}   # the last segmentation of this process: the fit stage's, read again by the report
 
 
-def segment_job(job: Job, workpiece) -> Segmentation:
+def segment_faces(settings: FacesSettings, workpiece) -> Segmentation:
     """The faces of the job's placed workpiece; a STEP part's analytic faces are taken exactly.
     The last result is kept for the same workpiece object and settings (the fit stage segments,
     the report shows the same faces without segmenting again)."""
-    key = (id(workpiece), str(job.resolve(job.workpiece.file)), segment_settings(job), placement_mm(job).tobytes())
+    key = (id(workpiece), str(settings.workpiece_file), settings.segment, settings.placement_mm.tobytes())
     if _LAST.get("key") == key and _LAST.get("workpiece") is workpiece:
         return _LAST["value"]
-    value = _segment_job(job, workpiece)
+    value = _segment(settings, workpiece)
     _LAST.clear()
     _LAST.update(key=key, workpiece=workpiece, value=value)
     return value
 
 
-def faces_report(job: Job, workpiece) -> dict:
+def faces_report(settings: FacesSettings, workpiece) -> dict:
     """report.json's ``faces``: the selection and every face's ``camtool faces --json`` entry, with
     ``selected``, plus each workpiece point's face (``labels``, -1 for none; for report.html only)."""
-    seg = segment_job(job, workpiece)
-    chosen = {f.index for f in select_faces(seg, job.faces.select, workpiece, str(job.path))}
+    seg = segment_faces(settings, workpiece)
+    chosen = {f.index for f in select_faces(seg, settings.select, workpiece, settings.source)}
     labels = np.full(seg.n_points, -1, int)
     for f in seg.faces:
         labels[f.inliers] = f.index
-    return {"select": job.faces.select, "unassigned_points": int(seg.unassigned),
+    return {"select": settings.select, "unassigned_points": int(seg.unassigned),
             "dropped_faces": int(seg.dropped_faces),
             "faces": [{**f.summary(), "selected": f.index in chosen} for f in seg.faces], "labels": labels}
 
 
-def _segment_job(job: Job, workpiece) -> Segmentation:
-    file = job.resolve(job.workpiece.file)
+def _segment(settings: FacesSettings, workpiece) -> Segmentation:
+    file = settings.workpiece_file
     if file.suffix.lower() in (".step", ".stp"):
-        return step_segmentation(file, workpiece, placement_mm(job), segment_settings(job))
-    return segment(workpiece, segment_settings(job))
-
-
-def placement_mm(job: Job) -> np.ndarray:
-    """The 4x4 pose (mm) that places the workpiece file's coordinates in the cell, units included."""
-    from ..transforms import matrix_from_xyz_rpy
-    from .workpiece import UNIT_TO_MM
-
-    T = matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg)
-    S = np.eye(4)
-    S[:3, :3] *= UNIT_TO_MM[job.workpiece.units]
-    return T @ S
+        return step_segmentation(file, workpiece, settings.placement_mm, settings.segment)
+    return segment(workpiece, settings.segment)
 
 
 def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: SegmentSettings) -> Segmentation:
@@ -174,20 +165,6 @@ def select_faces(seg: Segmentation, select, workpiece=None, source: str = "job")
         raise BadInput(f"{source}: faces.select = {select!r} selects no face (the workpiece has "
                        f"{', '.join(f'{f.index}: {f.model}' for f in faces)}); see `camtool faces JOB`")
     return chosen
-
-
-def face_surface_for_job(job: Job, workpiece):
-    """The surface of the job's selected face (world frame), or a ``surface.FaceSet`` of its selected faces."""
-    from ..path.face_set import raster_changes
-    from .surface import FaceSet
-
-    seg = segment_job(job, workpiece)
-    chosen = select_faces(seg, job.faces.select, workpiece, str(job.path))
-    if len(chosen) == 1:
-        return chosen[0].surface
-    job_keys = dict(job.sections["raster"])
-    changes = tuple(raster_changes(job_keys, job.faces.raster.get(str(f.index), {})) for f in chosen)
-    return FaceSet(tuple(f.surface for f in chosen), tuple(f.index for f in chosen), changes)
 
 
 def faces_png(seg: Segmentation, workpiece, path: Path, title: str = "") -> Path:

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job, Section
-from ..settings import JobSettings
+from ..run.job_settings import JobSettings
 from ..vary import parse_range
 from ..run.stages import path_for_job, robot_for_job, surface_for_job, time_for_job, workpiece_for_job
 from .kinematics import ClosedForm

@@ -31,7 +31,7 @@ def format_of(path: Path) -> str:
 def profile_for_check(fmt: str, plugin, robot, profile_file=None):
     """The profile to check a file with: the given file, else the shipped default for the
     robot, else (for a plugin with ``requires_profile = False``) its option defaults."""
-    from camtool.profiles import default_profile_path
+    from .profiles import default_profile_path
 
     from .profiles import defaults_profile, load_profile
 

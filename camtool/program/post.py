@@ -2,13 +2,10 @@
 
 Two steps:
 
-- ``preflight(robot, job, outdir)`` (before any planning) builds everything the post stage
-  needs from the job, once: the post settings (``PostSettings``: formats, tolerances, the
-  shortest move), each format's plugin and profile (``ResolvedPost``; the job's
-  ``post.profiles`` file or the shipped default, with the job's program name, tool, work
-  object and the options the plugin takes from the settings) and the process facts
-  (``ProcessInfo``: feed, job name and time). It also checks that the output folder can be
-  written, so bad input surfaces in seconds. Nothing after it reads the raw job.
+- ``PostInputs``: everything the post stage needs, resolved once from the job at the top of a run
+  (``camtool.run.post_inputs``): the post settings (``PostSettings``: formats, tolerances, the
+  shortest move), each format's plugin and profile (``ResolvedPost``) and the process facts
+  (``ProcessInfo``: feed, job name and time). This module never reads the raw job.
 - ``write_programs(trajectory, robot, post_settings, profiles, outdir)`` writes every format
   through its plugin (``camtool.program.plugin.PostProcessor``) into a temporary folder
   inside ``outdir``, checks every file (``plugin.check``: the plugin's own, or its file read
@@ -27,22 +24,19 @@ import time
 from contextlib import ExitStack
 from dataclasses import dataclass
 from functools import partial
-from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 
-from ..run.alongside import Alongside
+from ..alongside import Alongside
 from ..errors import BadInput, PlanInfeasible
-from ..profiles import Profile, default_profile_path
+from .profiles import Profile
 from .candidates import forget_merged
 from .check import check_file
 from .plugin import PostProcessor
-from .process import DATE_FORMAT, DEFAULT_ORI_TOL_DEG, DEFAULT_PATH_TOL_MM, ProcessInfo  # noqa: F401
-from .profiles import defaults_profile, load_profile
+from .process import ProcessInfo
 from .targets import forget_solved
-from .registry import get_plugin
-from ..settings import PostSettings, TimingSettings
+from ..settings import PostSettings
 
 log = logging.getLogger("camtool.post")
 MAX_LISTED = 10
@@ -50,7 +44,7 @@ MAX_LISTED = 10
 
 @dataclass(frozen=True)
 class ResolvedPost:
-    """One format of a job: its plugin and its profile, resolved once (``preflight``)."""
+    """One format of a job: its plugin and its profile, resolved once (``camtool.run.post_inputs.preflight``)."""
 
     fmt: str
     plugin: PostProcessor
@@ -65,94 +59,6 @@ class PostInputs:
     settings: PostSettings
     profiles: dict
     process: ProcessInfo
-
-
-def profile_for_job(fmt: str, plugin: PostProcessor, robot, job, post: PostSettings | None = None) -> Profile:
-    """The profile of one format: the job's post.profiles entry (relative to the job
-    file), else the shipped default; then the job's program name and tool, the workpiece
-    as work object and the options the plugin takes from the post settings."""
-    post = post if post is not None else PostSettings.from_section(job.post)
-    given = post.profiles.get(fmt)
-    if given is not None:
-        if not isinstance(given, str):
-            raise BadInput(f"{job.path}: post.profiles.{fmt}: expected a profile file name, found {given!r}")
-        profile = load_profile(job.resolve(given), robot.name, fmt, robot, plugin)
-    elif default_profile_path(robot.name, fmt) is not None:
-        profile = load_profile(None, robot.name, fmt, robot, plugin)
-    elif not plugin.requires_profile:
-        profile = defaults_profile(fmt, robot.name, plugin)
-    else:
-        raise BadInput(f"post.formats: no {fmt} profile for robot {robot.name!r}: camtool ships none, so write "
-                       f"one (docs/controllers.md) and name it in the job's post.profiles.{fmt}")
-    tool = {}
-    if job.tool.name != "tool0":  # the job's default; the profile names camtool's own tool data
-        tool["name"] = job.tool.name
-    tool.update(tcp_xyz_mm=list(job.tool.tcp_xyz_mm), tcp_rpy_deg=list(job.tool.tcp_rpy_deg),
-                mass_kg=job.tool.mass_kg)
-    changes = {"program_name": post.program_name, "tool": tool, "wobj": workpiece_wobj(job, robot)}
-    options = plugin.post_options(post)
-    if options:
-        changes["options"] = dict(options)
-    return profile.with_changes(**changes)
-
-
-def workpiece_wobj(job, robot) -> dict:
-    """The job's workpiece frame in the robot base frame as profile ``wobj`` keys (xyz_mm,
-    rpy_deg): Cartesian targets are written in it, so the work object is the workpiece."""
-    from scipy.spatial.transform import Rotation
-
-    from ..transforms import invert, matrix_from_xyz_rpy
-
-    wp = matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg)
-    T = invert(np.asarray(robot.base_T_mm, float)) @ wp
-    import warnings
-
-    with warnings.catch_warnings():  # a gimbal lock (pitch +-90 deg) still gives the same matrix
-        warnings.simplefilter("ignore")
-        rpy = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
-    return {"xyz_mm": [float(round(v, 6)) + 0.0 for v in T[:3, 3]],
-            "rpy_deg": [float(round(v, 9)) + 0.0 for v in rpy]}
-
-
-def process_for_job(job, post: PostSettings) -> ProcessInfo:
-    """The ``ProcessInfo`` of a job: the post tolerances, the feed ``timing.tcp_speed_mm_s``
-    and the job file's name and modification time (UTC)."""
-    try:
-        when = datetime.fromtimestamp(Path(job.path).stat().st_mtime, timezone.utc).strftime(DATE_FORMAT)
-    except (OSError, TypeError, ValueError):
-        when = None
-    feed = TimingSettings.from_section(job.timing).tcp_speed_mm_s
-    return ProcessInfo(path_tol_mm=post.path_tol_mm, ori_tol_deg=post.ori_tol_deg, feed_mm_s=float(feed) or None,
-                       job_name=Path(str(job.path)).name, job_time=when)
-
-
-_RESOLVED: dict = {}  # the last job's PostInputs, by the job object (kept alive here): resolved once
-
-
-def post_inputs(job, robot) -> PostInputs:
-    """Settings, resolved profiles and process facts of ``job`` for ``robot``: built once per
-    job object (``preflight`` builds them; later calls get the same object)."""
-    key = (id(job), robot.name, np.asarray(robot.base_T_mm, float).tobytes())
-    hit = _RESOLVED.get("value")
-    if hit is not None and _RESOLVED.get("key") == key and _RESOLVED.get("job") is job:
-        return hit
-    post = PostSettings.from_section(job.post)
-    profiles = {}
-    for fmt in post.formats:
-        plugin = get_plugin(fmt)
-        profiles[fmt] = ResolvedPost(fmt, plugin, profile_for_job(fmt, plugin, robot, job, post))
-    value = PostInputs(post, profiles, process_for_job(job, post))
-    _RESOLVED.clear()
-    _RESOLVED.update(key=key, job=job, value=value)
-    return value
-
-
-def preflight(robot, job, outdir) -> PostInputs:
-    """Before any work: every format's plugin and profile load and the output folder can be
-    written (bad input surfaces in seconds, not after planning). Returns the post inputs."""
-    inputs = post_inputs(job, robot)
-    _prepare_outdir(Path(outdir))
-    return inputs
 
 
 def row_labels(trajectory, path) -> tuple:
@@ -208,7 +114,8 @@ def check_limits(trajectory, robot) -> None:
                              "written: " + "; ".join(lines) + more)
 
 
-def _prepare_outdir(outdir: Path) -> None:
+def prepare_outdir(outdir: Path) -> None:
+    """Create the output folder; BadInput when it cannot be made or written."""
     try:
         outdir.mkdir(parents=True, exist_ok=True)
     except (OSError, FileExistsError) as exc:
@@ -298,7 +205,7 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
         process = replace(process, row_labels=row_labels(trajectory, path))
     trajectory = thin_waypoints(trajectory, post_settings.min_move_s)
     check_limits(trajectory, robot)
-    _prepare_outdir(outdir)
+    prepare_outdir(outdir)
     try:
         tmp = Path(tempfile.mkdtemp(prefix=".camtool-post-", dir=outdir))
     except OSError as exc:
@@ -427,11 +334,3 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], pro
                        bytes=sum(f.stat().st_size for f in files), path_tol_mm=process.path_tol_mm)
         log.info("%s: %s", fmt, "; ".join(summary_lines(sim)))
     return files, findings, figures
-
-
-def write_job_programs(trajectory, robot, job, outdir, path=None, report: dict | None = None,
-                       world=None, before_placing=None) -> list[Path]:
-    """``write_programs`` with the job's post inputs (``post_inputs``): for callers that hold a job."""
-    inputs = post_inputs(job, robot)
-    return write_programs(trajectory, robot, inputs.settings, inputs.profiles, outdir, process=inputs.process,
-                          path=path, report=report, world=world, before_placing=before_placing)

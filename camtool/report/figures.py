@@ -4,7 +4,7 @@ The redundancy map's cells need only the path's work poses, so the raster task s
 them while the path is planned (``sweep_ahead``) and draws the map with the plan while
 the trajectory is timed; feed.png and the joint plots need the timed trajectories and are
 drawn while the programs are written. Both run in processes made ready ahead
-(``camtool.run.alongside.Standby``, ``import_figure_libraries``); report.html takes the map
+(``camtool.alongside.Standby``, ``import_figure_libraries``); report.html takes the map
 from here.
 """
 from __future__ import annotations
@@ -62,7 +62,7 @@ class DrawnMap:
 
 def import_figure_libraries() -> None:
     """Import matplotlib (a second or more): a process made ready ahead of the figures
-    (``camtool.run.alongside.Standby``) does it while the run still plans."""
+    (``camtool.alongside.Standby``) does it while the run still plans."""
     import_plotting()
 
 
@@ -114,7 +114,7 @@ class SweptMap:
 def sweep_ahead(inputs: MapInputs, _prepared=None) -> SweptMap:
     """The redundancy map's cells of ``inputs.path`` (the raster, before it is planned): the map's heavy
     part, done while the run plans; ``draw_redundancy_map`` takes them where the planned path has the
-    same work poses. ``_prepared``: what the process did ahead (``camtool.run.alongside.Standby``, hand_on)."""
+    same work poses. ``_prepared``: what the process did ahead (``camtool.alongside.Standby``, hand_on)."""
     from .redundancy_map import redundancy_kind, sweep_map
 
     wall, cpu = _clock()

@@ -14,12 +14,17 @@ stage, with the same message as when they are made in the run's process.
 """
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from functools import partial
 
-from .alongside import Alongside
+import numpy as np
+
+from ..alongside import Alongside
 from ..errors import CamtoolError
-from ..part.faces import face_surface_for_job, segmented
+from ..part.faces import FacesSettings, segment_faces, select_faces
+from ..part.segment import SegmentSettings
+from ..part.workpiece import UNIT_TO_MM
 from ..part.fit import fit_surface
 from ..job import Job
 from ..settings import FitSettings, WorkpieceSettings
@@ -37,9 +42,49 @@ def workpiece_for_job(job: Job):
 
 def surface_for_job(job: Job, workpiece):
     """Fit the job's surface (world frame) to a placed workpiece; with [faces] select, the selected face's."""
-    if segmented(job):
-        return face_surface_for_job(job, workpiece)
+    faces = faces_settings(job)
+    if faces.segmented:
+        return face_surface(job, faces, workpiece)
     return fit_surface(workpiece, FitSettings.from_section(job.fit))
+
+
+def segment_settings(job: Job) -> SegmentSettings:
+    """The segmentation settings of a job: [faces] keys, with [fit]'s threshold, seed and boundary keys."""
+    f, fit = job.faces, job.fit
+    return SegmentSettings(threshold_mm=float(fit.threshold_mm), normal_tol_rad=math.radians(f.normal_tol_deg),
+                           min_area_mm2=float(f.min_area_mm2), small_faces=f.small_faces,
+                           max_faces=int(f.max_faces), seed=int(fit.seed),
+                           boundary_cell_mm=float(fit.boundary_cell_mm), close_gaps_mm=float(fit.close_gaps_mm),
+                           simplify_mm=float(fit.simplify_mm))
+
+
+def placement_mm(job: Job) -> np.ndarray:
+    """The 4x4 pose (mm) that places the workpiece file's coordinates in the cell, units included."""
+    T = matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg)
+    S = np.eye(4)
+    S[:3, :3] *= UNIT_TO_MM[job.workpiece.units]
+    return T @ S
+
+
+def faces_settings(job: Job) -> FacesSettings:
+    """What the faces of ``job`` depend on (``camtool.part.faces``), read from the job once."""
+    return FacesSettings(select=job.faces.select, segment=segment_settings(job),
+                         workpiece_file=job.resolve(job.workpiece.file), placement_mm=placement_mm(job),
+                         source=str(job.path))
+
+
+def face_surface(job: Job, faces: FacesSettings, workpiece):
+    """The surface of the job's selected face (world frame), or a ``surface.FaceSet`` of its selected faces,
+    each with the raster keys ``[faces.raster.N]`` changes for it."""
+    from ..part.surface import FaceSet
+    from ..path.face_set import raster_changes
+
+    chosen = select_faces(segment_faces(faces, workpiece), faces.select, workpiece, faces.source)
+    if len(chosen) == 1:
+        return chosen[0].surface
+    job_keys = dict(job.sections["raster"])
+    changes = tuple(raster_changes(job_keys, job.faces.raster.get(str(f.index), {})) for f in chosen)
+    return FaceSet(tuple(f.surface for f in chosen), tuple(f.index for f in chosen), changes)
 
 
 def _workpiece_and_surface(job: Job) -> tuple:

@@ -18,8 +18,8 @@ from typing import Callable
 from ..errors import CamtoolError
 from ..job import Job
 from .output import final_path, place, staged_output
-from ..program.post import preflight
-from ..settings import JobSettings
+from .post_inputs import preflight
+from .job_settings import JobSettings
 from .part_stages import JobPart, PartHere
 from .stages import (RunResult, StageLog, path_for_job, plan_and_time, robot_for_job, surface_for_job,
                      workpiece_for_job)

@@ -34,7 +34,8 @@ from ..plan.smooth import SmoothSettings, smooth_runs
 from ..plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
 from ..plan.strategy import ik_settings
 from ..collision.stage import collision_world, with_world
-from ..program.post import thin_waypoints, write_job_programs
+from ..program.post import thin_waypoints
+from .post_inputs import write_job_programs
 from ..path.raster import raster_path
 from ..report.run_report import (
     plan_metrics,
@@ -46,7 +47,8 @@ from ..report.run_report import (
 )
 from ..report.html import write_run_html
 from ..robots import get_robot
-from ..settings import JobSettings, PlannerSettings, RasterSettings, TimingSettings
+from ..settings import PlannerSettings, RasterSettings, TimingSettings
+from .job_settings import JobSettings
 from ..part.surface import FaceSet
 from ..timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
 from ..path.toolpath import row_segments
@@ -503,7 +505,7 @@ def finish_run(log: StageLog, programs, report: dict, path, joint_path, robot, t
     """Write the plots, points.csv and report.json of a successful run; the RunResult lists every file.
 
     ``world``: the job's collision world (the redundancy map's collision layer).
-    ``figures``: a process (``camtool.run.alongside``) drawing ``run_figures.draw_run_figures``
+    ``figures``: a process (``camtool.run.alongside``) drawing ``figures.draw_run_figures``
     while the run went on, and ``mapping`` one whose ``result()`` is
     ``run_figures.draw_redundancy_map``'s (or None: not drawn ahead) (the raster task);
     their files are taken here, the wait for them is the stage ``figures`` and their own

@@ -8,7 +8,7 @@ import re
 import numpy as np
 
 from camtool.errors import BadInput
-from camtool.profiles import require_full_map
+from camtool.program.profiles import require_full_map
 from camtool.program.convention import controller_axes, model_joints
 from camtool.program.text import sanitise_name
 

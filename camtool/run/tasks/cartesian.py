@@ -35,7 +35,7 @@ from ..part_stages import JobPart
 from ...plan.cwln import CwlnSolver, IkSettings
 from ...robots.ik_spherical_wrist import SphericalWristIK
 from ...collision.stage import collision_world
-from ...settings import JobSettings
+from ..job_settings import JobSettings
 from ..stages import RunResult, StageLog, finish_run, post_checked, run_report, time_for_job
 from ...path.toolpath import ZONE_CODE, Path
 from ...trajectory import JointPath

@@ -10,13 +10,13 @@ from functools import partial
 from pathlib import Path
 from typing import Callable
 
-from ..alongside import Standby, timed
+from ...alongside import Standby, timed
 from ...collision.stage import collision_world
 from ...errors import BadInput, PlanInfeasible
 from ...report.faces import faces_worked
-from ...part.faces import faces_report, segmented
+from ...part.faces import faces_report
 from ...job import Job
-from ..part_stages import JobPart
+from ..part_stages import JobPart, faces_settings
 from ...process.outputs import process_outputs
 from ...process.dwell import check_target_inputs, retime_for_target, target_removal
 from ...process.stepover import auto_step_over
@@ -35,7 +35,7 @@ from ...report.figures import (
 from ...placement.partial import partial_path, partial_summary, reachable_stretches
 from ...plan.kernel import load_compiled
 from ...placement.shift import nearest_feasible_shift
-from ...settings import JobSettings
+from ..job_settings import JobSettings
 from ...part.surface import FaceSet
 from ...timing import sampled_for
 from ...timing.pathlaw import remembered_runs
@@ -244,7 +244,7 @@ def _drawn_map(ahead: MapAhead):
 
 def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
          helpers: _Helpers, job_part: JobPart, leads_retried: str | None = None) -> RunResult:
-    """``run`` with its helpers on standby (``camtool.run.alongside.Standby``)."""
+    """``run`` with its helpers on standby (``camtool.alongside.Standby``)."""
     figures = helpers.figures
     world = collision_world(settings, robot)
     ahead = MapAhead(helpers.mapping, robot, outdir, world)
@@ -341,8 +341,9 @@ def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, co
         report["partial"] = partial_figures
     report["motion_check"] = motion
     report["programs_simulated"] = simulated
-    if segmented(job):   # the faces of the part and which the job works (the fit stage's segmentation)
-        faces = faces_report(job, wp)
+    faces_of_job = faces_settings(job)
+    if faces_of_job.segmented:   # the faces of the part and which the job works (the fit stage's segmentation)
+        faces = faces_report(faces_of_job, wp)
         if several:  # each face worked, in working order: coverage and feed
             faces["worked"] = faces_worked(surface, path, trajectory,
                                            sampled_for(trajectory, robot, settings.timing.check_dt_s), motion)

@@ -29,7 +29,7 @@ from ..part_stages import JobPart
 from ...plan.arm_angle_sqp import plan_arm_angle_sqp
 from ...report.run_report import write_json_atomic
 from ...collision.stage import collision_world
-from ...settings import JobSettings
+from ..job_settings import JobSettings
 from ..stages import (RunResult, StageLog, finish_run, lift_connectors, motion_check, part_for_checks, post_checked,
                       report_failure, run_report, time_for_job)
 from ...path.toolpath import ZONE_CODE, Path
