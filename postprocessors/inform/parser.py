@@ -519,6 +519,8 @@ def read_program(path: Path, robot, profile) -> ProgramMoves:
     return prog
 
 def _read_program(path: Path, robot, profile) -> ProgramMoves:
+    """The moves of a job and the jobs it calls: kinds, blends, axis values and poses, joint
+    values, durations of joint moves and speeds of Cartesian ones, row markers."""
     files, moves, posns, where, part, starts, ends, names = _collect(path, profile)
     moves, posns, where, part, starts, ends = _assemble_arcs(moves, posns, where, part, starts, ends)
     for _jp, j in files:
@@ -536,50 +538,7 @@ def _read_program(path: Path, robot, profile) -> ProgramMoves:
     pl = np.array([mv.pl for mv in moves], int) if M else np.zeros(0, int)
     kw["kind"] = kind.astype(kw["kind"].dtype) if M else kw["kind"]
     kw["blend_mm"] = np.where((pl >= 0) & (pl <= 8), radii[np.clip(pl, 0, 8)], 0.0)
-    values = {a.axis: np.full(M, np.nan) for a in order}  # controller axis values (deg / mm)
-    for g, pre in GROUPS.items():
-        if g not in groups:
-            continue
-        ax = groups[g]
-        refs = [r.get(pre) for r in posns]
-        pulse = [k for k, r in enumerate(refs) if r is not None and r[3] == "pulse"]
-        if pulse:
-            try:
-                arr = np.array([refs[k][1] for k in pulse], dtype=float)
-            except ValueError:
-                arr = None
-            if arr is None or arr.ndim != 2 or arr.shape[1] != len(ax):
-                k = next(k for k in pulse if len(refs[k][1]) != len(ax))
-                raise BadInput(f"{where[k]}: {pre} position has {len(refs[k][1])} values, group {g} has "
-                               f"{len(ax)} axes")
-            for i, a in enumerate(ax):
-                values[a.axis][pulse] = (arr[:, i] - float(a.zero_pulses)) / a.pulses
-        rect = [k for k, r in enumerate(refs) if r is not None and r[3] == "rectan"]
-        if rect:
-            want = 6 + (len(ax) == 7)
-            bad = next((k for k in rect if len(refs[k][1]) != want), None)
-            if bad is not None:
-                raise BadInput(f"{where[bad]}: a Cartesian C position needs {want} values")
-            arr = np.array([refs[k][1] for k in rect], dtype=float)
-            T = np.broadcast_to(np.eye(4), (len(rect), 4, 4)).copy()
-            T[:, :3, :3] = matrix_xyz_deg(arr[:, 3:6])
-            T[:, :3, 3] = arr[:, :3]
-            kw["pose"][rect] = base_pose(robot_frame(robot), T)  # positions in the robot frame
-            if len(ax) == 7:
-                values[ax[6].axis][rect] = arr[:, 6]
-            for k in rect:
-                rc = refs[k][4]
-                if rc:
-                    kw["conf"][k, :] = [rc[0], rc[1], rc[2], rc[3] * 4 + rc[4] * 2 + rc[5]]
-        if pre == "C":  # the circle points of circular moves
-            for k in np.flatnonzero(kind == CIRCULAR):
-                vp = (posns[k].get("via") or {}).get("C")
-                if vp is None or vp[3] != "rectan" or len(vp[1]) < 6:
-                    raise BadInput(f"{where[k]}: the circle point of this arc is not a Cartesian C position")
-                V = np.eye(4)
-                V[:3, :3] = matrix_xyz_deg(np.array(vp[1][3:6], float)[None])[0]
-                V[:3, 3] = vp[1][:3]
-                kw["via"][k] = base_pose(robot_frame(robot), V)
+    values = _axis_values(kw, robot, groups, posns, where, kind)
     kw["q"] = model_joints(profile, robot, values)
     if M > 1:
         V = np.stack([values[a.axis] for a in order], axis=1)
@@ -592,7 +551,83 @@ def _read_program(path: Path, robot, profile) -> ProgramMoves:
     kw["row_start"][sorted(starts)] = True
     kw["row_end"][sorted(ends)] = True
     prog = ProgramMoves(**kw, where=where, row_names=names, conf_convention="yaskawa")
-    # a joint move after a Cartesian one: VJ needs the axis values of the Cartesian target
+    _durations_after_cartesian(prog, robot, profile, groups, moves, vmax)
+    return prog
+
+
+def _axis_values(kw: dict, robot, groups: dict, posns: list, where: list[str], kind: np.ndarray) -> dict:
+    """The controller axis values (deg / mm, NaN where a position gives none) of every move,
+    group by group; Cartesian positions' poses, RCONF and circle points go into ``kw``."""
+    M = len(posns)
+    values = {a.axis: np.full(M, np.nan) for ax in groups.values() for a in ax}
+    for g, pre in GROUPS.items():
+        if g not in groups:
+            continue
+        ax = groups[g]
+        refs = [r.get(pre) for r in posns]
+        _pulse_values(values, g, pre, ax, refs, where)
+        _rectan_values(kw, values, robot, ax, refs, where)
+        if pre == "C":  # the circle points of circular moves
+            _circle_points(kw, robot, posns, where, kind)
+    return values
+
+
+def _pulse_values(values: dict, g: str, pre: str, ax: list, refs: list, where: list[str]) -> None:
+    """The axis values of one group's pulse positions: (pulses - zero) / pulses per unit."""
+    pulse = [k for k, r in enumerate(refs) if r is not None and r[3] == "pulse"]
+    if not pulse:
+        return
+    try:
+        arr = np.array([refs[k][1] for k in pulse], dtype=float)
+    except ValueError:
+        arr = None
+    if arr is None or arr.ndim != 2 or arr.shape[1] != len(ax):
+        k = next(k for k in pulse if len(refs[k][1]) != len(ax))
+        raise BadInput(f"{where[k]}: {pre} position has {len(refs[k][1])} values, group {g} has "
+                       f"{len(ax)} axes")
+    for i, a in enumerate(ax):
+        values[a.axis][pulse] = (arr[:, i] - float(a.zero_pulses)) / a.pulses
+
+
+def _rectan_values(kw: dict, values: dict, robot, ax: list, refs: list, where: list[str]) -> None:
+    """The TCP poses (robot frame) and RCONF of one group's Cartesian positions, and the 7th
+    axis value they carry."""
+    rect = [k for k, r in enumerate(refs) if r is not None and r[3] == "rectan"]
+    if not rect:
+        return
+    want = 6 + (len(ax) == 7)
+    bad = next((k for k in rect if len(refs[k][1]) != want), None)
+    if bad is not None:
+        raise BadInput(f"{where[bad]}: a Cartesian C position needs {want} values")
+    arr = np.array([refs[k][1] for k in rect], dtype=float)
+    T = np.broadcast_to(np.eye(4), (len(rect), 4, 4)).copy()
+    T[:, :3, :3] = matrix_xyz_deg(arr[:, 3:6])
+    T[:, :3, 3] = arr[:, :3]
+    kw["pose"][rect] = base_pose(robot_frame(robot), T)  # positions in the robot frame
+    if len(ax) == 7:
+        values[ax[6].axis][rect] = arr[:, 6]
+    for k in rect:
+        rc = refs[k][4]
+        if rc:
+            kw["conf"][k, :] = [rc[0], rc[1], rc[2], rc[3] * 4 + rc[4] * 2 + rc[5]]
+
+
+def _circle_points(kw: dict, robot, posns: list, where: list[str], kind: np.ndarray) -> None:
+    """The circle point (robot frame) of every circular move, from its Cartesian C position."""
+    for k in np.flatnonzero(kind == CIRCULAR):
+        vp = (posns[k].get("via") or {}).get("C")
+        if vp is None or vp[3] != "rectan" or len(vp[1]) < 6:
+            raise BadInput(f"{where[k]}: the circle point of this arc is not a Cartesian C position")
+        V = np.eye(4)
+        V[:3, :3] = matrix_xyz_deg(np.array(vp[1][3:6], float)[None])[0]
+        V[:3, 3] = vp[1][:3]
+        kw["via"][k] = base_pose(robot_frame(robot), V)
+
+
+def _durations_after_cartesian(prog: ProgramMoves, robot, profile, groups: dict, moves: list,
+                               vmax: np.ndarray) -> None:
+    """A joint move after a Cartesian one: its VJ duration from the axis values of the
+    Cartesian target (by the simulator's inverse kinematics)."""
     need = np.flatnonzero((prog.kind == JOINT) & np.isnan(prog.duration_s))
     need = need[(need > 0)]
     if len(need) and cartesian_targets(prog).any():   # MOVJ to a ///RECTAN position too
@@ -603,7 +638,6 @@ def _read_program(path: Path, robot, profile) -> ProgramMoves:
             mv = moves[k]
             if mv.vj > 0 and np.isfinite(q[k - 1]).all() and np.isfinite(q[k]).all():
                 prog.duration_s[k] = float(np.max(np.abs(vals[k] - vals[k - 1]) / vmax)) * 100.0 / mv.vj
-    return prog
 
 def read(path: Path, robot, profile) -> tuple[np.ndarray, np.ndarray]:
     """(durations_s, q): per move the duration implied by VJ and the profile's max speeds
