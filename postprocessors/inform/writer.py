@@ -36,25 +36,48 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     outdir = Path(outdir)
     name, _ = job_name(profile.program_name, o["job_name_length"])
     robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP the program declares
+    plan = _plan(trajectory, robot, profile, process)
+    kind = np.array(plan.kind)
+    parts = split_parts(len(plan), o["lines_per_job"], plan.free, "positions", f"{profile.source}: options.lines_per_job")
+    pl = _pl(plan, parts)
+    groups = group_axes(profile)
+    speed = _speeds(plan, robot, profile, groups, kind)
+    pos_txt, rconf, via_txt, via_rconf = _targets(plan, robot, profile, groups, kind)
+    before, after = _row_markers(plan, process, o["process_output"])
+    header = _header(robot, profile, process, name, groups, kind, pl, rconf)
+    job = dict(kind=kind, pos_txt=pos_txt, rconf=rconf, speed=speed, pl=pl, before=before, after=after,
+               rconf_fields=o["rconf_fields"], via_txt=via_txt, via_rconf=via_rconf)
+    return _write_files(outdir, _jobs(name, parts, header, job, o["job_name_length"]))
+
+
+def _plan(trajectory, robot, profile, process: ProcessInfo):
+    """The job's moves: planned within the profile's PL radii, then the program steps (arcs)."""
+    o = profile.options
     cart = o["motion"] == "cartesian"
     radii = [float(v) for v in o["pl_mm"]][:o["max_pl"]]
     lo = max(1, o["pl"]) - 1
     plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=radii, min_level_on_surface=lo)
     steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if cart and o["arcs"] else None, arc_start_linear=True)
-    plan = steps.apply(plan, context_for(trajectory, robot, process, plan, radii, lo))
-    n = len(plan)
-    kind = np.array(plan.kind)
-    length = move_lengths(plan)
-    parts = split_parts(n, o["lines_per_job"], plan.free, "positions", f"{profile.source}: options.lines_per_job")
+    return steps.apply(plan, context_for(trajectory, robot, process, plan, radii, lo))
+
+
+def _pl(plan, parts: list[range]) -> np.ndarray:
+    """Each move's PL, 0 (an exact stop) at the end of every job but the last."""
     pl = plan.level + 1  # level -1 (exact stop) -> PL=0
     for r in parts[:-1]:
         pl[r.stop - 1] = 0  # CALL JOB ends the motion: the job before ends with a stop
-    groups = group_axes(profile)
+    return pl
+
+
+def _speeds(plan, robot, profile, groups: dict, kind: np.ndarray) -> list[str]:
+    """VJ of joint moves, V of linear ones: the job's clock tracks the plan."""
+    o = profile.options
+    n = len(plan)
+    length = move_lengths(plan)
     axes = controller_axes(profile, robot, plan.q)
     order = [a for ax in groups.values() for a in ax]
     vmax = np.array([a.max_speed for a in order])
     values = np.stack([axes[a.axis] for a in order], axis=1)
-    # --- timing: VJ for joint moves, V for linear ones; the job's clock tracks the plan
     speed = [""] * n
     speed[0] = f"VJ={o['approach_vj']:.2f}"
     fastest = np.max(np.abs(np.diff(plan.q, axis=0)) / robot.limits.velocity[None, :], axis=1) \
@@ -78,20 +101,27 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
             vj = min(cap, max(0.01, round(100 * g / want, 2)))
             speed[i] = f"VJ={vj:.2f}"
             written += 100 * g / vj
-    # --- positions: pulses for joint moves, ///RECTAN for Cartesian ones (a circular move's
-    # circle point gets a position of its own, before its target's)
+    return speed
+
+
+def _targets(plan, robot, profile, groups: dict, kind: np.ndarray) -> tuple[dict, list, dict, list]:
+    """Position texts and ///RCONF values of the targets, and of the circular moves' circle
+    points (a circle point gets a position of its own, before its target's)."""
+    o = profile.options
     pos_txt, rconf = _positions(robot, profile, groups, plan.P, plan.R, plan.q, kind != JOINT, o["rconf_fields"])
     circ = np.flatnonzero(kind == KIND_CIRCULAR)
-    via_txt, via_rconf = {}, [None] * n
+    via_txt, via_rconf = {}, [None] * len(plan)
     if len(circ):
         vt, vr = _positions(robot, profile, groups, plan.via_P[circ], plan.via_R[circ], plan.via_q[circ],
                             np.ones(len(circ), bool), o["rconf_fields"])
         via_txt = {pre: dict(zip(circ.tolist(), vt[pre])) for pre in vt}
         for j, k in enumerate(circ):
             via_rconf[k] = vr[j]
-    lin = kind == KIND_LINEAR
-    # --- instructions
-    out_no = o["process_output"]
+    return pos_txt, rconf, via_txt, via_rconf
+
+
+def _row_markers(plan, process: ProcessInfo, out_no) -> tuple[dict[int, list[str]], dict[int, list[str]]]:
+    """The comments and DOUT instructions before a row's first move and after its last one."""
     labels = list(process.row_labels)
     before: dict[int, list[str]] = {}
     after: dict[int, list[str]] = {}
@@ -102,10 +132,19 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
             before[i] = [f"'ROW {r}/{plan.rows}{label}"[:33]] + ([f"DOUT OT#({out_no}) ON"] if out_no else [])
         if plan.row_end[i]:
             after[i] = ([f"DOUT OT#({out_no}) OFF"] if out_no else []) + [f"'END ROW {r}"]
+    return before, after
+
+
+def _header(robot, profile, process: ProcessInfo, name: str, groups: dict, kind: np.ndarray, pl: np.ndarray,
+            rconf: list) -> dict:
+    """A job's header: tool, date, group, comment, attributes and the comment lines after NOP."""
+    o = profile.options
+    out_no = o["process_output"]
+    n = len(kind)
     date = program_date(o["date"], process)
     comm = comment_text(f"camtool {process.job_name or name}", 32)
-    n_lin = int(lin.sum())
-    n_circ = int(len(circ))
+    n_lin = int((kind == KIND_LINEAR).sum())
+    n_circ = int(len(np.flatnonzero(kind == KIND_CIRCULAR)))
     notes = [f"'camtool {__version__} {comment_text(robot.name, 64)} {n} moves",
              f"'{n_lin} MOVL {n_circ} ARCS {n - n_lin - n_circ} MOVJ {int((pl == 0).sum())} STOPS" if n_circ else
              f"'{n_lin} MOVL {n - n_lin} MOVJ {int((pl == 0).sum())} STOPS",
@@ -114,24 +153,29 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
              "'" + comment_text("AXES " + " ".join(robot.conventions.controller_axis_names), 60),
              ("'POSITIONS RECTAN ROBOT FRAME NO PULSE FACTORS" if pulse_free(profile) else "'PULSES FROM THE PROFILE"),
              (f"'PROCESS OUTPUT OT#({out_no})" if out_no else "'NO PROCESS OUTPUT CONFIGURED")]
-    header = dict(tool=profile.tool["number"], date=date, group=",".join(groups), comm=comm,
-                  attr="SC,RW,RJ" if any(r is not None for r in rconf) else "SC,RW", notes=notes)
-    files: dict[str, list[str]] = {}
-    job = dict(kind=kind, pos_txt=pos_txt, rconf=rconf, speed=speed, pl=pl, before=before, after=after,
-               rconf_fields=o["rconf_fields"], via_txt=via_txt, via_rconf=via_rconf)
+    return dict(tool=profile.tool["number"], date=date, group=",".join(groups), comm=comm,
+                attr="SC,RW,RJ" if any(r is not None for r in rconf) else "SC,RW", notes=notes)
+
+
+def _jobs(name: str, parts: list[range], header: dict, job: dict, name_length: int) -> dict[str, list[str]]:
+    """The jobs' lines by job name: one job, or a main job calling the parts in turn."""
     if len(parts) == 1:
-        files[name] = _job(name, parts[0], header, job)
-    else:
-        names = []
-        for i, r in enumerate(parts, 1):
-            s = f"_{i}"
-            part = name[:o["job_name_length"] - len(s)] + s
-            names.append(part)
-            files[part] = _job(part, r, header, job)
-        main = ["/JOB", f"//NAME {name}", "//POS", "///NPOS 0,0,0,0,0,0", "//INST", f"///DATE {date}",
-                f"///COMM {comm}", "///ATTR SC,RW", f"///GROUP1 {header['group']}", "NOP"] + notes \
-            + [f"CALL JOB:{n_}" for n_ in names] + ["END"]
-        files = {name: main, **files}
+        return {name: _job(name, parts[0], header, job)}
+    files: dict[str, list[str]] = {}
+    names = []
+    for i, r in enumerate(parts, 1):
+        s = f"_{i}"
+        part = name[:name_length - len(s)] + s
+        names.append(part)
+        files[part] = _job(part, r, header, job)
+    main = ["/JOB", f"//NAME {name}", "//POS", "///NPOS 0,0,0,0,0,0", "//INST", f"///DATE {header['date']}",
+            f"///COMM {header['comm']}", "///ATTR SC,RW", f"///GROUP1 {header['group']}", "NOP"] + header["notes"] \
+        + [f"CALL JOB:{n_}" for n_ in names] + ["END"]
+    return {name: main, **files}
+
+
+def _write_files(outdir: Path, files: dict[str, list[str]]) -> list[Path]:
+    """Write each job as ``NAME.JBI`` (CRLF line ends); the paths written."""
     written_files = []
     for job_, lines in files.items():
         p = outdir / f"{job_}.JBI"

@@ -151,115 +151,15 @@ def parse_module(path: Path) -> ModuleText:
 
 
 def _parse_module(path: Path, text: str) -> ModuleText:
+    """A module's text parsed line by line; then the jointtargets' values in bulk and the
+    module's frame (MODULE, PROC / ENDPROC, ENDMODULE)."""
     m = ModuleText()
     bulk: list = []  # well-formed jointtargets: (move, rax text, eax text, where)
-    lines = text.split("\n")
-    if lines and lines[-1] == "":
-        lines = lines[:-1]
-    else:
-        m.problems.append(f"{path}:{len(lines)}: no newline at end of file")
-    if "\r" in text:
-        m.problems.append(f"{path}: CR characters found (RAPID modules use LF line ends here)")
+    lines = _module_lines(path, text, m.problems)
     depth = 0
     ps = str(path)
     for n, line in enumerate(lines, 1):
-        where = f"{ps}:{n}"
-        if line != line.rstrip():
-            m.problems.append(f"{where}: trailing white space")
-        if "\t" in line:
-            m.problems.append(f"{where}: tab character")
-        s = line.strip()
-        if not s:
-            continue
-        if s.startswith("!"):
-            if CODE_IN_COMMENT_RE.search(s[1:]):
-                m.problems.append(f"{where}: code in a comment (a name or text that could become a statement): "
-                                  f"{s[:60]!r}")
-            if depth and (rm := ROW_RE.match(s)):
-                m.items.append(("row", n, s.lstrip("! ").strip()))
-            elif depth and (em := ROW_END_RE.match(s)):
-                m.items.append(("end_row", n, int(em.group("n"))))
-            continue
-        if s[:4] == "Move":
-            first = s.split(None, 1)[0]
-            kind = {"MoveAbsJ": JOINT, "MoveL": LINEAR, "MoveC": CIRCULAR}.get(first)
-            regex = {JOINT: MOVE_RE, LINEAR: MOVEL_RE, CIRCULAR: MOVEC_RE}.get(kind)
-            mv = regex.match(line) if regex else None
-            word = first if kind else s[:8]
-            if not mv or not depth:
-                m.problems.append(f"{where}: malformed {word}" + ("" if mv else f": {s[:60]}"))
-                continue
-            t = mv.group("t")
-            if t and not math.isfinite(float(t)):
-                m.problems.append(f"{where}: \\T must be a finite number of seconds, found {t}")
-                continue
-            if mv.group("speed")[:1] == "[" and not _all_finite(mv.group("speed")):
-                m.problems.append(f"{where}: speed data must be finite numbers")
-                continue
-            tail = (mv.group("speed"), float(t) if t else None, mv.group("zone"), mv.group("tool"), mv.group("wobj"))
-            if kind == JOINT and mv.group("rax").count(",") == 5 and mv.group("eax").count(",") == 5:
-                move = Move(n, None, None, *tail)  # values converted in bulk after the loop
-                bulk.append((move, mv.group("rax"), mv.group("eax"), where))
-            elif kind == JOINT:
-                try:
-                    rax, eax = _floats(mv.group("rax")), _floats(mv.group("eax"))
-                except ValueError:
-                    m.problems.append(f"{where}: jointtarget values must be numbers")
-                    continue
-                if not all(math.isfinite(v) for v in rax + eax):
-                    m.problems.append(f"{where}: jointtarget values must be finite numbers")
-                    continue
-                if len(rax) != 6 or len(eax) != 6:
-                    m.problems.append(f"{where}: jointtarget needs 6 robot and 6 external values, found "
-                                      f"{len(rax)} and {len(eax)}")
-                    continue
-                move = Move(n, rax, eax, *tail)
-            else:
-                to = _robtarget(mv, "", where, m.problems)
-                via = _robtarget(mv, "c", where, m.problems) if kind == CIRCULAR else None
-                if to is None or (kind == CIRCULAR and via is None):
-                    continue
-                move = Move(n, [], to[3], *tail, kind=kind, to=to, via=via)
-            m.moves.append(move)
-            m.items.append(("move", move))
-            continue
-        if s.startswith("%%%"):
-            m.problems.append(f"{where}: '%%%' header is not allowed in a .mod file")
-        elif (mm := MODULE_RE.match(line)):
-            if m.name:
-                m.problems.append(f"{where}: second MODULE in one file")
-            m.name = mm.group("name")
-        elif s == "ENDMODULE":
-            if depth:
-                m.problems.append(f"{where}: ENDMODULE inside a PROC")
-            if n != len(lines):
-                m.problems.append(f"{where}: text after ENDMODULE")
-        elif (pm := PROC_RE.match(line)):
-            if depth:
-                m.problems.append(f"{where}: PROC inside a PROC")
-            depth += 1
-            m.procs.append(pm.group("name"))
-        elif s == "ENDPROC":
-            if not depth:
-                m.problems.append(f"{where}: ENDPROC without PROC")
-            depth = max(0, depth - 1)
-        elif (dm := PERS_RE.match(line)) and not depth:
-            m.data[dm.group("name")] = dm.group("type")
-            m.values[dm.group("name")] = dm.group("value")
-            if not _all_finite(dm.group("value")):
-                m.problems.append(f"{where}: {dm.group('name')} holds a value that is not a finite number")
-        elif (dm := SETDO_RE.match(line)) and depth:
-            m.items.append(("do", n, dm.group("sig"), int(dm.group("val"))))
-        elif CONF_RE.match(line) and depth:
-            pass
-        elif (lm := LOAD_RE.match(line)) and depth:
-            m.loads.append((n, lm.group("path")))
-        elif UNLOAD_RE.match(line) and depth:
-            pass
-        elif (cm := CALL_RE.match(line)) and depth:
-            m.calls.append((n, cm.group("proc")))
-        else:
-            m.problems.append(f"{where}: unrecognised statement: {s[:60]}")
+        depth = _parse_line(m, bulk, depth, n, f"{ps}:{n}", line, len(lines))
     _bulk_values(bulk, m)
     if not m.name:
         m.problems.append(f"{path}: no MODULE line")
@@ -268,6 +168,144 @@ def _parse_module(path: Path, text: str) -> ModuleText:
     if not lines or lines[-1].strip() != "ENDMODULE":
         m.problems.append(f"{path}: the module does not end with ENDMODULE")
     return m
+
+
+def _module_lines(path: Path, text: str, problems: list[str]) -> list[str]:
+    """The module's lines, with a missing last newline and CR characters noted."""
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines = lines[:-1]
+    else:
+        problems.append(f"{path}:{len(lines)}: no newline at end of file")
+    if "\r" in text:
+        problems.append(f"{path}: CR characters found (RAPID modules use LF line ends here)")
+    return lines
+
+
+def _parse_line(m: ModuleText, bulk: list, depth: int, n: int, where: str, line: str, last: int) -> int:
+    """One line: a comment, a move or another statement; the PROC depth after it."""
+    if line != line.rstrip():
+        m.problems.append(f"{where}: trailing white space")
+    if "\t" in line:
+        m.problems.append(f"{where}: tab character")
+    s = line.strip()
+    if not s:
+        return depth
+    if s.startswith("!"):
+        _comment(m, depth, n, where, s)
+    elif s[:4] == "Move":
+        _move_statement(m, bulk, depth, n, where, line, s)
+    else:
+        depth = _statement(m, depth, n, where, line, s, last)
+    return depth
+
+
+def _comment(m: ModuleText, depth: int, n: int, where: str, s: str) -> None:
+    """A comment: code in it is a problem; inside a PROC it may mark a row's start or end."""
+    if CODE_IN_COMMENT_RE.search(s[1:]):
+        m.problems.append(f"{where}: code in a comment (a name or text that could become a statement): "
+                          f"{s[:60]!r}")
+    if depth and ROW_RE.match(s):
+        m.items.append(("row", n, s.lstrip("! ").strip()))
+    elif depth and (em := ROW_END_RE.match(s)):
+        m.items.append(("end_row", n, int(em.group("n"))))
+
+
+def _move_statement(m: ModuleText, bulk: list, depth: int, n: int, where: str, line: str, s: str) -> None:
+    """A MoveAbsJ / MoveL / MoveC statement: its move, or a problem; a well-formed jointtarget's
+    values are left to the bulk conversion."""
+    first = s.split(None, 1)[0]
+    kind = {"MoveAbsJ": JOINT, "MoveL": LINEAR, "MoveC": CIRCULAR}.get(first)
+    regex = {JOINT: MOVE_RE, LINEAR: MOVEL_RE, CIRCULAR: MOVEC_RE}.get(kind)
+    mv = regex.match(line) if regex else None
+    word = first if kind else s[:8]
+    if not mv or not depth:
+        m.problems.append(f"{where}: malformed {word}" + ("" if mv else f": {s[:60]}"))
+        return
+    t = mv.group("t")
+    if t and not math.isfinite(float(t)):
+        m.problems.append(f"{where}: \\T must be a finite number of seconds, found {t}")
+        return
+    if mv.group("speed")[:1] == "[" and not _all_finite(mv.group("speed")):
+        m.problems.append(f"{where}: speed data must be finite numbers")
+        return
+    tail = (mv.group("speed"), float(t) if t else None, mv.group("zone"), mv.group("tool"), mv.group("wobj"))
+    if kind == JOINT and mv.group("rax").count(",") == 5 and mv.group("eax").count(",") == 5:
+        move = Move(n, None, None, *tail)  # values converted in bulk after the loop
+        bulk.append((move, mv.group("rax"), mv.group("eax"), where))
+    elif kind == JOINT:
+        values = _jointtarget(mv, where, m.problems)
+        if values is None:
+            return
+        move = Move(n, *values, *tail)
+    else:
+        to = _robtarget(mv, "", where, m.problems)
+        via = _robtarget(mv, "c", where, m.problems) if kind == CIRCULAR else None
+        if to is None or (kind == CIRCULAR and via is None):
+            return
+        move = Move(n, [], to[3], *tail, kind=kind, to=to, via=via)
+    m.moves.append(move)
+    m.items.append(("move", move))
+
+
+def _jointtarget(mv, where: str, problems: list[str]):
+    """(rax, eax) of a matched jointtarget that is not 6 + 6 values, or None with a problem noted."""
+    try:
+        rax, eax = _floats(mv.group("rax")), _floats(mv.group("eax"))
+    except ValueError:
+        problems.append(f"{where}: jointtarget values must be numbers")
+        return None
+    if not all(math.isfinite(v) for v in rax + eax):
+        problems.append(f"{where}: jointtarget values must be finite numbers")
+        return None
+    if len(rax) != 6 or len(eax) != 6:
+        problems.append(f"{where}: jointtarget needs 6 robot and 6 external values, found "
+                        f"{len(rax)} and {len(eax)}")
+        return None
+    return rax, eax
+
+
+def _statement(m: ModuleText, depth: int, n: int, where: str, line: str, s: str, last: int) -> int:
+    """Any statement but a move: the module and its PROCs, data, SetDO, Load, calls; the
+    PROC depth after it."""
+    if s.startswith("%%%"):
+        m.problems.append(f"{where}: '%%%' header is not allowed in a .mod file")
+    elif (mm := MODULE_RE.match(line)):
+        if m.name:
+            m.problems.append(f"{where}: second MODULE in one file")
+        m.name = mm.group("name")
+    elif s == "ENDMODULE":
+        if depth:
+            m.problems.append(f"{where}: ENDMODULE inside a PROC")
+        if n != last:
+            m.problems.append(f"{where}: text after ENDMODULE")
+    elif (pm := PROC_RE.match(line)):
+        if depth:
+            m.problems.append(f"{where}: PROC inside a PROC")
+        depth += 1
+        m.procs.append(pm.group("name"))
+    elif s == "ENDPROC":
+        if not depth:
+            m.problems.append(f"{where}: ENDPROC without PROC")
+        depth = max(0, depth - 1)
+    elif (dm := PERS_RE.match(line)) and not depth:
+        m.data[dm.group("name")] = dm.group("type")
+        m.values[dm.group("name")] = dm.group("value")
+        if not _all_finite(dm.group("value")):
+            m.problems.append(f"{where}: {dm.group('name')} holds a value that is not a finite number")
+    elif (dm := SETDO_RE.match(line)) and depth:
+        m.items.append(("do", n, dm.group("sig"), int(dm.group("val"))))
+    elif CONF_RE.match(line) and depth:
+        pass
+    elif (lm := LOAD_RE.match(line)) and depth:
+        m.loads.append((n, lm.group("path")))
+    elif UNLOAD_RE.match(line) and depth:
+        pass
+    elif (cm := CALL_RE.match(line)) and depth:
+        m.calls.append((n, cm.group("proc")))
+    else:
+        m.problems.append(f"{where}: unrecognised statement: {s[:60]}")
+    return depth
 
 
 def _bulk_values(bulk: list, m: ModuleText) -> None:

@@ -3,6 +3,7 @@ statements in modules, with a ``.pgf`` program file (see ``postprocessors.rapid`
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -20,31 +21,76 @@ from .dialect import (BLEND_ZONES, comment_text, EAX, MAX_ARC_DEG, RAX, T_RESOLU
                       fmt_column, fmt_num, rapid_identifier, validate_profile)
 
 
+@dataclass(frozen=True)
+class _Names:
+    """The RAPID identifiers of the program, its tool and its work object."""
+
+    program: str
+    tool: str
+    wobj: str
+
+
+@dataclass(frozen=True)
+class _Targets:
+    """Per move the jointtarget's axis texts, and the robtargets (and circle points) of the
+    Cartesian moves by move index."""
+
+    rax: list[str]
+    eax: list[str]
+    robt: dict[int, str]
+    via: dict[int, str]
+
+
 def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None = None) -> list[Path]:
     """Write ``<NAME>.pgf`` and ``<NAME>.mod`` (plus ``<NAME>_NNN.mod`` parts when split)."""
     validate_profile(profile, robot)
     process = process if process is not None else ProcessInfo()
     outdir = Path(outdir)
     o = profile.options
+    names = _names(profile)
+    robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP the program declares
+    plan = _plan(trajectory, robot, profile, process)
+    parts = split_parts(len(plan), o["lines_per_module"], plan.free, "moves", f"{profile.source}: options.lines_per_module")
+    level = _levels(plan, parts)
+    moves = _move_lines(plan, robot, profile, names, level)
+    before, after = _row_markers(plan, process, o["process_signal"])
+    header = _header(trajectory, robot, profile, process, plan, level)
+    decl = [_tooldata(names.tool, profile.tool), _wobjdata(names.wobj, profile.wobj)]
+    bodies = [_body(r, moves, before, after) for r in parts]
+    return _write_files(outdir, names.program, _modules(names.program, header, decl, parts, bodies, o["module_dir"]))
+
+
+def _names(profile) -> _Names:
+    """The program's (24 characters at most), tool's and work object's identifiers."""
     name, _ = rapid_identifier(profile.program_name, 24)
     tool, _ = rapid_identifier(profile.tool["name"])
     wobj, _ = rapid_identifier(profile.wobj["name"])
-    robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP the program declares
+    return _Names(name, tool, wobj)
+
+
+def _plan(trajectory, robot, profile, process: ProcessInfo):
+    """The program's moves: planned within the profile's zones, then the program steps (arcs)."""
+    o = profile.options
     cart = o["motion"] == "cartesian"
     lo, hi = BLEND_ZONES.index(o["zone"]), BLEND_ZONES.index(o["max_zone"])
     levels = [ZONE_MM[z] for z in BLEND_ZONES[:hi + 1]]
     plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=levels, min_level_on_surface=lo)
     steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if cart and o["arcs"] else None)
-    plan = steps.apply(plan, context_for(trajectory, robot, process, plan, levels, lo))
-    n = len(plan)
-    kind = np.array(plan.kind)
-    length = move_lengths(plan)
-    parts = split_parts(n, o["lines_per_module"], plan.free, "moves", f"{profile.source}: options.lines_per_module")
+    return steps.apply(plan, context_for(trajectory, robot, process, plan, levels, lo))
+
+
+def _levels(plan, parts: list[range]) -> np.ndarray:
+    """Each move's zone level, -1 (fine) at the end of every module but the last."""
     level = plan.level.copy()
     for r in parts[:-1]:
         level[r.stop - 1] = -1  # a module ends with a stop: the next one is loaded there
-    zone_names = np.array(BLEND_ZONES + ("fine",))[level]  # level -1 -> fine
-    # --- timing: \T for joint moves, a TCP speed for linear moves; the clock tracks the plan
+    return level
+
+
+def _timing(plan, robot, kind: np.ndarray) -> tuple[list[str], list[str]]:
+    """Speed data texts of linear moves and \\T texts of joint moves: the clock tracks the plan."""
+    n = len(plan)
+    length = move_lengths(plan)
     dt = np.diff(plan.t)
     fastest = np.max(np.abs(np.diff(plan.q, axis=0)) / robot.limits.velocity[None, :], axis=1) \
         if n > 1 else np.zeros(0)
@@ -66,13 +112,23 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
             ticks = max(lo_ticks, round(want / T_RESOLUTION_S))
             t_txt[i] = f"{ticks * T_RESOLUTION_S:.4f}"
             written += ticks * T_RESOLUTION_S
-    # --- targets
+    return speed_txt, t_txt
+
+
+def _axis_texts(axes: dict, names, units: dict, n: int) -> list[str]:
+    """Per target the comma-joined values of the axes ``names`` (9E9 for an axis not connected)."""
+    cols = [fmt_column(axes[ax], 3 if units[ax] == "mm" else 4) if ax in axes else ["9E9"] * n for ax in names]
+    return [",".join(v) for v in zip(*cols)]
+
+
+def _targets(plan, robot, profile, kind: np.ndarray) -> _Targets:
+    """The jointtargets' axis texts of every move, the robtargets of the linear and circular
+    moves and the circle points of the circular ones."""
+    n = len(plan)
     axes = controller_axes(profile, robot, plan.q)
     units = {a.axis: a.unit for a in profile.axes}
-    cols = {ax: (fmt_column(axes[ax], 3 if units[ax] == "mm" else 4) if ax in axes else ["9E9"] * n)
-            for ax in RAX + EAX}
-    rax_txt = [",".join(v) for v in zip(*(cols[a] for a in RAX))]
-    eax_txt = [",".join(v) for v in zip(*(cols[a] for a in EAX))]
+    rax_txt = _axis_texts(axes, RAX, units, n)
+    eax_txt = _axis_texts(axes, EAX, units, n)
     lin_idx = np.flatnonzero((kind == KIND_LINEAR) | (kind == KIND_CIRCULAR))
     robt = {}
     if len(lin_idx):
@@ -82,24 +138,37 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     via = {}
     if len(circ_idx):
         via_axes = controller_axes(profile, robot, plan.via_q[circ_idx])
-        via_eax = [",".join(v) for v in zip(*((fmt_column(via_axes[a], 3 if units[a] == "mm" else 4)
-                                                if a in via_axes else ["9E9"] * len(circ_idx)) for a in EAX))]
+        via_eax = _axis_texts(via_axes, EAX, units, len(circ_idx))
         via = dict(zip(circ_idx.tolist(), _robtargets(robot, profile, plan.via_P[circ_idx], plan.via_R[circ_idx],
                                                       plan.via_q[circ_idx], via_eax)))
+    return _Targets(rax_txt, eax_txt, robt, via)
+
+
+def _move_lines(plan, robot, profile, names: _Names, level: np.ndarray) -> list[str]:
+    """One MoveAbsJ / MoveL / MoveC statement per move, the first an exact approach."""
+    o = profile.options
+    tool, wobj = names.tool, names.wobj
+    kind = np.array(plan.kind)
+    zone_names = np.array(BLEND_ZONES + ("fine",))[level]  # level -1 -> fine
+    speed_txt, t_txt = _timing(plan, robot, kind)
+    tg = _targets(plan, robot, profile, kind)
     moves = []
-    for i in range(n):
+    for i in range(len(plan)):
         if i == 0:
-            moves.append(f"MoveAbsJ [[{rax_txt[0]}],[{eax_txt[0]}]], {o['approach_speed']}, fine, {tool} "
+            moves.append(f"MoveAbsJ [[{tg.rax[0]}],[{tg.eax[0]}]], {o['approach_speed']}, fine, {tool} "
                          f"\\WObj:={wobj};")
         elif kind[i] == KIND_LINEAR:
-            moves.append(f"MoveL {robt[i]}, {speed_txt[i]}, {zone_names[i]}, {tool} \\WObj:={wobj};")
+            moves.append(f"MoveL {tg.robt[i]}, {speed_txt[i]}, {zone_names[i]}, {tool} \\WObj:={wobj};")
         elif kind[i] == KIND_CIRCULAR:
-            moves.append(f"MoveC {via[i]}, {robt[i]}, {speed_txt[i]}, {zone_names[i]}, {tool} \\WObj:={wobj};")
+            moves.append(f"MoveC {tg.via[i]}, {tg.robt[i]}, {speed_txt[i]}, {zone_names[i]}, {tool} \\WObj:={wobj};")
         else:
-            moves.append(f"MoveAbsJ [[{rax_txt[i]}],[{eax_txt[i]}]], {o['speed']} \\T:={t_txt[i]}, "
+            moves.append(f"MoveAbsJ [[{tg.rax[i]}],[{tg.eax[i]}]], {o['speed']} \\T:={t_txt[i]}, "
                          f"{zone_names[i]}, {tool} \\WObj:={wobj};")
-    # --- process markers and I/O around the rows
-    sig = o["process_signal"]
+    return moves
+
+
+def _row_markers(plan, process: ProcessInfo, sig: str) -> tuple[dict[int, list[str]], dict[int, list[str]]]:
+    """The comments and SetDO statements before a row's first move and after its last one."""
     labels = list(process.row_labels)
     before: dict[int, list[str]] = {}
     after: dict[int, list[str]] = {}
@@ -111,45 +180,62 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
             before[i] = [f"! Row {row_no} of {plan.rows}{label}"] + ([f"SetDO {sig}, 1;"] if sig else [])
         if plan.row_end[i]:
             after[i] = ([f"SetDO {sig}, 0;"] if sig else []) + [f"! End of row {int(plan.row[i]) + 1}"]
+    return before, after
 
-    def body(r):
-        out = []
-        for i in r:
-            out += before.get(i, [])
-            out.append(moves[i])
-            out += after.get(i, [])
-        return out
 
+def _body(r: range, moves: list[str], before: dict, after: dict) -> list[str]:
+    """The statements of the moves ``r`` with their row markers."""
+    out = []
+    for i in r:
+        out += before.get(i, [])
+        out.append(moves[i])
+        out += after.get(i, [])
+    return out
+
+
+def _header(trajectory, robot, profile, process: ProcessInfo, plan, level: np.ndarray) -> list[str]:
+    """The main module's comment lines: the counts, job, profile, conventions and process."""
+    o = profile.options
+    sig = o["process_signal"]
+    n = len(plan)
+    kind = np.array(plan.kind)
     n_lin = int((kind == KIND_LINEAR).sum())
     n_circ = int((kind == KIND_CIRCULAR).sum())
     stops = int((level < 0).sum())
     date = program_date(o["date"], process)
-    header = [f"! Generated by camtool {__version__} for robot {comment_text(robot.name, 32)}: {n} moves ({n_lin} MoveL, "
-              + (f"{n_circ} MoveC, " if n_circ else "") + f"{n - n_lin - n_circ} MoveAbsJ), {stops} exact stops, {plan.rows} rows, {trajectory.duration_s:.3f} s",
-              f"! Job: {comment_text(process.job_name or 'unknown', 60)}; date {comment_text(date, 16)} UTC "
-              f"(options.date = {comment_text(o['date'], 16)}).",
-              f"! Profile: {comment_text(Path(profile.source).name, 60)}. Units: mm, deg, s; 9E9 = axis not connected.",
-              f"! Conventions: {comment_text(robot.conventions.summary(), 200)}.",
-              f"! Moves merged and corners blended within {process.path_tol_mm:g} mm of the planned path "
-              "(post.path_tol_mm).",
-              (f"! Process: SetDO {sig}, 1 before each row's first work point, 0 after its last one."
-               if sig else "! Process: no signal configured (profile options.process_signal); this program "
-                           "switches nothing.")]
-    decl = [_tooldata(tool, profile.tool), _wobjdata(wobj, profile.wobj)]
-    files: dict[str, list[str]] = {}
+    return [f"! Generated by camtool {__version__} for robot {comment_text(robot.name, 32)}: {n} moves ({n_lin} MoveL, "
+            + (f"{n_circ} MoveC, " if n_circ else "") + f"{n - n_lin - n_circ} MoveAbsJ), {stops} exact stops, {plan.rows} rows, {trajectory.duration_s:.3f} s",
+            f"! Job: {comment_text(process.job_name or 'unknown', 60)}; date {comment_text(date, 16)} UTC "
+            f"(options.date = {comment_text(o['date'], 16)}).",
+            f"! Profile: {comment_text(Path(profile.source).name, 60)}. Units: mm, deg, s; 9E9 = axis not connected.",
+            f"! Conventions: {comment_text(robot.conventions.summary(), 200)}.",
+            f"! Moves merged and corners blended within {process.path_tol_mm:g} mm of the planned path "
+            "(post.path_tol_mm).",
+            (f"! Process: SetDO {sig}, 1 before each row's first work point, 0 after its last one."
+             if sig else "! Process: no signal configured (profile options.process_signal); this program "
+                         "switches nothing.")]
+
+
+def _modules(name: str, header: list[str], decl: list[str], parts: list[range], bodies: list[list[str]],
+             module_dir: str) -> dict[str, list[str]]:
+    """The modules' lines by module name: one module, or a main module loading the parts in turn."""
     if len(parts) == 1:
-        files[name] = _module(name, header, decl, "main", body(parts[0]))
-    else:
-        main_body = []
-        for i, r in enumerate(parts, 1):
-            part = f"{name}_{i:03d}"
-            where = f"{o['module_dir'].rstrip('/')}/{part}.mod"
-            main_body += [f'Load \\Dynamic, "{where}";', f'%"{part}_run"%;', f'UnLoad "{where}";']
-            files[part] = _module(part, [f"! Part {i} of {len(parts)} of {name}: moves "
-                                              f"{r.start + 1}..{r.stop}; it starts and ends off the surface."],
-                                       [], f"{part}_run", body(r))
-        files = {name: _module(name, header + [f"! Runs {len(parts)} modules in turn."], decl, "main",
-                                    main_body), **files}
+        return {name: _module(name, header, decl, "main", bodies[0])}
+    files: dict[str, list[str]] = {}
+    main_body = []
+    for i, (r, body) in enumerate(zip(parts, bodies), 1):
+        part = f"{name}_{i:03d}"
+        where = f"{module_dir.rstrip('/')}/{part}.mod"
+        main_body += [f'Load \\Dynamic, "{where}";', f'%"{part}_run"%;', f'UnLoad "{where}";']
+        files[part] = _module(part, [f"! Part {i} of {len(parts)} of {name}: moves "
+                                     f"{r.start + 1}..{r.stop}; it starts and ends off the surface."],
+                              [], f"{part}_run", body)
+    return {name: _module(name, header + [f"! Runs {len(parts)} modules in turn."], decl, "main", main_body),
+            **files}
+
+
+def _write_files(outdir: Path, name: str, files: dict[str, list[str]]) -> list[Path]:
+    """Write the .pgf program file, then each module; the paths written."""
     written = [outdir / f"{name}.pgf"]
     written[0].write_bytes(("<?xml version=\"1.0\" encoding=\"ISO-8859-1\" ?>\n<Program>\n"
                             f"  <Module>{name}.mod</Module>\n</Program>\n").encode("ascii"))
