@@ -50,7 +50,8 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     leq = np.maximum(length, np.r_[0.0, joint_travel(np.diff(plan.q, axis=0), robot.prismatic)]) if n > 1 \
         else np.zeros(n)
     # --- statements before each move (speeds, approximation) and the move itself
-    pre, moves = _moves(plan, kind, values, vmax, [a.axis for a in order], robot, length, leq, radius, level, o)
+    pre, moves = _moves(plan, kind, values, vmax, [a.axis for a in order], robot, length, leq, radius, level, o,
+                        {r.start for r in parts})
     targets = _targets(plan, kind, profile, robot, axes)
     # --- process markers and I/O around the rows
     out_no = o["process_output"]
@@ -104,7 +105,7 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
             part = f"{name}_{k:03d}"
             calls.append(f"{part}( )")
             files[part] = (_src(part, [f"; Part {k} of {len(parts)} of {name}: moves {r.start + 1}..{r.stop}; it "
-                                       "starts and ends off the surface."], body(r)),
+                                       "starts and ends off the surface."] + settings[1:], body(r)),
                            _dat(part, [targets[i] for i in r]))
         files = {name: (_src(name, header + settings + [f"; Runs {len(parts)} modules in turn."], calls),
                         _dat(name, [])), **files}
@@ -137,7 +138,7 @@ def _vel_var(axis: str) -> str:
     return f"$VEL_AXIS[{axis[1:]}]" if axis.startswith("A") else f"$VEL_EXTAX[{axis[1:]}]"
 
 
-def _moves(plan, kind, values, vmax, axis_names, robot, length, leq, radius, level, o):
+def _moves(plan, kind, values, vmax, axis_names, robot, length, leq, radius, level, o, starts):
     """Per move: the assignments before it (speeds, approximation) and its statement. The
     program's clock tracks the plan's: each move's written duration is rounded so that the
     error of one is carried into the next, never faster than the robot's speed limits."""
@@ -149,10 +150,11 @@ def _moves(plan, kind, values, vmax, axis_names, robot, length, leq, radius, lev
     fastest = np.max(np.abs(np.diff(plan.q, axis=0)) / robot.limits.velocity[None, :], axis=1) \
         if n > 1 else np.zeros(0)
     angle = np.r_[0.0, _angles(plan.R[:-1], plan.R[1:])] if n > 1 else np.zeros(n)
-    state = {"vel_axis": None, "cp": None, "ori": float(o["ori_vel_deg_s"]), "cdis": None, "cptp": None}
     planned = written = 0.0
     step = 10.0 ** -VEL_CP_DECIMALS * 1000.0   # mm/s of one written digit of $VEL.CP
     for i in range(n):
+        if i in starts:   # every module states the speeds and approximation its moves use
+            state = {"vel_axis": None, "cp": None, "ori": float(o["ori_vel_deg_s"]), "cdis": None, "cptp": None}
         lines = pre[i]
         nxt_cp = i + 1 < n and kind[i + 1] != KIND_JOINT
         if i > 0:
