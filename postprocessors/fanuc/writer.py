@@ -59,7 +59,7 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
         r = int(plan.row[i]) + 1
         if plan.row_start[i]:
             label = f" {comment_text(labels[r - 1], 12)}" if r - 1 < len(labels) else ""
-            before[i] = [f"!ROW {r}/{plan.rows}{label} ;"[:40]] + ([f"DO[{out_no}]=ON ;"] if out_no else [])
+            before[i] = [f"!ROW {r}/{plan.rows}{label} ;"] + ([f"DO[{out_no}]=ON ;"] if out_no else [])
         if plan.row_end[i]:
             after[i] = ([f"DO[{out_no}]=OFF ;"] if out_no else []) + [f"!END ROW {r} ;"]
     date = program_date(o["date"], process)
