@@ -8,8 +8,8 @@ module holds those conventions as data, read from the robot TOML's ``[controller
 table (``camtool/robots/data/*.toml``; docs/robots.md), and applies them:
 
 - controller value of axis k: ``q_ctrl[k] = direction_k * (q[joint_k] + sum(q[plus_k]) - sum(q[minus_k])) + zero_offset_k``
-  (FANUC's J3 is j3 - j2: fanuc_driver's J23 linkage)
-  (a linear map ``q_ctrl = M @ q + b``, vectorised over leading axes);
+  (a linear map ``q_ctrl = M @ q + b``, vectorised over leading axes; FANUC's J3 is
+  j3 - j2, fanuc_driver's J23 linkage);
 - controller-axis limits are checked on the controller's axes (the coupled J3);
 - ``tool0_in_flange`` places the controller's tool0 in the model's flange frame, and
   ``robot_frame_in_base`` the controller's robot (base) frame in the model's base frame;
