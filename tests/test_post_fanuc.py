@@ -232,3 +232,14 @@ def test_a_profile_without_max_speed_is_refused(tmp_path):
     f.write_text(body)
     with pytest.raises(BadInput, match="axes.j1.max_speed: missing"):
         load_profile(f, "m20ia", "fanuc", r)
+
+
+def test_a_called_program_that_is_a_fifo_is_a_finding_not_a_hang(tmp_path):
+    import os
+
+    r, p, tr, files = _write(tmp_path, lines_per_program=25)
+    part = tmp_path / "CAMTOO_2.LS"
+    part.unlink()
+    os.mkfifo(part)
+    found = POST.check(files[0], r, p)
+    assert found and any("CAMTOO_2.LS" in f for f in found)

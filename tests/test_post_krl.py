@@ -235,3 +235,14 @@ def test_bad_profiles_are_refused(tmp_path, change, expect):
     f.write_text(body)
     with pytest.raises(BadInput, match=expect):
         load_profile(f, "kr16", "krl", r)
+
+
+def test_a_called_module_that_is_a_fifo_is_a_finding_not_a_hang(tmp_path):
+    import os
+
+    r, p, tr, files = _write(tmp_path, lines_per_file=30)
+    part = tmp_path / "CAMTOOL_002.src"
+    part.unlink()
+    os.mkfifo(part)
+    found = POST.check(files[0], r, p)
+    assert found and any("CAMTOOL_002" in f for f in found)

@@ -321,7 +321,7 @@ def program_modules(path: Path) -> list[tuple[Path, Module]]:
                 continue
             q = _module_file(p.parent, name)
             if q is None:
-                m.problems.append(f"{p}:{n}: calls {name}, which is not in the folder")
+                m.problems.append(f"{p}:{n}: calls {name}: no regular file {name}.src in the folder")
                 continue
             visit(q, depth + 1)
     visit(path, 0)
