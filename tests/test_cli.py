@@ -33,10 +33,10 @@ def test_fk_negative_values_and_wrong_count(cli):
     assert r.exit_code == 2 and "has 6 joints" in r.output
 
 
-def test_robots_json_lists_five_with_limits(cli):
+def test_robots_json_lists_seven_with_limits(cli):
     r = cli("robots", "--json")
     robots = {d["name"]: d for d in json.loads(r.output)}
-    assert set(robots) == {"seed8", "irb2400", "irb2400_paper", "sia20", "sia20_paper"}
+    assert set(robots) == {"seed8", "irb2400", "irb2400_paper", "sia20", "sia20_paper", "kr16", "m20ia"}
     seed8 = robots["seed8"]
     assert seed8["dof"] == 8 and seed8["joints"][0]["type"] == "prismatic"
     assert seed8["joints"][0]["lower"] == -1000 and seed8["joints"][1]["upper"] == pytest.approx(170)

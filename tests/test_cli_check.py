@@ -159,9 +159,9 @@ def test_truncated_programs_exit_2(tmp_path):
 
 def test_format_option_and_unknown_extension(tmp_path):
     f = _program(tmp_path, "csv", "seed8")
-    g = f.rename(f.with_suffix(".dat"))
+    g = f.rename(f.with_suffix(".txt"))
     res = _check(g, "--robot", "seed8")
-    assert res.exit_code == 2 and "unknown program type '.dat'" in res.output and "--format" in res.output
+    assert res.exit_code == 2 and "unknown program type '.txt'" in res.output and "--format" in res.output
     res = _check(g, "--robot", "seed8", "--format", "csv")
     assert res.exit_code == 0, res.output
     res = _check(g, "--robot", "seed8", "--format", "gcode")

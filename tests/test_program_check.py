@@ -14,6 +14,8 @@ from postprocessors.abb_rapid import RapidPost
 from camtool.program.check_program import check_program
 from postprocessors.csv_joint import CsvPost
 from postprocessors.yaskawa_inform import InformPost
+from postprocessors.fanuc import FanucPost
+from postprocessors.krl import KrlPost
 
 
 def _write(fmt, robot_name, tmp_path, n=40, cartesian=False, **options):
@@ -184,7 +186,7 @@ def test_csv_time_must_increase(tmp_path):
 
 
 def test_unknown_file_type_is_bad_input(tmp_path):
-    f = tmp_path / "x.src"
+    f = tmp_path / "x.prg"
     f.write_text("DEF x()\nEND\n")
     with pytest.raises(BadInput, match="unknown program type"):
         check_program(f, get_robot("seed8"))
@@ -192,7 +194,7 @@ def test_unknown_file_type_is_bad_input(tmp_path):
 
 # --- each built-in owns its check; the helper module imports no plugin ---------------------------
 
-@pytest.mark.parametrize("cls", [RapidPost, InformPost, CsvPost])
+@pytest.mark.parametrize("cls", [RapidPost, InformPost, CsvPost, KrlPost, FanucPost])
 def test_each_builtin_plugin_owns_its_check(cls):
     """Each built-in checks its files itself, with the checker of its own package (next to its
     writer and reader): defined on the class, or its PackagedPost checker module."""

@@ -96,7 +96,7 @@ def test_no_plugins_loads_only_the_builtins(fake_entry_points, monkeypatch):
     assert "txt" in registry.discover()
     res = CliRunner().invoke(cli, ["--no-plugins", "posts", "--json"])
     assert res.exit_code == 0
-    assert {r["name"] for r in json.loads(res.stdout)} == {"rapid", "inform", "csv"}
+    assert {r["name"] for r in json.loads(res.stdout)} == {"rapid", "inform", "csv", "krl", "fanuc"}
     assert registry.os.environ[registry.OFF_ENV] == "1"  # for child processes (batch) too
 
 
@@ -104,7 +104,7 @@ def test_the_allow_list_loads_only_the_plugins_it_names(fake_entry_points, monke
     fake_entry_points(_ep("txt", lambda: _Txt), _ep("broken", _raise(SystemExit(3))))
     monkeypatch.setenv(registry.ALLOW_ENV, "txt")
     registry.clear_cache()
-    assert set(registry.discover()) == {"rapid", "inform", "csv", "txt"}
+    assert set(registry.discover()) == {"rapid", "inform", "csv", "krl", "fanuc", "txt"}
     monkeypatch.setenv(registry.ALLOW_ENV, "")
     registry.clear_cache()
-    assert set(registry.discover()) == {"rapid", "inform", "csv"}
+    assert set(registry.discover()) == {"rapid", "inform", "csv", "krl", "fanuc"}

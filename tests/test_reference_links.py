@@ -37,7 +37,7 @@ def _urdf_mesh_points_mm(robot, q_model):
     return out
 
 
-@pytest.mark.parametrize("name", ["irb2400", "sia20"])
+@pytest.mark.parametrize("name", ["irb2400", "sia20", "kr16", "m20ia"])
 def test_hulls_sit_where_the_urdf_puts_the_meshes(name):
     robot = get_robot(name)
     assert has_reference_links(robot)
@@ -64,7 +64,7 @@ def test_placements_do_not_depend_on_the_configuration_they_are_taken_at():
     assert max(np.abs(x.local_T_mm - y.local_T_mm).max() for x, y in zip(a, b)) < 1e-9
 
 
-@pytest.mark.parametrize("name", ["irb2400", "sia20"])
+@pytest.mark.parametrize("name", ["irb2400", "sia20", "kr16", "m20ia"])
 def test_shipped_matrix_is_made_for_the_mesh_bodies(name):
     robot = get_robot(name)
     shipped = _from_json((DATA_DIR / f"acm_{name}.json").read_text())

@@ -29,13 +29,15 @@ def command(as_json: bool) -> None:
                        f"  v {j['velocity_per_s']:>6.0f}  a {j['acceleration_per_s2']:>6.0f}  j {j['jerk_per_s3']:>6.0f}")
         click.echo(f"  controller: {c['reference']}")
         if c["identity"]:
-            click.echo("    axes = camtool's joints; tool0 = flange; robot frame = base")
-            continue
-        for a in c["axes"]:
-            click.echo(f"    {a['formula']:<16} {a['lower']:>8.1f} .. {a['upper']:>7.1f} {a['unit']}")
-        for key, label, parent in (("tool0_in_flange", "tool0", "flange"), ("robot_frame_in_base", "robot frame", "base")):
-            f = c[key]
-            click.echo(f"    {label} in the {parent}: xyz {_vec(f['xyz_mm'])} mm, rpy {_vec(f['rpy_deg'])} deg")
+            names = ", ".join(a["name"] for a in c["axes"])
+            click.echo(f"    axes {names} = camtool's joints; tool0 = flange; robot frame = base")
+        else:
+            for a in c["axes"]:
+                click.echo(f"    {a['formula']:<16} {a['lower']:>8.1f} .. {a['upper']:>7.1f} {a['unit']}")
+            for key, label, parent in (("tool0_in_flange", "tool0", "flange"),
+                                       ("robot_frame_in_base", "robot frame", "base")):
+                f = c[key]
+                click.echo(f"    {label} in the {parent}: xyz {_vec(f['xyz_mm'])} mm, rpy {_vec(f['rpy_deg'])} deg")
         if c["driver"]:
             click.echo(f"    driver: {c['driver']}")
         if c["urdf"]:

@@ -1,7 +1,7 @@
 """The post-processor registry: the built-ins, registered here in code, and the plugins of
 the entry-point group ``camtool.postprocessors``.
 
-- **Built-ins always win.** ``rapid``, ``inform`` and ``csv`` are named below, not through
+- **Built-ins always win.** ``rapid``, ``inform``, ``csv``, ``krl`` and ``fanuc`` are named below, not through
   installed metadata, so no installed package (nor a stale install of camtool itself) can
   replace them. An entry point of another package that claims a built-in's name (or a name
   another plugin already has) is a clash: it is not loaded, and ``camtool posts`` lists it
@@ -36,6 +36,8 @@ BUILTINS = {  # name -> module:class, imported on first use
     "rapid": "postprocessors.rapid:RapidPost",
     "inform": "postprocessors.inform:InformPost",
     "csv": "postprocessors.csv:CsvPost",
+    "krl": "postprocessors.krl:KrlPost",
+    "fanuc": "postprocessors.fanuc:FanucPost",
 }
 
 

@@ -7,8 +7,9 @@ angle j2 + j3). It also has its own flange frame (``tool0``) and robot frame. Th
 module holds those conventions as data, read from the robot TOML's ``[controller]``
 table (``camtool/robots/data/*.toml``; docs/robots.md), and applies them:
 
-- controller value of axis k: ``q_ctrl[k] = direction_k * (q[joint_k] + sum(q[plus_k])) + zero_offset_k``
-  (a linear map ``q_ctrl = M @ q + b``, vectorised over leading axes);
+- controller value of axis k: ``q_ctrl[k] = direction_k * (q[joint_k] + sum(q[plus_k]) - sum(q[minus_k])) + zero_offset_k``
+  (a linear map ``q_ctrl = M @ q + b``, vectorised over leading axes; FANUC's J3 is
+  j3 - j2, fanuc_driver's J23 linkage);
 - controller-axis limits are checked on the controller's axes (the coupled J3);
 - ``tool0_in_flange`` places the controller's tool0 in the model's flange frame, and
   ``robot_frame_in_base`` the controller's robot (base) frame in the model's base frame;
@@ -35,7 +36,7 @@ from ..transforms import matrix_from_xyz_rpy, rpy_deg_from_matrix
 
 SOURCES = ("paper", "manufacturer", "user")
 _TOP_KEYS = {"name", "source", "reference", "axis", "tool0_in_flange", "robot_frame_in_base", "urdf", "driver"}
-_AXIS_KEYS = {"name", "joint", "plus", "direction", "zero_offset", "lower", "upper"}
+_AXIS_KEYS = {"name", "joint", "plus", "minus", "direction", "zero_offset", "lower", "upper"}
 _FRAME_KEYS = {"xyz_mm", "rpy_deg"}
 _URDF_KEYS = {"file", "joints", "reference"}
 LIMIT_TOL = 1e-9  # rad / mm: a value this close to a limit is on it
@@ -159,6 +160,7 @@ class ControllerConventions:
                 if c:
                     j = self.model_joint_names[i]
                     terms.append(j if c == 1 else f"-{j}" if c == -1 else f"{c:g}*{j}")
+            terms.sort(key=lambda t: t.startswith("-"))   # positive terms first: J3 = j3 - j2
             text = " + ".join(terms).replace("+ -", "- ")
             off = self.offset[k] if self.prismatic[k] else math.degrees(self.offset[k])
             if off:
@@ -318,11 +320,15 @@ def conventions_from_table(table, robot_name: str, joint_names, prismatic, lower
             plus = a.get("plus", [])
             if not isinstance(plus, list):
                 raise BadInput(f"{wa}.plus: expected a list of joint names, found {plus!r}")
-            for p in plus:
-                i = _joint_index(p, names, f"{wa}.plus")
-                if i == j or prismatic[i] != prismatic[j]:
-                    raise BadInput(f"{wa}.plus: {p!r} cannot be coupled to {names[j]!r}")
-                M[k, i] += 1.0
+            minus = a.get("minus", [])
+            if not isinstance(minus, list):
+                raise BadInput(f"{wa}.minus: expected a list of joint names, found {minus!r}")
+            for key, coupled, c in (("plus", plus, 1.0), ("minus", minus, -1.0)):
+                for p in coupled:
+                    i = _joint_index(p, names, f"{wa}.{key}")
+                    if i == j or prismatic[i] != prismatic[j]:
+                        raise BadInput(f"{wa}.{key}: {p!r} cannot be coupled to {names[j]!r}")
+                    M[k, i] += c
             M[k] *= d
             scale = (lambda v: v) if prismatic[j] else math.radians
             b[k] = scale(_num(a.get("zero_offset", 0.0), f"{wa}.zero_offset"))

@@ -28,6 +28,7 @@ Robot TOML format (the built-ins in ``robots/data/`` use it too)::
     name = "rax_1"
     joint = "j1"                 # the joint driving it
     plus = []                    # coupled joints added to it (ABB parallel linkage: ["j2"] on axis 3)
+    minus = []                   # coupled joints subtracted from it (FANUC's J3 = j3 - j2: ["j2"])
     direction = 1                # 1 or -1
     zero_offset = 0              # deg (mm for a prismatic joint)
     lower = -170                 # the controller's limits of this axis, deg or mm
@@ -60,7 +61,7 @@ from .conventions import conventions_from_table
 from .dh import MAX_LENGTH_MM, DHRow, build_pinocchio_model
 from .model import Limits, Robot
 
-BUILTIN_ROBOTS = ("seed8", "irb2400", "irb2400_paper", "sia20", "sia20_paper")
+BUILTIN_ROBOTS = ("seed8", "irb2400", "irb2400_paper", "sia20", "sia20_paper", "kr16", "m20ia")
 
 _JOINT_KEYS = {"name", "type", "a_mm", "alpha_deg", "d_mm", "theta_deg", "lower", "upper",
                "velocity", "acceleration", "jerk"}

@@ -1,0 +1,244 @@
+"""FANUC LS writer: the program model's moves as ``J`` / ``L`` / ``C`` instructions to
+joint-representation positions ``P[n]`` (see ``postprocessors.fanuc``)."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from camtool import __version__
+from camtool.program.convention import controller_axes, tool_in_tool0, wobj_frame
+from camtool.program.plan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
+from camtool.program.process import ProcessInfo, program_date
+from camtool.program.steps import context_for, program_steps
+
+from .dialect import (ATTR_COMMENT_MAX, AXES, MAX_ARC_DEG, ROBOT_AXES, comment_text, ls_number, program_name,
+                      validate_profile, wpr_deg)
+
+NEWLINE = "\r\n"
+
+
+def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None = None) -> list[Path]:
+    """Write ``NAME.LS`` (plus ``NAME_1.LS`` ... parts and a main program when split)."""
+    validate_profile(profile, robot)
+    process = process if process is not None else ProcessInfo()
+    outdir = Path(outdir)
+    o = profile.options
+    max_len = o["program_name_length"]
+    name, _ = program_name(profile.program_name, max_len)
+    robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP UTOOL holds
+    radii = [float(v) for v in o["cnt_mm"]]
+    plan = plan_moves(trajectory, robot, process, linear=True, levels_mm=radii, min_level_on_surface=0)
+    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if o["arcs"] else None)
+    plan = steps.apply(plan, context_for(trajectory, robot, process, plan, radii, 0))
+    n = len(plan)
+    kind = np.array(plan.kind)
+    parts = split_parts(n, o["lines_per_program"], plan.free, "moves",
+                        f"{profile.source}: options.lines_per_program")
+    level = plan.level.copy()
+    for r in parts[:-1]:
+        level[r.stop - 1] = -1   # CALL ends the motion: the program before ends with FINE
+    term = [("FINE" if lv < 0 else f"CNT{int(o['cnt'][lv])}") for lv in level]
+    order = [a for ax in AXES for a in profile.axes if a.axis == ax]
+    axes = controller_axes(profile, robot, plan.q)
+    values = np.stack([axes[a.axis] for a in order], axis=1)
+    vmax = np.array([a.max_speed for a in order])
+    speed = _speeds(plan, kind, values, vmax, robot, move_lengths(plan), o)
+    via_values = None
+    circ = np.flatnonzero(kind == KIND_CIRCULAR)
+    if len(circ):
+        va = controller_axes(profile, robot, plan.via_q[circ])
+        via_values = dict(zip(circ.tolist(), np.stack([va[a.axis] for a in order], axis=1)))
+    # --- process markers and I/O around the rows
+    out_no = o["process_output"]
+    labels = list(process.row_labels)
+    before: dict[int, list[str]] = {}
+    after: dict[int, list[str]] = {}
+    for i in np.flatnonzero(plan.row_start | plan.row_end):
+        r = int(plan.row[i]) + 1
+        if plan.row_start[i]:
+            label = f" {comment_text(labels[r - 1], 12)}" if r - 1 < len(labels) else ""
+            before[i] = [f"!ROW {r}/{plan.rows}{label} ;"] + ([f"DO[{out_no}]=ON ;"] if out_no else [])
+        if plan.row_end[i]:
+            after[i] = ([f"DO[{out_no}]=OFF ;"] if out_no else []) + [f"!END ROW {r} ;"]
+    date = program_date(o["date"], process)
+    n_lin, n_circ = int((kind == KIND_LINEAR).sum()), len(circ)
+    tool = tool_in_tool0(robot, profile_tool(profile))
+    wobj = wobj_frame(profile)
+    frames = _frames(robot, tool, wobj)
+    notes = [f"camtool {__version__} {comment_text(robot.name, 12)}",
+             f"{n} moves {n_lin} L {n_circ} C {n - n_lin - n_circ} J",
+             f"{int((level < 0).sum())} FINE {plan.rows} rows tol {process.path_tol_mm:g} mm",
+             f"job {comment_text(process.job_name or 'unknown', 24)}",
+             f"date {date.replace('/', '-').replace(':', 'h')} UTC",
+             "joint positions deg",
+             "J3 from the horizontal",
+             f"{comment_text(robot.conventions.source, 12)} robot {comment_text(robot.name, 12)}"]
+    notes.append(f"process output DO {out_no}" if out_no else "no process output configured")
+    setup = []
+    if o["set_frames"]:
+        notes.append("tool and user frame set below")
+    else:
+        notes += [f"set UTOOL {o['utool']} by hand to", frames["tool_text"], f"set UFRAME {o['uframe']} to",
+                  frames["frame_text"]]
+    header = {"date": date, "notes": [f"!{comment_text(t)} ;" for t in notes],
+              "comment": comment_text(f"camtool {process.job_name or name}", ATTR_COMMENT_MAX)}
+    job = dict(kind=kind, values=values, via=via_values, speed=speed, term=term, before=before, after=after,
+               order=order, o=o, frames=frames)
+    files: dict[str, list[str]] = {}
+    if len(parts) == 1:
+        files[name] = _program(name, parts[0], header, job, setup_frames=True)
+    else:
+        names = []
+        for k, r in enumerate(parts, 1):
+            s = f"_{k}"
+            part = name[:max_len - len(s)] + s
+            names.append(part)
+            files[part] = _program(part, r, header, job, setup_frames=False)
+        main = dict(header)
+        files = {name: _main(name, main, names, job), **files}
+    written = []
+    for prog, lines in files.items():
+        p = outdir / f"{prog}.LS"
+        p.write_bytes((NEWLINE.join(lines) + NEWLINE).encode("ascii"))
+        written.append(p)
+    return written
+
+
+def _frames(robot, tool: np.ndarray, wobj: np.ndarray) -> dict:
+    """The tool (in the all-zeros tool frame) and the user frame (in World, the controller's
+    robot frame) as X, Y, Z (mm) and W, P, R (deg), and their one-line texts."""
+    world = robot.conventions.pose_in_robot_frame(wobj)
+    out = {}
+    for key, T in (("tool", tool), ("frame", world)):
+        v = np.r_[T[:3, 3], wpr_deg(T[:3, :3])[0]]
+        v[np.abs(v) < 5e-4] = 0.0
+        out[key] = v
+        out[f"{key}_text"] = " ".join(f"{x:.3f}".rstrip("0").rstrip(".") for x in v)
+    return out
+
+
+def _speeds(plan, kind, values, vmax, robot, length, o) -> list[str]:
+    """Each move's speed: J in integer % of the axes' maximum speeds, L / C in integer mm/sec,
+    rounded so that the program's clock tracks the plan's (the error of one move is carried into
+    the next), never faster than the robot's speed limits allow."""
+    n = len(plan)
+    out = [""] * n
+    out[0] = f"{int(o['approach_percent'])}%"
+    dt = np.diff(plan.t)
+    governing = np.max(np.abs(np.diff(values, axis=0)) / vmax[None, :], axis=1) if n > 1 else np.zeros(0)
+    fastest = np.max(np.abs(np.diff(plan.q, axis=0)) / robot.limits.velocity[None, :], axis=1) \
+        if n > 1 else np.zeros(0)
+    planned = written = 0.0
+    for i in range(1, n):
+        planned += dt[i - 1]
+        want = max(planned - written, 1e-4)
+        if kind[i] == KIND_JOINT:
+            g = governing[i - 1]
+            if g <= 0:
+                out[i] = "1%"
+                continue
+            cap = 100 if fastest[i - 1] <= 0 else int(min(100, math.floor(100 * g / fastest[i - 1] + 1e-6)))
+            pct = int(min(max(cap, 1), max(1, round(100 * g / want))))
+            out[i] = f"{pct}%"
+            written += 100 * g / pct
+        else:
+            v = max(1, int(round(length[i] / want)))
+            out[i] = f"{v}mm/sec"
+            written += length[i] / v
+    return out
+
+
+def _position(p: int, values: np.ndarray, order, uf: int, ut: int) -> list[str]:
+    """A joint-representation position (J1..J6 deg, E1.. deg / mm) as the controller lists it."""
+    fields = [f"{a.axis}={ls_number(v)} {a.unit}" for a, v in zip(order, values)]
+    robot_f = [f for f, a in zip(fields, order) if a.axis in ROBOT_AXES]
+    ext_f = [f for f, a in zip(fields, order) if a.axis not in ROBOT_AXES]
+    lines = [f"P[{p}]{{", "   GP1:", f"\tUF : {uf}, UT : {ut},\t",
+             "\t" + ",\t".join(robot_f[:3]) + ",", "\t" + ",\t".join(robot_f[3:]) + ("," if ext_f else "")]
+    if ext_f:
+        lines.append("\t" + ",\t".join(ext_f))
+    return lines + ["};"]
+
+
+def _cartesian(p: int, v: np.ndarray) -> list[str]:
+    """A Cartesian position (X, Y, Z mm, W, P, R deg) used as frame data only (never a motion target)."""
+    return [f"P[{p}]{{", "   GP1:", "\tUF : 0, UT : 0,\t\tCONFIG : 'N U T, 0, 0, 0',",
+            f"\tX ={ls_number(v[0])}  mm,\tY ={ls_number(v[1])}  mm,\tZ ={ls_number(v[2])}  mm,",
+            f"\tW ={ls_number(v[3])} deg,\tP ={ls_number(v[4])} deg,\tR ={ls_number(v[5])} deg", "};"]
+
+
+def _attr(name: str, header: dict, line_count: int) -> list[str]:
+    y, mo, d = header["date"][:10].split("/")
+    hm = header["date"][11:16]
+    stamp = f"DATE {y[2:]}-{mo}-{d}  TIME {hm}:00"
+    return [f"/PROG  {name}", "/ATTR", "OWNER\t\t= MNEDITOR;", f"COMMENT\t\t= \"{header['comment']}\";",
+            "PROG_SIZE\t= 0;", f"CREATE\t\t= {stamp};", f"MODIFIED\t= {stamp};", "FILE_NAME\t= ;",
+            "VERSION\t\t= 0;", f"LINE_COUNT\t= {line_count};", "MEMORY_SIZE\t= 0;", "PROTECT\t\t= READ_WRITE;",
+            "TCD:  STACK_SIZE\t= 0,", "      TASK_PRIORITY\t= 50,", "      TIME_SLICE\t= 0,",
+            "      BUSY_LAMP_OFF\t= 0,", "      ABORT_REQUEST\t= 0,", "      PAUSE_REQUEST\t= 0;",
+            "DEFAULT_GROUP\t= 1,*,*,*,*;", "CONTROL_CODE\t= 00000000 00000000;"]
+
+
+def _numbered(instructions: list[str]) -> list[str]:
+    """/MN lines: each instruction numbered from 1; a motion's letter right after the colon, other
+    instructions after two spaces; a C move's second position on a continuation line."""
+    out = []
+    for k, ins in enumerate(instructions, 1):
+        if ins[:2] in ("J ", "L ", "C "):
+            first, *rest = ins.split("\n")
+            out.append(f"{k:4d}:{first}")
+            out += [f"    :  {r}" for r in rest]
+        else:
+            out.append(f"{k:4d}:  {ins}")
+    return out
+
+
+def _frame_setup(job) -> tuple[list[str], list[list[str]], int]:
+    """Instructions selecting (and, with set_frames, writing) UTOOL / UFRAME; the frame positions."""
+    o = job["o"]
+    ins, pos = [], []
+    p = 0
+    if o["set_frames"]:
+        pr = o["frame_register"]
+        for what, key, num in (("UTOOL", "tool", o["utool"]), ("UFRAME", "frame", o["uframe"])):
+            p += 1
+            pos.append(_cartesian(p, job["frames"][key]))
+            ins += [f"PR[{pr}]=P[{p}]    ;", f"{what}[{num}]=PR[{pr}] ;"]
+    ins += [f"UFRAME_NUM={o['uframe']} ;", f"UTOOL_NUM={o['utool']} ;"]
+    return ins, pos, p
+
+
+def _program(name: str, r: range, header: dict, job, setup_frames: bool) -> list[str]:
+    o = job["o"]
+    ins = list(header["notes"]) if setup_frames else [f"!part of {comment_text(name, 20)} ;"]
+    pos: list[list[str]] = []
+    p = 0
+    if setup_frames:
+        fi, pos, p = _frame_setup(job)
+        ins += fi
+    else:
+        ins += [f"UFRAME_NUM={o['uframe']} ;", f"UTOOL_NUM={o['utool']} ;"]
+    for i in r:
+        ins += job["before"].get(i, [])
+        k = job["kind"][i]
+        if k == KIND_CIRCULAR:
+            pos.append(_position(p + 1, job["via"][i], job["order"], o["uframe"], o["utool"]))
+            pos.append(_position(p + 2, job["values"][i], job["order"], o["uframe"], o["utool"]))
+            ins.append(f"C P[{p + 1}]    \nP[{p + 2}] {job['speed'][i]} {job['term'][i]}    ;")
+            p += 2
+        else:
+            p += 1
+            pos.append(_position(p, job["values"][i], job["order"], o["uframe"], o["utool"]))
+            ins.append(f"{'J' if k == KIND_JOINT else 'L'} P[{p}] {job['speed'][i]} {job['term'][i]}    ;")
+        ins += job["after"].get(i, [])
+    return _attr(name, header, len(ins)) + ["/MN"] + _numbered(ins) + ["/POS"] + [ln for b in pos for ln in b] \
+        + ["/END"]
+
+
+def _main(name: str, header: dict, parts: list[str], job) -> list[str]:
+    fi, pos, _p = _frame_setup(job)
+    ins = list(header["notes"]) + fi + [f"CALL {p}    ;" for p in parts]
+    return _attr(name, header, len(ins)) + ["/MN"] + _numbered(ins) + ["/POS"] + [ln for b in pos for ln in b] \
+        + ["/END"]
