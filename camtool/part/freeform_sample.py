@@ -23,11 +23,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from .freeform_grid import Grid, gaussian, gradient_on
+from .freeform_grid import Grid, fill, gaussian, gradient_on
 
 OUTLIER_SIGMAS = 4.0       # a scan point farther than this many robust sigmas from the surface is an outlier
 OUTLIER_FLOOR_MM = 0.05    # ... and never nearer than this (an exact cloud has a MAD of ~0)
-WEIGHT_SHARE = 0.5         # a node is on material where the points' window weight reaches half the typical
+HELD_SHARE = 0.2           # a node's height is estimated where its window holds this share of the typical weight
+
+
+def _typical(weight: np.ndarray) -> float:
+    w = weight[weight > 1e-6]
+    return float(np.median(w)) if len(w) else 0.0
 
 
 def chart_frame(points_mm: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
@@ -180,7 +185,11 @@ def cloud_heights(xyh: np.ndarray, grid: Grid, sigma_mm: float):
             pts = pts.copy()
             pts[:, 2] -= hx[j, i] * dx + hy[j, i] * dy
         h, weight = _llr(grid, pts, sigma_mm)
-        res = xyh[:, 2] - grid.interp(np.where(np.isfinite(h), h, 0.0), xyh[:, 0], xyh[:, 1])
+        # a node whose window holds few points (past the scan's edge) is extrapolated: an outlier there would
+        # be fitted, not found; such nodes are judged by the tangent plane of the nearest well-held node
+        held = np.isfinite(h) & (weight >= HELD_SHARE * _typical(weight))
+        h = np.where(held, h, np.nan)
+        res = xyh[:, 2] - grid.interp(fill(h, held, grid.g), xyh[:, 0], xyh[:, 1])
         res = np.where(np.isfinite(res), res, np.inf)
         mad = float(np.median(np.abs(res[keep] - np.median(res[keep])))) if keep.any() else 0.0
         limit = max(OUTLIER_SIGMAS * 1.4826 * mad, OUTLIER_FLOOR_MM)
