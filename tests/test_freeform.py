@@ -194,3 +194,15 @@ def test_uv_round_trip(saddle_part):
     back = s.uv_from_points(s.point_mm(uv[:, 0], uv[:, 1]))
     assert np.abs(back - uv).max() < 0.05
     assert np.allclose(np.linalg.norm(s.normal_at(uv[:, 0], uv[:, 1]), axis=1), 1.0)
+
+
+def test_fit_summary_lists_the_face(saddle_part):
+    from camtool.commands.fit import surface_summary
+
+    _, _, s = saddle_part
+    d = surface_summary(s)
+    assert d["model"] == "freeform" and d["holes"] == 0 and d["source"] == "mesh"
+    assert 30000 < d["area_mm2"] < 32500                   # 200 x 150 mm, a little more for the saddle's slope
+    assert d["rms_mm"] < 0.01 and d["inlier_ratio"] > 0.99  # the mesh's own points lie on it
+    lo, hi = d["curvature_range"]
+    assert lo < 0 < hi                                       # a saddle curves both ways

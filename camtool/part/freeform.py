@@ -141,6 +141,13 @@ class FreeformSurface:
             return 0.0, 0.0
         return float(np.percentile(vals, 1)), float(np.percentile(vals, 99))
 
+    def summary(self) -> dict:
+        """The face's figures: area (mm^2), mean normal, mean-curvature range (1/mm), holes, grid, source."""
+        return {"area_mm2": round(self.area_mm2(), 1), "normal": [round(float(x), 6) for x in self.mean_normal()],
+                "curvature_range": [round(x, 6) for x in self.curvature_range()],
+                "holes": len(self.boundary.holes_uv), "grid_mm": self.grid.g, "source": self.source_kind,
+                "smoothing_mm": self.smoothing_mm, "normal_smoothing_mm": self.normal_smoothing_mm}
+
     def rows_at(self, angle_rad: float) -> "FreeformSurface":
         """The same face with its rows turned by ``angle_rad`` about e3 (from e1 towards e2): the height field
         resampled onto a turned grid and its row chart made again."""
@@ -377,7 +384,6 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
         V = to_chart(np.asarray(workpiece.vertices_mm, float), origin, frame)
         height = mesh_heights(V, np.asarray(workpiece.faces), grid)
         known = np.isfinite(height)
-        res = xyh[:, 2] - grid.interp(np.where(known, height, 0.0), xyh[:, 0], xyh[:, 1])
         keep = np.ones(len(P), bool)
     else:
         height, weight, keep, res = cloud_heights(xyh, grid, sigma)
@@ -398,6 +404,8 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
         material = binary_erosion(material, iterations=max(1, int(round(sigma / g))))
         reliable = material
     height = fill(height, known, g)
+    if is_mesh:
+        res = xyh[:, 2] - grid.interp(height, xyh[:, 0], xyh[:, 1])
     normals = normals_of(height, g, frame, normal_smoothing_mm, reliable)
     material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
     res_abs = np.abs(res[np.isfinite(res)]) if len(res) else np.zeros(1)
