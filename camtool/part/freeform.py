@@ -402,7 +402,9 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
         from scipy.ndimage import binary_erosion
 
         material = binary_erosion(material, iterations=max(1, int(round(sigma / g))))
-        reliable = material
+        # the normals average the nodes a further window inside (the edge's one-sided fits tilt their slope)
+        inner = binary_erosion(material, iterations=max(1, int(round(2 * sigma / g))))
+        reliable = inner if inner.sum() > 0.5 * material.sum() else material
     height = fill(height, known, g)
     if is_mesh:
         res = xyh[:, 2] - grid.interp(height, xyh[:, 0], xyh[:, 1])

@@ -32,19 +32,45 @@ def seed_row(material: np.ndarray) -> int:
     return int(round(0.5 * (rows[0] + rows[-1]))) if len(rows) else material.shape[0] // 2
 
 
+FMM_NODES = 50_000   # the distance is marched on every c-th node, c chosen to keep at most about this many
+
+
 def row_distance(grid: Grid, heights: np.ndarray, seed_j: int) -> np.ndarray:
     """(ny, nx) signed geodesic distance (mm) on the height field from grid row ``seed_j``: positive towards
-    larger chart y."""
+    larger chart y.
+
+    Marched on every c-th node of the grid (c = 1 up to ``FMM_NODES`` nodes; building geometry-central's mesh
+    takes most of the time and grows with the nodes), then interpolated bilinearly back onto every node: the
+    distance is smooth, and chords c grid steps long shorten it by c^2 g^2 / (24 R^2), under 1e-4 at R 50 mm."""
     import potpourri3d as pp3d
 
-    xy = grid.node_xy()
-    V = np.concatenate([xy, heights[..., None]], axis=-1).reshape(-1, 3)
-    F = triangles(grid.nx, grid.ny)
+    c = max(1, int(np.ceil(np.sqrt(grid.nx * grid.ny / FMM_NODES))))
+    jj = np.arange(seed_j % c, grid.ny, c)
+    ii = np.arange(0, grid.nx, c)
+    if ii[-1] != grid.nx - 1:
+        ii = np.append(ii, grid.nx - 1)
+    if jj[0] != 0:
+        jj = np.insert(jj, 0, 0)
+    if jj[-1] != grid.ny - 1:
+        jj = np.append(jj, grid.ny - 1)
+    xy = grid.node_xy()[np.ix_(jj, ii)]
+    V = np.concatenate([xy, heights[np.ix_(jj, ii)][..., None]], axis=-1).reshape(-1, 3)
+    F = triangles(len(ii), len(jj))
     solver = pp3d.MeshFastMarchingDistanceSolver(V, F)
-    seed = [(int(seed_j * grid.nx + i), []) for i in range(grid.nx)]
-    d = np.asarray(solver.compute_distance([seed]), float).reshape(grid.ny, grid.nx)
-    sign = np.where(np.arange(grid.ny) < seed_j, -1.0, 1.0)[:, None]
-    return d * sign
+    k = int(np.flatnonzero(jj == seed_j)[0])
+    seed = [(int(k * len(ii) + i), []) for i in range(len(ii))]
+    d = np.asarray(solver.compute_distance([seed]), float).reshape(len(jj), len(ii))
+    d = d * np.where(np.arange(len(jj)) < k, -1.0, 1.0)[:, None]
+    if c == 1:
+        return d
+    # back onto every node: bilinear between the marched nodes (uneven only at the last row and column)
+    fy = np.interp(np.arange(grid.ny), jj, np.arange(len(jj)))
+    fx = np.interp(np.arange(grid.nx), ii, np.arange(len(ii)))
+    j0 = np.minimum(np.floor(fy).astype(int), len(jj) - 2)
+    i0 = np.minimum(np.floor(fx).astype(int), len(ii) - 2)
+    b, a = (fy - j0)[:, None], (fx - i0)[None, :]
+    J, I = j0[:, None], i0[None, :]
+    return ((1 - a) * (1 - b) * d[J, I] + a * (1 - b) * d[J, I + 1] + (1 - a) * b * d[J + 1, I] + a * b * d[J + 1, I + 1])
 
 
 def row_table(grid: Grid, distance: np.ndarray) -> tuple[Grid, np.ndarray]:

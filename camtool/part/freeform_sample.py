@@ -172,7 +172,7 @@ def cloud_heights(xyh: np.ndarray, grid: Grid, sigma_mm: float):
     xyh = np.asarray(xyh, float)
     keep = np.ones(len(xyh), bool)
     h = None
-    for _ in range(3):                                   # pass, reject, pass again
+    for _ in range(3):                                   # pass, reject, pass again (twice)
         pts = xyh[keep]
         if h is not None:                                # move each point to its node along the tangent plane
             have = np.isfinite(h)
