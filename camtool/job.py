@@ -66,7 +66,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "normal_neighbours": Key("int", 30, "Neighbours used to estimate point-cloud normals.", check=lambda x: 3 <= x <= 1000, expect="an integer in 3..1000"),
     },
     "fit": {
-        "model": Key("str", "auto", "Surface model; auto takes the one with most inliers (a huge sphere counts as a plane; a cylinder needs 5 % more inliers than the plane or sphere).", choices=("auto", "plane", "sphere", "cylinder")),
+        "model": Key("str", "auto", "Surface model; auto takes the one with most inliers (a huge sphere counts as a plane; a cylinder needs 5 % more inliers than the plane or sphere); freeform takes the whole workpiece as one free-form face, rows measured on the surface (docs/freeform.md).", choices=("auto", "plane", "sphere", "cylinder", "freeform")),
         "threshold_mm": _pos("RANSAC inlier distance.", 0.5, " mm"),
         "iterations": Key("int", 1000, "RANSAC hypotheses per model.", check=lambda x: 1 <= x <= 100_000, expect="an integer in 1..100000"),
         "min_inlier_ratio": Key("float", 0.2, "Smallest inlier share a model must reach.", check=lambda x: 0 < x <= 1, expect="a number in (0, 1]"),
@@ -74,6 +74,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "boundary_cell_mm": _pos("Cell size of the occupancy image used to find the boundary.", 2.0, " mm"),
         "close_gaps_mm": _nonneg("Gaps in the material up to this width are closed before contours are taken.", 6.0),
         "simplify_mm": _nonneg("Boundary polygons are simplified to this tolerance.", 0.5),
+        "smoothing_mm": _nonneg("Free-form faces of a scan: the Gaussian sigma over which the points are smoothed into the surface (noise filtering); 0 = 2.5 point spacings, at least 2 mm (docs/freeform.md). Meshes are not smoothed.", 0.0, 100),
     },
     "raster": {
         "step_over_mm": Key("float", 10.0, "Distance between rows, measured on the surface (geodesic on a sphere); \"auto\" = the largest step-over whose predicted process map meets process.uniformity_target for the [process] footprint (docs/process.md).", check=lambda x: 0.1 <= x <= 10_000, expect="a number in 0.1..10000 mm", auto=True),

@@ -76,6 +76,7 @@ class FitSettings(_FromSection):
     boundary_cell_mm: float
     close_gaps_mm: float
     simplify_mm: float
+    smoothing_mm: float = 0.0   # free-form faces of a scan: the smoothing sigma (0 = from the point spacing)
 
     @classmethod
     def from_section(cls, sec):

@@ -41,7 +41,7 @@ def test_override(tmp_path):
     (GOOD + "[raster]\npitch_mm = 0\n", r"raster.pitch_mm: expected a number in 0.1..10000 mm, found 0"),
     (GOOD + "[robot]\nname = \"kuka\"\n", r"robot.name: expected a built-in robot .* found 'kuka'"),
     (GOOD + "[robot]\nname = \"arm.urdf\"\n", r"robot.name: robot file .*arm.urdf not found"),
-    (GOOD + "[fit]\nmodel = \"cone\"\n", r"fit.model: expected one of 'auto', 'plane', 'sphere', 'cylinder', found 'cone'"),
+    (GOOD + "[fit]\nmodel = \"cone\"\n", r"fit.model: expected one of 'auto', 'plane', 'sphere', 'cylinder', 'freeform', found 'cone'"),
     (GOOD + "[cell]\nbase_xyz_mm = [1, 2]\n", r"cell.base_xyz_mm: expected a list of 3 numbers"),
     (GOOD + "[planner]\nmax_iterations = 2.5\n", r"planner.max_iterations: expected an integer"),
     (GOOD + "[bogus]\nx = 1\n", r"bogus: unknown section"),

@@ -19,7 +19,9 @@ def surface_summary(surface) -> dict:
         return {"model": "faces", "faces": [{"index": i, **surface_summary(f)}
                                             for i, f in zip(surface.indices, surface.surfaces)]}
     d = {"model": surface.model}
-    if isinstance(surface, PlaneSurface):
+    if surface.model == "freeform":
+        d.update(surface.summary())
+    elif isinstance(surface, PlaneSurface):
         d.update(normal=surface.normal, offset_mm=surface.offset_mm)
     else:
         d.update(center_mm=surface.center_mm, radius_mm=float(surface.radius_mm))
@@ -95,7 +97,14 @@ def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, m
         return
     s, b = surface.stats, surface.boundary
     rows = [("model", surface.model)]
-    if isinstance(surface, PlaneSurface):
+    for w in getattr(surface, "warnings", ()):
+        click.echo(f"camtool: warning: {w}", err=True)
+    if surface.model == "freeform":
+        f = surface.summary()
+        rows += [("area_mm2", f"{f['area_mm2']:.1f}"), ("mean_normal", " ".join(f"{x:.6f}" for x in f["normal"])),
+                 ("curvature_1_mm", f"{f['curvature_range'][0]:.6f}..{f['curvature_range'][1]:.6f} (mean, p1..p99)"),
+                 ("grid", f"{f['grid_mm']:g} mm, {f['source']}, smoothing {f['smoothing_mm']:g} mm")]
+    elif isinstance(surface, PlaneSurface):
         n = surface.normal
         rows += [("normal", f"{n[0]:.6f} {n[1]:.6f} {n[2]:.6f}"), ("offset_mm", f"{surface.offset_mm:.4f}")]
     else:

@@ -46,7 +46,7 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     progress = StageProgress(quiet=quiet or (as_json and not log_stages), log=log_stages)
 
     def on_stage(name, value):
-        for warning in getattr(value, "warnings", ()) if name == "workpiece" else ():
+        for warning in getattr(value, "warnings", ()) if name in ("workpiece", "fit") else ():
             click.echo(f"camtool: warning: {warning}", err=True)
         progress.done(name)
 

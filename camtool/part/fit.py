@@ -345,10 +345,14 @@ def _choose(plane: ModelFit | None, sphere: ModelFit | None, extent: float) -> M
 def fit_surface(workpiece, settings: FitSettings) -> PlaneSurface | SpherePatch:
     """Fit a plane or sphere patch (world mm) to a Workpiece, with its (u, v) boundary.
 
-    ``settings.model`` is 'plane', 'sphere' or 'auto'. Raises BadInput when the
+    ``settings.model`` is 'plane', 'sphere', 'cylinder', 'auto' or 'freeform' (a ``FreeformSurface``). Raises BadInput when the
     points are degenerate or no model reaches ``settings.min_inlier_ratio``.
     """
     model, threshold_mm, min_inlier_ratio = settings.model, settings.threshold_mm, settings.min_inlier_ratio
+    if model == "freeform":  # the whole workpiece as one free-form face (docs/freeform.md)
+        from .freeform import freeform_surface
+
+        return freeform_surface(workpiece, settings)
     P = np.asarray(workpiece.points_mm, dtype=float)
     source = getattr(workpiece, "source", "") or "workpiece"
     sphere_ok = _shape_check(P, model, source)

@@ -28,54 +28,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path as FsPath
 
 import numpy as np
-from matplotlib.path import Path as MplPath
 
 from ..errors import BadInput
 from ..files import output_file
 from .. import safe_io
-
-
-@dataclass(frozen=True)
-class Boundary:
-    """Material region in the (u, v) domain: an outer polygon and holes (K x 2 each)."""
-
-    outer_uv: np.ndarray
-    holes_uv: tuple[np.ndarray, ...] = ()
-
-    def contains(self, uv: np.ndarray) -> np.ndarray:
-        """Boolean mask: which (u, v) rows lie on material (inside outer, outside holes)."""
-        uv = np.atleast_2d(uv)
-        inside = MplPath(self.outer_uv).contains_points(uv)
-        for hole in self.holes_uv:
-            inside &= ~MplPath(hole).contains_points(uv)
-        return inside
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(min_uv, max_uv) of the outer polygon."""
-        return self.outer_uv.min(axis=0), self.outer_uv.max(axis=0)
-
-    def to_dict(self) -> dict:
-        return {
-            "outer_uv": np.asarray(self.outer_uv, float).tolist(),  # exact: a resumed raster must match a run
-            "holes_uv": [np.asarray(h, float).tolist() for h in self.holes_uv],
-        }
-
-    @staticmethod
-    def from_dict(d: dict) -> "Boundary":
-        outer = np.asarray(d["outer_uv"], dtype=float).reshape(-1, 2)
-        holes = tuple(np.asarray(h, dtype=float).reshape(-1, 2) for h in d.get("holes_uv", []))
-        return Boundary(outer, holes)
-
-
-@dataclass(frozen=True)
-class FitStats:
-    """Quality of a fit: inlier share, residuals (mm) and the number of points used."""
-
-    inlier_ratio: float
-    rms_mm: float
-    max_residual_mm: float
-    n_points: int
-    n_inliers: int
+from .domain import Boundary, FitStats  # noqa: F401  (the surfaces' parameter domain; re-exported)
 
 
 @dataclass(frozen=True)
@@ -320,6 +277,10 @@ def surface_from_dict(d: dict) -> Surface:
     several faces (model "faces") come back as a ``FaceSet``."""
     if d.get("model") == "faces":
         return FaceSet.from_dict(d)
+    if d.get("model") == "freeform":
+        from .freeform import FreeformSurface
+
+        return FreeformSurface.from_dict(d)
     b = d["boundary"]
     for poly in [b["outer_uv"], *b.get("holes_uv", [])]:
         a = np.asarray(poly, dtype=float)
@@ -353,7 +314,7 @@ def surface_from_dict(d: dict) -> Surface:
             raise ValueError("frame must be orthonormal")
         return Cylinder(np.asarray(d["center_mm"], float), float(d["radius_mm"]), frame, boundary, stats,
                         bool(d.get("concave", False)))
-    raise BadInput(f"surface model {d['model']!r} is not 'plane', 'sphere' or 'cylinder'")
+    raise BadInput(f"surface model {d['model']!r} is not 'plane', 'sphere', 'cylinder' or 'freeform'")
 
 
 SURFACE_FORMAT, SURFACE_VERSION = "camtool-surface", 1

@@ -39,7 +39,7 @@ back off along the normal by ``max(clearance_mm, APPROACH_MIN_MM)``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -293,6 +293,8 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     """
     if isinstance(surface, FaceSet):
         return raster_faces(surface, settings, raster_path)
+    if surface.model == "freeform":  # rows are level sets of the geodesic distance, turned on the face itself
+        surface, settings = surface.rows_at(settings.angle_rad), replace(settings, angle_rad=0.0)
     _check_boundary(surface)
     if settings.step_over_auto:  # `camtool run` chooses it first (camtool.process.stepover.auto_step_over)
         raise BadInput('raster.step_over_mm = "auto" is chosen from the [process] footprint by `camtool run` '

@@ -1,0 +1,419 @@
+"""Free-form surfaces: a face of any smooth shape, from a CAD mesh or a raw scan (docs/freeform.md).
+
+``FreeformSurface`` gives the raster and everything downstream the interface of the
+analytic surfaces (``point_mm(u, v)``, ``normal_at(u, v)``, ``uv_from_points``,
+``metric_scale``, a ``Boundary`` in (u, v), ``to_dict``). Inside it is a height field
+on a regular grid of the face's chart plane (``freeform_grid``), sampled exactly from a
+mesh or smoothed from a scan (``freeform_sample``), with normals smoothed at
+``normal_smoothing_mm``, and a row chart (``freeform_rows``): u is the chart coordinate
+along the rows, v the geodesic distance on the surface from the face's middle row.
+Rows of constant v are therefore ``step_over_mm`` apart along the surface, and the
+raster's arc length along a row (``metric_scale``) is measured on the surface too.
+
+``freeform_surface(workpiece, settings)`` builds one from a placed workpiece (all of it,
+or the points ``indices`` of one face).
+"""
+from __future__ import annotations
+
+import base64
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import BadInput
+from .freeform_grid import Grid, fill, grid_over, normals_of
+from .freeform_rows import row_distance, row_table, seed_row
+from .freeform_sample import chart_frame, cloud_heights, mesh_heights, to_chart
+from .domain import Boundary, FitStats
+
+NORMAL_SMOOTHING_MM = 4.0   # Gaussian sigma of the normals (a tool's footprint of 10-15 mm averages about this)
+SCAN_SMOOTHING_SPACINGS = 2.5  # a scan's positions are smoothed over this many point spacings (at least 2 mm)
+SCAN_SMOOTHING_MIN_MM = 2.0
+MAX_NODES = 300_000         # the grid's nodes at most (the spacing grows for a large face)
+MIN_CELL_MM = 1.0           # ... and at least this spacing
+MAX_SLOPE_DEG = 80.0        # a node steeper than this from the chart plane is no material (a wall of a closed part)
+KNOWN_WEIGHT_SHARE = 0.2    # a scan's node has a height where its window holds this share of the typical weight
+MARGIN_CELLS = 4            # nodes of margin round the face's box (the leads start on the surface continued)
+
+
+def _b64(a: np.ndarray) -> dict:
+    a = np.ascontiguousarray(a)
+    return {"dtype": str(a.dtype), "shape": list(a.shape), "data": base64.b64encode(a.tobytes()).decode("ascii")}
+
+
+def _unb64(d: dict, dtype: str) -> np.ndarray:
+    if d["dtype"] != dtype:
+        raise ValueError(f"freeform array: expected {dtype}, found {d['dtype']!r}")
+    shape = tuple(int(x) for x in d["shape"])
+    raw = base64.b64decode(d["data"].encode("ascii"), validate=True)
+    a = np.frombuffer(raw, dtype=dtype)
+    if a.size != int(np.prod(shape)):
+        raise ValueError("freeform array: its data does not match its shape")
+    return a.reshape(shape).copy()
+
+
+@dataclass(frozen=True, eq=False)
+class FreeformSurface:
+    """A free-form face: a height field over a chart plane with geodesic row coordinates.
+
+    ``origin_mm``, ``frame`` (columns e1, e2, e3; e3 towards the tool): the chart plane. ``grid``: its nodes;
+    ``height`` (ny, nx) mm along e3, ``normals`` (ny, nx, 3) unit (world, towards the tool), ``material``
+    (ny, nx) the face's nodes, ``distance`` (ny, nx) the signed geodesic distance from the seed row.
+    ``table_grid`` / ``table``: chart y per (u, v). (u, v) are (chart x, geodesic distance), both mm."""
+
+    origin_mm: np.ndarray
+    frame: np.ndarray
+    grid: Grid
+    height: np.ndarray
+    normals: np.ndarray
+    material: np.ndarray
+    distance: np.ndarray
+    table_grid: Grid
+    table: np.ndarray
+    boundary: Boundary
+    stats: FitStats | None = None
+    source_kind: str = "mesh"            # "mesh" (positions exact) or "scan" (smoothed)
+    smoothing_mm: float = 0.0            # the scan's smoothing sigma (0 for a mesh)
+    normal_smoothing_mm: float = NORMAL_SMOOTHING_MM
+    warnings: tuple[str, ...] = ()
+    model: str = field(default="freeform", init=False)
+    uv_unit: str = field(default="mm", init=False)
+
+    def __post_init__(self):
+        for name in ("origin_mm", "frame", "height", "normals", "material", "distance", "table"):
+            getattr(self, name).setflags(write=False)
+
+    # ----------------------------------------------------------------- queries
+
+    def chart_xy(self, u, v) -> tuple[np.ndarray, np.ndarray]:
+        """Chart-plane (x, y) (mm) of parameters (u, v)."""
+        u, v = np.broadcast_arrays(np.asarray(u, float), np.asarray(v, float))
+        return u, self.table_grid.interp(self.table, u, v)
+
+    def point_mm(self, u, v) -> np.ndarray:
+        """Points (..., 3) in mm at u (along the rows, mm) and v (geodesic distance across them, mm)."""
+        x, y = self.chart_xy(u, v)
+        h = self.grid.interp(self.height, x, y)
+        e1, e2, e3 = self.frame[:, 0], self.frame[:, 1], self.frame[:, 2]
+        return self.origin_mm + x[..., None] * e1 + y[..., None] * e2 + h[..., None] * e3
+
+    def normal_at(self, u, v) -> np.ndarray:
+        """Unit normals (..., 3) at u, v: the smoothed normals, towards the tool side."""
+        x, y = self.chart_xy(u, v)
+        n = self.grid.interp(self.normals, x, y)
+        return n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+
+    def uv_from_points(self, points_mm: np.ndarray) -> np.ndarray:
+        """(N, 2) parameters of points (projected along e3 onto the surface)."""
+        c = (np.asarray(points_mm, float) - self.origin_mm) @ self.frame
+        return np.stack([c[..., 0], self.grid.interp(self.distance, c[..., 0], c[..., 1])], axis=-1)
+
+    def metric_scale(self, uv: np.ndarray) -> np.ndarray:
+        """(N, 2) mm on the surface per mm of u (along the row, at constant v) and per mm of v (1: v is a
+        geodesic distance)."""
+        uv = np.atleast_2d(np.asarray(uv, float))
+        eps = 0.25 * self.grid.g
+        a = self.point_mm(uv[:, 0] - eps, uv[:, 1])
+        b = self.point_mm(uv[:, 0] + eps, uv[:, 1])
+        return np.stack([np.linalg.norm(b - a, axis=1) / (2 * eps), np.ones(len(uv))], axis=-1)
+
+    # ----------------------------------------------------------------- figures
+
+    def area_mm2(self) -> float:
+        """Area of the material nodes' cells on the surface (mm^2)."""
+        cosn = np.abs(self.normals[..., :] @ self.frame[:, 2])
+        return float((self.grid.g ** 2 / np.maximum(cosn, 0.05))[self.material].sum())
+
+    def mean_normal(self) -> np.ndarray:
+        n = self.normals[self.material].mean(axis=0)
+        return n / np.linalg.norm(n)
+
+    def curvature_range(self) -> tuple[float, float]:
+        """(min, max) mean curvature (1/mm; > 0 convex towards the tool) over the material, 1st..99th percentile."""
+        g = self.grid.g
+        hy, hx = np.gradient(self.height, g)
+        hxx, hxy, hyy = np.gradient(hx, g, axis=1), np.gradient(hx, g, axis=0), np.gradient(hy, g, axis=0)
+        w = 1 + hx ** 2 + hy ** 2
+        H = -((1 + hy ** 2) * hxx - 2 * hx * hy * hxy + (1 + hx ** 2) * hyy) / (2 * w ** 1.5)
+        vals = H[self.material]
+        if len(vals) == 0:
+            return 0.0, 0.0
+        return float(np.percentile(vals, 1)), float(np.percentile(vals, 99))
+
+    def summary(self) -> dict:
+        """The face's figures: area (mm^2), mean normal, mean-curvature range (1/mm), holes, grid, source."""
+        return {"area_mm2": round(self.area_mm2(), 1), "normal": [round(float(x), 6) for x in self.mean_normal()],
+                "curvature_range": [round(x, 6) for x in self.curvature_range()],
+                "holes": len(self.boundary.holes_uv), "grid_mm": self.grid.g, "source": self.source_kind,
+                "smoothing_mm": self.smoothing_mm, "normal_smoothing_mm": self.normal_smoothing_mm}
+
+    def rows_at(self, angle_rad: float) -> "FreeformSurface":
+        """The same face with its rows turned by ``angle_rad`` about e3 (from e1 towards e2): the height field
+        resampled onto a turned grid and its row chart made again."""
+        if abs(math.remainder(angle_rad, 2 * math.pi)) < 1e-12:
+            return self
+        c, s = math.cos(angle_rad), math.sin(angle_rad)
+        e1, e2, e3 = self.frame[:, 0], self.frame[:, 1], self.frame[:, 2]
+        frame = np.column_stack([c * e1 + s * e2, -s * e1 + c * e2, e3])
+        xy = self.grid.node_xy()[self.material]
+        rot = np.array([[c, s], [-s, c]])
+        new_xy = xy @ rot.T
+        grid = grid_over(new_xy.min(axis=0), new_xy.max(axis=0), self.grid.g, MARGIN_CELLS)
+        nxy = grid.node_xy()
+        old = nxy @ rot                                      # back to the old chart
+        h = self.grid.interp(self.height, old[..., 0], old[..., 1])
+        n = self.grid.interp(self.normals, old[..., 0], old[..., 1])
+        n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+        fi = np.rint((old[..., 0] - self.grid.x0) / self.grid.g).astype(int)
+        fj = np.rint((old[..., 1] - self.grid.y0) / self.grid.g).astype(int)
+        inside = (fi >= 0) & (fi < self.grid.nx) & (fj >= 0) & (fj < self.grid.ny)
+        material = np.zeros(h.shape, bool)
+        material[inside] = self.material[fj[inside], fi[inside]]
+        return _assembled(self.origin_mm, frame, grid, h, n, material, self.stats, self.source_kind,
+                          self.smoothing_mm, self.normal_smoothing_mm, self.warnings, close_px=0)
+
+    # ----------------------------------------------------------------- stage files
+
+    def to_dict(self) -> dict:
+        d = {
+            "model": "freeform",
+            "origin_mm": self.origin_mm.tolist(),
+            "frame": self.frame.tolist(),
+            "grid": self.grid.to_dict(),
+            "table_grid": self.table_grid.to_dict(),
+            "height": _b64(self.height.astype(np.float64)),
+            "normals": _b64(self.normals.astype(np.float64)),
+            "material": _b64(self.material.astype(np.uint8)),
+            "distance": _b64(self.distance.astype(np.float64)),
+            "table": _b64(self.table.astype(np.float64)),
+            "source_kind": self.source_kind,
+            "smoothing_mm": float(self.smoothing_mm),
+            "normal_smoothing_mm": float(self.normal_smoothing_mm),
+            "warnings": list(self.warnings),
+            "uv_unit": "mm",
+            "boundary": self.boundary.to_dict(),
+        }
+        if self.stats is not None:
+            st = self.stats
+            d.update(inlier_ratio=st.inlier_ratio, rms_mm=st.rms_mm, max_residual_mm=st.max_residual_mm,
+                     n_points=st.n_points, n_inliers=st.n_inliers)
+        return d
+
+    @staticmethod
+    def from_dict(d: dict) -> "FreeformSurface":
+        frame = np.asarray(d["frame"], float)
+        origin = np.asarray(d["origin_mm"], float)
+        if frame.shape != (3, 3) or not np.allclose(frame.T @ frame, np.eye(3), atol=1e-6):
+            raise ValueError("frame must be orthonormal")
+        if origin.shape != (3,) or not np.all(np.isfinite(origin)) or np.abs(origin).max() > 1e6:
+            raise ValueError("origin_mm must be 3 finite numbers within +-1e6")
+        grid, tgrid = Grid.from_dict(d["grid"]), Grid.from_dict(d["table_grid"])
+        height, normals = _unb64(d["height"], "float64"), _unb64(d["normals"], "float64")
+        material = _unb64(d["material"], "uint8").astype(bool)
+        distance, table = _unb64(d["distance"], "float64"), _unb64(d["table"], "float64")
+        shape = (grid.ny, grid.nx)
+        if height.shape != shape or normals.shape != shape + (3,) or material.shape != shape \
+                or distance.shape != shape or table.shape != (tgrid.ny, tgrid.nx):
+            raise ValueError("freeform arrays do not match their grids")
+        for a in (height, normals, distance, table):
+            if not np.all(np.isfinite(a)) or np.abs(a).max() > 1e7:
+                raise ValueError("freeform arrays must be finite")
+        stats = None
+        if "inlier_ratio" in d:
+            stats = FitStats(d["inlier_ratio"], d["rms_mm"], d["max_residual_mm"], d["n_points"], d["n_inliers"])
+        return FreeformSurface(origin, frame, grid, height, normals, material, distance, tgrid, table,
+                               Boundary.from_dict(d["boundary"]), stats, str(d.get("source_kind", "mesh")),
+                               float(d.get("smoothing_mm", 0.0)),
+                               float(d.get("normal_smoothing_mm", NORMAL_SMOOTHING_MM)),
+                               tuple(str(w) for w in d.get("warnings", ())))
+
+
+# --------------------------------------------------------------------------- building
+
+
+def _material_mask(grid: Grid, xy: np.ndarray, spacing_mm: float, close_gaps_mm: float) -> np.ndarray:
+    """The nodes of the face: nodes near its points (dilated by a point spacing), gaps up to ``close_gaps_mm``
+    closed, the largest connected region."""
+    import cv2
+    from scipy import ndimage
+
+    i = np.clip(np.rint((xy[:, 0] - grid.x0) / grid.g), 0, grid.nx - 1).astype(np.int64)
+    j = np.clip(np.rint((xy[:, 1] - grid.y0) / grid.g), 0, grid.ny - 1).astype(np.int64)
+    m = np.zeros((grid.ny, grid.nx), np.uint8)
+    m[j, i] = 1
+    r = int(math.ceil(0.75 * spacing_mm / grid.g))
+    if r > 0:
+        m = cv2.dilate(m, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+    k = int(math.ceil(close_gaps_mm / grid.g))
+    if k > 0:
+        k = 2 * ((k + 1) // 2) + 1
+        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    if r > 0:  # the dilation taken back: the outline lies at the points' extent, not a spacing past it
+        m = cv2.erode(m, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+    labels, n = ndimage.label(m > 0)
+    if n == 0:
+        return m > 0
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    return labels == int(np.argmax(sizes))
+
+
+def _boundary(grid: Grid, material: np.ndarray, distance: np.ndarray, close_px: int) -> Boundary:
+    """The material's outline and holes as polygons in (u, v) = (x, d): traced on the node mask (cv2), densified
+    to the grid spacing and mapped through the distance field."""
+    import cv2
+
+    img = material.astype(np.uint8) * 255
+    contours, hierarchy = cv2.findContours(img, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        raise BadInput("free-form face: no material region found")
+    hierarchy = hierarchy[0]
+    outers = [k for k in range(len(contours)) if hierarchy[k][3] < 0]
+    best = max(outers, key=lambda k: (cv2.contourArea(contours[k]), len(contours[k])))
+
+    def to_uv(c: np.ndarray) -> np.ndarray:
+        c = cv2.approxPolyDP(c, 0.5, True).reshape(-1, 2).astype(float)
+        closed = np.vstack([c, c[:1]])
+        seg = np.diff(closed, axis=0)
+        n = np.maximum(np.ceil(np.linalg.norm(seg, axis=1)).astype(int), 1)
+        px = np.concatenate([a + np.linspace(0, 1, k, endpoint=False)[:, None] * s
+                             for a, s, k in zip(closed[:-1], seg, n)])
+        x = grid.x0 + px[:, 0] * grid.g
+        y = grid.y0 + px[:, 1] * grid.g
+        return np.stack([x, grid.interp(distance, x, y)], axis=-1)
+
+    def oriented(poly: np.ndarray, ccw: bool) -> np.ndarray:
+        area = 0.5 * float(np.dot(poly[:, 0], np.roll(poly[:, 1], -1)) - np.dot(poly[:, 1], np.roll(poly[:, 0], -1)))
+        return np.ascontiguousarray(poly if (area > 0) == ccw else poly[::-1])
+
+    outer = oriented(to_uv(contours[best]), True)
+    holes = []
+    child = hierarchy[best][2]
+    min_px = max(4.0, float(close_px) ** 2)
+    while child >= 0:
+        if cv2.contourArea(contours[child]) >= min_px and len(contours[child]) >= 3:
+            holes.append(oriented(to_uv(contours[child]), False))
+        child = hierarchy[child][0]
+    holes.sort(key=lambda h: (round(float(h[:, 0].min()), 9), round(float(h[:, 1].min()), 9)))
+    return Boundary(outer, tuple(holes))
+
+
+def _flat_outside(height: np.ndarray, material: np.ndarray) -> np.ndarray:
+    """``height`` with the margin outside the face (the non-material regions touching the grid's edge) made level
+    with the face's nearest node: the rows' distance is measured on the face and runs on, flat, into the margin,
+    so the leads' row chart cannot fold where the surface continued falls away steeply (a dome's corners)."""
+    from scipy import ndimage
+
+    labels, _ = ndimage.label(~material)
+    border = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    outside = np.isin(labels, border[border > 0])
+    if not outside.any():
+        return height
+    _, (jj, ii) = ndimage.distance_transform_edt(outside, return_indices=True)
+    return np.where(outside, height[jj, ii], height)
+
+
+def _assembled(origin, frame, grid, height, normals, material, stats, source_kind, smoothing_mm,
+               normal_smoothing_mm, warnings, close_px) -> FreeformSurface:
+    """The surface with its row chart (distance field, table) and boundary made from its height field."""
+    if material.sum() < 9:
+        raise BadInput("free-form face: fewer than 9 grid nodes of material; the face is too small for its grid")
+    distance = row_distance(grid, _flat_outside(height, material), seed_row(material))
+    tgrid, table = row_table(grid, distance)
+    boundary = _boundary(grid, material, distance, close_px)
+    return FreeformSurface(np.asarray(origin, float), np.asarray(frame, float), grid, height, normals, material,
+                           distance, tgrid, table, boundary, stats, source_kind, smoothing_mm,
+                           normal_smoothing_mm, tuple(warnings))
+
+
+def _median_spacing(xy: np.ndarray, sample: int = 20000, queries: int = 2000) -> float:
+    """Median nearest-neighbour distance (mm) of the chart points, from a strided subsample rescaled."""
+    from scipy.spatial import cKDTree
+
+    m = min(len(xy), sample)
+    sub = xy[np.linspace(0, len(xy) - 1, m).astype(int)]
+    q = sub[np.linspace(0, m - 1, min(m, queries)).astype(int)]
+    dist, _ = cKDTree(sub).query(q, k=2)
+    return max(float(np.median(dist[:, 1])) * math.sqrt(m / len(xy)), 1e-3)
+
+
+def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
+                     normal_smoothing_mm: float = NORMAL_SMOOTHING_MM) -> FreeformSurface:
+    """A free-form surface (world mm) of a placed workpiece, or of its points ``indices`` (one face).
+
+    A mesh workpiece is sampled exactly from its triangles (z-buffer); a cloud is cleaned of outliers and
+    smoothed at ``settings.smoothing_mm`` (0: ``SCAN_SMOOTHING_SPACINGS`` point spacings, at least
+    ``SCAN_SMOOTHING_MIN_MM``). ``settings``: ``FitSettings`` (threshold, close_gaps_mm, smoothing_mm).
+    BadInput with one line when the points hold no surface."""
+    P = np.asarray(workpiece.points_mm, float)
+    N = np.asarray(workpiece.normals, float)
+    source = getattr(workpiece, "source", "") or "workpiece"
+    if indices is not None:
+        P, N = P[indices], N[indices]
+    finite = np.isfinite(P).all(axis=1)
+    if finite.sum() < 100:
+        raise BadInput(f"{source}: too few points for a free-form surface: {int(finite.sum())}, need at least 100")
+    P, N = P[finite], np.where(np.isfinite(N[finite]), N[finite], 0.0)
+    D = P - P.mean(axis=0)
+    s = np.sqrt(np.maximum(np.linalg.eigvalsh(D.T @ D), 0.0))[::-1]
+    if s[1] < 1e-6 * max(s[0], 1e-300):
+        raise BadInput(f"{source}: the points lie on a line (or coincide); no surface is defined")
+    warnings = []
+    origin, frame, consistent = chart_frame(P, N)
+    if not consistent:
+        warnings.append(f"{source}: the normals do not agree on a side (triangles wound both ways or a closed "
+                        "part): the free-form face is worked from the side facing world up; normals are taken "
+                        "from the surface itself")
+    xyh = to_chart(P, origin, frame)
+    lo, hi = xyh[:, :2].min(axis=0), xyh[:, :2].max(axis=0)
+    spacing = _median_spacing(xyh[:, :2])
+    is_mesh = workpiece.faces is not None and getattr(workpiece, "vertices_mm", None) is not None
+    box = float(np.prod(hi - lo + 2 * MARGIN_CELLS))
+    g = max(MIN_CELL_MM, math.sqrt(box / MAX_NODES))
+    sigma = 0.0
+    if not is_mesh:
+        sigma = float(getattr(settings, "smoothing_mm", 0.0) or 0.0)
+        if sigma <= 0:
+            sigma = max(SCAN_SMOOTHING_SPACINGS * spacing, SCAN_SMOOTHING_MIN_MM)
+        g = max(g, min(spacing, sigma / 2))
+    grid = grid_over(lo, hi, g, MARGIN_CELLS)
+    if grid.nx * grid.ny > 4 * MAX_NODES:
+        raise BadInput(f"{source}: the free-form grid would have {grid.nx * grid.ny} nodes; the part is too large")
+    if is_mesh:
+        V = to_chart(np.asarray(workpiece.vertices_mm, float), origin, frame)
+        height = mesh_heights(V, np.asarray(workpiece.faces), grid)
+        known = np.isfinite(height)
+        keep = np.ones(len(P), bool)
+    else:
+        height, weight, keep, res = cloud_heights(xyh, grid, sigma)
+        # a node's height is known where its window holds a fifth of the typical weight (not extrapolated far)
+        typical = float(np.median(weight[weight > 1e-6])) if (weight > 1e-6).any() else 0.0
+        known = np.isfinite(height) & (weight >= KNOWN_WEIGHT_SHARE * typical)
+        dropped = int((~keep).sum())
+        if dropped:
+            warnings.append(f"{source}: {dropped} of {len(P)} scan points lie off the surface (outliers) and "
+                            "were left out of it")
+    material = _material_mask(grid, xyh[keep, :2], spacing, float(settings.close_gaps_mm)) & known
+    reliable = known
+    if not is_mesh:
+        # at a scan's edge the window is one-sided and the noise fuzzes the edge outwards: the face (and the
+        # normals' average) keeps a sigma inside its last points
+        from scipy.ndimage import binary_erosion
+
+        material = binary_erosion(material, iterations=max(1, int(round(sigma / g))))
+        # the normals average the nodes a further window inside (the edge's one-sided fits tilt their slope)
+        inner = binary_erosion(material, iterations=max(1, int(round(2 * sigma / g))))
+        reliable = inner if inner.sum() > 0.5 * material.sum() else material
+    height = fill(height, known, g)
+    if is_mesh:
+        res = xyh[:, 2] - grid.interp(height, xyh[:, 0], xyh[:, 1])
+    normals = normals_of(height, g, frame, normal_smoothing_mm, reliable)
+    material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
+    res_abs = np.abs(res[np.isfinite(res)]) if len(res) else np.zeros(1)
+    thr = float(settings.threshold_mm)
+    n_in = int((res_abs <= max(thr, 3.0 * np.sqrt(np.mean(res_abs ** 2)))).sum())
+    stats = FitStats(n_in / len(P), float(np.sqrt(np.mean(res_abs ** 2))), float(res_abs.max()), int(len(P)), n_in)
+    close_px = int(math.ceil(float(settings.close_gaps_mm) / g))
+    return _assembled(origin, frame, grid, height, normals, material, stats, "mesh" if is_mesh else "scan",
+                      sigma, normal_smoothing_mm, warnings, close_px)

@@ -1,0 +1,208 @@
+"""Free-form faces (camtool.part.freeform): a saddle mesh, a noisy scanned cap, holes, stage files, rows on the
+surface. Small generated parts: each test runs in about a second."""
+import json
+
+import numpy as np
+import pytest
+
+from camtool.errors import BadInput
+from camtool.part.fit import fit_surface
+from camtool.part.freeform import FreeformSurface, freeform_surface
+from camtool.part.surface import surface_from_dict
+from camtool.part.workpiece import Workpiece
+from camtool.path.raster import coverage, raster_path
+from camtool.settings import FitSettings, RasterSettings
+
+FIT = FitSettings.make(model="freeform")
+
+
+def grid_mesh(x, y, z_of):
+    X, Y = np.meshgrid(x, y)
+    Z = z_of(X, Y)
+    ny, nx = X.shape
+    idx = np.arange(nx * ny).reshape(ny, nx)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    F = np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)])
+    return np.stack([X, Y, Z], -1).reshape(-1, 3), F
+
+
+def mesh_workpiece(V, F, n=40000, seed=0, keep=None):
+    import trimesh
+
+    m = trimesh.Trimesh(V, F, process=False)
+    if keep is not None:
+        m.update_faces(keep(m.triangles_center))
+        m.remove_unreferenced_vertices()
+    pts, fi = trimesh.sample.sample_surface(m, n, seed=seed)
+    return Workpiece(np.asarray(pts), np.asarray(m.face_normals)[fi], np.asarray(m.faces), "mesh.stl", "mm", (),
+                     np.asarray(m.vertices)), m
+
+
+def saddle(X, Y):
+    return (X ** 2 - Y ** 2) / 600.0
+
+
+@pytest.fixture(scope="module")
+def saddle_part():
+    V, F = grid_mesh(np.linspace(-100, 100, 81), np.linspace(-75, 75, 61), saddle)
+    wp, mesh = mesh_workpiece(V, F)
+    return wp, mesh, fit_surface(wp, FIT)
+
+
+def work(path):
+    W = path.poses_mm[path.is_work]
+    return W[:, :3, 3], W[:, :3, 2]
+
+
+def row_gaps_mm(surface, path, step):
+    """Distance on the part from each work point of row k to row k+1's polyline (rows told apart by v)."""
+    from scipy.spatial import cKDTree
+
+    cont = path.contour if path.contour is not None else np.zeros(len(path), bool)
+    P = path.poses_mm[path.is_work & ~cont, :3, 3]
+    v = surface.uv_from_points(P)[:, 1]
+    lab = np.rint((v - v.min()) / step).astype(int)
+    gaps = []
+    for r in range(lab.max()):
+        a, b = P[lab == r], P[lab == r + 1]
+        if len(a) == 0 or len(b) < 2:
+            continue
+        _, ii = cKDTree(b).query(a, k=2)
+        p1, p2 = b[ii[:, 0]], b[ii[:, 1]]
+        e = p2 - p1
+        t = np.clip(np.sum((a - p1) * e, 1) / np.maximum(np.sum(e * e, 1), 1e-12), 0, 1)
+        d = np.linalg.norm(a - (p1 + t[:, None] * e), axis=1)
+        gaps.append(d[d < 2 * step])
+    return np.concatenate(gaps)
+
+
+def test_saddle_mesh_rows_on_the_surface(saddle_part):
+    wp, mesh, s = saddle_part
+    assert isinstance(s, FreeformSurface) and s.model == "freeform" and s.source_kind == "mesh"
+    path = raster_path(s, RasterSettings.make(step_over_mm=10.0, pitch_mm=5.0))
+    tcp, z = work(path)
+    # work TCPs on the mesh
+    import trimesh
+
+    _, dist, _ = trimesh.proximity.closest_point(mesh, tcp)
+    assert np.percentile(dist, 99) < 0.1
+    # the step-over measured on the surface, p5..p95 within 10 %
+    gaps = row_gaps_mm(s, path, 10.0)
+    assert 9.0 <= np.percentile(gaps, 5) and np.percentile(gaps, 95) <= 11.0
+    # the tool axis along the true normal, no flip or turn over 5 deg between neighbours
+    n = np.stack([-2 * tcp[:, 0] / 600, 2 * tcp[:, 1] / 600, np.ones(len(tcp))], 1)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    ang = np.degrees(np.arccos(np.clip(np.sum(-z * n, 1), -1, 1)))
+    assert np.percentile(ang, 95) < 3.0
+    seg = path.segment[path.is_work]
+    turn = np.degrees(np.arccos(np.clip(np.sum(z[1:] * z[:-1], 1), -1, 1)))[seg[1:] == seg[:-1]]
+    assert turn.max() < 5.0
+    assert coverage(s, path, 10.0) > 0.99
+
+
+def test_rows_turned_keep_their_step(saddle_part):
+    _, _, s = saddle_part
+    turned = s.rows_at(np.radians(30.0))
+    assert turned is not s and np.allclose(turned.frame[:, 2], s.frame[:, 2])
+    path = raster_path(s, RasterSettings.make(step_over_mm=8.0, pitch_mm=4.0, angle_deg=30.0))
+    gaps = row_gaps_mm(turned, path, 8.0)
+    assert 7.2 <= np.percentile(gaps, 5) and np.percentile(gaps, 95) <= 8.8
+
+
+def test_steeper_than_a_plane_slicer():
+    """A trough 40 deg steep: planes 10 mm apart would put the rows 13 mm apart on its walls; these are 10."""
+    V, F = grid_mesh(np.linspace(-80, 80, 65), np.linspace(-60, 60, 49), lambda X, Y: 0.012 * Y ** 2)
+    wp, _ = mesh_workpiece(V, F)
+    s = fit_surface(wp, FIT)
+    path = raster_path(s, RasterSettings.make(step_over_mm=10.0, pitch_mm=5.0))
+    gaps = row_gaps_mm(s, path, 10.0)
+    assert 9.0 <= np.percentile(gaps, 5) and np.percentile(gaps, 95) <= 11.0
+    assert s.curvature_range()[0] < 0  # concave towards the tool: a trough, worked from inside
+
+
+def test_noisy_scan_smoothed_and_outliers_dropped():
+    rng = np.random.default_rng(2)
+    R, n = 200.0, 60000
+    xy = rng.uniform(-70, 70, (n, 2))
+    z = np.sqrt(R ** 2 - (xy ** 2).sum(1)) - R
+    P = np.column_stack([xy, z])
+    c = np.array([0.0, 0.0, -R])
+    N = (P - c) / R
+    P = P + N * rng.normal(0, 1.0, n)[:, None]
+    out = rng.random(n) < 0.005
+    P[out] += N[out] * 20.0
+    s = freeform_surface(Workpiece(P, N, source="scan.xyz"), FIT)
+    assert s.source_kind == "scan" and s.smoothing_mm >= 2.0
+    assert any("outliers" in w for w in s.warnings)
+    path = raster_path(s, RasterSettings.make(step_over_mm=10.0, pitch_mm=5.0))
+    tcp, z = work(path)
+    err = np.abs(np.linalg.norm(tcp - c, axis=1) - R)
+    assert np.median(err) < 0.5 and np.percentile(err, 99) < 3.0
+    ang = np.degrees(np.arccos(np.clip(np.sum(-z * (tcp - c) / np.linalg.norm(tcp - c, axis=1)[:, None], 1), -1, 1)))
+    assert np.percentile(ang, 95) < 3.0
+    assert 0.5 < s.stats.rms_mm < 1.5   # the scan's noise, for the motion check's tolerance
+
+
+def test_holes_split_rows_and_stay_holes():
+    V, F = grid_mesh(np.linspace(-100, 100, 81), np.linspace(-80, 80, 65), lambda X, Y: -X ** 2 / 2000.0)
+    wp, _ = mesh_workpiece(V, F, keep=lambda c: np.hypot(c[:, 0] - 20, c[:, 1]) > 25)
+    s = fit_surface(wp, FIT)
+    assert len(s.boundary.holes_uv) == 1
+    path = raster_path(s, RasterSettings.make(step_over_mm=10.0, pitch_mm=5.0))
+    tcp, _ = work(path)
+    assert np.hypot(tcp[:, 0] - 20, tcp[:, 1]).min() > 24.0     # no work point in the hole
+    cont = path.contour if path.contour is not None else np.zeros(len(path), bool)
+    assert len(np.unique(path.segment[path.is_work & ~cont])) > 17   # rows split at the hole
+
+
+def test_stage_file_round_trip_rasters_the_same(saddle_part):
+    _, _, s = saddle_part
+    d = json.loads(json.dumps(s.to_dict()))
+    back = surface_from_dict(d)
+    assert isinstance(back, FreeformSurface)
+    st = RasterSettings.make(step_over_mm=10.0, pitch_mm=5.0)
+    a, b = raster_path(s, st), raster_path(back, st)
+    assert np.array_equal(a.poses_mm, b.poses_mm)
+    d["height"]["data"] = d["height"]["data"][:-8]
+    with pytest.raises(ValueError):
+        surface_from_dict(d)
+
+
+def test_soup_of_flipped_triangles_warns_and_works():
+    V, F = grid_mesh(np.linspace(-60, 60, 31), np.linspace(-50, 50, 26), lambda X, Y: (X ** 2 + Y ** 2) / 800.0)
+    F = F.copy()
+    F[::2] = F[::2, ::-1]                        # every other triangle wound the other way
+    wp, _ = mesh_workpiece(V, F, n=20000)
+    s = fit_surface(wp, FIT)
+    assert len(s.warnings) == 1 and "do not agree on a side" in s.warnings[0]
+    assert s.mean_normal()[2] > 0.99            # worked from world up, normals all on that side
+    assert (s.normals[s.material] @ s.frame[:, 2]).min() > 0
+
+
+def test_points_on_a_line_are_refused():
+    P = np.column_stack([np.linspace(0, 100, 500), np.zeros(500), np.zeros(500)])
+    with pytest.raises(BadInput, match="line"):
+        freeform_surface(Workpiece(P, np.tile([0.0, 0, 1], (500, 1)), source="line.xyz"), FIT)
+
+
+def test_uv_round_trip(saddle_part):
+    _, _, s = saddle_part
+    rng = np.random.default_rng(0)
+    lo, hi = s.boundary.bounds()
+    uv = rng.uniform(lo, hi, (500, 2))
+    uv = uv[s.boundary.contains(uv)]
+    back = s.uv_from_points(s.point_mm(uv[:, 0], uv[:, 1]))
+    assert np.abs(back - uv).max() < 0.05
+    assert np.allclose(np.linalg.norm(s.normal_at(uv[:, 0], uv[:, 1]), axis=1), 1.0)
+
+
+def test_fit_summary_lists_the_face(saddle_part):
+    from camtool.commands.fit import surface_summary
+
+    _, _, s = saddle_part
+    d = surface_summary(s)
+    assert d["model"] == "freeform" and d["holes"] == 0 and d["source"] == "mesh"
+    assert 30000 < d["area_mm2"] < 32500                   # 200 x 150 mm, a little more for the saddle's slope
+    assert d["rms_mm"] < 0.01 and d["inlier_ratio"] > 0.99  # the mesh's own points lie on it
+    lo, hi = d["curvature_range"]
+    assert lo < 0 < hi                                       # a saddle curves both ways
