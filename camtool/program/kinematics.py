@@ -8,6 +8,48 @@ from __future__ import annotations
 
 import numpy as np
 
+
+def weighted_sum(w, cols):
+    """sum_j w[j] cols[j] for a constant vector w (mostly 0 and +-1 in a DH chain): zero terms skipped,
+    unit ones taken as they are."""
+    out = None
+    for c, col in zip(w, cols):
+        if abs(c) < 1e-15:
+            continue
+        term = col if c == 1.0 else (-col if c == -1.0 else col * c)
+        out = term if out is None else out + term
+    return np.zeros_like(cols[0]) if out is None else out
+
+
+def walk_chain(chain, tool_T: np.ndarray, prismatic: np.ndarray, q: np.ndarray, axes=None, origins=None):
+    """TCP positions (S, 3) and rotations (S, 3, 3) of a z-axis chain (``Robot.chain``: the placement
+    before each joint and the flange) with ``tool_T``, in the frame the chain starts in (mm). The rotation
+    is carried as its three columns, so each step is a few contiguous products. Given ``axes`` and
+    ``origins`` (S, n, 3), each joint's axis and origin are stored there on the way."""
+    before_list, flange = chain
+    S = len(q)
+    x, y, z = (np.zeros((S, 3)) for _ in range(3))
+    x[:, 0] = y[:, 1] = z[:, 2] = 1.0
+    p = np.zeros((S, 3))
+    for i, before in enumerate(before_list):
+        if np.any(before[:3, 3]):
+            p = p + weighted_sum(before[:3, 3], (x, y, z))
+        x, y, z = (weighted_sum(before[:3, j], (x, y, z)) for j in range(3))
+        if axes is not None:
+            axes[:, i] = z
+        if prismatic[i]:
+            p = p + z * q[:, i, None]
+        else:
+            c, s = np.cos(q[:, i])[:, None], np.sin(q[:, i])[:, None]
+            x, y = c * x + s * y, c * y - s * x
+        if origins is not None:
+            origins[:, i] = p
+    for v, C in ((flange[:3, 3], flange[:3, :3]), (tool_T[:3, 3], tool_T[:3, :3])):
+        if np.any(v):
+            p = p + weighted_sum(v, (x, y, z))
+        x, y, z = (weighted_sum(C[:, j], (x, y, z)) for j in range(3))
+    return p, np.stack([x, y, z], axis=2)
+
 class Kinematics:
     """Batch TCP poses and translational Jacobians of a robot in its **base** frame (mm).
 
@@ -28,8 +70,10 @@ class Kinematics:
         chain = robot.chain
         self.uses_chain = chain is not None
         if chain is not None:
+            self._chain = chain
             self._before, self._flange = chain
             tool = np.asarray(robot.tool_T_mm, float)
+            self._tool_T = tool
             self._tool_R, self._tool_p = tool[:3, :3], tool[:3, 3]
 
     def _to_base(self, p, R):
@@ -41,37 +85,7 @@ class Kinematics:
         if not self.uses_chain:
             fk = self.bfk(q)
             return self._to_base(fk.tcp, fk.tcp_R)
-        b = self
-        S = len(q)
-        # the rotation kept as its three columns (S, 3): each step is a few contiguous products,
-        # and the constant parts of a DH row are mostly 0 and +-1
-        x, y, z = (np.zeros((S, 3)) for _ in range(3))
-        x[:, 0] = y[:, 1] = z[:, 2] = 1.0
-        p = np.zeros((S, 3))
-
-        def combo(w, cols):
-            out = None
-            for c, col in zip(w, cols):
-                if abs(c) < 1e-15:
-                    continue
-                term = col if c == 1.0 else (-col if c == -1.0 else col * c)
-                out = term if out is None else out + term
-            return np.zeros((S, 3)) if out is None else out
-
-        for i, before in enumerate(b._before):
-            if np.any(before[:3, 3]):
-                p = p + combo(before[:3, 3], (x, y, z))
-            x, y, z = (combo(before[:3, j], (x, y, z)) for j in range(3))
-            if self.prismatic[i]:
-                p = p + z * q[:, i, None]
-            else:
-                c, s = np.cos(q[:, i])[:, None], np.sin(q[:, i])[:, None]
-                x, y = c * x + s * y, c * y - s * x
-        for v, C in ((b._flange[:3, 3], b._flange[:3, :3]), (b._tool_p, b._tool_R)):
-            if np.any(v):
-                p = p + combo(v, (x, y, z))
-            x, y, z = (combo(C[:, j], (x, y, z)) for j in range(3))
-        return p, np.stack([x, y, z], axis=2)  # the chain started at the base frame
+        return walk_chain(self._chain, self._tool_T, self.prismatic, q)  # the chain starts at the base frame
 
     def chain(self, q: np.ndarray):
         """(tcp (S, 3), tcp_R (S, 3, 3), origins (S, dof, 3), axes (S, dof, 3)) in the **world**

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .kinematics import walk_chain
 from .moves import CONF_UNKNOWN
 
 class _Chain:
@@ -27,21 +28,7 @@ class _Chain:
         self.Rb, self.pb = base[:3, :3], base[:3, 3]
         chain = robot.chain
         self.uses_chain = chain is not None
-        if chain is not None:
-            self._before, self._flange = chain
-            tool = np.asarray(robot.tool_T_mm, float)
-            self._tool_R, self._tool_p = tool[:3, :3], tool[:3, 3]
-
-    @staticmethod
-    def _combo(w, cols):
-        """sum_j w[j] cols[j] for a constant vector w (mostly 0 and +-1 in a DH chain)."""
-        out = None
-        for c, col in zip(w, cols):
-            if abs(c) < 1e-15:
-                continue
-            term = col if c == 1.0 else (-col if c == -1.0 else col * c)
-            out = term if out is None else out + term
-        return np.zeros_like(cols[0]) if out is None else out
+        self._tool_T = np.asarray(robot.tool_T_mm, float)
 
     def fk(self, q) -> tuple[np.ndarray, np.ndarray]:
         """TCP positions (S, 3) and rotations (S, 3, 3) in the base frame."""
@@ -49,41 +36,10 @@ class _Chain:
         if not self.uses_chain:
             f = self.bfk(q)
             return (f.tcp - self.pb) @ self.Rb, np.einsum("ji,sjk->sik", self.Rb, f.tcp_R)
-        b = self
-        S = len(q)
-        # the rotation as its three columns (S, 3) each: every step is a few contiguous products
-        x = np.zeros((S, 3)); x[:, 0] = 1.0
-        y = np.zeros((S, 3)); y[:, 1] = 1.0
-        z = np.zeros((S, 3)); z[:, 2] = 1.0
-        p = np.zeros((S, 3))
-
-        combo = self._combo
-
-        def turn(C):
-            return tuple(combo(C[:, j], (x, y, z)) for j in range(3))
-
-        for i, before in enumerate(b._before):
-            if np.any(before[:3, 3]):
-                p = p + combo(before[:3, 3], (x, y, z))
-            x, y, z = turn(before[:3, :3])
-            if self.prismatic[i]:
-                p = p + z * q[:, i, None]
-            else:
-                c, s = np.cos(q[:, i])[:, None], np.sin(q[:, i])[:, None]
-                x, y = c * x + s * y, c * y - s * x
-        for T in (b._flange, None):
-            if T is None:
-                v, C = b._tool_p, b._tool_R
-            else:
-                v, C = T[:3, 3], T[:3, :3]
-            if np.any(v):
-                p = p + combo(v, (x, y, z))
-            x, y, z = turn(C)
-        return p, np.stack([x, y, z], axis=2)
+        return walk_chain(self.robot.chain, self._tool_T, self.prismatic, q)
 
     def fk_jac(self, q):
         q = np.asarray(q, float)
-        b = self
         if not self.uses_chain:
             p, R = self.fk(q)
             n = q.shape[1]
@@ -97,28 +53,9 @@ class _Chain:
                 J[:, 3:, i] = _rotvec(R2 @ np.transpose(R, (0, 2, 1))) / h
             return p, R, J
         S, n = q.shape
-        x, y, z = (np.zeros((S, 3)) for _ in range(3))
-        x[:, 0] = y[:, 1] = z[:, 2] = 1.0
-        p = np.zeros((S, 3))
         zs = np.empty((S, n, 3))
         os_ = np.empty((S, n, 3))
-        comb = self._combo
-        for i, before in enumerate(b._before):
-            if np.any(before[:3, 3]):
-                p = p + comb(before[:3, 3], (x, y, z))
-            x, y, z = (comb(before[:3, j], (x, y, z)) for j in range(3))
-            zs[:, i] = z
-            if self.prismatic[i]:
-                p = p + z * q[:, i, None]
-            else:
-                c, s = np.cos(q[:, i])[:, None], np.sin(q[:, i])[:, None]
-                x, y = c * x + s * y, c * y - s * x
-            os_[:, i] = p
-        for v, C in ((b._flange[:3, 3], b._flange[:3, :3]), (b._tool_p, b._tool_R)):
-            if np.any(v):
-                p = p + comb(v, (x, y, z))
-            x, y, z = (comb(C[:, j], (x, y, z)) for j in range(3))
-        tcp, tR = p, np.stack([x, y, z], axis=2)
+        tcp, tR = walk_chain(self.robot.chain, self._tool_T, self.prismatic, q, axes=zs, origins=os_)
         J = np.zeros((S, 6, n))
         lin = np.where(self.prismatic[None, :, None], zs, np.cross(zs, tcp[:, None, :] - os_))
         J[:, :3] = np.transpose(lin, (0, 2, 1))
