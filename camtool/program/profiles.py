@@ -23,7 +23,6 @@ formats, pulses = round(value * pulses) + zero_pulses.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -222,18 +221,14 @@ def _table(raw, defaults: dict, where: str) -> dict:
 def read_profile_file(path: str | Path) -> dict:
     """The parsed TOML of a profile file; BadInput naming the file when it cannot be read."""
     path = Path(path)
-    try:
-        from ..safe_io import read_input_text  # one checked read: a FIFO or /dev/zero is one line, never a hang
+    from ..safe_io import load_toml  # one checked read: a FIFO or /dev/zero is one line, never a hang
 
-        return tomllib.loads(read_input_text(path, "profile"))
+    try:
+        return load_toml(path, "profile")
     except FileNotFoundError:
         raise BadInput(f"{path}: profile file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise BadInput(f"{path}: cannot read profile ({exc})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise BadInput(f"{path}: TOML syntax error: {exc}") from None
-    except RecursionError:
-        raise BadInput(f"{path}: the TOML is nested too deeply to read; a profile is a few flat tables") from None
 
 
 def require_full_map(profile: Profile, robot) -> None:

@@ -112,18 +112,16 @@ def robot_toml_data(spec: str, base_dir: Path | None = None) -> dict | None:
         path = base_dir / path
     if path.suffix.lower() != ".toml":
         return None
-    try:
-        from ..safe_io import read_input_text  # regular file under the cap: never a FIFO hang
+    from ..safe_io import load_toml  # regular file under the cap: never a FIFO hang
 
-        data = tomllib.loads(read_input_text(path, "robot"))
+    try:
+        data = load_toml(path, "robot")
     except FileNotFoundError:
         raise BadInput(f"{path}: robot file not found") from None
     except IsADirectoryError:
         raise BadInput(f"{path}: is a folder; give a robot .toml file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise BadInput(f"{path}: cannot read the robot file ({type(exc).__name__}: {exc})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise BadInput(f"{path}: TOML syntax error: {exc}") from None
     _check_params(data.get("params"), str(path))
     return data
 
