@@ -13,7 +13,7 @@ import pytest
 import trimesh
 
 from camtool.errors import BadInput
-from camtool.motion import BatchFK, MotionCheckSettings, PartGeometry, check_motion
+from camtool.motion import BatchFK, MotionCheckSettings, PartGeometry, WaypointIndex, check_motion
 from camtool.robots import BUILTIN_ROBOTS, get_robot
 from camtool.path.toolpath import ZONE_CODE
 from camtool.transforms import matrix_from_xyz_rpy
@@ -412,7 +412,7 @@ def test_report_to_dict_is_json(arm):
 
     part = cap_part(arm.tcp - 280.0 * arm.o, arm.o)
     t, q = track_motion([-150.0, 0.0, 150.0], 3.0)
-    rep = check_motion(t, q, [SELF, SELF, SELF], arm.robot, part, path_index=[-1, 7, 8], index_label="segment")
+    rep = check_motion(t, q, [SELF, SELF, SELF], arm.robot, part, index=WaypointIndex([-1, 7, 8], "segment"))
     d = json.loads(json.dumps(rep.to_dict()))
     assert d["samples"] == 751 and d["dt_s"] == 0.004
     assert d["max_penetration_at"]["index_label"] == "segment"
@@ -445,7 +445,7 @@ def test_figures_by_index_add_up_to_the_whole_check(arm):
     """``by_index``: each caller's index gets its samples' worst figures; together they are the check's."""
     part = cap_part(arm.tcp - 280.0 * arm.o, arm.o)
     t, q = track_motion([-150.0, 0.0, 150.0], 3.0)
-    rep = check_motion(t, q, [SELF, SELF, SELF], arm.robot, part, path_index=[-1, 7, 8], index_label="segment")
+    rep = check_motion(t, q, [SELF, SELF, SELF], arm.robot, part, index=WaypointIndex([-1, 7, 8], "segment"))
     rows = {r["index"]: r for r in rep.to_dict()["by_index"]}
     assert set(rows) == {7, 8}
     assert sum(r["samples"] for r in rows.values()) == rep.samples

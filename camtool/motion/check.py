@@ -226,20 +226,58 @@ class _Best:
             self.body = body if isinstance(body, str) else str(body[k])
 
 
+@dataclass(frozen=True, eq=False)
+class WaypointIndex:
+    """The caller's index of each waypoint, named in the findings: ``values`` (M,) (-1 = none) called ``label``."""
+
+    values: object
+    label: str = "path index"
+
+
 def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckSettings | None = None,
-                 path_index=None, *, index_label: str = "path index", world=None) -> MotionReport:
+                 index: WaypointIndex | None = None, *, world=None) -> MotionReport:
     """Measure the joint-linear motion through the waypoints against the part.
 
     ``t_s`` (M,) strictly increasing waypoint times; ``q`` (M, dof) joint values
     (rad / mm); ``zone`` (M,) zone codes or names (camtool.path.toolpath.ZONES);
     ``robot`` placed (base and tool); ``part`` the placed part;
-    ``path_index`` (M,) optional index per waypoint used in the findings
-    (``index_label`` names it, e.g. "segment"; -1 = none); ``world`` a
+    ``index`` optional index per waypoint used in the findings
+    (``WaypointIndex``, e.g. the segment); ``world`` a
     ``camtool.collision.CollisionWorld``: its pairs (robot and tool bodies x
     obstacles, robot x robot) are measured too (``cell_check``).
     """
     clock = time.perf_counter()
     s = settings or MotionCheckSettings()
+    t_s, q, zone, pidx = _motion_inputs(t_s, q, zone, robot, index)
+    label = "path index" if index is None else index.label
+    fk = BatchFK(robot)
+    samples = _Samples(t_s, zone, s.dt_s)
+    tcp_wp = _fk_chunks(fk, q, s.chunk_samples)  # the waypoints' TCP: contacts, joint steps per mm on work
+    place = _Placer(samples, zone, pidx, label)
+    tally = _Tally(part, _bodies(robot, fk, s), s, _contact_tree(part, tcp_wp, s), _PerIndex(place.sample_index()))
+    cell = _cell_pass_start(world, fk, q, samples) if world is not None and world.pairs else None
+    for start in range(0, len(samples), int(s.chunk_samples)):
+        sl = slice(start, min(start + int(s.chunk_samples), len(samples)))
+        fkb = fk(samples.q(q, sl), frames=cell is not None)
+        if cell is not None:
+            cell.feed(sl.start, fkb)
+        tally.feed(sl, samples.zone[sl], fkb, robot.dof)
+    cell_pairs, cell_figures, cell_lines = (), None, []
+    if cell is not None:
+        cell_pairs, cell_figures, cell_lines = _cell_pass_end(cell, samples, place, s)
+    step_rev, step_rev_at, step_pri, step_pri_at = _joint_steps(q, tcp_wp, zone, robot, t_s, pidx, label)
+    return MotionReport(
+        ok=not cell_lines and tally.passed(), samples=len(samples), dt_s=float(s.dt_s),
+        duration_s=float(t_s[-1] - t_s[0]), **tally.figures(place),
+        max_joint_step_deg_per_mm=step_rev, max_joint_step_at=step_rev_at,
+        max_track_step_mm_per_mm=step_pri, max_track_step_at=step_pri_at,
+        findings=tuple(cell_lines + tally.finding_lines(place)),
+        part=part.describe(), settings=s, check_seconds=time.perf_counter() - clock, horizon_mm=part.horizon_mm,
+        cell_pairs=cell_pairs, cell=cell_figures)
+
+
+def _motion_inputs(t_s, q, zone, robot, index: WaypointIndex | None):
+    """(t_s, q, zone codes, the caller's index or None) as arrays; BadInput for a motion the check cannot take."""
     t_s = np.asarray(t_s, dtype=float).reshape(-1)
     M = len(t_s)
     q = np.asarray(q, dtype=float)
@@ -254,64 +292,65 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
         raise BadInput(f"motion check: waypoint times must increase (t[{k + 1}] = {t_s[k + 1]} after {t_s[k]})")
     zone = _zone_codes(zone, M)
     pidx = None
-    if path_index is not None:
-        pidx = np.asarray(path_index).astype(np.int64).reshape(-1)
+    if index is not None:
+        pidx = np.asarray(index.values).astype(np.int64).reshape(-1)
         if pidx.shape != (M,):
             raise BadInput(f"motion check: path_index has shape {pidx.shape}, expected ({M},)")
+    return t_s, q, zone, pidx
 
-    fk = BatchFK(robot)
-    bodies = _bodies(robot, fk, s)
-    samples = _Samples(t_s, zone, s.dt_s)
-    S = len(samples)
-    G = part.horizon_mm
-    dof = robot.dof
 
-    # waypoints: TCP, its surface value (contacts) and the joint step per mm on work
-    tcp_wp = _fk_chunks(fk, q, s.chunk_samples)
+def _contact_tree(part, tcp_wp: np.ndarray, s: MotionCheckSettings):
+    """A k-d tree of the waypoints whose TCP touches the surface (contacts), or None without one."""
     wp_value = part.signed_distance(tcp_wp)
     touching = np.abs(wp_value) <= s.on_surface_tol_mm
-    contact_tree = cKDTree(tcp_wp[touching]) if touching.any() else None
+    return cKDTree(tcp_wp[touching]) if touching.any() else None
 
-    best_pen = _Best()        # min of c (= -penetration) over all bodies incl. the TCP
-    best_clear = _Best()      # min clearance, off-work tool + links
-    best_tcp = _Best()        # min TCP value, off-work, not at contacts
-    best_dev = _Best()        # min of -|TCP deviation| on work
-    best_edge = _Best()       # min of -(TCP beyond the part's edge) on work
-    fails = {"penetration": [], "clearance": [], "deviation": []}
-    body_pen = {name: _Best() for name in ["tcp"] + [b.name for b in bodies]}
-    body_clear = {b.name: _Best() for b in bodies}   # off work, against the part
 
-    U_body, U_tcp = np.inf, np.inf
-    nonwork_codes = np.array(NON_WORK)
-    place = _Placer(samples, zone, pidx, index_label)
-    per_index = _PerIndex(place.sample_index())
-    cell = _cell_pass_start(world, fk, q, samples) if world is not None and world.pairs else None
+class _Tally:
+    """The check's figures, fed chunk by chunk: the extremes with where they happened, the failing samples,
+    and the smallest upper bounds seen so far (``U_tcp``, ``U_body``) that prune the part's queries."""
 
-    for start in range(0, S, int(s.chunk_samples)):
-        sl = slice(start, min(start + int(s.chunk_samples), S))
-        n = sl.stop - sl.start
-        qc = samples.q(q, sl)
-        fkb = fk(qc, frames=cell is not None)
-        if cell is not None:
-            cell.feed(sl.start, fkb)
-        zc = samples.zone[sl]
+    def __init__(self, part, bodies: list[_Body], s: MotionCheckSettings, contact_tree, per_index: _PerIndex):
+        self.part, self.bodies, self.s, self.G = part, bodies, s, part.horizon_mm
+        self.contact_tree, self.per_index = contact_tree, per_index
+        self.best_pen = _Best()        # min of c (= -penetration) over all bodies incl. the TCP
+        self.best_clear = _Best()      # min clearance, off-work tool + links
+        self.best_tcp = _Best()        # min TCP value, off-work, not at contacts
+        self.best_dev = _Best()        # min of -|TCP deviation| on work
+        self.best_edge = _Best()       # min of -(TCP beyond the part's edge) on work
+        self.fails = {"penetration": [], "clearance": [], "deviation": []}
+        self.body_pen = {name: _Best() for name in ["tcp"] + [b.name for b in bodies]}
+        self.body_clear = {b.name: _Best() for b in bodies}   # off work, against the part
+        self.U_body, self.U_tcp = np.inf, np.inf
+
+    def feed(self, sl: slice, zc: np.ndarray, fkb, dof: int) -> None:
+        """The samples ``sl``: their zones and forward kinematics; the TCP first, then the capsules."""
         work = zc == WORK
-        nonwork = np.isin(zc, nonwork_codes)
+        nonwork = np.isin(zc, np.array(NON_WORK))
         gidx = np.arange(sl.start, sl.stop)
-        # ---- TCP
-        tcp = fkb.tcp
-        contact = np.zeros(n, bool)
-        if contact_tree is not None and s.contact_allowance_mm > 0:
+        self._tcp(gidx, fkb.tcp, work, nonwork)
+        self._capsules(gidx, fkb, dof, work, nonwork)
+
+    def _near_contact(self, tcp: np.ndarray, work: np.ndarray) -> np.ndarray:
+        """Off-work samples whose TCP is within the contact allowance of a waypoint touching the surface."""
+        s = self.s
+        contact = np.zeros(len(tcp), bool)
+        if self.contact_tree is not None and s.contact_allowance_mm > 0:
             sel = np.nonzero(~work)[0]
-            d, _ = contact_tree.query(tcp[sel], distance_upper_bound=s.contact_allowance_mm * (1 + 1e-9) + 1e-9)
+            d, _ = self.contact_tree.query(tcp[sel],
+                                           distance_upper_bound=s.contact_allowance_mm * (1 + 1e-9) + 1e-9)
             contact[sel[np.isfinite(d)]] = True
-        eligible = nonwork & ~contact
+        return contact
+
+    def _tcp_values(self, gidx, tcp, work, eligible):
+        """The TCP's surface value and work deviation per sample (inf where pruned); offers the edge overrun."""
+        part = self.part
         if eligible.any():
-            U_tcp = min(U_tcp, float(part.upper_bound_distance(tcp[eligible]).min()))
-        thr = np.where(work, np.inf, np.where(eligible, max(0.0, min(U_tcp, G)), 0.0))
+            self.U_tcp = min(self.U_tcp, float(part.upper_bound_distance(tcp[eligible]).min()))
+        thr = np.where(work, np.inf, np.where(eligible, max(0.0, min(self.U_tcp, self.G)), 0.0))
         ev = np.nonzero(part.lower_bound(tcp, 0.0) <= thr)[0]
-        tv = np.full(n, np.inf)
-        dv = np.full(n, np.inf)  # work deviation: the value, or beyond the edge the normal offset
+        tv = np.full(len(tcp), np.inf)
+        dv = np.full(len(tcp), np.inf)  # work deviation: the value, or beyond the edge the normal offset
         tq = part.query(tcp[ev])
         tv[ev] = tq.value_mm
         dv[ev] = np.where(tq.in_footprint, tq.value_mm, tq.normal_offset_mm)
@@ -319,71 +358,80 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
         if len(out):
             lateral = np.sqrt(np.maximum(tq.distance_mm[~tq.in_footprint & work[ev]] ** 2
                                          - tq.normal_offset_mm[~tq.in_footprint & work[ev]] ** 2, 0.0))
-            best_edge.offer(-lateral, gidx[out], "tcp")
-        best_pen.offer(tv, gidx, "tcp")
-        body_pen["tcp"].offer(tv, gidx, "tcp")
+            self.best_edge.offer(-lateral, gidx[out], "tcp")
+        return tv, dv
+
+    def _tcp(self, gidx, tcp, work, nonwork) -> None:
+        """The TCP's samples: penetration, clearance off work away from contacts, deviation on work."""
+        s = self.s
+        eligible = nonwork & ~self._near_contact(tcp, work)
+        tv, dv = self._tcp_values(gidx, tcp, work, eligible)
+        self.best_pen.offer(tv, gidx, "tcp")
+        self.body_pen["tcp"].offer(tv, gidx, "tcp")
         pen = tv < -s.penetration_tol_mm
-        fails["penetration"].append((gidx[pen], np.full(pen.sum(), "tcp"), -tv[pen]))
+        self.fails["penetration"].append((gidx[pen], np.full(pen.sum(), "tcp"), -tv[pen]))
         el = np.nonzero(eligible & np.isfinite(tv))[0]
-        best_tcp.offer(tv[el], gidx[el], "tcp")
+        self.best_tcp.offer(tv[el], gidx[el], "tcp")
         if len(el):
-            U_tcp = min(U_tcp, float(tv[el].min()))
+            self.U_tcp = min(self.U_tcp, float(tv[el].min()))
         wk = np.nonzero(work)[0]
-        best_dev.offer(-np.abs(dv[wk]), gidx[wk], "tcp")
-        per_index.offer(gidx, work, nonwork, tv, np.abs(dv))
+        self.best_dev.offer(-np.abs(dv[wk]), gidx[wk], "tcp")
+        self.per_index.offer(gidx, work, nonwork, tv, np.abs(dv))
         dev = work & (np.abs(dv) > s.path_tol_mm)
-        fails["deviation"].append((gidx[dev], np.full(dev.sum(), "tcp"), dv[dev]))
-        # ---- capsules
-        cmin, U_body = _capsules(part, fkb, bodies, dof, s, nonwork, U_body)
-        for b, body in enumerate(bodies):
+        self.fails["deviation"].append((gidx[dev], np.full(dev.sum(), "tcp"), dv[dev]))
+
+    def _capsules(self, gidx, fkb, dof, work, nonwork) -> None:
+        """The tool's and the links' capsules: penetration everywhere, clearance off work."""
+        s = self.s
+        cmin, self.U_body = _capsules(self.part, fkb, self.bodies, dof, s, nonwork, self.U_body)
+        for b, body in enumerate(self.bodies):
             c = cmin[:, b]
-            best_pen.offer(c, gidx, body.name)
-            body_pen[body.name].offer(c, gidx, body.name)
+            self.best_pen.offer(c, gidx, body.name)
+            self.body_pen[body.name].offer(c, gidx, body.name)
             pen = c < -s.penetration_tol_mm
-            fails["penetration"].append((gidx[pen], np.full(pen.sum(), body.name, dtype=object), -c[pen]))
+            self.fails["penetration"].append((gidx[pen], np.full(pen.sum(), body.name, dtype=object), -c[pen]))
             nw = np.nonzero(nonwork)[0]
-            best_clear.offer(c[nw], gidx[nw], body.name)
-            body_clear[body.name].offer(c[nw], gidx[nw], body.name)
+            self.best_clear.offer(c[nw], gidx[nw], body.name)
+            self.body_clear[body.name].offer(c[nw], gidx[nw], body.name)
             low = nonwork & (c < s.clearance_mm) & ~pen
-            fails["clearance"].append((gidx[low], np.full(low.sum(), body.name, dtype=object), c[low]))
-            per_index.offer(gidx, work, nonwork, c, None, clearance=True)
+            self.fails["clearance"].append((gidx[low], np.full(low.sum(), body.name, dtype=object), c[low]))
+            self.per_index.offer(gidx, work, nonwork, c, None, clearance=True)
 
-    findings: list[str] = []
-    cell_pairs, cell_figures, cell_ok = (), None, True
-    if cell is not None:
-        cell_pairs, cell_figures, cell_lines = _cell_pass_end(cell, samples, place, s)
-        findings += cell_lines
-        cell_ok = not cell_lines
-    findings += _finding_lines(fails["penetration"], place, s, "penetration")
-    findings += _finding_lines(fails["clearance"], place, s, "clearance")
-    findings += _finding_lines(fails["deviation"], place, s, "deviation")
+    def passed(self) -> bool:
+        """True when no sample failed against the part."""
+        return not any(self.fails[k][i][0].size for k in self.fails for i in range(len(self.fails[k])))
 
-    max_pen = max(0.0, -best_pen.value) if np.isfinite(best_pen.value) else 0.0
-    pen_at = place(best_pen.sample, best_pen.body) if max_pen > 0 else None
-    min_clear = best_clear.value if best_clear.value <= G else None
-    tcp_clear = best_tcp.value if best_tcp.value <= G else None
-    dev = -best_dev.value if np.isfinite(best_dev.value) else None
-    step_rev, step_rev_at, step_pri, step_pri_at = _joint_steps(q, tcp_wp, zone, robot, t_s, pidx, index_label)
-    exact_below = max(s.clearance_mm, min(U_body, G))   # no body value at or below it was pruned
-    ok = cell_ok and not any(fails[k][i][0].size for k in fails for i in range(len(fails[k])))
-    return MotionReport(
-        ok=ok, samples=S, dt_s=float(s.dt_s), duration_s=float(t_s[-1] - t_s[0]),
-        max_penetration_mm=max_pen, max_penetration_at=pen_at,
-        min_clearance_mm=min_clear,
-        min_clearance_at=place(best_clear.sample, best_clear.body) if min_clear is not None else None,
-        tcp_min_clearance_mm=tcp_clear,
-        tcp_min_clearance_at=place(best_tcp.sample, "tcp") if tcp_clear is not None else None,
-        work_deviation_mm=dev, work_deviation_at=place(best_dev.sample, "tcp") if dev is not None else None,
-        work_beyond_edge_mm=-best_edge.value if np.isfinite(best_edge.value) else None,
-        work_beyond_edge_at=place(best_edge.sample, "tcp") if np.isfinite(best_edge.value) else None,
-        max_joint_step_deg_per_mm=step_rev, max_joint_step_at=step_rev_at,
-        max_track_step_mm_per_mm=step_pri, max_track_step_at=step_pri_at,
-        findings=tuple(findings),
-        bodies=tuple(_body_figures(name, kind, radius, body_pen[name], clear, place, exact)
-                     for name, kind, radius, clear, exact in [("tcp", "tcp", 0.0, best_tcp, max(0.0, min(U_tcp, G)))]
-                     + [(b.name, b.kind, b.radius, body_clear[b.name], exact_below) for b in bodies]),
-        part=part.describe(), settings=s, check_seconds=time.perf_counter() - clock, horizon_mm=G,
-        cell_pairs=cell_pairs, cell=cell_figures, by_index=per_index.figures(fails, G))
+    def finding_lines(self, place: _Placer) -> list[str]:
+        """The finding lines against the part: penetration, clearance, deviation."""
+        return (_finding_lines(self.fails["penetration"], place, self.s, "penetration")
+                + _finding_lines(self.fails["clearance"], place, self.s, "clearance")
+                + _finding_lines(self.fails["deviation"], place, self.s, "deviation"))
+
+    def figures(self, place: _Placer) -> dict:
+        """The report's figures against the part (``MotionReport`` fields), with where they happened."""
+        s, G = self.s, self.G
+        best_pen, best_clear, best_tcp, best_dev, best_edge = (self.best_pen, self.best_clear, self.best_tcp,
+                                                               self.best_dev, self.best_edge)
+        max_pen = max(0.0, -best_pen.value) if np.isfinite(best_pen.value) else 0.0
+        min_clear = best_clear.value if best_clear.value <= G else None
+        tcp_clear = best_tcp.value if best_tcp.value <= G else None
+        dev = -best_dev.value if np.isfinite(best_dev.value) else None
+        exact_below = max(s.clearance_mm, min(self.U_body, G))   # no body value at or below it was pruned
+        return dict(
+            max_penetration_mm=max_pen,
+            max_penetration_at=place(best_pen.sample, best_pen.body) if max_pen > 0 else None,
+            min_clearance_mm=min_clear,
+            min_clearance_at=place(best_clear.sample, best_clear.body) if min_clear is not None else None,
+            tcp_min_clearance_mm=tcp_clear,
+            tcp_min_clearance_at=place(best_tcp.sample, "tcp") if tcp_clear is not None else None,
+            work_deviation_mm=dev, work_deviation_at=place(best_dev.sample, "tcp") if dev is not None else None,
+            work_beyond_edge_mm=-best_edge.value if np.isfinite(best_edge.value) else None,
+            work_beyond_edge_at=place(best_edge.sample, "tcp") if np.isfinite(best_edge.value) else None,
+            bodies=tuple(_body_figures(name, kind, radius, self.body_pen[name], clear, place, exact)
+                         for name, kind, radius, clear, exact in
+                         [("tcp", "tcp", 0.0, best_tcp, max(0.0, min(self.U_tcp, G)))]
+                         + [(b.name, b.kind, b.radius, self.body_clear[b.name], exact_below) for b in self.bodies]),
+            by_index=self.per_index.figures(self.fails, G))
 
 
 def _cell_pass_start(world, fk, q, samples):

@@ -22,7 +22,7 @@ import trimesh
 
 from ..errors import PlanInfeasible
 from ..job import Job
-from ..motion import MotionCheckSettings, check_motion, part_from_path
+from ..motion import MotionCheckSettings, WaypointIndex, check_motion, part_from_path
 from .part_stages import surface_for_job, workpiece_for_job  # noqa: F401  (the stages of every task)
 from ..placement.margins import reach_margins
 from ..plan import plan_path
@@ -389,8 +389,8 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
                                               clearance_mm=c.clearance_mm, path_tol_mm=path_tol,
                                               tool_radius_mm=c.tool_radius_mm, link_radius_mm=c.link_radius_mm,
                                               tool_contact_exempt_mm=c.tool_contact_exempt_mm),
-                          path_index=row_segments(program.path_index, program.zone, path.segment),
-                          index_label="segment", world=collision_world(settings, robot))
+                          WaypointIndex(row_segments(program.path_index, program.zone, path.segment), "segment"),
+                          world=collision_world(settings, robot))
     figures = report.to_dict()
     if not report.ok:
         raise PlanInfeasible(f"the motion check failed ({len(report.findings)} finding(s)); first: "
