@@ -300,12 +300,76 @@ def raster_path(surface, settings: RasterSettings) -> Path:
         raise BadInput('raster.step_over_mm = "auto" is chosen from the [process] footprint by `camtool run` '
                        '(docs/process.md); here give a number of mm')
     w = _direction(settings.tool_x_world)
-    step, pitch, lead, clear = settings.step_over_mm, settings.pitch_mm, settings.lead_mm, settings.clearance_mm
-    m = settings.transition_points
     chart, g_lo = _chart_for(surface, row_angle_rad(surface, settings))
-    boundary = surface.boundary
+    runs, sign = _rows_and_runs(surface.boundary, chart, g_lo, settings).in_raster_order()
+    rows = _row_blocks(surface, chart, g_lo, runs, sign, settings)
+    blocks = _with_contour(surface, settings, chart, rows)
+    on_surface, normal, lift = _block_poses(surface, blocks, settings, w)
+    transitions = _transitions(surface, blocks, lift, on_surface.R, settings)
+    poses, segment, pidx, zcode = _in_path_order(blocks, on_surface, transitions,
+                                                 _approach_and_depart(on_surface.pos, normal, settings.clearance_mm),
+                                                 settings.transition_points)
+    return Path(poses, segment, pidx, zcode, settings.free_spin, settings.step_over_mm, settings.pitch_mm,
+                contour=None if rows.n_seg == blocks.n_seg else segment >= rows.n_seg)
 
-    # rows and runs
+
+@dataclass(frozen=True)
+class _Runs:
+    """Runs of material: each its row (an index into ``rows_t``, the rows' chart t) and its ends ``a``, ``b``
+    (chart s, mm); ``s_lo``, ``s_hi`` the patch's extent along the rows."""
+
+    rows_t: np.ndarray
+    row: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    s_lo: float
+    s_hi: float
+
+    def in_raster_order(self) -> tuple[_Runs, np.ndarray]:
+        """(the runs of the rows with material only, in boustrophedon order: row after row, alternating
+        direction; each run's way, +1 along increasing s or -1)."""
+        used, run_row = np.unique(self.row, return_inverse=True)
+        sign = np.where(run_row % 2 == 0, 1.0, -1.0)
+        order = np.lexsort((self.a * sign, run_row))
+        return _Runs(self.rows_t[used], run_row[order], self.a[order], self.b[order], self.s_lo, self.s_hi), \
+            sign[order]
+
+
+@dataclass(frozen=True)
+class _Blocks:
+    """The on-surface samples, block after block [lead-in | work | lead-out] in path order: their (u, v), a step
+    along the row (``duv``), the row's way, zone, work point number (0 off work), each lead pose's share of its
+    lead from the work (None without leads) and segment; each block's first index and length."""
+
+    uv: np.ndarray
+    duv: np.ndarray
+    direction: np.ndarray
+    zone: np.ndarray
+    point: np.ndarray
+    away: np.ndarray | None
+    seg: np.ndarray
+    block: np.ndarray
+    start: np.ndarray
+    n_lead: int       # poses in each lead
+
+    @property
+    def n_seg(self) -> int:
+        return len(self.block)
+
+
+@dataclass(frozen=True)
+class _Poses:
+    """Tool poses: rotations (N, 3, 3) and positions (N, 3) mm."""
+
+    R: np.ndarray
+    pos: np.ndarray
+
+
+def _rows_and_runs(boundary, chart: _Chart, g_lo: float, settings: RasterSettings) -> _Runs:
+    """The rows across the patch and their runs of material; BadInput for a step-over or pitch larger than the
+    patch, a raster of too many poses or no material."""
+    step, pitch, lead = settings.step_over_mm, settings.pitch_mm, settings.lead_mm
+    m = settings.transition_points
     e0, e1 = _polygon_edges_st(boundary, chart)
     t_lo, t_hi = float(e0[:, 1].min()), float(e0[:, 1].max())
     if step > t_hi - t_lo:
@@ -323,30 +387,33 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     run_row, run_a, run_b = _row_runs(boundary, chart, rows_t, e0, e1)
     if len(run_row) == 0:
         raise BadInput("surface boundary is empty: no material inside the boundary polygons")
+    return _Runs(rows_t, run_row, run_a, run_b, s_lo, s_hi)
 
-    # keep only the rows with material; arc-length table with room for the leads
-    used, run_row = np.unique(run_row, return_inverse=True)
-    rows_t = rows_t[used]
-    ext = 1.1 * (lead + 2 * pitch) / g_lo
-    table = _ArcTable(surface, chart, rows_t, s_lo - ext, s_hi + ext, min(pitch, step) / 2)
 
-    # boustrophedon order: row after row, alternating direction
-    sign = np.where(run_row % 2 == 0, 1.0, -1.0)
-    order = np.lexsort((run_a * sign, run_row))
-    run_row, run_a, run_b, sign = run_row[order], run_a[order], run_b[order], sign[order]
-    arc_a = table.arc_at(run_row, run_a)
-    length = table.arc_at(run_row, run_b) - arc_a
+def _work_points(table: _ArcTable, runs: _Runs, pitch: float) -> tuple[np.ndarray, np.ndarray]:
+    """(arc length of each run's first work point, work points per run): ``pitch`` apart, centred strictly
+    inside the run."""
+    arc_a = table.arc_at(runs.row, runs.a)
+    length = table.arc_at(runs.row, runs.b) - arc_a
     # points strictly inside the run: end margins between 0.005 and 0.505 pitch
     n_int = np.maximum(np.ceil(length / pitch - 0.01).astype(np.int64) - 1, 0)
     count = n_int + 1  # work points per segment, c_i
-    first_arc = arc_a + (length - n_int * pitch) / 2
+    return arc_a + (length - n_int * pitch) / 2, count
 
-    # per-segment blocks [lead-in | work | lead-out], built in forward (increasing s) order
+
+def _row_blocks(surface, chart: _Chart, g_lo: float, runs: _Runs, sign: np.ndarray,
+                settings: RasterSettings) -> _Blocks:
+    """The rows' blocks [lead-in | work | lead-out], one per run in path order, each built in forward
+    (increasing s) order and walked the run's way."""
+    step, pitch, lead = settings.step_over_mm, settings.pitch_mm, settings.lead_mm
+    # an arc-length table with room for the leads
+    ext = 1.1 * (lead + 2 * pitch) / g_lo
+    table = _ArcTable(surface, chart, runs.rows_t, runs.s_lo - ext, runs.s_hi + ext, min(pitch, step) / 2)
+    first_arc, count = _work_points(table, runs, pitch)
     n_lead = 0 if lead == 0 else max(1, int(round(lead / pitch)))
     lead_step = lead / n_lead if n_lead else 0.0
-    n_seg = len(count)
     block = count + 2 * n_lead
-    seg = np.repeat(np.arange(n_seg), block)
+    seg = np.repeat(np.arange(len(count)), block)
     start = np.concatenate([[0], np.cumsum(block)[:-1]])
     pos = np.arange(len(seg)) - start[seg]  # position in path order within the block
     fwd = np.where(sign[seg] > 0, pos, block[seg] - 1 - pos)  # position in forward order
@@ -355,9 +422,17 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     arc = np.where(fwd < n_lead, first_arc[seg] - (n_lead - fwd) * lead_step,
                    np.where(fwd < n_lead + c_s, first_arc[seg] + (fwd - n_lead) * pitch,
                             last_arc[seg] + (fwd - n_lead - c_s + 1) * lead_step))
-    row = run_row[seg]
-    uv = chart.uv_from_st(table.s_at(row, arc), rows_t[row])
+    row = runs.row[seg]
+    uv = chart.uv_from_st(table.s_at(row, arc), runs.rows_t[row])
+    zone, point, away = _block_zones(pos, c_s, n_lead)
+    duv = np.broadcast_to(1e-3 * chart.duv_ds, uv.shape)  # 1 um along the row: a forward difference is exact
+    direction = sign[seg]                                  # to ~1e-6 rad; then the row's way
+    return _Blocks(uv, duv, direction, zone, point, away, seg, block, start, n_lead)
 
+
+def _block_zones(pos: np.ndarray, c_s: np.ndarray, n_lead: int):
+    """(zone, work point number, share of the lead from the work or None without leads) of each pose of
+    the blocks, from its position in its block and its block's work points."""
     zone = np.where(pos < n_lead, _LEAD_IN, np.where(pos < n_lead + c_s, _WORK, _LEAD_OUT)).astype(np.int32)
     point = np.where(zone == _WORK, pos - n_lead + 1, 0).astype(np.int32)
     # share of the lead from the work end (0) to the lead's far end (1); the lift rises as its cube, so
@@ -365,63 +440,81 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     # the first and last work pose needs more than a wrist's jerk limit at the feed (the whole row slows)
     away = np.where(zone == _LEAD_IN, (n_lead - pos) / n_lead,
                     np.where(zone == _LEAD_OUT, (pos - n_lead - c_s + 1) / n_lead, 0.0)) if n_lead else None
-    duv = np.broadcast_to(1e-3 * chart.duv_ds, uv.shape)  # 1 um along the row: a forward difference is exact
-    direction = sign[seg]                                  # to ~1e-6 rad; then the row's way
+    return zone, point, away
 
-    n_rows = n_seg  # segments of the rows; a contour's runs follow
-    if _wants_contour(surface, settings, uv[zone == _WORK]):
-        runs = contour_runs(boundary, chart.kx, chart.ky, contour_offset_mm(step, pitch),
-                            periodic=spans_full_turn(surface), start_xy_mm=uv[-1] * (chart.kx, chart.ky))
-        if runs:
-            c = contour_blocks(surface, chart.kx, chart.ky, runs, pitch, lead, n_lead)
-            uv, duv = np.concatenate([uv, c.uv]), np.concatenate([duv, c.duv])
-            direction = np.concatenate([direction, np.ones(len(c.uv))])
-            zone, point = np.concatenate([zone, c.zone]), np.concatenate([point, c.point])
-            if n_lead:
-                away = np.concatenate([away, c.away])
-            seg = np.concatenate([seg, n_seg + c.segment])
-            block = np.concatenate([block, c.block])
-            start = np.concatenate([[0], np.cumsum(block)[:-1]])
-            n_seg = len(block)
-    lift = np.zeros(len(seg)) if away is None else clear * away ** 3
 
-    # geometry and orientation of the on-surface samples
-    p = surface.point_mm(uv[:, 0], uv[:, 1])
-    normal = _unit(surface.normal_at(uv[:, 0], uv[:, 1]))
-    travel = surface.point_mm(uv[:, 0] + duv[:, 0], uv[:, 1] + duv[:, 1]) - p
+def _with_contour(surface, settings: RasterSettings, chart: _Chart, rows: _Blocks) -> _Blocks:
+    """The rows' blocks followed by the contour pass's, when the face wants one (``_wants_contour``)."""
+    if not _wants_contour(surface, settings, rows.uv[rows.zone == _WORK]):
+        return rows
+    runs = contour_runs(surface.boundary, chart.kx, chart.ky,
+                        contour_offset_mm(settings.step_over_mm, settings.pitch_mm),
+                        periodic=spans_full_turn(surface), start_xy_mm=rows.uv[-1] * (chart.kx, chart.ky))
+    if not runs:
+        return rows
+    c = contour_blocks(surface, chart.kx, chart.ky, runs, settings.pitch_mm, settings.lead_mm, rows.n_lead)
+    block = np.concatenate([rows.block, c.block])
+    return _Blocks(uv=np.concatenate([rows.uv, c.uv]), duv=np.concatenate([rows.duv, c.duv]),
+                   direction=np.concatenate([rows.direction, np.ones(len(c.uv))]),
+                   zone=np.concatenate([rows.zone, c.zone]), point=np.concatenate([rows.point, c.point]),
+                   away=np.concatenate([rows.away, c.away]) if rows.n_lead else rows.away,
+                   seg=np.concatenate([rows.seg, rows.n_seg + c.segment]), block=block,
+                   start=np.concatenate([[0], np.cumsum(block)[:-1]]), n_lead=rows.n_lead)
+
+
+def _block_poses(surface, blocks: _Blocks, settings: RasterSettings, tool_x_world: np.ndarray):
+    """(the blocks' tool poses, the surface normal at each, its lift along the normal): geometry and
+    orientation of the on-surface samples, the leads lifted."""
+    b = blocks
+    lift = np.zeros(len(b.seg)) if b.away is None else settings.clearance_mm * b.away ** 3
+    p = surface.point_mm(b.uv[:, 0], b.uv[:, 1])
+    normal = _unit(surface.normal_at(b.uv[:, 0], b.uv[:, 1]))
+    travel = surface.point_mm(b.uv[:, 0] + b.duv[:, 0], b.uv[:, 1] + b.duv[:, 1]) - p
     travel = travel - np.sum(travel * normal, axis=1, keepdims=True) * normal
-    travel = _unit(travel) * direction[:, None]
-    R = _tool_rotations(normal, travel, settings.tool_x, w, settings.lead_rad, settings.tilt_rad)
-    if settings.lead_path == "tangent" and n_lead:
-        lift = np.maximum(lift, _tangent_clearing_lift(p, normal, zone, start, block, away))
-    pos_mm = p + lift[:, None] * normal
+    travel = _unit(travel) * b.direction[:, None]
+    R = _tool_rotations(normal, travel, settings.tool_x, tool_x_world, settings.lead_rad, settings.tilt_rad)
+    if settings.lead_path == "tangent" and b.n_lead:
+        lift = np.maximum(lift, _tangent_clearing_lift(p, normal, b.zone, b.start, b.block, b.away))
+    return _Poses(R, p + lift[:, None] * normal), normal, lift
 
-    # self-motion transitions between consecutive segments
-    a_idx = start[:-1] + block[:-1] - 1
-    b_idx = start[1:]
+
+def _transitions(surface, blocks: _Blocks, lift: np.ndarray, R: np.ndarray, settings: RasterSettings) -> _Poses:
+    """The self-motion poses between consecutive segments (``transition_points`` each, in order): positions
+    interpolated in (u, v) and lifted off the part, orientations by slerp."""
+    m = settings.transition_points
+    a_idx = blocks.start[:-1] + blocks.block[:-1] - 1
+    b_idx = blocks.start[1:]
     f = np.arange(1, m + 1) / (m + 1)
+    uv = blocks.uv
     uv_t = uv[a_idx, None, :] + f[None, :, None] * (uv[b_idx] - uv[a_idx])[:, None, :]
     base = lift[a_idx, None] + f[None, :] * (lift[b_idx] - lift[a_idx])[:, None]
-    top = max(clear, settings.self_motion_lift_mm)  # the self-motion zone runs off the part
+    top = max(settings.clearance_mm, settings.self_motion_lift_mm)  # the self-motion zone runs off the part
     lift_t = base + (top - base) * np.sin(np.pi * f)[None, :]
     uv_t = uv_t.reshape(-1, 2)
     n_t = _unit(surface.normal_at(uv_t[:, 0], uv_t[:, 1]))
     pos_t = surface.point_mm(uv_t[:, 0], uv_t[:, 1]) + lift_t.reshape(-1, 1) * n_t
-    if n_seg > 1:
+    if blocks.n_seg > 1:
         ra, rb = Rotation.from_matrix(R[a_idx]), Rotation.from_matrix(R[b_idx])
         rel = (ra.inv() * rb).as_rotvec()
         ra_rep = Rotation.from_matrix(np.repeat(R[a_idx], m, axis=0))
         R_t = (ra_rep * Rotation.from_rotvec((rel[:, None, :] * f[None, :, None]).reshape(-1, 3))).as_matrix()
     else:
         R_t = np.zeros((0, 3, 3))
+    return _Poses(R_t, pos_t)
 
-    # approach and depart: back off along the normal of the first / last pose
-    back = max(clear, APPROACH_MIN_MM)
+
+def _approach_and_depart(pos_mm: np.ndarray, normal: np.ndarray, clearance_mm: float):
+    """(approach positions, depart positions): backed off along the normal of the first / last pose."""
+    back = max(clearance_mm, APPROACH_MIN_MM)
     h = back * np.arange(1, APPROACH_POINTS + 1) / APPROACH_POINTS
-    pos_ap = pos_mm[0] + h[::-1, None] * normal[0]
-    pos_dp = pos_mm[-1] + h[:, None] * normal[-1]
+    return pos_mm[0] + h[::-1, None] * normal[0], pos_mm[-1] + h[:, None] * normal[-1]
 
-    # assemble in path order
+
+def _in_path_order(blocks: _Blocks, on_surface: _Poses, transitions: _Poses, ends, m: int):
+    """(poses, segment, point, zone) of the whole path in order: approach, each block with the
+    ``m`` transition poses before the next, depart (``ends``: the approach's and depart's positions)."""
+    pos_ap, pos_dp = ends
+    seg, start, n_seg, R = blocks.seg, blocks.start, blocks.n_seg, on_surface.R
     A = APPROACH_POINTS
     total = 2 * A + len(seg) + (n_seg - 1) * m
     poses = np.zeros((total, 4, 4))
@@ -430,12 +523,12 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     pidx = np.zeros(total, np.int32)
     zcode = np.zeros(total, np.int32)
     at = A + np.arange(len(seg)) + seg * m
-    poses[at, :3, :3], poses[at, :3, 3] = R, pos_mm
-    segment[at], pidx[at], zcode[at] = seg, point, zone
+    poses[at, :3, :3], poses[at, :3, 3] = R, on_surface.pos
+    segment[at], pidx[at], zcode[at] = seg, blocks.point, blocks.zone
     if n_seg > 1:
         at_t = (A + start[1:] + np.arange(n_seg - 1) * m)[:, None] + np.arange(m)[None, :]
         at_t = at_t.ravel()
-        poses[at_t, :3, :3], poses[at_t, :3, 3] = R_t, pos_t
+        poses[at_t, :3, :3], poses[at_t, :3, 3] = transitions.R, transitions.pos
         segment[at_t] = np.repeat(np.arange(1, n_seg), m)
         zcode[at_t] = _SELF
     poses[:A, :3, :3], poses[:A, :3, 3] = R[0], pos_ap
@@ -443,8 +536,7 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     poses[total - A:, :3, :3], poses[total - A:, :3, 3] = R[-1], pos_dp
     segment[total - A:] = n_seg - 1
     zcode[total - A:] = _DEPART
-    return Path(poses, segment, pidx, zcode, settings.free_spin, step, pitch,
-                contour=None if n_rows == n_seg else segment >= n_rows)
+    return poses, segment, pidx, zcode
 
 
 def _tangent_clearing_lift(p: np.ndarray, normal: np.ndarray, zone: np.ndarray, start: np.ndarray,
