@@ -124,8 +124,43 @@ class Ahead:
             self.timed_trajectory = trajectory
 
 
-def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp, part, surface, path, outdir: Path,
-                      ahead: Ahead | None = None):
+@dataclass(frozen=True)
+class RasterRun:
+    """What a raster run is given: the job and its settings, the robot, the output folder, the stage log,
+    whether the other planner is compared, the part (``part_stages.JobPart``), and the motion check's finding
+    for which the leads were planned again (None on a first run)."""
+
+    job: Job
+    settings: JobSettings
+    robot: object
+    outdir: Path
+    log: StageLog
+    compare: bool
+    part: JobPart
+    leads_retried: str | None = None
+
+    def figure_inputs(self, trajectories: dict) -> FigureInputs:
+        """What the figures of these trajectories are drawn from."""
+        return FigureInputs(trajectories, self.robot, self.outdir, self.settings.timing.check_dt_s, self.job.path.name)
+
+
+@dataclass(frozen=True)
+class Rastered:
+    """The part stages' and the raster stage's output: the workpiece as loaded, the surface (several faces when a
+    ``FaceSet``), the path, and the automatic step-over's choice (None without one)."""
+
+    wp: object
+    surface: object
+    path: object
+    step_choice: dict | None
+
+    @property
+    def several(self) -> bool:
+        """faces.select names several faces: one program for them all."""
+        return isinstance(self.surface, FaceSet)
+
+
+def planned_and_timed(r: RasterRun, made: Rastered, part, ahead: Ahead | None = None):
     """(path, joint path, trajectory, partial figures or None): the plan and time stages of a raster job.
 
     ``ahead.mapping.planned(path, joint_path)`` is told the plan before the time stage, ``ahead.timed(path,
@@ -133,14 +168,15 @@ def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp,
     Leads grow to what the ramps need (``plan_with_sized_leads``; each run's time law is planned once,
     ``remembered_runs``); with ``task.allow_partial`` the reachable stretches are planned when some poses
     are not. An unreachable plan writes its report (and the nearest shift that would fit) and is raised.
-    ``wp`` the workpiece as loaded, ``part`` what the checks measure against (``part_for_checks``)."""
-    stretches = None
+    ``made.wp`` the workpiece as loaded, ``part`` what the checks measure against (``part_for_checks``)."""
+    job, settings, robot, log = r.job, r.settings, r.robot, r.log
+    path, stretches = made.path, None
     tell = ahead.mapping.planned if ahead is not None else (lambda path_, joint_path_: None)
     with remembered_runs():  # lead sizing plans each run's time law; the time stage takes it
         try:
             try:
                 with log.clock("plan"):
-                    path, joint_path = plan_with_sized_leads(settings, surface, path, robot, workpiece=part)
+                    path, joint_path = plan_with_sized_leads(settings, made.surface, path, robot, workpiece=part)
                 tell(path, joint_path)
                 with log.clock("time"):
                     trajectory = time_for_job(settings, joint_path, path, robot,
@@ -160,7 +196,7 @@ def planned_and_timed(job: Job, settings: JobSettings, robot, log: StageLog, wp,
             shift = None
             if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, a bounded search
                 shift = nearest_feasible_shift(job, settings, robot, path)
-            report_unreachable(exc, path, robot, job, outdir, wp, surface, shift=shift,
+            report_unreachable(exc, path, robot, job, r.outdir, made.wp, made.surface, shift=shift,
                                world=collision_world(settings, robot))
             if shift is not None and not shift["already_reachable"]:
                 raise PlanInfeasible(f"{exc}; {shift['message']}", report=exc.report) from None
@@ -175,19 +211,19 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
     if settings.planner.method == "arm-angle-sqp":
         raise BadInput(f"{job.path}: planner.method: 'arm-angle-sqp' plans task.kind = 'sequential_reach', "
                        f"not {job.task.kind!r} jobs")
+    given = RasterRun(job, settings, robot, Path(outdir), log, compare, part)
     try:
-        return _helped_run(job, settings, robot, Path(outdir), log, compare, part)
+        return _helped_run(given)
     except _LeadsIntoPart as first:
         # first make the motion work: leads lifted clear of the row's tangent, planned again (a neighbouring
         # face that goes on tangentially, a dome on a cylinder); its failure, if it fails too, is the run's
         _log.warning("camtool: the motion check found the tool in the part in a lead (%s); planned again with the "
                      "leads lifted clear of the rows' tangents (raster.lead_path = \"tangent\")", first.finding)
         tangent = replace(settings, raster=replace(settings.raster, lead_path="tangent"))
-        return _helped_run(job, tangent, robot, Path(outdir), log, compare, part, leads_retried=first.finding)
+        return _helped_run(replace(given, settings=tangent, leads_retried=first.finding))
 
 
-def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
-                job_part: JobPart, leads_retried: str | None = None) -> RunResult:
+def _helped_run(r: RasterRun) -> RunResult:
     """``_run`` with its helpers forked, and closed with it."""
     # forked now, while this process plans on one CPU: the figures' and the check's libraries are imported
     # there; the redundancy map's cells are swept and the check's part is made while the path is planned, the
@@ -196,11 +232,10 @@ def _helped_run(job: Job, settings: JobSettings, robot, outdir: Path, log: Stage
     # its set-up (a quarter of a second) is not paid again there (the map's Jacobians, the check's grid loops)
     with Standby(import_figure_libraries, hand_on=True, nice=5) as figures:
         load_compiled()
-        log.lap("kernels")
+        r.log.lap("kernels")
         with Standby(import_figure_libraries, hand_on=True, nice=10) as mapping, \
                 Standby(import_part_libraries, hand_on=True) as checking:
-            return _run(job, settings, robot, outdir, log, compare, _Helpers(mapping, figures, checking),
-                        job_part, leads_retried)
+            return _run(r, _Helpers(mapping, figures, checking))
 
 
 class _LeadsIntoPart(Exception):
@@ -226,6 +261,32 @@ class _Helpers:
         return self.checking.start(partial(_check_part, settings, wp, path, surface))
 
 
+@dataclass(frozen=True)
+class _Alongside:
+    """The helpers at work once the raster is made: the motion check's process (told the raster), the figures',
+    the map made ahead, and the collision world."""
+
+    checking: Standby
+    figures: Standby
+    mapping: MapAhead
+    world: object
+
+
+@dataclass(frozen=True)
+class _Planned:
+    """The plan and time stages' output: the path programmed, its joint path and trajectory, the partial plan's
+    figures (None: all planned), the target removal's dwell, the part the checks measure against, and whether
+    the helpers were handed the trajectory by the time stage (before its 4 ms check)."""
+
+    path: object
+    joint_path: object
+    trajectory: object
+    partial_figures: dict | None
+    dwell: object
+    part: object
+    handed_ahead: bool
+
+
 def _check_part(settings: JobSettings, wp, path, surface, _prepared=None):
     """The motion check's part (``stages.motion_check_part``), made ahead."""
     return motion_check_part(settings, wp, path, surface)
@@ -242,122 +303,170 @@ def _drawn_map(ahead: MapAhead):
     return None if drawn is None else drawn.redundancy
 
 
-def _run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool,
-         helpers: _Helpers, job_part: JobPart, leads_retried: str | None = None) -> RunResult:
-    """``run`` with its helpers on standby (``camtool.alongside.Standby``)."""
-    figures = helpers.figures
-    world = collision_world(settings, robot)
-    ahead = MapAhead(helpers.mapping, robot, outdir, world)
-    wp = log.done("workpiece", job_part.workpiece())
-    surface = log.done("fit", job_part.surface())
-    several = isinstance(surface, FaceSet)  # faces.select names several faces: one program for them all
-    if several:
-        check_several_faces(job, settings)
-    check_target_inputs(job, settings.process, surface)  # a target removal map it cannot meet: before planning
-    settings, step_choice = auto_step_over(settings, surface)  # raster.step_over_mm = "auto"
+def _run(r: RasterRun, helpers: _Helpers) -> RunResult:
+    """``run`` with its helpers on standby (``camtool.alongside.Standby``): raster, plan and time, the other
+    planner compared, the figures started, post (once the motion check has passed), report."""
+    world = collision_world(r.settings, r.robot)
+    ahead = MapAhead(helpers.mapping, r.robot, r.outdir, world)
+    r, made = _rastered(r)
+    ahead.rastered(made.path)
+    along = _Alongside(helpers.rastered(r.settings, made.wp, made.path, made.surface), helpers.figures, ahead, world)
+    planned = _planned(r, made, along)
+    trajectories, compared = _compared(r, planned)
+    if not planned.handed_ahead or r.compare:
+        along.figures.start(partial(draw_run_figures, r.figure_inputs(trajectories)))
+    else:   # the joint plots are under way (``plots``): feed.png, from the trajectory sampled by the 4 ms check
+        along.figures.then(partial(draw_run_figures, r.figure_inputs(trajectories)))
+    # the check and the figures run while the programs are written (cancelled on an error: run)
+    programs, simulated, html_figures = _posted(r, made, along, planned)
+    report = _run_report(r, made, planned, simulated)
+    process, process_files = process_outputs(r.job, r.settings, planned.trajectory, r.robot,
+                                             None if made.several else made.surface, r.outdir, dwell=planned.dwell,
+                                             extra=None if made.step_choice is None
+                                             else {"step_over_auto": made.step_choice})
+    if process is not None:
+        report["process_map"] = process
+    if compared is not None:
+        report["compare"] = compared
+    return finish_run(r.log, programs, report, planned.path, planned.joint_path, r.robot, trajectories, r.outdir,
+                      extra_files=tuple(process_files), world=world, figures=along.figures, mapping=ahead,
+                      html_figures=html_figures)
+
+
+def _rastered(r: RasterRun) -> tuple[RasterRun, Rastered]:
+    """The workpiece, fit and raster stages; the run with its settings' step-over chosen (``raster.step_over_mm =
+    "auto"``). A job of several faces, or a target removal map it cannot meet, fails before planning."""
+    job, log = r.job, r.log
+    wp = log.done("workpiece", r.part.workpiece())
+    surface = log.done("fit", r.part.surface())
+    if isinstance(surface, FaceSet):  # faces.select names several faces: one program for them all
+        check_several_faces(job, r.settings)
+    check_target_inputs(job, r.settings.process, surface)  # a target removal map it cannot meet: before planning
+    settings, step_choice = auto_step_over(r.settings, surface)  # raster.step_over_mm = "auto"
     path = log.done("raster", raster_path(surface, settings.raster))
-    ahead.rastered(path)
-    checking = helpers.rastered(settings, wp, path, surface)
+    return replace(r, settings=settings), Rastered(wp, surface, path, step_choice)
 
-    def figure_inputs(trajectories):
-        return FigureInputs(trajectories, robot, outdir, settings.timing.check_dt_s, job.path.name)
 
-    def check(path_, trajectory_):   # the independent motion check, alongside the rest of the run
-        checking.then(partial(_timed_check, settings, trajectory_, robot, wp, path_, surface))
+def _hand_check(r: RasterRun, made: Rastered, checking: Standby, path, trajectory) -> None:
+    """Hand ``trajectory`` (of ``path``) to the independent motion check, alongside the rest of the run."""
+    checking.then(partial(_timed_check, r.settings, trajectory, r.robot, made.wp, path, made.surface))
 
-    def plots(path_, trajectory_):   # the joint plots need no more than the trajectory (feed.png: after the time)
-        figures.start(partial(draw_joint_plots, figure_inputs({settings.planner.method: trajectory_})))
+
+def _hand_plots(r: RasterRun, figures: Standby, path, trajectory) -> None:
+    """Start the joint plots of ``trajectory``: they need no more than the trajectory (feed.png: after the time)."""
+    figures.start(partial(draw_joint_plots, r.figure_inputs({r.settings.planner.method: trajectory})))
+
+
+def _planned(r: RasterRun, made: Rastered, along: _Alongside) -> _Planned:
+    """The plan and time stages, the trajectory handed to the motion check (and the joint plots) as soon as it
+    is timed, or once timed again for a target removal map."""
+    check = partial(_hand_check, r, made, along.checking)
+    plots = partial(_hand_plots, r, along.figures)
     # a target removal map times the trajectory again: then the helpers take that one, after the time stage
-    handed = Ahead(ahead, () if target_removal(settings) else (check,) + (() if compare else (plots,)))
-    part = part_for_checks(settings, wp, surface)
-    path, joint_path, trajectory, partial_figures = planned_and_timed(job, settings, robot, log, wp, part, surface,
-                                                                      path, outdir, handed)
-    log.done("plan", joint_path)
-    retimed, dwell = retime_for_target(job, settings, surface, path, joint_path, robot)  # a target removal map
+    handed = Ahead(along.mapping, () if target_removal(r.settings) else (check,) + (() if r.compare else (plots,)))
+    part = part_for_checks(r.settings, made.wp, made.surface)
+    path, joint_path, trajectory, partial_figures = planned_and_timed(r, made, part, handed)
+    r.log.done("plan", joint_path)
+    retimed, dwell = retime_for_target(r.job, r.settings, made.surface, path, joint_path, r.robot)  # a target map
     trajectory = trajectory if retimed is None else retimed
-    log.done("time", trajectory)
+    r.log.done("time", trajectory)
     # the post stage places no program before the motion check passed
     if handed.timed_trajectory is None:
         check(path, trajectory)
     elif handed.timed_trajectory is not trajectory:
         raise RuntimeError("the helpers were handed another trajectory than the one programmed")
-    trajectories = {settings.planner.method: trajectory}
-    compared = None
-    if compare:
-        other = "general" if settings.planner.method == "seed" else "seed"
-        try:
-            jp2, tr2 = plan_and_time(settings, path, robot, other, workpiece=part)
-            trajectories[other] = tr2
-            compared = run_report(path, jp2, tr2, robot, job, other)
-        except PlanInfeasible as exc:
-            compared = {"method": other, "status": "infeasible", "reason": str(exc)}
-        log.lap("compare")
-    if handed.timed_trajectory is None or compare:
-        figures.start(partial(draw_run_figures, figure_inputs(trajectories)))
-    else:   # the joint plots are under way (``plots``): feed.png, from the trajectory sampled by the 4 ms check
-        figures.then(partial(draw_run_figures, figure_inputs(trajectories)))
-    # the check and the figures run while the programs are written (cancelled on an error: run)
+    return _Planned(path, joint_path, trajectory, partial_figures, dwell, part, handed.timed_trajectory is not None)
 
+
+def _compared(r: RasterRun, planned: _Planned) -> tuple[dict, dict | None]:
+    """(the trajectories by planner method, the other planner's figures or None): with ``compare``, the path
+    planned and timed by the other method too (its failure is a figure)."""
+    settings = r.settings
+    trajectories = {settings.planner.method: planned.trajectory}
+    if not r.compare:
+        return trajectories, None
+    other = "general" if settings.planner.method == "seed" else "seed"
+    try:
+        jp2, tr2 = plan_and_time(settings, planned.path, r.robot, other, workpiece=planned.part)
+        trajectories[other] = tr2
+        compared = run_report(planned.path, jp2, tr2, r.robot, r.job, other)
+    except PlanInfeasible as exc:
+        compared = {"method": other, "status": "infeasible", "reason": str(exc)}
+    r.log.lap("compare")
+    return trajectories, compared
+
+
+def _posted(r: RasterRun, made: Rastered, along: _Alongside, planned: _Planned):
+    """(programs, the programs' simulation figures, report.html's figures or None): the post stage, which places
+    the programs only once the motion check has passed; a motion-check finding is the run's failure, as when
+    the check ran first."""
+    log, path, joint_path, trajectory = r.log, planned.path, planned.joint_path, planned.trajectory
     rendered = {}
 
     def motion_checked():   # the programs are placed only once the motion check has passed
         log.lap("post")
-        drawn_map = _drawn_map(ahead)
+        drawn_map = _drawn_map(along.mapping)
         if drawn_map is not None:   # report.html's figures need no verdict: rendered while the check finishes
             rendered["html"] = figure_sections({"tcp_speed_mm_s": getattr(trajectory, "tcp_speed_mm_s", 0.0)},
-                                               robot, workpiece=wp, surface=surface, path=path,
-                                               joint_path=joint_path, trajectory=trajectory, world=world,
+                                               r.robot, workpiece=made.wp, surface=made.surface, path=path,
+                                               joint_path=joint_path, trajectory=trajectory, world=along.world,
                                                redundancy=drawn_map[0])
             log.lap("report_html")
-        figures_, (wall, cpu) = checking.result()
+        figures_, (wall, cpu) = along.checking.result()
         log.alongside_seconds["check"], log.alongside_cpu_seconds["check"] = wall, cpu
         return log.done("check", figures_)
 
     simulated: dict = {}
     try:
-        programs = log.done("post", post_checked(trajectory, robot, job, outdir, path=path, report=simulated,
+        programs = log.done("post", post_checked(trajectory, r.robot, r.job, r.outdir, path=path, report=simulated,
                                                  before_placing=motion_checked))
-    except PlanInfeasible as exc:
-        failed = checking.failure()   # a motion-check finding is the run's, as when the check ran first
+    except PlanInfeasible:
+        failed = along.checking.failure()   # a motion-check finding is the run's, as when the check ran first
         if not isinstance(failed, PlanInfeasible):
             raise
-        figures.failure()   # the plots finish: none half-written
-        if leads_retried is None and leads_into_part(settings, failed):
+        along.figures.failure()   # the plots finish: none half-written
+        if r.leads_retried is None and leads_into_part(r.settings, failed):
             raise _LeadsIntoPart(str(failed.report["motion_check"]["findings"][0])) from None
-        report_failure(failed, path, joint_path, robot, job, outdir, wp, surface, world=world,
-                       redundancy=_drawn_map(ahead))
+        report_failure(failed, path, joint_path, r.robot, r.job, r.outdir, made.wp, made.surface, world=along.world,
+                       redundancy=_drawn_map(along.mapping))
         raise failed from None
-    motion = log.outputs["check"]
-    report = run_report(path, joint_path, trajectory, robot, job, settings.planner.method)
-    if "free_moves" in joint_path.events:
-        report["free_moves"] = joint_path.events["free_moves"]
-    report["lifted_connectors"] = joint_path.events.get("lifted_connectors", [])
-    if "leads" in joint_path.events:
-        report["leads"] = joint_path.events["leads"]
-    report["smoothed_runs"] = joint_path.events.get("smoothed_runs", [])
-    if leads_retried is not None:
-        report["leads_retried"] = {"lead_path": "tangent", "because": leads_retried}
-    if partial_figures is not None:
-        report["partial"] = partial_figures
+    return programs, simulated, rendered.get("html")
+
+
+def _plan_events(joint_path) -> dict:
+    """The plan's events report.json names: free moves, lifted connectors, leads sized, smoothed runs."""
+    events, out = joint_path.events, {}
+    if "free_moves" in events:
+        out["free_moves"] = events["free_moves"]
+    out["lifted_connectors"] = events.get("lifted_connectors", [])
+    if "leads" in events:
+        out["leads"] = events["leads"]
+    out["smoothed_runs"] = events.get("smoothed_runs", [])
+    return out
+
+
+def _run_report(r: RasterRun, made: Rastered, planned: _Planned, simulated: dict) -> dict:
+    """report.json's figures of a programmed run up to its status: the run's, the plan's events, the leads
+    retried, the partial plan, the motion check, the programs simulated, the faces."""
+    motion = r.log.outputs["check"]
+    report = run_report(planned.path, planned.joint_path, planned.trajectory, r.robot, r.job,
+                        r.settings.planner.method)
+    report.update(_plan_events(planned.joint_path))
+    if r.leads_retried is not None:
+        report["leads_retried"] = {"lead_path": "tangent", "because": r.leads_retried}
+    if planned.partial_figures is not None:
+        report["partial"] = planned.partial_figures
     report["motion_check"] = motion
     report["programs_simulated"] = simulated
-    faces_of_job = faces_settings(job)
+    faces_of_job = faces_settings(r.job)
     if faces_of_job.segmented:   # the faces of the part and which the job works (the fit stage's segmentation)
-        faces = faces_report(faces_of_job, wp)
-        if several:  # each face worked, in working order: coverage and feed
-            faces["worked"] = faces_worked(surface, path, trajectory,
-                                           sampled_for(trajectory, robot, settings.timing.check_dt_s), motion)
-        log.outputs["faces"] = faces
+        faces = faces_report(faces_of_job, made.wp)
+        if made.several:  # each face worked, in working order: coverage and feed
+            faces["worked"] = faces_worked(made.surface, planned.path, planned.trajectory,
+                                           sampled_for(planned.trajectory, r.robot, r.settings.timing.check_dt_s),
+                                           motion)
+        r.log.outputs["faces"] = faces
         report["faces"] = {k: v for k, v in faces.items() if k != "labels"}
     report["limits_ok"] = True  # post_checked passed the independent check
     report["status"] = "ok"
-    process, process_files = process_outputs(job, settings, trajectory, robot, None if several else surface,
-                                             outdir, dwell=dwell,
-                                             extra=None if step_choice is None else {"step_over_auto": step_choice})
-    if process is not None:
-        report["process_map"] = process
-    if compared is not None:
-        report["compare"] = compared
-    return finish_run(log, programs, report, path, joint_path, robot, trajectories, outdir,
-                      extra_files=tuple(process_files), world=world, figures=figures, mapping=ahead,
-                      html_figures=rendered.get("html"))
+    return report
