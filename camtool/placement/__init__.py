@@ -10,8 +10,8 @@ import cycle):
 - ``margins``: ``reach_margins(path, joint_path, robot)``, the margins of a
   planned run (joint limits, reach, manipulability) for report.json.
 - ``screen``: the fast reachability screen of one placement and its cost.
-- ``shift``: ``nearest_feasible_shift(job, settings, robot, path)``, the smallest
-  move of the workpiece that the screen finds reachable (for failed runs).
+- ``shift``: ``nearest_feasible_shift(job, settings, robot, path, search)``, the smallest
+  move of the workpiece that the screen finds reachable (for failed runs; ``ShiftSearch``: how far and how hard).
 - ``partial``: ``reachable_stretches`` / ``partial_path``, the reachable parts
   of a path (for ``--allow-partial``).
 - ``search``: ``camtool place``: raster screen over the user's bounds, local

@@ -20,6 +20,7 @@ it; the path is the one the failed run planned (world frame).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -46,15 +47,28 @@ SHIFT_BUDGET = 3000      # screens a search may spend: an offset's subsample scr
 FULL_SCREEN_COST = 10
 
 
-def nearest_feasible_shift(job, settings, robot, path, budget: int = SHIFT_BUDGET, *, max_mm: float = 600.0,
-                           step_mm: float = 25.0, reach_margin: float = 0.02, joint_margin: float = 0.02,
-                           yaws_deg=YAWS_DEG) -> dict | None:
+@dataclass(frozen=True)
+class ShiftSearch:
+    """How far and how hard the search looks: the screens it may spend (``budget``, counted so that the answer
+    does not depend on the machine's speed or load), the largest shift and the shells' spacing (mm), the margins
+    a placement must leave (shares of the arm's reach and of each joint's range), the yaws tried (deg, nearest
+    first)."""
+
+    budget: int = SHIFT_BUDGET
+    max_mm: float = 600.0
+    step_mm: float = 25.0
+    reach_margin: float = 0.02
+    joint_margin: float = 0.02
+    yaws_deg: tuple[float, ...] = YAWS_DEG
+
+
+def nearest_feasible_shift(job, settings, robot, path, search: ShiftSearch = ShiftSearch()) -> dict | None:
     """The smallest translation (then yaw) of the workpiece that the screen finds reachable (module doc).
 
     ``job`` gives the workpiece placement (the yaw pivot), ``settings`` the job's
     ``JobSettings`` (or None), ``path`` the world-frame path at that placement.
     Returns None when the robot has no closed-form families or nothing is
-    found within ``max_mm`` and the work ``budget`` (screens, counted, so that the answer
+    found within ``search.max_mm`` and the work ``search.budget`` (screens, counted, so that the answer
     does not depend on the machine's speed or load); else a dict::
 
         {"dx_mm", "dy_mm", "dz_mm", "dyaw_deg", "distance_mm",
@@ -75,78 +89,98 @@ def nearest_feasible_shift(job, settings, robot, path, budget: int = SHIFT_BUDGE
         st = ScreenSettings(orientation_mm=settings.planner.orientation_weight_mm,
                             track_scale_mm=settings.planner.track_scale_mm)
     pivot = np.asarray(job.cell.workpiece_xyz_mm, float)
-    geom = PathGeometry.build(path, model, robot, pivot, st)
+    screens = _Screens(model, PathGeometry.build(path, model, robot, pivot, st), st, search)
+    here = screens([(0.0, 0.0, 0.0, 0.0)])[0]
+    already = bool(here.feasible)
+    if screens.good(here):
+        f = screens.confirm([here])
+        if f is not None:
+            return _answer(job, f, 0.0, already, len(path), t0)
+    found = _first_on_shells(screens, search)
+    if found is None:
+        return None
+    f = _bisected(screens, *found, search.step_mm)
+    dist = float(np.linalg.norm(f.offset[:3]))
+    return _answer(job, f, dist, already, len(path), t0)
 
-    spent = [0]
 
-    def screen(offsets, full=False):
-        spent[0] += len(offsets) * (FULL_SCREEN_COST if full else 1)
-        return screen_batch(model, geom, offsets, st, full=full)
+class _Screens:
+    """The screens of one search, counted against its budget: an offset's subsample screen counts 1, a full
+    screen ``FULL_SCREEN_COST``."""
 
-    def out_of_time():
-        return spent[0] > budget
+    def __init__(self, model, geom: PathGeometry, st: ScreenSettings, search: ShiftSearch):
+        self.model, self.geom, self.st, self.search = model, geom, st, search
+        self.spent = 0
 
-    def good(r):
-        return r.feasible and r.reach_used <= 1.0 - reach_margin and r.joint_margin >= joint_margin
+    def __call__(self, offsets, full=False):
+        """The screen of each offset (dx, dy, dz mm, dyaw deg): of a subsample of the poses, or of all (``full``)."""
+        self.spent += len(offsets) * (FULL_SCREEN_COST if full else 1)
+        return screen_batch(self.model, self.geom, offsets, self.st, full=full)
 
-    def confirm(rs):
+    def out_of_time(self) -> bool:
+        """True once the search has spent its budget."""
+        return self.spent > self.search.budget
+
+    def good(self, r) -> bool:
+        """True when the screen ``r`` reaches every pose with the search's margins."""
+        s = self.search
+        return r.feasible and r.reach_used <= 1.0 - s.reach_margin and r.joint_margin >= s.joint_margin
+
+    def confirm(self, rs):
         """The first result of rs (in order) that passes with its margins, then on every pose."""
         for r in rs:
-            if out_of_time():
+            if self.out_of_time():
                 return None
-            if good(r):
-                f = screen([r.offset], full=True)[0]
-                if good(f):
+            if self.good(r):
+                f = self([r.offset], full=True)[0]
+                if self.good(f):
                     return f
         return None
 
-    here = screen([(0.0, 0.0, 0.0, 0.0)])[0]
-    already = bool(here.feasible)
-    if good(here):
-        f = confirm([here])
-        if f is not None:
-            return _answer(job, f, 0.0, already, len(path), t0)
+
+def _first_on_shells(screens: _Screens, search: ShiftSearch):
+    """(the first confirmed screen, its shell's radius mm) on shells of growing radius, each yaw in turn
+    (none first), the shell's passing offsets by the reach they use; None when none within the budget."""
     dirs = directions()
-    found = None
-    for yaw in (0.0, *yaws_deg):
-        radii = np.arange(0.0 if yaw else step_mm, max_mm + 1e-9, step_mm)
+    for yaw in (0.0, *search.yaws_deg):
+        radii = np.arange(0.0 if yaw else search.step_mm, search.max_mm + 1e-9, search.step_mm)
         for r_mm in radii:
-            if out_of_time():
+            if screens.out_of_time():
                 break
             offs = [(*(r_mm * d), yaw) for d in (dirs if r_mm > 0 else dirs[:1])]
             offs = [tuple(round(float(v), 3) for v in o) for o in offs]
-            rs = [r for r in screen(offs) if good(r)]
+            rs = [r for r in screens(offs) if screens.good(r)]
             rs.sort(key=lambda r: (round(r.reach_used, 4), r.offset))
-            f = confirm(rs)
+            f = screens.confirm(rs)
             if f is not None:
-                found = (f, r_mm)
-                break
-        if found is not None or out_of_time():
+                return f, r_mm
+        if screens.out_of_time():
             break
-    if found is None:
-        return None
-    f, r_mm = found
-    # bisect the radius along the direction found (the yaw kept) with the subsample screen, then confirm
+    return None
+
+
+def _bisected(screens: _Screens, f, r_mm: float, step_mm: float):
+    """The screen ``f`` found on the shell of radius ``r_mm``, or a nearer one: the radius bisected along its
+    direction (its yaw kept) with the subsample screen, then confirmed."""
     d = np.array(f.offset[:3], float)
     if r_mm > 0:
         u = d / np.linalg.norm(d)
         lo, hi = max(r_mm - step_mm, 0.0), r_mm
         best = None
         for _ in range(5):
-            if out_of_time():
+            if screens.out_of_time():
                 break
             mid = 0.5 * (lo + hi)
             o = tuple(round(float(v), 3) for v in (*(mid * u), f.offset[3]))
-            g = screen([o])[0]
-            if good(g):
+            g = screens([o])[0]
+            if screens.good(g):
                 best, hi = g, mid
             else:
                 lo = mid
         if best is not None:
-            g = confirm([best])
+            g = screens.confirm([best])
             f = g if g is not None else f
-    dist = float(np.linalg.norm(f.offset[:3]))
-    return _answer(job, f, dist, already, len(path), t0)
+    return f
 
 
 def _answer(job, r, dist, already, n, t0) -> dict:
