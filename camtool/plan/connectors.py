@@ -165,13 +165,10 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
     """
     jp = joint_path
     seg = np.asarray(path.segment)
-    _surface, start, end = run_bounds(jp.zone, row_segments(jp.path_index, jp.zone, seg))
-    if touch_points:
-        start = end = np.asarray(jp.path_index) >= 0
     base_inv = np.linalg.inv(robot.base_T_mm)
     keep = np.ones(len(jp.q), bool)
     inserts: dict[int, tuple[np.ndarray, dict]] = {}
-    for r0, r1 in zip(np.flatnonzero(end)[:-1], np.flatnonzero(start)[1:]):
+    for r0, r1 in _connectors(jp, seg, touch_points):
         # two runs with no connector poses between them (a row cut at unreachable poses, --allow-partial)
         # are joined off the part too: a direct move between two surface points cuts through a convex part
         if r1 > r0 + 1 and not is_reconfiguration(jp.q[r0], jp.q[r1], robot, settings):
@@ -189,12 +186,55 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
         inserts[int(r0)] = (new, info)
     if not inserts:
         return replace(jp, events={**jp.events, "lifted_connectors": []})
+    return _spliced(jp, keep, inserts)
+
+
+def _connectors(jp: JointPath, seg: np.ndarray, touch_points: bool):
+    """(last row of a run, first row of the next) of each connector (with ``touch_points``: of every two path poses)."""
+    _surface, start, end = run_bounds(jp.zone, row_segments(jp.path_index, jp.zone, seg))
+    if touch_points:
+        start = end = np.asarray(jp.path_index) >= 0
+    return zip(np.flatnonzero(end)[:-1], np.flatnonzero(start)[1:])
+
+
+def _spliced(jp: JointPath, keep: np.ndarray, inserts: dict[int, tuple[np.ndarray, dict]]) -> JointPath:
+    """``jp``'s kept rows with each lift's rows (``inserts``, by the row they follow) after the row they follow."""
+    order = _row_order(keep, inserts)
+    q, pidx, zone, inserted = _stacked_rows(jp, order, inserts)
+    src = np.array([r for kind, r in order for _ in range(1 if kind == "row" else len(inserts[r][0]))])
+
+    def spread(a, fill):
+        out = np.asarray(a)[src].copy()
+        out[inserted] = fill
+        return out
+
+    jump = np.zeros(len(q), bool)
+    jump[1:] = spread(jp.jump, False)[1:] & ~inserted[1:]
+    _mark_straight_moves(jump, order, inserts)
+    pieces = [dict(info) for _, (_, info) in sorted(inserts.items())]
+    retract = spread(jp.retract, False)
+    retract[inserted] = zone[inserted] == ZONE_CODE["retract"]
+    return JointPath(q=q, path_index=pidx, zone=zone, position_error_mm=spread(jp.position_error_mm, 0.0),
+                     orientation_error_rad=spread(jp.orientation_error_rad, 0.0), jump=jump,
+                     reverse_planned=spread(jp.reverse_planned, False), retract=retract,
+                     singular=spread(jp.singular, False), reached=spread(jp.reached, True),
+                     events={**jp.events, "lifted_connectors": pieces})
+
+
+def _row_order(keep: np.ndarray, inserts: dict) -> list[tuple[str, int]]:
+    """The rows of the new joint path in order: ("row", r) a kept row, ("new", r) the lift inserted after row r."""
     order = []
-    for r in range(len(jp.q)):
+    for r in range(len(keep)):
         if keep[r]:
             order.append(("row", r))
         if r in inserts:
             order.append(("new", r))
+    return order
+
+
+def _stacked_rows(jp: JointPath, order: list[tuple[str, int]], inserts: dict):
+    """(q, path_index, zone, inserted) of the rows in ``order``: a lift's rows have path_index -1 and zone
+    'retract' (a strategy retract re-planned) or 'self_motion'."""
     q, pidx, zone, new_rows = [], [], [], []
     for kind, r in order:
         if kind == "row":
@@ -205,21 +245,13 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
             code = ZONE_CODE["retract"] if info["retract"] else ZONE_CODE["self_motion"]
             q.append(block); pidx.append(np.full(len(block), -1)); zone.append(np.full(len(block), code))
             new_rows.append(np.ones(len(block), bool))
-    q = np.concatenate(q)
-    pidx = np.concatenate(pidx).astype(jp.path_index.dtype)
-    zone = np.concatenate(zone).astype(jp.zone.dtype)
-    inserted = np.concatenate(new_rows)
-    src = np.array([r for kind, r in order for _ in range(1 if kind == "row" else len(inserts[r][0]))])
+    return (np.concatenate(q), np.concatenate(pidx).astype(jp.path_index.dtype),
+            np.concatenate(zone).astype(jp.zone.dtype), np.concatenate(new_rows))
 
-    def spread(a, fill):
-        out = np.asarray(a)[src].copy()
-        out[inserted] = fill
-        return out
 
-    jump = np.zeros(len(q), bool)
-    jump[1:] = spread(jp.jump, False)[1:] & ~inserted[1:]
-    # the reconfiguration's own rows were collision-checked as straight joint moves: flag them as jumps, so
-    # the timing runs them rest to rest along exactly those lines (a blend would cut the checked corners)
+def _mark_straight_moves(jump: np.ndarray, order: list[tuple[str, int]], inserts: dict) -> None:
+    """Flag each reconfiguration's own rows in ``jump``: they were collision-checked as straight joint moves, so
+    the timing runs them rest to rest along exactly those lines (a blend would cut the checked corners)."""
     at = 0
     for kind, r in order:
         if kind == "row":
@@ -228,11 +260,3 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
         block, info = inserts[r]
         jump[at + info["straight_from"]:at + info["straight_to"] + 1] = True
         at += len(block)
-    pieces = [dict(info) for _, (_, info) in sorted(inserts.items())]
-    retract = spread(jp.retract, False)
-    retract[inserted] = zone[inserted] == ZONE_CODE["retract"]
-    return JointPath(q=q, path_index=pidx, zone=zone, position_error_mm=spread(jp.position_error_mm, 0.0),
-                     orientation_error_rad=spread(jp.orientation_error_rad, 0.0), jump=jump,
-                     reverse_planned=spread(jp.reverse_planned, False), retract=retract,
-                     singular=spread(jp.singular, False), reached=spread(jp.reached, True),
-                     events={**jp.events, "lifted_connectors": pieces})
