@@ -234,121 +234,173 @@ def _solve_targets(prog, robot, profile) -> np.ndarray:
     cart = np.flatnonzero(stated)
     if not len(cart):
         return q
-    chain = _Chain(robot)
-    mid = (robot.limits.lower + robot.limits.upper) / 2
-    ax = _abb_axes(profile, robot) if prog.conf_convention == "abb" else None
-    known = np.isfinite(q[cart])
-    # seeds: the joints of the last joint target before each Cartesian one (the controller keeps its
-    # configuration); then, for any that misses, the solution of the target before it, then seeds in
-    # the asked configuration
-    last_joint = np.maximum.accumulate(np.where(stated, -1, np.arange(len(q))))
-    src = last_joint[cart]
-    seed = np.where(src[:, None] >= 0, q[np.maximum(src, 0)], mid[None, :])
-    seed = np.where(known, q[cart], seed)
-    done = np.zeros(len(cart), bool)
-    # joint moves to Cartesian positions with no joint target before them (a job written without
-    # pulse factors): the controller moves from where it is, so each is solved from the one before
-    # (Yaskawa: in the configuration its ///RCONF asks for, the turn nearest the previous target)
-    pose_only = np.flatnonzero((src < 0) & (prog.kind[cart] == "J"))
-    if len(pose_only):
+    solve = _TargetSolve(prog, robot, profile, q, stated)
+    solve.joint_moves_to_poses()
+    # Cartesian targets with no joint target before them (a Yaskawa job written without pulse
+    # factors): the controller moves on from the target before, keeping its configuration, so each
+    # is solved in run order from the joints of the one before it (a batch solve from the middle of
+    # the limits lands on other branches: the joints would jump between neighbouring targets)
+    for i in np.flatnonzero(~solve.done & (solve.src < 0)):
+        solve.from_previous(i)
+    solve.batch_passes()
+    # a run of targets the batch missed: each in run order from the one before it (the passes above
+    # reseed a target from its predecessor only once, which leaves all but the first of a run unsolved)
+    for i in np.flatnonzero(~solve.done):
+        solve.from_previous(i)
+    solve.nearest_turns()
+    return q
+
+
+class _TargetSolve:
+    """The joints of a program's Cartesian targets (``cart``, the indices of ``stated``), solved in passes
+    (``target_joints``): ``q`` (M, dof) filled in place, ``done`` set per Cartesian target once accepted."""
+
+    def __init__(self, prog, robot, profile, q: np.ndarray, stated: np.ndarray):
+        self.prog, self.robot, self.q = prog, robot, q
+        self.cart = cart = np.flatnonzero(stated)
+        self.chain = _Chain(robot)
+        self.mid = (robot.limits.lower + robot.limits.upper) / 2
+        self.ax = ax = _abb_axes(profile, robot) if prog.conf_convention == "abb" else None
+        self.known = np.isfinite(q[cart])
+        # seeds: the joints of the last joint target before each Cartesian one (the controller keeps its
+        # configuration); then, for any that misses, the solution of the target before it, then seeds in
+        # the asked configuration
+        last_joint = np.maximum.accumulate(np.where(stated, -1, np.arange(len(q))))
+        self.src = src = last_joint[cart]
+        seed = np.where(src[:, None] >= 0, q[np.maximum(src, 0)], self.mid[None, :])
+        self.seed = np.where(self.known, q[cart], seed)
+        self.done = np.zeros(len(cart), bool)
+        self.check = ax is not None and (prog.conf[cart] != CONF_UNKNOWN).all(axis=1) if ax is not None else \
+            np.zeros(len(cart), bool)
+
+    def joint_moves_to_poses(self) -> None:
+        """Joint moves to Cartesian positions with no joint target before them (a job written without
+        pulse factors): the controller moves from where it is, so each is solved from the one before
+        (Yaskawa: in the configuration its ///RCONF asks for, the turn nearest the previous target)."""
+        prog, q, cart = self.prog, self.q, self.cart
+        pose_only = np.flatnonzero((self.src < 0) & (prog.kind[cart] == "J"))
+        if not len(pose_only):
+            return
+        far = self._from_fixed_starts(pose_only)
+        for n_i, i in enumerate(pose_only):
+            k = cart[i]
+            ref = q[k - 1] if k > 0 and np.isfinite(q[k - 1]).all() else self.mid
+            cands = self._candidates(i, ref, [b_[n_i] for b_ in far])
+            if cands:
+                q[k], self.done[i] = min(cands, key=lambda w: float(np.sum((w - ref) ** 2))), True
+
+    def _from_fixed_starts(self, pose_only: np.ndarray) -> list[np.ndarray]:
+        """(solutions, position errors, orientation errors) of each of the targets ``cart[pose_only]``
+        from 48 fixed starts: they do not depend on where the robot is, so every target's are solved in
+        one batch (rows are solved independently); only the start from the previous target waits for it."""
+        robot, q = self.robot, self.q
+        starts = np.random.default_rng(0).uniform(robot.limits.lower, robot.limits.upper, (48, robot.dof))
+        K, free = self.cart[pose_only], ~self.known[pose_only]
+        S0 = np.where(self.known[pose_only][:, None, :], q[K][:, None, :], starts[None, :, :]).reshape(-1, robot.dof)
+        TS = np.repeat(self.prog.pose[K], len(starts), axis=0)
+        return [x.reshape(len(K), len(starts), *x.shape[1:]) for x in
+                _ik_batch(self.chain, TS[:, :3, 3], TS[:, :3, :3], S0, np.repeat(free, len(starts), 0), iters=80)]
+
+    def _candidates(self, i: int, ref: np.ndarray, far: list[np.ndarray]) -> list[np.ndarray]:
+        """The joint solutions of target ``cart[i]`` from ``ref`` and the fixed starts (``far``), each turned
+        to its equivalent within the limits nearest ``ref``, in the configuration the target asks for."""
         from camtool.robots.confdata import yaskawa_rconf
         from camtool.robots.ik_common import nearest_equivalent
-        starts = np.random.default_rng(0).uniform(robot.limits.lower, robot.limits.upper, (48, robot.dof))
-        # the fixed starts do not depend on where the robot is: every target's are solved in one batch
-        # (rows are solved independently); only the start from the previous target waits for it
-        K, free = cart[pose_only], ~known[pose_only]
-        S0 = np.where(known[pose_only][:, None, :], q[K][:, None, :], starts[None, :, :]).reshape(-1, robot.dof)
-        TS = np.repeat(prog.pose[K], len(starts), axis=0)
-        far = [x.reshape(len(K), len(starts), *x.shape[1:]) for x in
-               _ik_batch(chain, TS[:, :3, 3], TS[:, :3, :3], S0, np.repeat(free, len(starts), 0), iters=80)]
-    for n_i, i in enumerate(pose_only):
-        k = cart[i]
-        ref = q[k - 1] if k > 0 and np.isfinite(q[k - 1]).all() else mid
+
+        prog, robot, q, known = self.prog, self.robot, self.q, self.known
+        k = self.cart[i]
         T = prog.pose[[k]]
-        near = _ik_batch(chain, T[:, :3, 3], T[:, :3, :3], np.where(known[i], q[k], ref)[None], ~known[i][None],
+        near = _ik_batch(self.chain, T[:, :3, 3], T[:, :3, :3], np.where(known[i], q[k], ref)[None], ~known[i][None],
                          iters=80)
-        sol, ep, eo = (np.concatenate([a_, b_[n_i]]) for a_, b_ in zip(near, far))
+        sol, ep, eo = (np.concatenate([a_, b_]) for a_, b_ in zip(near, far))
         cands = [w for w in (nearest_equivalent(c, ref, robot.limits.lower, robot.limits.upper, ~robot.prismatic)
                              for c in sol[(ep < 1e-3) & (eo < 1e-5)]) if w is not None]
         if cands and (prog.conf[k] != CONF_UNKNOWN).all() and robot.dof == len(robot.conventions.axis_joints) >= 6:
             rc = yaskawa_rconf(robot, np.array(cands), 6)   # every candidate's flags in one call
             flags = np.stack([rc[:, 0], rc[:, 1], rc[:, 2], rc[:, 3] * 4 + rc[:, 4] * 2 + rc[:, 5]], axis=1)
             cands = [w for w, f in zip(cands, flags) if list(f) == list(prog.conf[k])]
-        if cands:
-            q[k], done[i] = min(cands, key=lambda w: float(np.sum((w - ref) ** 2))), True
-    check = ax is not None and (prog.conf[cart] != CONF_UNKNOWN).all(axis=1) if ax is not None else \
-        np.zeros(len(cart), bool)
+        return cands
 
-    def from_previous(i) -> bool:
+    def from_previous(self, i) -> bool:
         """Solve target ``cart[i]`` from the joints of the target before it; True if accepted."""
-        k = cart[i]
+        prog, q, known, ax = self.prog, self.q, self.known, self.ax
+        k = self.cart[i]
         if k == 0 or not np.isfinite(q[k - 1]).all():
             return False
         s0 = np.where(known[i], q[k], q[k - 1])[None]
         T = prog.pose[[k]]
-        sol, ep, eo = _ik_batch(chain, T[:, :3, 3], T[:, :3, :3], s0, ~known[i][None], iters=400)
+        sol, ep, eo = _ik_batch(self.chain, T[:, :3, 3], T[:, :3, :3], s0, ~known[i][None], iters=400)
         if not (ep[0] < 1e-3 and eo[0] < 1e-5):
             return False
-        if ax is not None and check[i] and not _conf_ok(sol, prog.conf[[k]], ax)[0]:
+        if ax is not None and self.check[i] and not _conf_ok(sol, prog.conf[[k]], ax)[0]:
             if not np.isfinite(q[k]).all():
                 q[k] = sol[0]  # reached, but not in the asked configuration: configuration_findings says so
             return False
-        q[k], done[i] = sol[0], True
+        q[k], self.done[i] = sol[0], True
         return True
 
-    # Cartesian targets with no joint target before them (a Yaskawa job written without pulse
-    # factors): the controller moves on from the target before, keeping its configuration, so each
-    # is solved in run order from the joints of the one before it (a batch solve from the middle of
-    # the limits lands on other branches: the joints would jump between neighbouring targets)
-    for i in np.flatnonzero(~done & (src < 0)):
-        from_previous(i)
-    for attempt in range(4):
-        todo = np.flatnonzero(~done)
-        if not len(todo):
-            break
+    def batch_passes(self) -> None:
+        """Up to four batch solves of the targets not done, each from the seeds the pass before left: the
+        previous target's joints once known, then seeds in the asked configuration."""
+        q, cart = self.q, self.cart
+        for attempt in range(4):
+            todo = np.flatnonzero(~self.done)
+            if not len(todo):
+                break
+            sol, good, accept = self._batch(todo)
+            q[cart[todo[accept]]] = sol[accept]
+            self.done[todo[accept]] = True
+            if attempt == 3:
+                # reached, but not in the asked configuration: configuration_findings says so
+                q[cart[todo[good & ~accept]]] = sol[good & ~accept]
+                break
+            self._reseed(todo, attempt, sol, good)
+
+    def _batch(self, todo: np.ndarray):
+        """(solutions, reached, accepted) of the targets ``cart[todo]`` from their seeds: accepted when reached
+        in the asked configuration (ABB confdata)."""
+        prog, cart, ax = self.prog, self.cart, self.ax
         T = prog.pose[cart[todo]]
-        sol, ep, eo = _ik_batch(chain, T[:, :3, 3], T[:, :3, :3], seed[todo], ~known[todo], iters=80)
+        sol, ep, eo = _ik_batch(self.chain, T[:, :3, 3], T[:, :3, :3], self.seed[todo], ~self.known[todo], iters=80)
         good = (ep < 1e-3) & (eo < 1e-5)
         if ax is not None:
             conf_ok = np.ones(len(todo), bool)
-            chk = check[todo] & good
+            chk = self.check[todo] & good
             if chk.any():
                 conf_ok[chk] = _conf_ok(sol[chk], prog.conf[cart[todo[chk]]], ax)
             accept = good & conf_ok
         else:
             accept = good
-        q[cart[todo[accept]]] = sol[accept]
-        done[todo[accept]] = True
-        if attempt == 3:
-            # reached, but not in the asked configuration: configuration_findings says so
-            q[cart[todo[good & ~accept]]] = sol[good & ~accept]
-            break
-        # next seeds: the previous target's joints now known, else a configuration seed
+        return sol, good, accept
+
+    def _reseed(self, todo: np.ndarray, attempt: int, sol: np.ndarray, good: np.ndarray) -> None:
+        """The next seeds of the targets not done: the previous target's joints now known, else a
+        configuration seed."""
+        q, known, seed, ax = self.q, self.known, self.seed, self.ax
         for j, i in enumerate(todo):
-            if done[i]:
+            if self.done[i]:
                 continue
-            k = cart[i]
+            k = self.cart[i]
             prev = q[k - 1] if k > 0 and np.isfinite(q[k - 1]).all() else None
             if attempt == 0 and prev is not None:
                 seed[i] = np.where(known[i], q[k], prev)
-            elif ax is not None and check[i]:
-                cs = _conf_seeds(sol[j] if good[j] else seed[i], prog.conf[k], ax)
+            elif ax is not None and self.check[i]:
+                cs = _conf_seeds(sol[j] if good[j] else seed[i], self.prog.conf[k], ax)
                 seed[i] = np.where(known[i], q[k], cs[min(attempt - 1, 1)] if attempt >= 1 else cs[0])
-    # a run of targets the batch missed: each in run order from the one before it (the passes above
-    # reseed a target from its predecessor only once, which leaves all but the first of a run unsolved)
-    for i in np.flatnonzero(~done):
-        from_previous(i)
-    # a revolute joint the controller solves turns to the 2*pi-equivalent inside its limits nearest
-    # the previous target (a numerical solution may land a turn away)
-    from camtool.robots.ik_common import nearest_equivalent
-    rev = ~robot.prismatic
-    for k in cart:
-        if np.isfinite(q[k]).all() and not robot.within_limits(q[k]):
-            ref = q[k - 1] if k > 0 and np.isfinite(q[k - 1]).all() else mid
-            w = nearest_equivalent(q[k], ref, robot.limits.lower, robot.limits.upper, rev)
-            if w is not None:
-                q[k] = w
-    return q
+
+    def nearest_turns(self) -> None:
+        """A revolute joint the controller solves turns to the 2*pi-equivalent inside its limits nearest
+        the previous target (a numerical solution may land a turn away)."""
+        from camtool.robots.ik_common import nearest_equivalent
+
+        robot, q = self.robot, self.q
+        rev = ~robot.prismatic
+        for k in self.cart:
+            if np.isfinite(q[k]).all() and not robot.within_limits(q[k]):
+                ref = q[k - 1] if k > 0 and np.isfinite(q[k - 1]).all() else self.mid
+                w = nearest_equivalent(q[k], ref, robot.limits.lower, robot.limits.upper, rev)
+                if w is not None:
+                    q[k] = w
 
 
 def configuration_findings(prog, robot, q, profile=None) -> list[str]:
