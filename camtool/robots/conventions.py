@@ -271,6 +271,40 @@ def conventions_from_table(table, robot_name: str, joint_names, prismatic, lower
                      if default_source != "user" else "none given: the controller's axes are the robot's joints, unchanged")
         return identity(robot_name, names, prismatic, lower, upper, default_source, reference)
     w = f"{source_file}: [controller] "
+    src, reference, driver = _table_header(table, w, default_source)
+    axes = table.get("axis")
+    if axes is None:
+        base = identity(robot_name, names, prismatic, lower, upper, src, reference)
+        ax = _Axes(base.matrix, base.offset, base.lower, base.upper, names, prismatic, list(range(len(names))))
+    else:
+        ax = _controller_axes(axes, names, prismatic, w)
+    urdf_path, urdf_names, urdf_M, urdf_ref = _urdf(table.get("urdf"), names, w, source_file, default_source)
+    return ControllerConventions(
+        name=robot_name, source=src, reference=reference, controller_axis_names=tuple(ax.names),
+        model_joint_names=names, matrix=ax.matrix, offset=ax.offset, prismatic=np.asarray(ax.prismatic, bool),
+        lower=np.asarray(ax.lower, float), upper=np.asarray(ax.upper, float),
+        tool0_in_flange=_frame(table.get("tool0_in_flange", {}), f"{w}tool0_in_flange"),
+        robot_frame_in_base=_frame(table.get("robot_frame_in_base", {}), f"{w}robot_frame_in_base"),
+        driver=driver, urdf_path=urdf_path, urdf_joint_names=urdf_names, urdf_matrix=urdf_M, urdf_reference=urdf_ref,
+        axis_joints=tuple(ax.joints))
+
+
+@dataclass(frozen=True)
+class _Axes:
+    """The controller's axes as read: the coupling matrix and zero offsets (axis = matrix @ joints + offset),
+    the limits (rad or mm), the names, which are prismatic, and the joint each drives."""
+
+    matrix: np.ndarray
+    offset: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    names: object
+    prismatic: object
+    joints: list
+
+
+def _table_header(table, w: str, default_source: str) -> tuple[str, str, str]:
+    """(source, reference, driver) of a ``[controller]`` table, its keys checked (``w``: where, for errors)."""
     if not isinstance(table, dict):
         raise BadInput(f"{w}: expected a table, found {table!r}")
     for k in table:
@@ -284,85 +318,88 @@ def conventions_from_table(table, robot_name: str, joint_names, prismatic, lower
     for key, val in (("reference", reference), ("driver", driver)):
         if not isinstance(val, str):
             raise BadInput(f"{w}{key}: expected text, found {val!r}")
-    axes = table.get("axis")
-    if axes is None:
-        base = identity(robot_name, names, prismatic, lower, upper, src, reference)
-        M, b, lo, hi, ax_names, ax_prism = base.matrix, base.offset, base.lower, base.upper, names, prismatic
-        ax_joints = list(range(len(names)))
-    else:
-        if not isinstance(axes, list) or not axes:
-            raise BadInput(f"{w}axis: expected [[controller.axis]] tables, one per controller axis")
-        if len(axes) != len(names):
-            raise BadInput(f"{w}axis: {len(axes)} controller axes for {len(names)} joints; give one per joint")
-        n = len(names)
-        M, b = np.zeros((n, n)), np.zeros(n)
-        lo, hi = np.zeros(n), np.zeros(n)
-        ax_names, ax_prism, used, ax_joints = [], [], set(), []
-        for k, a in enumerate(axes):
-            wa = f"{w}axis[{k}]"
-            if not isinstance(a, dict):
-                raise BadInput(f"{wa}: expected a table (name, joint, ...), found {a!r}")
-            for key in a:
-                if key not in _AXIS_KEYS:
-                    raise _unknown(f"{wa} ", key, _AXIS_KEYS)
-            nm = a.get("name")
-            if not isinstance(nm, str) or not nm or nm in ax_names:
-                raise BadInput(f"{wa}.name: expected a unique axis name, found {nm!r}")
-            j = _joint_index(a.get("joint"), names, f"{wa}.joint")
-            if j in used:
-                raise BadInput(f"{wa}.joint: joint {names[j]!r} already drives another controller axis")
-            used.add(j)
-            ax_joints.append(j)
-            d = a.get("direction", 1)
-            if d not in (1, -1) or isinstance(d, bool):
-                raise BadInput(f"{wa}.direction: expected 1 or -1, found {d!r}")
-            M[k, j] = 1.0
-            plus = a.get("plus", [])
-            if not isinstance(plus, list):
-                raise BadInput(f"{wa}.plus: expected a list of joint names, found {plus!r}")
-            minus = a.get("minus", [])
-            if not isinstance(minus, list):
-                raise BadInput(f"{wa}.minus: expected a list of joint names, found {minus!r}")
-            for key, coupled, c in (("plus", plus, 1.0), ("minus", minus, -1.0)):
-                for p in coupled:
-                    i = _joint_index(p, names, f"{wa}.{key}")
-                    if i == j or prismatic[i] != prismatic[j]:
-                        raise BadInput(f"{wa}.{key}: {p!r} cannot be coupled to {names[j]!r}")
-                    M[k, i] += c
-            M[k] *= d
-            scale = (lambda v: v) if prismatic[j] else math.radians
-            b[k] = scale(_num(a.get("zero_offset", 0.0), f"{wa}.zero_offset"))
-            for key, arr in (("lower", lo), ("upper", hi)):
-                if key not in a:
-                    raise BadInput(f"{wa}.{key}: missing (the controller's limit of this axis, deg or mm)")
-                arr[k] = scale(_num(a[key], f"{wa}.{key}"))
-            if lo[k] >= hi[k]:
-                raise BadInput(f"{wa}: lower limit must be below upper limit")
-            ax_names.append(nm)
-            ax_prism.append(bool(prismatic[j]))
-        if abs(np.linalg.det(M)) < 1e-9:
-            raise BadInput(f"{w}axis: the controller axes do not determine the joints (singular coupling)")
-    urdf = table.get("urdf")
-    urdf_path, urdf_names, urdf_M, urdf_ref = None, (), None, ""
-    if urdf is not None:
-        if not isinstance(urdf, dict):
-            raise BadInput(f"{w}urdf: expected a table (file, joints), found {urdf!r}")
-        for key in urdf:
-            if key not in _URDF_KEYS:
-                raise _unknown(f"{w}urdf ", key, _URDF_KEYS)
-        f, js = urdf.get("file"), urdf.get("joints")
-        if not isinstance(f, str) or not isinstance(js, list) or len(js) != len(names) \
-                or not all(isinstance(x, str) for x in js):
-            raise BadInput(f"{w}urdf: expected file = \"...urdf\" and joints = one URDF joint name per robot joint")
-        urdf_path = (_data_dir() / f) if default_source != "user" else Path(source_file).parent / f
-        urdf_names = tuple(js)
-        urdf_M = np.eye(len(names))   # URDF joint i is model joint i (the built-ins are built so)
-        urdf_ref = str(urdf.get("reference", ""))
-    return ControllerConventions(
-        name=robot_name, source=src, reference=reference, controller_axis_names=tuple(ax_names),
-        model_joint_names=names, matrix=M, offset=b, prismatic=np.asarray(ax_prism, bool),
-        lower=np.asarray(lo, float), upper=np.asarray(hi, float),
-        tool0_in_flange=_frame(table.get("tool0_in_flange", {}), f"{w}tool0_in_flange"),
-        robot_frame_in_base=_frame(table.get("robot_frame_in_base", {}), f"{w}robot_frame_in_base"),
-        driver=driver, urdf_path=urdf_path, urdf_joint_names=urdf_names, urdf_matrix=urdf_M, urdf_reference=urdf_ref,
-        axis_joints=tuple(ax_joints))
+    return src, reference, driver
+
+
+def _controller_axes(axes, names: tuple[str, ...], prismatic: np.ndarray, w: str) -> _Axes:
+    """The ``[[controller.axis]]`` tables, one per joint; BadInput unless they determine the joints."""
+    if not isinstance(axes, list) or not axes:
+        raise BadInput(f"{w}axis: expected [[controller.axis]] tables, one per controller axis")
+    if len(axes) != len(names):
+        raise BadInput(f"{w}axis: {len(axes)} controller axes for {len(names)} joints; give one per joint")
+    n = len(names)
+    M, b = np.zeros((n, n)), np.zeros(n)
+    lo, hi = np.zeros(n), np.zeros(n)
+    ax_names, ax_prism, used, ax_joints = [], [], set(), []
+    for k, a in enumerate(axes):
+        nm, j, M[k], b[k], lo[k], hi[k] = _controller_axis(a, f"{w}axis[{k}]", names, prismatic, ax_names, used)
+        used.add(j)
+        ax_joints.append(j)
+        ax_names.append(nm)
+        ax_prism.append(bool(prismatic[j]))
+    if abs(np.linalg.det(M)) < 1e-9:
+        raise BadInput(f"{w}axis: the controller axes do not determine the joints (singular coupling)")
+    return _Axes(M, b, lo, hi, ax_names, ax_prism, ax_joints)
+
+
+def _controller_axis(a, wa: str, names: tuple[str, ...], prismatic: np.ndarray, taken: list, used: set):
+    """(name, joint, coupling row, zero offset, lower, upper limit) of one ``[[controller.axis]]`` table (rad or
+    mm); ``taken`` the names and ``used`` the joints of the axes before it."""
+    if not isinstance(a, dict):
+        raise BadInput(f"{wa}: expected a table (name, joint, ...), found {a!r}")
+    for key in a:
+        if key not in _AXIS_KEYS:
+            raise _unknown(f"{wa} ", key, _AXIS_KEYS)
+    nm = a.get("name")
+    if not isinstance(nm, str) or not nm or nm in taken:
+        raise BadInput(f"{wa}.name: expected a unique axis name, found {nm!r}")
+    j = _joint_index(a.get("joint"), names, f"{wa}.joint")
+    if j in used:
+        raise BadInput(f"{wa}.joint: joint {names[j]!r} already drives another controller axis")
+    d = a.get("direction", 1)
+    if d not in (1, -1) or isinstance(d, bool):
+        raise BadInput(f"{wa}.direction: expected 1 or -1, found {d!r}")
+    row = np.zeros(len(names))
+    row[j] = 1.0
+    plus = a.get("plus", [])
+    if not isinstance(plus, list):
+        raise BadInput(f"{wa}.plus: expected a list of joint names, found {plus!r}")
+    minus = a.get("minus", [])
+    if not isinstance(minus, list):
+        raise BadInput(f"{wa}.minus: expected a list of joint names, found {minus!r}")
+    for key, coupled, c in (("plus", plus, 1.0), ("minus", minus, -1.0)):
+        for p in coupled:
+            i = _joint_index(p, names, f"{wa}.{key}")
+            if i == j or prismatic[i] != prismatic[j]:
+                raise BadInput(f"{wa}.{key}: {p!r} cannot be coupled to {names[j]!r}")
+            row[i] += c
+    row *= d
+    scale = (lambda v: v) if prismatic[j] else math.radians
+    offset = scale(_num(a.get("zero_offset", 0.0), f"{wa}.zero_offset"))
+    limit = {}
+    for key in ("lower", "upper"):
+        if key not in a:
+            raise BadInput(f"{wa}.{key}: missing (the controller's limit of this axis, deg or mm)")
+        limit[key] = scale(_num(a[key], f"{wa}.{key}"))
+    if limit["lower"] >= limit["upper"]:
+        raise BadInput(f"{wa}: lower limit must be below upper limit")
+    return nm, j, row, offset, limit["lower"], limit["upper"]
+
+
+def _urdf(urdf, names: tuple[str, ...], w: str, source_file: str, default_source: str):
+    """(file, URDF joint names, URDF-to-model matrix, reference) of a ``[controller.urdf]`` table; (None, (), None,
+    "") without one."""
+    if urdf is None:
+        return None, (), None, ""
+    if not isinstance(urdf, dict):
+        raise BadInput(f"{w}urdf: expected a table (file, joints), found {urdf!r}")
+    for key in urdf:
+        if key not in _URDF_KEYS:
+            raise _unknown(f"{w}urdf ", key, _URDF_KEYS)
+    f, js = urdf.get("file"), urdf.get("joints")
+    if not isinstance(f, str) or not isinstance(js, list) or len(js) != len(names) \
+            or not all(isinstance(x, str) for x in js):
+        raise BadInput(f"{w}urdf: expected file = \"...urdf\" and joints = one URDF joint name per robot joint")
+    urdf_path = (_data_dir() / f) if default_source != "user" else Path(source_file).parent / f
+    # URDF joint i is model joint i (the built-ins are built so)
+    return urdf_path, tuple(js), np.eye(len(names)), str(urdf.get("reference", ""))
