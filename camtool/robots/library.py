@@ -68,6 +68,7 @@ _JOINT_KEYS = {"name", "type", "a_mm", "alpha_deg", "d_mm", "theta_deg", "lower"
 _TOP_KEYS = {"name", "convention", "notes", "params", "joint", "flange", "controller"}
 _FLANGE_KEYS = {"xyz_mm", "rpy_deg"}
 _LENGTH_KEYS = ("a_mm", "d_mm")
+_LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration", "jerk")
 
 
 def _unknown_key(where: str, key: str, known) -> BadInput:
@@ -183,70 +184,22 @@ def _flange_matrix(flange, source: str) -> np.ndarray:
 
 def robot_from_toml(data: dict, source: str, params: dict | None = None) -> Robot:
     """Build a Robot from a parsed robot TOML (see module doc); errors name the key."""
-    if not isinstance(data, dict):
-        raise BadInput(f"{source}: expected a robot description table, found {type(data).__name__}")
-    unknown = sorted(set(data) - _TOP_KEYS)
-    if unknown:
-        raise _unknown_key(f"{source}: ", unknown[0], _TOP_KEYS)
-    name = data.get("name")
-    if not isinstance(name, str) or not name:
-        raise BadInput(f"{source}: name: expected a robot name, found {name!r}")
-    convention = data.get("convention", "modified")
-    if convention not in ("modified", "standard"):
-        raise BadInput(f"{source}: convention: expected 'modified' or 'standard', found {convention!r}")
-    all_params = _check_params(data.get("params"), source)
-    for k, v in (params or {}).items():
-        if k not in all_params:
-            close = difflib.get_close_matches(str(k), sorted(all_params), n=1)
-            hint = f"; did you mean {close[0]}?" if close else ""
-            raise BadInput(f"{source}: robot.params.{k}: {name} has no parameter {k!r} "
-                           f"(it has {', '.join(all_params) or 'none'}){hint}")
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-            raise BadInput(f"{source}: robot.params.{k}: expected a length > 0 mm, found {v!r}")
-        all_params[k] = check_length_mm(float(v), f"{source}: robot.params.{k}")
+    name, convention = _robot_header(data, source)
+    all_params = _robot_params(data, source, name, params)
     if "notes" in data and not isinstance(data["notes"], str):
         raise BadInput(f"{source}: notes: expected text, found {data['notes']!r}")
     joints = data.get("joint")
     if not isinstance(joints, list) or not joints:
         raise BadInput(f"{source}: joint: expected at least one [[joint]] table")
     rows, names, prismatic = [], [], []
-    lim = {k: [] for k in ("lower", "upper", "velocity", "acceleration", "jerk")}
+    lim = {k: [] for k in _LIMIT_KEYS}
     for i, j in enumerate(joints):
-        where = f"{source}: joint[{i}]"
-        if not isinstance(j, dict):
-            raise BadInput(f"{where}: expected a [[joint]] table (name, a_mm, ..., jerk), found {j!r}")
-        for key in j:
-            if key not in _JOINT_KEYS:
-                raise _unknown_key(f"{where} ", key, _JOINT_KEYS)
-        kind = j.get("type", "revolute")
-        if kind not in ("revolute", "prismatic"):
-            raise BadInput(f"{where}.type: expected 'revolute' or 'prismatic', found {kind!r}")
-        is_p = kind == "prismatic"
-        num = {k: _number(j.get(k, 0.0), f"{where}.{k}", all_params)
-               for k in ("a_mm", "alpha_deg", "d_mm", "theta_deg")}
-        for k in _LENGTH_KEYS:
-            check_length_mm(num[k], f"{where}.{k}")
-        rows.append(DHRow(num["a_mm"], np.radians(num["alpha_deg"]), num["d_mm"], np.radians(num["theta_deg"]), is_p))
-        jname = j.get("name", f"j{i + 1}")
-        if not isinstance(jname, str) or not jname:
-            raise BadInput(f"{where}.name: expected a joint name, found {jname!r}")
-        if jname in names:
-            raise BadInput(f"{where}.name: {jname!r} is already the name of joint[{names.index(jname)}]; "
-                           "joint names must be unique")
+        row, jname, is_p, limit = _joint(j, f"{source}: joint[{i}]", i, all_params, names)
+        rows.append(row)
         names.append(jname)
         prismatic.append(is_p)
         for k in lim:
-            if k not in j:
-                raise BadInput(f"{where}.{k}: missing (every joint needs lower, upper, velocity, acceleration, jerk)")
-            v = _number(j[k], f"{where}.{k}", all_params)
-            if is_p and k in ("lower", "upper"):
-                check_length_mm(v, f"{where}.{k}")
-            lim[k].append(v if is_p else np.radians(v))
-        if lim["lower"][-1] >= lim["upper"][-1]:
-            raise BadInput(f"{where}: lower limit must be below upper limit")
-        for k in ("velocity", "acceleration", "jerk"):
-            if lim[k][-1] <= 0:
-                raise BadInput(f"{where}.{k}: expected a value > 0, found {j[k]!r}")
+            lim[k].append(limit[k])
     flange_T = _flange_matrix(data.get("flange", {}), source)
     model, fid = build_pinocchio_model(rows, convention, flange_T, names, name)
     limits = Limits(*(np.array(lim[k]) for k in ("lower", "upper", "velocity", "acceleration", "jerk")))
@@ -265,3 +218,73 @@ def robot_from_toml(data: dict, source: str, params: dict | None = None) -> Robo
         notes=data.get("notes", ""),
         conventions=conventions,
     )
+
+
+def _robot_header(data, source: str) -> tuple[str, str]:
+    """(name, DH convention) of a robot TOML, its top-level keys checked."""
+    if not isinstance(data, dict):
+        raise BadInput(f"{source}: expected a robot description table, found {type(data).__name__}")
+    unknown = sorted(set(data) - _TOP_KEYS)
+    if unknown:
+        raise _unknown_key(f"{source}: ", unknown[0], _TOP_KEYS)
+    name = data.get("name")
+    if not isinstance(name, str) or not name:
+        raise BadInput(f"{source}: name: expected a robot name, found {name!r}")
+    convention = data.get("convention", "modified")
+    if convention not in ("modified", "standard"):
+        raise BadInput(f"{source}: convention: expected 'modified' or 'standard', found {convention!r}")
+    return name, convention
+
+
+def _robot_params(data: dict, source: str, name: str, params: dict | None) -> dict:
+    """The robot's ``[params]`` lengths (mm) with the job's ``robot.params`` over them."""
+    all_params = _check_params(data.get("params"), source)
+    for k, v in (params or {}).items():
+        if k not in all_params:
+            close = difflib.get_close_matches(str(k), sorted(all_params), n=1)
+            hint = f"; did you mean {close[0]}?" if close else ""
+            raise BadInput(f"{source}: robot.params.{k}: {name} has no parameter {k!r} "
+                           f"(it has {', '.join(all_params) or 'none'}){hint}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+            raise BadInput(f"{source}: robot.params.{k}: expected a length > 0 mm, found {v!r}")
+        all_params[k] = check_length_mm(float(v), f"{source}: robot.params.{k}")
+    return all_params
+
+
+def _joint(j, where: str, i: int, all_params: dict, names: list[str]):
+    """(DH row, name, prismatic, limits by key in rad or mm) of the ``[[joint]]`` table ``i``; ``names`` the
+    joints' before it."""
+    if not isinstance(j, dict):
+        raise BadInput(f"{where}: expected a [[joint]] table (name, a_mm, ..., jerk), found {j!r}")
+    for key in j:
+        if key not in _JOINT_KEYS:
+            raise _unknown_key(f"{where} ", key, _JOINT_KEYS)
+    kind = j.get("type", "revolute")
+    if kind not in ("revolute", "prismatic"):
+        raise BadInput(f"{where}.type: expected 'revolute' or 'prismatic', found {kind!r}")
+    is_p = kind == "prismatic"
+    num = {k: _number(j.get(k, 0.0), f"{where}.{k}", all_params)
+           for k in ("a_mm", "alpha_deg", "d_mm", "theta_deg")}
+    for k in _LENGTH_KEYS:
+        check_length_mm(num[k], f"{where}.{k}")
+    row = DHRow(num["a_mm"], np.radians(num["alpha_deg"]), num["d_mm"], np.radians(num["theta_deg"]), is_p)
+    jname = j.get("name", f"j{i + 1}")
+    if not isinstance(jname, str) or not jname:
+        raise BadInput(f"{where}.name: expected a joint name, found {jname!r}")
+    if jname in names:
+        raise BadInput(f"{where}.name: {jname!r} is already the name of joint[{names.index(jname)}]; "
+                       "joint names must be unique")
+    limit = {}
+    for k in _LIMIT_KEYS:
+        if k not in j:
+            raise BadInput(f"{where}.{k}: missing (every joint needs lower, upper, velocity, acceleration, jerk)")
+        v = _number(j[k], f"{where}.{k}", all_params)
+        if is_p and k in ("lower", "upper"):
+            check_length_mm(v, f"{where}.{k}")
+        limit[k] = v if is_p else np.radians(v)
+    if limit["lower"] >= limit["upper"]:
+        raise BadInput(f"{where}: lower limit must be below upper limit")
+    for k in ("velocity", "acceleration", "jerk"):
+        if limit[k] <= 0:
+            raise BadInput(f"{where}.{k}: expected a value > 0, found {j[k]!r}")
+    return row, jname, is_p, limit
