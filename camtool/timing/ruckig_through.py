@@ -214,31 +214,57 @@ def _through_chunk(limits, q, qd, qdd, h_s, pieces, share: float) -> ThroughPiec
         z = np.zeros((0, dof))
         return ThroughPieces(np.zeros(0), np.zeros(0, bool), np.zeros(0, str), np.zeros(0, int), np.zeros(0),
                              z, z.copy(), z.copy())
-    solver = _DofSolver(limits, share)
-    X0 = np.stack([q[pieces], qd[pieces], qdd[pieces]], axis=-1).tolist()          # [n][i] -> (q, qd, qdd)
-    X1 = np.stack([q[pieces + 1], qd[pieces + 1], qdd[pieces + 1]], axis=-1).tolist()
-    T = on_grid(np.asarray(h_s, float)[pieces], up=True)
-    reason = np.full(P, "", dtype=object)
-    pr = _Profiles(P, dof)
+    ch = _Chunk(limits, q, qd, qdd, h_s, pieces, share)
+    _common_durations(ch)
+    taken = _spaced_switches(ch)
+    # 3. samples: the union of switch times and both ends, evaluated from ruckig's phase states
+    live = ch.reason == ""
+    rows, times = _sample_times(taken, live)
+    sq, sv, sa, first, last = _sampled(ch, rows, times, live)
+    _check_limits(ch, rows, times, (sq, sv, sa))
+    used = ch.reason == ""
+    duration = np.where(used, ch.T, on_grid(np.asarray(h_s, float)[pieces], up=True))
+    inner = used[rows] & ~first & ~last
+    return ThroughPieces(duration, used, ch.reason.astype(str), rows[inner], times[inner], sq[inner], sv[inner],
+                         sa[inner])
 
-    def solve_pairs(rows, joints, factor=1.0):
+
+class _Chunk:
+    """One chunk's pieces being timed: the through-states ``q``, ``qd``, ``qdd`` and the ``pieces`` (piece k runs
+    from row k to k+1), each piece's duration ``T`` (on the grid), the ruckig profiles found (``pr``), and why a
+    piece is not used (``reason``; "" while it is)."""
+
+    def __init__(self, limits, q, qd, qdd, h_s, pieces, share: float):
+        self.limits, self.q, self.qd, self.qdd, self.pieces = limits, q, qd, qdd, pieces
+        self.P, self.dof = len(pieces), q.shape[1]
+        self.solver = _DofSolver(limits, share)
+        self.X0 = np.stack([q[pieces], qd[pieces], qdd[pieces]], axis=-1).tolist()     # [n][i] -> (q, qd, qdd)
+        self.X1 = np.stack([q[pieces + 1], qd[pieces + 1], qdd[pieces + 1]], axis=-1).tolist()
+        self.T = on_grid(np.asarray(h_s, float)[pieces], up=True)
+        self.reason = np.full(self.P, "", dtype=object)
+        self.pr = _Profiles(self.P, self.dof)
+
+    def solve_pairs(self, rows, joints, factor=1.0):
         """Solve joint ``joints[m]`` of piece ``rows[m]`` at the piece's T; the rows that failed."""
         failed, done_n, done_i, results = set(), [], [], []
         for n, i in zip(rows.tolist(), joints.tolist()):
-            res = solver.solve(i, X0[n][i], X1[n][i], float(T[n]), factor)
+            res = self.solver.solve(i, self.X0[n][i], self.X1[n][i], float(self.T[n]), factor)
             if res is None:
                 failed.add(n)
             else:
                 done_n.append(n)
                 done_i.append(i)
                 results.append(res)
-        pr.store(done_n, done_i, results)
+        self.pr.store(done_n, done_i, results)
         return failed
 
-    # 1. every joint at the scheduled duration; if a joint needs longer, the others are redone at its
-    #    duration rounded up to the grid (it keeps its own profile, its last phase running < 2 ns longer)
-    rows, joints = np.divmod(np.arange(P * dof), dof)
-    reason[list(solve_pairs(rows, joints))] = "ruckig_error"
+
+def _common_durations(ch: _Chunk) -> None:
+    """1. every joint at the scheduled duration; if a joint needs longer, the others are redone at its
+    duration rounded up to the grid (it keeps its own profile, its last phase running < 2 ns longer)."""
+    pr, T, reason = ch.pr, ch.T, ch.reason
+    rows, joints = np.divmod(np.arange(ch.P * ch.dof), ch.dof)
+    reason[list(ch.solve_pairs(rows, joints))] = "ruckig_error"
     for _round in range(3):
         live = reason == ""
         longest = np.nanmax(np.where(live[:, None], pr.dur, -np.inf), axis=1)
@@ -247,54 +273,74 @@ def _through_chunk(limits, q, qd, qdd, h_s, pieces, share: float) -> ThroughPiec
             break
         T[longer] = on_grid(longest[longer], up=True)
         rows, joints = np.nonzero(longer[:, None] & (pr.dur < T[:, None] - KEEP_SHORTER_S))
-        reason[list(solve_pairs(rows, joints))] = "ruckig_error"
+        reason[list(ch.solve_pairs(rows, joints))] = "ruckig_error"
     off = (pr.dur > T[:, None] + SAME_DURATION_S) | (pr.dur < T[:, None] - KEEP_SHORTER_S)
     reason[(reason == "") & off.any(axis=1)] = "no_common_duration"
 
-    # 2. joint by joint: keep switches MIN_GAP_S apart from the samples taken so far (lower jerk if needed)
-    taken = np.full((P, 2 + dof * PHASES), np.nan)
-    taken[:, 0], taken[:, 1] = 0.0, T
-    for i in range(dof):
-        s = _switch_times(pr.t[:, i], pr.j[:, i], T)
-        bad = (reason == "") & _too_close(s, taken, MIN_GAP_S)
-        for f in JERK_FACTORS[1:]:
-            rows = np.flatnonzero(bad)
-            if not len(rows):
-                break
-            keep = (pr.dur[rows, i].copy(), pr.t[rows, i].copy(), pr.j[rows, i].copy(), pr.p[rows, i].copy(),
-                    pr.v[rows, i].copy(), pr.a[rows, i].copy())
-            failed = solve_pairs(rows, np.full(len(rows), i), f)
-            ok = np.array([n not in failed for n in rows]) & (np.abs(pr.dur[rows, i] - T[rows]) <= SAME_DURATION_S)
-            s_new = _switch_times(pr.t[rows, i], pr.j[rows, i], T[rows])
-            ok &= ~_too_close(s_new, taken[rows], MIN_GAP_S)
-            s[rows[ok]] = s_new[ok]
-            bad[rows[ok]] = False
-            back = rows[~ok]  # restore the factor-1 profile where the retry did not help
-            pr.dur[back, i], pr.t[back, i], pr.j[back, i] = keep[0][~ok], keep[1][~ok], keep[2][~ok]
-            pr.p[back, i], pr.v[back, i], pr.a[back, i] = keep[3][~ok], keep[4][~ok], keep[5][~ok]
-        reason[bad] = "switch_times"
-        taken[:, 2 + i * PHASES: 2 + (i + 1) * PHASES] = s
 
-    # 3. samples: the union of switch times and both ends, evaluated from ruckig's phase states
+def _spaced_switches(ch: _Chunk) -> np.ndarray:
+    """2. joint by joint: keep switches MIN_GAP_S apart from the samples taken so far (lower jerk if needed);
+    the samples taken (P, 2 + dof * PHASES): both ends, then each joint's switch times."""
+    taken = np.full((ch.P, 2 + ch.dof * PHASES), np.nan)
+    taken[:, 0], taken[:, 1] = 0.0, ch.T
+    for i in range(ch.dof):
+        s = _switch_times(ch.pr.t[:, i], ch.pr.j[:, i], ch.T)
+        bad = (ch.reason == "") & _too_close(s, taken, MIN_GAP_S)
+        _lower_jerk(ch, i, s, bad, taken)
+        ch.reason[bad] = "switch_times"
+        taken[:, 2 + i * PHASES: 2 + (i + 1) * PHASES] = s
+    return taken
+
+
+def _lower_jerk(ch: _Chunk, i: int, s: np.ndarray, bad: np.ndarray, taken: np.ndarray) -> None:
+    """Joint ``i`` of the ``bad`` pieces recalculated with lower jerk limits (``JERK_FACTORS``) until its switches
+    ``s`` keep clear of the samples ``taken``; ``s`` and ``bad`` updated in place, the factor-1 profile kept
+    where no factor helps."""
+    pr, T = ch.pr, ch.T
+    for f in JERK_FACTORS[1:]:
+        rows = np.flatnonzero(bad)
+        if not len(rows):
+            break
+        keep = (pr.dur[rows, i].copy(), pr.t[rows, i].copy(), pr.j[rows, i].copy(), pr.p[rows, i].copy(),
+                pr.v[rows, i].copy(), pr.a[rows, i].copy())
+        failed = ch.solve_pairs(rows, np.full(len(rows), i), f)
+        ok = np.array([n not in failed for n in rows]) & (np.abs(pr.dur[rows, i] - T[rows]) <= SAME_DURATION_S)
+        s_new = _switch_times(pr.t[rows, i], pr.j[rows, i], T[rows])
+        ok &= ~_too_close(s_new, taken[rows], MIN_GAP_S)
+        s[rows[ok]] = s_new[ok]
+        bad[rows[ok]] = False
+        back = rows[~ok]  # restore the factor-1 profile where the retry did not help
+        pr.dur[back, i], pr.t[back, i], pr.j[back, i] = keep[0][~ok], keep[1][~ok], keep[2][~ok]
+        pr.p[back, i], pr.v[back, i], pr.a[back, i] = keep[3][~ok], keep[4][~ok], keep[5][~ok]
+
+
+def _sample_times(taken: np.ndarray, live: np.ndarray):
+    """(piece, time) of every sample of the ``live`` pieces: the samples ``taken`` without repeats, in order."""
     taken = np.sort(taken, axis=1)
     dup = np.zeros_like(taken, bool)
     dup[:, 1:] = taken[:, 1:] == taken[:, :-1]
     taken[dup] = np.nan
-    live = reason == ""
     rows, cols = np.nonzero(~np.isnan(taken) & live[:, None])
     times = taken[rows, cols]
     order = np.lexsort((times, rows))
-    rows, times = rows[order], times[order]
-    sq, sv, sa = _evaluate(pr, rows, times)
+    return rows[order], times[order]
+
+
+def _sampled(ch: _Chunk, rows: np.ndarray, times: np.ndarray, live: np.ndarray):
+    """(q, qd, qdd, first, last) of the samples: evaluated from ruckig's phase states, the residual at each
+    ``live`` piece's end removed by a quintic from zero to it (a piece with too large a residual is not used),
+    both ends the waypoints themselves; ``first`` / ``last`` mark each piece's first and last sample."""
+    q, qd, qdd, pieces, T = ch.q, ch.qd, ch.qdd, ch.pieces, ch.T
+    sq, sv, sa = _evaluate(ch.pr, rows, times)
     # residual at the piece end, removed by a quintic from zero to it
     ends = np.flatnonzero(live)
-    eq, ev, ea = _evaluate(pr, ends, T[ends])
+    eq, ev, ea = _evaluate(ch.pr, ends, T[ends])
     Tn = T[ends][:, None]
     rq, rv, ra = q[pieces[ends] + 1] - eq, qd[pieces[ends] + 1] - ev, qdd[pieces[ends] + 1] - ea
     big = np.abs(rq).max(axis=1) > MAX_RESIDUAL
-    reason[ends[big]] = "residual"
+    ch.reason[ends[big]] = "residual"
     c = quintic_coefficients(np.zeros_like(rq), np.zeros_like(rq), np.zeros_like(rq), rq, rv * Tn, ra * Tn**2)
-    slot = np.full(P, -1)
+    slot = np.full(ch.P, -1)
     slot[ends] = np.arange(len(ends))
     cc = [x[slot[rows]] for x in c]
     u = (times / T[rows])[:, None]
@@ -307,8 +353,14 @@ def _through_chunk(limits, q, qd, qdd, h_s, pieces, share: float) -> ThroughPiec
     for arr, src in ((sq, q), (sv, qd), (sa, qdd)):  # both ends are the waypoints themselves
         arr[first] = src[pieces[rows[first]]]
         arr[last] = src[pieces[rows[last]] + 1]
+    return sq, sv, sa, first, last
 
-    # 4. check every sample interval with the exact Hermite bounds
+
+def _check_limits(ch: _Chunk, rows: np.ndarray, times: np.ndarray, samples) -> None:
+    """4. check every sample interval with the exact Hermite bounds: a piece over ``CHECK_SHARE`` of a limit,
+    or past a position limit, is not used."""
+    sq, sv, sa = samples
+    limits = ch.limits
     same = rows[1:] == rows[:-1]
     a, b = np.flatnonzero(same), np.flatnonzero(same) + 1
     pk = piece_peaks(sq[a], sq[b], sv[a], sv[b], sa[a], sa[b], times[b] - times[a], limits.lower, limits.upper,
@@ -316,10 +368,4 @@ def _through_chunk(limits, q, qd, qdd, h_s, pieces, share: float) -> ThroughPiec
     over = (limit_ratio(pk, limits.velocity, limits.acceleration, limits.jerk, CHECK_SHARE) > 1.0) \
         | pk.position_break.any(axis=1)
     failed = np.unique(rows[a][over])
-    reason[failed[reason[failed] == ""]] = "limits"
-
-    used = reason == ""
-    duration = np.where(used, T, on_grid(np.asarray(h_s, float)[pieces], up=True))
-    inner = used[rows] & ~first & ~last
-    return ThroughPieces(duration, used, reason.astype(str), rows[inner], times[inner], sq[inner], sv[inner],
-                         sa[inner])
+    ch.reason[failed[ch.reason[failed] == ""]] = "limits"
