@@ -222,79 +222,127 @@ def run_mopso(evaluate: Callable, lower, upper, settings: MopsoSettings = MopsoS
     if np.any(upper <= lower):
         raise ValueError("every range needs lower < upper")
     d, n, s = len(lower), settings.particles, settings
-    span0 = upper - lower
     res = None if resolution is None else np.broadcast_to(np.asarray(resolution, float), (d,))
+    evals = _Evaluations(evaluate, ParetoArchive(s.archive_capacity, s.grid_divisions, rng), on_iteration)
+    lo, hi = lower.copy(), upper.copy()
+    X = _snap(lo + (hi - lo) * rng.random((n, d)), lo, hi, res)
+    swarm = _Swarm(X, *evals(X, 1, 0), lower, upper - lower)
+    total = s.explore_iters + s.optimise_iters
+    narrowed = (lower.copy(), upper.copy())
+    t_global = 0
+    for step, iters in ((1, s.explore_iters), (2, s.optimise_iters)):
+        if step == 2:
+            archive = evals.archive
+            narrowed = narrow_ranges(np.array(evals.log["X"]), np.array(evals.log["v"]) == 0, lower, upper,
+                                     archive.X if len(archive) else None, s.narrow_bins, s.narrow_invalid_share)
+            lo, hi = narrowed
+        for t in range(1, iters + 1):
+            t_global += 1
+            swarm.steer(evals.archive, evals.invalid(), lo, hi, s, rng)
+            # at the first iteration of step 2, the particles left outside the narrowed box are re-drawn inside
+            outside = swarm.fly(lo, hi, mutation_probability(t_global - 1, total, s.mutation_rate), rng,
+                                step == 2 and t == 1, res)
+            F, viol = evals(swarm.X, step, t)
+            swarm.update_bests(F, viol, outside, rng)
+    return evals.result(d, lower, upper, narrowed)
 
-    def snap(X, lo, hi):
-        if res is not None:
-            X = np.round(X / res) * res
-            X = np.where(X < lo, X + res, X)
-            X = np.where(X > hi, X - res, X)
-        return np.clip(X, lo, hi)
 
-    archive = ParetoArchive(s.archive_capacity, s.grid_divisions, rng)
-    log = {"X": [], "F": [], "v": [], "step": [], "it": []}
-    history = []
+def _snap(X, lo, hi, res):
+    """Designs rounded to the grid ``res`` (None: as they are), kept in the box [lo, hi]."""
+    if res is not None:
+        X = np.round(X / res) * res
+        X = np.where(X < lo, X + res, X)
+        X = np.where(X > hi, X - res, X)
+    return np.clip(X, lo, hi)
 
-    def run_eval(X, step, t):
-        F, viol = evaluate(X)
+
+class _Evaluations:
+    """Every design evaluated, in order (``log``), the valid ones added to the Pareto ``archive``, and the
+    count of each swarm evaluation (``history``)."""
+
+    def __init__(self, evaluate: Callable, archive: ParetoArchive, on_iteration: Callable | None):
+        self.evaluate, self.archive, self.on_iteration = evaluate, archive, on_iteration
+        self.log = {"X": [], "F": [], "v": [], "step": [], "it": []}
+        self.history = []
+
+    def __call__(self, X, step: int, t: int):
+        """(objectives, violations) of the designs ``X``, evaluated at iteration ``t`` of ``step``."""
+        log, archive = self.log, self.archive
+        F, viol = self.evaluate(X)
         F, viol = np.asarray(F, float), np.asarray(viol, float)
         for k in range(len(X)):
             log["X"].append(X[k]); log["F"].append(F[k]); log["v"].append(viol[k])
             log["step"].append(step); log["it"].append(t)
             if viol[k] == 0:
                 archive.add(X[k], F[k])
-        history.append({"step": step, "iteration": t, "archive": len(archive),
-                        "invalid": int(np.sum(viol > 0))})
-        if on_iteration is not None:
-            on_iteration(step, t, len(archive))
+        self.history.append({"step": step, "iteration": t, "archive": len(archive),
+                             "invalid": int(np.sum(viol > 0))})
+        if self.on_iteration is not None:
+            self.on_iteration(step, t, len(archive))
         return F, viol
 
-    lo, hi = lower.copy(), upper.copy()
-    X = snap(lo + (hi - lo) * rng.random((n, d)), lo, hi)
-    V = np.zeros((n, d))
-    F, viol = run_eval(X, 1, 0)
-    P, PF, Pv = X.copy(), F.copy(), viol.copy()
-    total = s.explore_iters + s.optimise_iters
-    narrowed = (lower.copy(), upper.copy())
-    t_global = 0
-    for step, iters in ((1, s.explore_iters), (2, s.optimise_iters)):
-        if step == 2:
-            all_X, all_v = np.array(log["X"]), np.array(log["v"])
-            narrowed = narrow_ranges(all_X, all_v == 0, lower, upper, archive.X if len(archive) else None,
-                                     s.narrow_bins, s.narrow_invalid_share)
-            lo, hi = narrowed
-        for t in range(1, iters + 1):
-            t_global += 1
-            leaders = np.array([archive.leader() if len(archive) else P[i] for i in range(n)])
-            r1, r2 = rng.random((n, d)), rng.random((n, d))
-            V = s.inertia * V + r1 * (P - X) + r2 * (leaders - X)
-            bad = np.array(log["X"])[np.array(log["v"]) > 0]
-            if len(bad):
-                U = (X - lower) / span0
-                V += span0 * repulsion_velocity(U, (bad - lower) / span0, s.repulsion_gain,
-                                                s.repulsion_radius, s.max_repulsion)
-            vmax = s.max_speed * (hi - lo)
-            V = np.clip(V, -vmax, vmax)
-            Xn = X + V
-            out_lo, out_hi = Xn < lo, Xn > hi
-            Xn = np.where(out_lo, lo, np.where(out_hi, hi, Xn))
-            V = np.where(out_lo | out_hi, -V, V)
-            Xn = mutate(Xn, lo, hi, mutation_probability(t_global - 1, total, s.mutation_rate), rng)
-            outside = np.zeros(n, bool)
-            if step == 2 and t == 1:  # particles left outside the narrowed box are re-drawn inside
-                outside = np.any((X < lo) | (X > hi), axis=1)
-                Xn[outside] = lo + (hi - lo) * rng.random((int(outside.sum()), d))
-                V[outside] = 0.0
-            X = snap(Xn, lo, hi)
-            F, viol = run_eval(X, step, t)
-            for i in range(n):
-                if outside[i] or _better(F[i], viol[i], PF[i], Pv[i], rng):
-                    P[i], PF[i], Pv[i] = X[i], F[i], viol[i]
-    fx, ff = archive.sorted()
-    m = len(log["F"][0]) if log["F"] else 0
-    return MopsoResult(
-        front_X=fx.reshape(-1, d), front_F=ff.reshape(-1, m), X=np.array(log["X"]).reshape(-1, d), F=np.array(log["F"]).reshape(-1, m),
-        violation=np.array(log["v"]), step=np.array(log["step"]), iteration=np.array(log["it"]),
-        lower=lower, upper=upper, narrowed_lower=narrowed[0], narrowed_upper=narrowed[1],
-        evaluations=len(log["F"]), history=history)
+    def invalid(self) -> np.ndarray:
+        """The invalid designs evaluated so far (the obstacles)."""
+        return np.array(self.log["X"])[np.array(self.log["v"]) > 0]
+
+    def result(self, d: int, lower, upper, narrowed) -> MopsoResult:
+        """The run's result: the front, every evaluation, the ranges."""
+        log = self.log
+        fx, ff = self.archive.sorted()
+        m = len(log["F"][0]) if log["F"] else 0
+        return MopsoResult(
+            front_X=fx.reshape(-1, d), front_F=ff.reshape(-1, m), X=np.array(log["X"]).reshape(-1, d), F=np.array(log["F"]).reshape(-1, m),
+            violation=np.array(log["v"]), step=np.array(log["step"]), iteration=np.array(log["it"]),
+            lower=lower, upper=upper, narrowed_lower=narrowed[0], narrowed_upper=narrowed[1],
+            evaluations=len(log["F"]), history=self.history)
+
+
+class _Swarm:
+    """The particles: positions ``X``, velocities ``V``, personal bests ``P`` with their objectives ``PF`` and
+    violations ``Pv``; ``lower`` and ``span0`` the original ranges (the repulsion's normalisation)."""
+
+    def __init__(self, X, F, viol, lower, span0):
+        n, d = X.shape
+        self.X, self.V = X, np.zeros((n, d))
+        self.P, self.PF, self.Pv = X.copy(), F.copy(), viol.copy()
+        self.lower, self.span0 = lower, span0
+
+    def steer(self, archive: ParetoArchive, bad: np.ndarray, lo, hi, s: MopsoSettings, rng) -> None:
+        """The velocity update (module doc): towards the personal best and a leader of the archive, repelled by
+        the invalid designs ``bad``, clipped to ``max_speed`` of the box [lo, hi]."""
+        n, d = self.X.shape
+        X, P, lower, span0 = self.X, self.P, self.lower, self.span0
+        leaders = np.array([archive.leader() if len(archive) else P[i] for i in range(n)])
+        r1, r2 = rng.random((n, d)), rng.random((n, d))
+        V = s.inertia * self.V + r1 * (P - X) + r2 * (leaders - X)
+        if len(bad):
+            U = (X - lower) / span0
+            V += span0 * repulsion_velocity(U, (bad - lower) / span0, s.repulsion_gain,
+                                            s.repulsion_radius, s.max_repulsion)
+        vmax = s.max_speed * (hi - lo)
+        self.V = np.clip(V, -vmax, vmax)
+
+    def fly(self, lo, hi, pm: float, rng, redraw: bool, res) -> np.ndarray:
+        """Move the particles: a position out of the box on its bound with the velocity reversed, Coello's
+        mutation with probability ``pm``, with ``redraw`` the particles outside the box re-drawn inside it,
+        then snapped to the grid ``res``; which were re-drawn."""
+        n, d = self.X.shape
+        X, V = self.X, self.V
+        Xn = X + V
+        out_lo, out_hi = Xn < lo, Xn > hi
+        Xn = np.where(out_lo, lo, np.where(out_hi, hi, Xn))
+        V = np.where(out_lo | out_hi, -V, V)
+        Xn = mutate(Xn, lo, hi, pm, rng)
+        outside = np.zeros(n, bool)
+        if redraw:
+            outside = np.any((X < lo) | (X > hi), axis=1)
+            Xn[outside] = lo + (hi - lo) * rng.random((int(outside.sum()), d))
+            V[outside] = 0.0
+        self.X, self.V = _snap(Xn, lo, hi, res), V
+        return outside
+
+    def update_bests(self, F, viol, outside: np.ndarray, rng) -> None:
+        """Each particle's best: its new design when re-drawn or better (``_better``)."""
+        for i in range(len(self.X)):
+            if outside[i] or _better(F[i], viol[i], self.PF[i], self.Pv[i], rng):
+                self.P[i], self.PF[i], self.Pv[i] = self.X[i], F[i], viol[i]
