@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,23 @@ from .dialect import (AXES, EXTERNAL_AXES, LINE_MAX, MAX_ARC_DEG, ROBOT_AXES, VE
 NEWLINE = "\r\n"   # the controller's files are Windows text files
 
 
+@dataclass(frozen=True)
+class _Motion:
+    """Per move what its speeds and approximation are written from: its kind, the controller's
+    axis values (the profile's axes in controller order, their names and maximum speeds), its
+    length (mm), its length in the blend model's units, its approximation radius (mm) and its
+    level (-1: an exact stop)."""
+
+    kind: np.ndarray
+    axis_names: list[str]
+    values: np.ndarray
+    vmax: np.ndarray
+    length: np.ndarray
+    leq: np.ndarray
+    radius: np.ndarray
+    level: np.ndarray
+
+
 def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None = None) -> list[Path]:
     """Write ``NAME.src`` and ``NAME.dat`` (plus ``NAME_NNN.src`` / ``.dat`` parts when split);
     the entry file (``NAME.src``) first."""
@@ -31,30 +49,51 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     name, _ = krl_name(profile.program_name, 20)   # room for the parts' _NNN
     robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP the program declares
     levels = [float(v) for v in o["cdis_mm"]]
+    plan = _plan(trajectory, robot, process, levels, o["arcs"])
+    parts = split_parts(len(plan), o["lines_per_file"], plan.free, "moves", f"{profile.source}: options.lines_per_file")
+    level = _levels(plan, parts)
+    axes = controller_axes(profile, robot, plan.q)
+    motion = _motion(plan, robot, profile, axes, levels, level)
+    pre, moves = _moves(plan, robot, motion, o, {r.start for r in parts})
+    targets = _targets(plan, motion.kind, profile, robot, axes)
+    before, after = _row_markers(plan, process, o["process_output"])
+    header = _header(trajectory, robot, profile, process, plan, level)
+    bodies = [_body(r, pre, moves, before, after) for r in parts]
+    return _write_files(outdir, _modules(name, header, _settings(robot, profile), parts, bodies, targets))
+
+
+def _plan(trajectory, robot, process: ProcessInfo, levels: list[float], arcs: bool):
+    """The program's moves: planned within the profile's ``cdis_mm`` radii, then the program
+    steps (arcs)."""
     plan = plan_moves(trajectory, robot, process, linear=True, levels_mm=levels, min_level_on_surface=0)
-    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if o["arcs"] else None)
-    plan = steps.apply(plan, context_for(trajectory, robot, process, plan, levels, 0))
-    n = len(plan)
-    kind = np.array(plan.kind)
-    parts = split_parts(n, o["lines_per_file"], plan.free, "moves", f"{profile.source}: options.lines_per_file")
+    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if arcs else None)
+    return steps.apply(plan, context_for(trajectory, robot, process, plan, levels, 0))
+
+
+def _levels(plan, parts: list[range]) -> np.ndarray:
+    """Each move's level, -1 (an exact stop) at the end of every module but the last."""
     level = plan.level.copy()
     for r in parts[:-1]:
         level[r.stop - 1] = -1   # a module ends with a stop: the next one is called there
-    radius = np.where(level >= 0, np.asarray(levels + [0.0])[level], 0.0)
-    # --- the controller's axis values and the moves' lengths in the blend model's units
-    axes = controller_axes(profile, robot, plan.q)
+    return level
+
+
+def _motion(plan, robot, profile, axes: dict, levels: list[float], level: np.ndarray) -> _Motion:
+    """The controller's axis values and the moves' lengths in the blend model's units, their
+    approximation radii."""
+    n = len(plan)
     order = [a for ax in AXES for a in profile.axes if a.axis == ax]
-    vmax = np.array([a.max_speed for a in order])
-    values = np.stack([axes[a.axis] for a in order], axis=1)
     length = move_lengths(plan)
     leq = np.maximum(length, np.r_[0.0, joint_travel(np.diff(plan.q, axis=0), robot.prismatic)]) if n > 1 \
         else np.zeros(n)
-    # --- statements before each move (speeds, approximation) and the move itself
-    pre, moves = _moves(plan, kind, values, vmax, [a.axis for a in order], robot, length, leq, radius, level, o,
-                        {r.start for r in parts})
-    targets = _targets(plan, kind, profile, robot, axes)
-    # --- process markers and I/O around the rows
-    out_no = o["process_output"]
+    return _Motion(kind=np.array(plan.kind), axis_names=[a.axis for a in order],
+                   values=np.stack([axes[a.axis] for a in order], axis=1),
+                   vmax=np.array([a.max_speed for a in order]), length=length, leq=leq,
+                   radius=np.where(level >= 0, np.asarray(levels + [0.0])[level], 0.0), level=level)
+
+
+def _row_markers(plan, process: ProcessInfo, out_no) -> tuple[dict[int, list[str]], dict[int, list[str]]]:
+    """The comments and $OUT assignments before a row's first move and after its last one."""
     labels = list(process.row_labels)
     before: dict[int, list[str]] = {}
     after: dict[int, list[str]] = {}
@@ -65,50 +104,76 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
             before[i] = [f"; Row {row_no} of {plan.rows}{label}"] + ([f"$OUT[{out_no}]=TRUE"] if out_no else [])
         if plan.row_end[i]:
             after[i] = ([f"$OUT[{out_no}]=FALSE"] if out_no else []) + [f"; End of row {row_no}"]
+    return before, after
+
+
+def _header(trajectory, robot, profile, process: ProcessInfo, plan, level: np.ndarray) -> list[str]:
+    """The main module's comment lines: the counts, job, profile, conventions, targets and process."""
+    o = profile.options
+    out_no = o["process_output"]
+    n = len(plan)
+    kind = np.array(plan.kind)
     n_lin = int((kind == KIND_LINEAR).sum())
     n_circ = int((kind == KIND_CIRCULAR).sum())
     date = program_date(o["date"], process)
-    header = [f"; Generated by camtool {__version__} for robot {comment_text(robot.name, 24)}: {n} moves ({n_lin} LIN, "
-              f"{n_circ} CIRC, {n - n_lin - n_circ} PTP), {int((level < 0).sum())} exact stops, {plan.rows} rows, "
-              f"{trajectory.duration_s:.3f} s",
-              f"; Job: {comment_text(process.job_name or 'unknown', 60)}; date {comment_text(date, 16)} UTC",
-              f"; Profile: {comment_text(Path(profile.source).name, 60)}. Units: mm, deg, s; $VEL.CP in m/s",
-              *_wrapped("; Conventions: ", comment_text(robot.conventions.summary(), 400)),
-              "; PTP targets are axis values (E6AXIS): no Status and Turn. LIN and CIRC targets are the TCP",
-              "; in $BASE (E6POS without S and T: the controller keeps its configuration on CP moves).",
-              f"; Moves merged and corners approximated within {process.path_tol_mm:g} mm of the planned path "
-              "(post.path_tol_mm).",
-              (f"; Process: $OUT[{out_no}] TRUE before each row's first work point, FALSE after its last one."
-               if out_no else "; Process: no output configured (profile options.process_output); this program "
-                              "switches nothing.")]
-    settings = ["BAS(#INITMOV,0)",
-                f"$BASE={{{frame_text(wobj_frame(profile))}}}",
-                f"$TOOL={{{frame_text(tool_in_tool0(robot, profile_tool(profile)))}}}",
-                "$ORI_TYPE=#VAR", "$CIRC_TYPE=#BASE", "$ADVANCE=3",
-                f"$VEL.ORI1={o['ori_vel_deg_s']:.1f}", f"$VEL.ORI2={o['ori_vel_deg_s']:.1f}"]
+    return [f"; Generated by camtool {__version__} for robot {comment_text(robot.name, 24)}: {n} moves ({n_lin} LIN, "
+            f"{n_circ} CIRC, {n - n_lin - n_circ} PTP), {int((level < 0).sum())} exact stops, {plan.rows} rows, "
+            f"{trajectory.duration_s:.3f} s",
+            f"; Job: {comment_text(process.job_name or 'unknown', 60)}; date {comment_text(date, 16)} UTC",
+            f"; Profile: {comment_text(Path(profile.source).name, 60)}. Units: mm, deg, s; $VEL.CP in m/s",
+            *_wrapped("; Conventions: ", comment_text(robot.conventions.summary(), 400)),
+            "; PTP targets are axis values (E6AXIS): no Status and Turn. LIN and CIRC targets are the TCP",
+            "; in $BASE (E6POS without S and T: the controller keeps its configuration on CP moves).",
+            f"; Moves merged and corners approximated within {process.path_tol_mm:g} mm of the planned path "
+            "(post.path_tol_mm).",
+            (f"; Process: $OUT[{out_no}] TRUE before each row's first work point, FALSE after its last one."
+             if out_no else "; Process: no output configured (profile options.process_output); this program "
+                            "switches nothing.")]
 
-    def body(r):
-        out = []
-        for i in r:
-            out += before.get(i, [])
-            out += pre[i]
-            out.append(moves[i])
-            out += after.get(i, [])
-        return out
 
-    files: dict[str, tuple[list[str], list[str]]] = {}
+def _settings(robot, profile) -> list[str]:
+    """The assignments every module starts with: BAS's initialisation (the main module's only),
+    $BASE, $TOOL, the orientation and circle types, the advance run and the orientation speeds."""
+    o = profile.options
+    return ["BAS(#INITMOV,0)",
+            f"$BASE={{{frame_text(wobj_frame(profile))}}}",
+            f"$TOOL={{{frame_text(tool_in_tool0(robot, profile_tool(profile)))}}}",
+            "$ORI_TYPE=#VAR", "$CIRC_TYPE=#BASE", "$ADVANCE=3",
+            f"$VEL.ORI1={o['ori_vel_deg_s']:.1f}", f"$VEL.ORI2={o['ori_vel_deg_s']:.1f}"]
+
+
+def _body(r: range, pre: list[list[str]], moves: list[str], before: dict, after: dict) -> list[str]:
+    """The statements of the moves ``r``: each move's assignments and its statement, with the row
+    markers."""
+    out = []
+    for i in r:
+        out += before.get(i, [])
+        out += pre[i]
+        out.append(moves[i])
+        out += after.get(i, [])
+    return out
+
+
+def _modules(name: str, header: list[str], settings: list[str], parts: list[range], bodies: list[list[str]],
+             targets: list[list[str]]) -> dict[str, tuple[list[str], list[str]]]:
+    """The modules' .src and .dat lines by module name: one module, or a main module calling
+    the parts in turn."""
     if len(parts) == 1:
-        files[name] = (_src(name, header + settings, body(parts[0])), _dat(name, [targets[i] for i in parts[0]]))
-    else:
-        calls = []
-        for k, r in enumerate(parts, 1):
-            part = f"{name}_{k:03d}"
-            calls.append(f"{part}( )")
-            files[part] = (_src(part, [f"; Part {k} of {len(parts)} of {name}: moves {r.start + 1}..{r.stop}; it "
-                                       "starts and ends off the surface."] + settings[1:], body(r)),
-                           _dat(part, [targets[i] for i in r]))
-        files = {name: (_src(name, header + settings + [f"; Runs {len(parts)} modules in turn."], calls),
-                        _dat(name, [])), **files}
+        return {name: (_src(name, header + settings, bodies[0]), _dat(name, [targets[i] for i in parts[0]]))}
+    files: dict[str, tuple[list[str], list[str]]] = {}
+    calls = []
+    for k, (r, body) in enumerate(zip(parts, bodies), 1):
+        part = f"{name}_{k:03d}"
+        calls.append(f"{part}( )")
+        files[part] = (_src(part, [f"; Part {k} of {len(parts)} of {name}: moves {r.start + 1}..{r.stop}; it "
+                                   "starts and ends off the surface."] + settings[1:], body),
+                       _dat(part, [targets[i] for i in r]))
+    return {name: (_src(name, header + settings + [f"; Runs {len(parts)} modules in turn."], calls), _dat(name, [])),
+            **files}
+
+
+def _write_files(outdir: Path, files: dict[str, tuple[list[str], list[str]]]) -> list[Path]:
+    """Write each module's .src and .dat (CRLF line ends); the paths written, in that order."""
     written = []
     for mod, (src, dat) in files.items():
         for ext, lines in ((".src", src), (".dat", dat)):
@@ -138,10 +203,12 @@ def _vel_var(axis: str) -> str:
     return f"$VEL_AXIS[{axis[1:]}]" if axis.startswith("A") else f"$VEL_EXTAX[{axis[1:]}]"
 
 
-def _moves(plan, kind, values, vmax, axis_names, robot, length, leq, radius, level, o, starts):
+def _moves(plan, robot, m: _Motion, o, starts: set[int]) -> tuple[list[list[str]], list[str]]:
     """Per move: the assignments before it (speeds, approximation) and its statement. The
     program's clock tracks the plan's: each move's written duration is rounded so that the
     error of one is carried into the next, never faster than the robot's speed limits."""
+    kind, values, vmax, axis_names = m.kind, m.values, m.vmax, m.axis_names
+    length, leq, radius, level = m.length, m.leq, m.radius, m.level
     n = len(plan)
     pre: list[list[str]] = [[] for _ in range(n)]
     moves = [""] * n
