@@ -25,33 +25,60 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     process = process if process is not None else ProcessInfo()
     outdir = Path(outdir)
     o = profile.options
-    max_len = o["program_name_length"]
-    name, _ = program_name(profile.program_name, max_len)
+    name, _ = program_name(profile.program_name, o["program_name_length"])
     robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP UTOOL holds
-    radii = [float(v) for v in o["cnt_mm"]]
-    plan = plan_moves(trajectory, robot, process, linear=True, levels_mm=radii, min_level_on_surface=0)
-    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if o["arcs"] else None)
-    plan = steps.apply(plan, context_for(trajectory, robot, process, plan, radii, 0))
-    n = len(plan)
+    plan = _plan(trajectory, robot, process, [float(v) for v in o["cnt_mm"]], o["arcs"])
     kind = np.array(plan.kind)
-    parts = split_parts(n, o["lines_per_program"], plan.free, "moves",
+    parts = split_parts(len(plan), o["lines_per_program"], plan.free, "moves",
                         f"{profile.source}: options.lines_per_program")
+    level = _levels(plan, parts)
+    order = [a for ax in AXES for a in profile.axes if a.axis == ax]
+    values, via_values = _axis_values(plan, robot, profile, order, kind)
+    speed = _speeds(plan, kind, values, np.array([a.max_speed for a in order]), robot, move_lengths(plan), o)
+    before, after = _row_markers(plan, process, o["process_output"])
+    frames = _frames(robot, tool_in_tool0(robot, profile_tool(profile)), wobj_frame(profile))
+    header = _header(robot, profile, process, name, plan, level, frames)
+    job = dict(kind=kind, values=values, via=via_values, speed=speed, term=_terms(level, o["cnt"]), before=before,
+               after=after, order=order, o=o, frames=frames)
+    return _write_files(outdir, _programs(name, parts, header, job, o["program_name_length"]))
+
+
+def _plan(trajectory, robot, process: ProcessInfo, radii: list[float], arcs: bool):
+    """The program's moves: planned within the profile's ``cnt_mm`` radii, then the program
+    steps (arcs)."""
+    plan = plan_moves(trajectory, robot, process, linear=True, levels_mm=radii, min_level_on_surface=0)
+    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if arcs else None)
+    return steps.apply(plan, context_for(trajectory, robot, process, plan, radii, 0))
+
+
+def _levels(plan, parts: list[range]) -> np.ndarray:
+    """Each move's level, -1 (FINE) at the end of every program but the last."""
     level = plan.level.copy()
     for r in parts[:-1]:
         level[r.stop - 1] = -1   # CALL ends the motion: the program before ends with FINE
-    term = [("FINE" if lv < 0 else f"CNT{int(o['cnt'][lv])}") for lv in level]
-    order = [a for ax in AXES for a in profile.axes if a.axis == ax]
+    return level
+
+
+def _terms(level: np.ndarray, cnt: list) -> list[str]:
+    """Each move's termination: FINE, or CNT n of its level."""
+    return [("FINE" if lv < 0 else f"CNT{int(cnt[lv])}") for lv in level]
+
+
+def _axis_values(plan, robot, profile, order: list, kind: np.ndarray) -> tuple[np.ndarray, dict | None]:
+    """The controller's axis values (in ``order``) of every move's position, and of each C
+    move's circle point by move index (None without C moves)."""
     axes = controller_axes(profile, robot, plan.q)
     values = np.stack([axes[a.axis] for a in order], axis=1)
-    vmax = np.array([a.max_speed for a in order])
-    speed = _speeds(plan, kind, values, vmax, robot, move_lengths(plan), o)
     via_values = None
     circ = np.flatnonzero(kind == KIND_CIRCULAR)
     if len(circ):
         va = controller_axes(profile, robot, plan.via_q[circ])
         via_values = dict(zip(circ.tolist(), np.stack([va[a.axis] for a in order], axis=1)))
-    # --- process markers and I/O around the rows
-    out_no = o["process_output"]
+    return values, via_values
+
+
+def _row_markers(plan, process: ProcessInfo, out_no) -> tuple[dict[int, list[str]], dict[int, list[str]]]:
+    """The remarks and DO instructions before a row's first move and after its last one."""
     labels = list(process.row_labels)
     before: dict[int, list[str]] = {}
     after: dict[int, list[str]] = {}
@@ -62,11 +89,18 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
             before[i] = [f"!ROW {r}/{plan.rows}{label} ;"] + ([f"DO[{out_no}]=ON ;"] if out_no else [])
         if plan.row_end[i]:
             after[i] = ([f"DO[{out_no}]=OFF ;"] if out_no else []) + [f"!END ROW {r} ;"]
+    return before, after
+
+
+def _header(robot, profile, process: ProcessInfo, name: str, plan, level: np.ndarray, frames: dict) -> dict:
+    """A program's header: the date, the remarks the entry program starts with (counts, job,
+    conventions, process output, frames) and the /ATTR comment."""
+    o = profile.options
+    out_no = o["process_output"]
+    n = len(plan)
+    kind = np.array(plan.kind)
     date = program_date(o["date"], process)
-    n_lin, n_circ = int((kind == KIND_LINEAR).sum()), len(circ)
-    tool = tool_in_tool0(robot, profile_tool(profile))
-    wobj = wobj_frame(profile)
-    frames = _frames(robot, tool, wobj)
+    n_lin, n_circ = int((kind == KIND_LINEAR).sum()), len(np.flatnonzero(kind == KIND_CIRCULAR))
     notes = [f"camtool {__version__} {comment_text(robot.name, 12)}",
              f"{n} moves {n_lin} L {n_circ} C {n - n_lin - n_circ} J",
              f"{int((level < 0).sum())} FINE {plan.rows} rows tol {process.path_tol_mm:g} mm",
@@ -76,28 +110,32 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
              "J3 from the horizontal",
              f"{comment_text(robot.conventions.source, 12)} robot {comment_text(robot.name, 12)}"]
     notes.append(f"process output DO {out_no}" if out_no else "no process output configured")
-    setup = []
     if o["set_frames"]:
         notes.append("tool and user frame set below")
     else:
         notes += [f"set UTOOL {o['utool']} by hand to", frames["tool_text"], f"set UFRAME {o['uframe']} to",
                   frames["frame_text"]]
-    header = {"date": date, "notes": [f"!{comment_text(t)} ;" for t in notes],
-              "comment": comment_text(f"camtool {process.job_name or name}", ATTR_COMMENT_MAX)}
-    job = dict(kind=kind, values=values, via=via_values, speed=speed, term=term, before=before, after=after,
-               order=order, o=o, frames=frames)
-    files: dict[str, list[str]] = {}
+    return {"date": date, "notes": [f"!{comment_text(t)} ;" for t in notes],
+            "comment": comment_text(f"camtool {process.job_name or name}", ATTR_COMMENT_MAX)}
+
+
+def _programs(name: str, parts: list[range], header: dict, job: dict, max_len: int) -> dict[str, list[str]]:
+    """The programs' lines by program name: one program, or a main program calling the parts in
+    turn."""
     if len(parts) == 1:
-        files[name] = _program(name, parts[0], header, job, setup_frames=True)
-    else:
-        names = []
-        for k, r in enumerate(parts, 1):
-            s = f"_{k}"
-            part = name[:max_len - len(s)] + s
-            names.append(part)
-            files[part] = _program(part, r, header, job, setup_frames=False)
-        main = dict(header)
-        files = {name: _main(name, main, names, job), **files}
+        return {name: _program(name, parts[0], header, job, setup_frames=True)}
+    files: dict[str, list[str]] = {}
+    names = []
+    for k, r in enumerate(parts, 1):
+        s = f"_{k}"
+        part = name[:max_len - len(s)] + s
+        names.append(part)
+        files[part] = _program(part, r, header, job, setup_frames=False)
+    return {name: _main(name, header, names, job), **files}
+
+
+def _write_files(outdir: Path, files: dict[str, list[str]]) -> list[Path]:
+    """Write each program as ``NAME.LS`` (CRLF line ends); the paths written."""
     written = []
     for prog, lines in files.items():
         p = outdir / f"{prog}.LS"
