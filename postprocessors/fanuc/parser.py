@@ -3,7 +3,7 @@ program read back move by move (``ProgramMoves``)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -107,114 +107,167 @@ def parse_ls(path: Path) -> LsProgram:
     return _PARSED[key]
 
 
+@dataclass(frozen=True)
+class _ParseState:
+    """Where the reader is in a program: its section, the sections seen so far, the instruction
+    number expected next, a C move waiting for its continuation line (its line and circle
+    point's number) and a position being read (its number, line and lines so far)."""
+
+    section: str | None = None
+    sections: tuple[str, ...] = ()
+    expect: int = 1
+    pending_c: tuple[int, int] | None = None
+    pos_block: tuple[int, int, tuple[str, ...]] | None = None
+
+
 def _parse(path: Path, raw: bytes) -> LsProgram:
+    """A program's bytes parsed line by line (the frames selected carried from instruction to
+    instruction); then the checks of the whole program (a C move or a position left open, the
+    sections, LINE_COUNT)."""
     pg = LsProgram()
+    lines = _ls_lines(path, raw, pg.problems)
+    st = _ParseState()
+    state = {"uframe": None, "utool": None}
+    for n, line in enumerate(lines, 1):
+        st = _parse_line(pg, st, state, path, n, line, len(lines))
+    pg.problems += _end_problems(pg, st, path)
+    return pg
+
+
+def _ls_lines(path: Path, raw: bytes, problems: list[str]) -> list[str]:
+    """The program's lines without their line ends, with bytes that are not ASCII, a missing
+    last CRLF and lines not ending with CRLF noted."""
     try:
         text = raw.decode("ascii")
     except UnicodeDecodeError:
-        pg.problems.append(f"{path}: not ASCII text")
+        problems.append(f"{path}: not ASCII text")
         text = raw.decode("latin-1")
     if not text.endswith("\r\n"):
-        pg.problems.append(f"{path}: the file does not end with CRLF (a truncated file?)")
+        problems.append(f"{path}: the file does not end with CRLF (a truncated file?)")
     lines = text.split("\n")
     if lines and lines[-1] == "":
         lines = lines[:-1]
     if any(not ln.endswith("\r") for ln in lines):
-        pg.problems.append(f"{path}: lines must end with CRLF")
-    lines = [ln.rstrip("\r") for ln in lines]
-    section = None
-    state = {"uframe": None, "utool": None}
-    expect = 1
-    pending_c = None   # (line, number, via) of a C move waiting for its continuation line
-    pos_block: list | None = None
-    seen_sections = []
-    for n, line in enumerate(lines, 1):
-        where = f"{path}:{n}"
-        s = line.strip()
-        if s.startswith("/") and pos_block is None:
-            head = s.split()[0]
-            seen_sections.append(head)
-            if head == "/PROG":
-                m = PROG_RE.match(s)
-                if m:
-                    pg.name = m.group("name")
-                else:
-                    pg.problems.append(f"{where}: malformed /PROG line")
-            elif head not in ("/ATTR", "/APPL", "/MN", "/POS", "/END"):
-                pg.problems.append(f"{where}: unknown section {head}")
-            elif head == "/END" and n != len(lines):
-                pg.problems.append(f"{where}: text after /END")
-            section = head
-            continue
-        if section == "/ATTR":
-            if "=" in s:
-                k, v = s.split("=", 1)
-                pg.attr[k.strip().replace("TCD:", "").strip()] = v.strip().rstrip(";,").strip()
-            continue
-        if section == "/MN":
-            if pending_c is not None:
-                cm = CONT_RE.match(line)
-                if not cm:
-                    pg.problems.append(f"{where}: a C move needs its second position on a ':' line")
-                    pending_c = None
-                else:
-                    _motion("C", cm.group("body"), pending_c, pg, state, path)
-                    pending_c = None
-                continue
-            lm = LINE_RE.match(line)
-            if not lm:
-                if s:
-                    pg.problems.append(f"{where}: an instruction line must start with its number: {s[:50]}")
-                continue
-            num = int(lm.group("n"))
-            if num != expect:
-                pg.problems.append(f"{where}: line number {num}, expected {expect}")
-            expect = num + 1
-            pg.instructions += 1
-            body = lm.group("body")
-            if body[:1] in ("J", "L", "C") and body[1:2] == " ":
-                mm = MOTION_RE.match(body.strip())
-                if not mm:
-                    pg.problems.append(f"{where}: malformed motion: {body.strip()[:60]}")
-                elif mm.group("word") == "C":
-                    if mm.group("rest").strip():
-                        pg.problems.append(f"{where}: a C move's first line holds its circle point only")
-                    pending_c = (n, int(mm.group("p")))
-                else:
-                    _motion(mm.group("word"), f"P[{mm.group('p')}] {mm.group('rest')}", (n, None), pg, state, path)
-                continue
-            _instruction(body.strip(), n, where, pg, state)
-            continue
-        if section == "/POS":
-            if pos_block is None:
-                if not s:
-                    continue
-                hm = POS_HEAD_RE.match(s)
-                if not hm:
-                    pg.problems.append(f"{where}: expected P[n]{{ in /POS, found {s[:40]}")
-                    continue
-                pos_block = [int(hm.group("p")), n, []]
-                continue
-            if s == "};":
-                _position(pos_block, pg, path)
-                pos_block = None
-                continue
-            pos_block[2].append(s)
-            continue
+        problems.append(f"{path}: lines must end with CRLF")
+    return [ln.rstrip("\r") for ln in lines]
+
+
+def _parse_line(pg: LsProgram, st: _ParseState, state: dict, path: Path, n: int, line: str,
+                last: int) -> _ParseState:
+    """One line: a section's head, an /ATTR entry, a /MN instruction or a /POS line; the reader's
+    state after it."""
+    where = f"{path}:{n}"
+    s = line.strip()
+    if s.startswith("/") and st.pos_block is None:
+        return _section_line(pg, st, where, s, n == last)
+    if st.section == "/ATTR":
+        if "=" in s:
+            k, v = s.split("=", 1)
+            pg.attr[k.strip().replace("TCD:", "").strip()] = v.strip().rstrip(";,").strip()
+        return st
+    if st.section == "/MN":
+        return _mn_line(pg, st, state, path, n, line)
+    if st.section == "/POS":
+        return _pos_line(pg, st, path, n, s)
+    if s:
+        pg.problems.append(f"{where}: text outside the sections: {s[:40]}")
+    return st
+
+
+def _section_line(pg: LsProgram, st: _ParseState, where: str, s: str, is_last: bool) -> _ParseState:
+    """A section's head (/PROG with the program's name, /ATTR, /APPL, /MN, /POS, /END): the
+    section from there."""
+    head = s.split()[0]
+    if head == "/PROG":
+        m = PROG_RE.match(s)
+        if m:
+            pg.name = m.group("name")
+        else:
+            pg.problems.append(f"{where}: malformed /PROG line")
+    elif head not in ("/ATTR", "/APPL", "/MN", "/POS", "/END"):
+        pg.problems.append(f"{where}: unknown section {head}")
+    elif head == "/END" and not is_last:
+        pg.problems.append(f"{where}: text after /END")
+    return replace(st, section=head, sections=st.sections + (head,))
+
+
+def _mn_line(pg: LsProgram, st: _ParseState, state: dict, path: Path, n: int, line: str) -> _ParseState:
+    """A /MN line: a C move's continuation, or a numbered motion or other instruction."""
+    where = f"{path}:{n}"
+    s = line.strip()
+    if st.pending_c is not None:
+        cm = CONT_RE.match(line)
+        if not cm:
+            pg.problems.append(f"{where}: a C move needs its second position on a ':' line")
+        else:
+            _motion("C", cm.group("body"), st.pending_c, pg, state, path)
+        return replace(st, pending_c=None)
+    lm = LINE_RE.match(line)
+    if not lm:
         if s:
-            pg.problems.append(f"{where}: text outside the sections: {s[:40]}")
-    if pending_c is not None:
-        pg.problems.append(f"{path}:{pending_c[0]}: a C move without its second position")
-    if pos_block is not None:
-        pg.problems.append(f"{path}:{pos_block[1]}: P[{pos_block[0]}] is not closed (a truncated file)")
+            pg.problems.append(f"{where}: an instruction line must start with its number: {s[:50]}")
+        return st
+    num = int(lm.group("n"))
+    if num != st.expect:
+        pg.problems.append(f"{where}: line number {num}, expected {st.expect}")
+    st = replace(st, expect=num + 1)
+    pg.instructions += 1
+    body = lm.group("body")
+    if body[:1] in ("J", "L", "C") and body[1:2] == " ":
+        return _motion_line(pg, st, state, path, n, body)
+    _instruction(body.strip(), n, where, pg, state)
+    return st
+
+
+def _motion_line(pg: LsProgram, st: _ParseState, state: dict, path: Path, n: int, body: str) -> _ParseState:
+    """A J or L move, or a C move's first line (its circle point: the move waits for its
+    continuation line)."""
+    mm = MOTION_RE.match(body.strip())
+    if not mm:
+        pg.problems.append(f"{path}:{n}: malformed motion: {body.strip()[:60]}")
+    elif mm.group("word") == "C":
+        if mm.group("rest").strip():
+            pg.problems.append(f"{path}:{n}: a C move's first line holds its circle point only")
+        return replace(st, pending_c=(n, int(mm.group("p"))))
+    else:
+        _motion(mm.group("word"), f"P[{mm.group('p')}] {mm.group('rest')}", (n, None), pg, state, path)
+    return st
+
+
+def _pos_line(pg: LsProgram, st: _ParseState, path: Path, n: int, s: str) -> _ParseState:
+    """A /POS line: a position's head ``P[n]{``, one of its lines, or its end ``};`` (the
+    position read)."""
+    if st.pos_block is None:
+        if not s:
+            return st
+        hm = POS_HEAD_RE.match(s)
+        if not hm:
+            pg.problems.append(f"{path}:{n}: expected P[n]{{ in /POS, found {s[:40]}")
+            return st
+        return replace(st, pos_block=(int(hm.group("p")), n, ()))
+    if s == "};":
+        _position(st.pos_block, pg, path)
+        return replace(st, pos_block=None)
+    number, line, body = st.pos_block
+    return replace(st, pos_block=(number, line, body + (s,)))
+
+
+def _end_problems(pg: LsProgram, st: _ParseState, path: Path) -> list[str]:
+    """A C move or a position left open at the end, the sections out of order, and a LINE_COUNT
+    that is not the number of instructions."""
+    out = []
+    if st.pending_c is not None:
+        out.append(f"{path}:{st.pending_c[0]}: a C move without its second position")
+    if st.pos_block is not None:
+        out.append(f"{path}:{st.pos_block[1]}: P[{st.pos_block[0]}] is not closed (a truncated file)")
     want = ["/PROG", "/ATTR", "/MN", "/POS", "/END"]
-    if [h for h in seen_sections if h != "/APPL"] != want:
-        pg.problems.append(f"{path}: sections {' '.join(seen_sections) or 'none'}; expected {' '.join(want)}"
-                           + (" (a truncated file)" if "/END" not in seen_sections else ""))
+    if [h for h in st.sections if h != "/APPL"] != want:
+        out.append(f"{path}: sections {' '.join(st.sections) or 'none'}; expected {' '.join(want)}"
+                   + (" (a truncated file)" if "/END" not in st.sections else ""))
     lc = pg.attr.get("LINE_COUNT")
     if lc is not None and lc.isdigit() and int(lc) != pg.instructions:
-        pg.problems.append(f"{path}: LINE_COUNT = {lc} but /MN holds {pg.instructions} instructions")
-    return pg
+        out.append(f"{path}: LINE_COUNT = {lc} but /MN holds {pg.instructions} instructions")
+    return out
 
 
 def _instruction(body: str, n: int, where: str, pg: LsProgram, state: dict) -> None:
@@ -364,6 +417,22 @@ def frame_pose(pos: Position) -> np.ndarray:
     return T
 
 
+@dataclass(frozen=True)
+class _RunMoves:
+    """The moves of a run in order with their positions' axis values (a C move's circle point
+    in ``vias``, None for the others), their file:line labels and program numbers, the moves
+    that start and end rows and the rows' names."""
+
+    moves: list
+    values: list
+    vias: list
+    where: list[str]
+    part: list[int]
+    starts: set[int]
+    ends: set[int]
+    names: list[str]
+
+
 def read_program(path: Path, robot, profile) -> ProgramMoves:
     """The program move by move (``ProgramMoves``), following its CALLs: every target a
     joint-representation position (J1..J6 as the pendant shows them: the controller's J3 is
@@ -376,14 +445,34 @@ def read_program(path: Path, robot, profile) -> ProgramMoves:
     problems = [p for _pp, pg in files for p in pg.problems]
     if problems:
         raise BadInput(problems[0])
-    o = profile.options
     order = [a for ax in AXES for a in profile.axes if a.axis == ax]
+    tool_T = _program_tool(files, robot, profile)
+    run = _run_moves(files, order)
+    kw = empty_moves(len(run.moves), robot.dof)
+    kw["part"] = np.array(run.part, int)
+    if run.moves:
+        _fill_moves(kw, run, robot, profile, order, tool_T)
+    kw["row_start"][sorted(run.starts)] = True
+    kw["row_end"][sorted(run.ends)] = True
+    return ProgramMoves(**kw, where=run.where, row_names=run.names, tool_T_mm=tool_T, conf_convention="")
+
+
+def _program_tool(files, robot, profile) -> np.ndarray:
+    """The TCP (4 x 4, mm, in the flange) of the UTOOL the program sets (the profile's
+    ``utool``), or the profile's tool when it sets none."""
+    o = profile.options
     tool = None
     for _pp, pg in files:
         for (what, num), p in pg.frames.items():
             if what == "UTOOL" and num == o.get("utool", num):
                 tool = robot.conventions.tool0_in_flange @ frame_pose(pg.positions[p])
-    tool_T = tool if tool is not None else profile_tool(profile)
+    return tool if tool is not None else profile_tool(profile)
+
+
+def _run_moves(files, order) -> _RunMoves:
+    """The moves of the programs in run order, a program with moves a part; a row starts at the
+    move after its remark (or the DO switched on) and ends at the move before its end remark
+    (or the DO switched off)."""
     seq, where, part, vals, vias = [], [], [], [], []
     starts, ends, names = set(), set(), []
     part_no = -1
@@ -409,44 +498,55 @@ def read_program(path: Path, robot, profile) -> ProgramMoves:
                     pending = it[2] if it[0] == "row" else f"DO {it[2]} on"
             elif (it[0] == "end_row" or (it[0] == "do" and not it[3])) and seq:
                 ends.add(len(seq) - 1)
-    M = len(seq)
-    kw = empty_moves(M, robot.dof)
-    kw["part"] = np.array(part, int)
-    if M:
-        kind = np.array([mv.kind for mv in seq])
-        kw["kind"] = kind.astype(kw["kind"].dtype)
-        V = np.array(vals, float)
-        qw = model_joints(profile, robot, {a.axis: V[:, j] for j, a in enumerate(order)})
-        kw["q"] = qw.copy()
-        chain = _Chain(robot.with_placement(tool_T_mm=tool_T))
-        cart = np.flatnonzero(kind != JOINT)
-        if len(cart):
-            # an L / C move ends at its joint position, its pose the TCP there; between, the controller
-            # solves the joints (the ProgramMoves of a Cartesian move leaves them to its IK)
-            P, R = chain.fk(qw[cart])
-            kw["q"][cart] = np.nan
-            kw["pose"][cart, :3, :3], kw["pose"][cart, :3, 3] = R, P
-            kw["pose"][cart, 3] = [0.0, 0.0, 0.0, 1.0]
-        circ = np.flatnonzero(kind == CIRCULAR)
-        if len(circ):
-            VV = np.array([vias[k] for k in circ], float)
-            qv = model_joints(profile, robot, {a.axis: VV[:, j] for j, a in enumerate(order)})
-            P, R = chain.fk(qv)
-            kw["via"][circ, :3, :3], kw["via"][circ, :3, 3] = R, P
-            kw["via"][circ, 3] = [0.0, 0.0, 0.0, 1.0]
-        for k, mv in enumerate(seq):
-            if mv.kind != JOINT:
-                kw["speed_mm_s"][k] = mv.speed
-            kw["blend_mm"][k] = 0.0 if mv.cnt is None else cnt_radius(mv.cnt, o.get("cnt", []), o.get("cnt_mm", []))
-        vmax = np.array([a.max_speed for a in order])
-        ax = controller_axes(profile, robot, qw)
-        A = np.stack([ax[a.axis] for a in order], axis=1)
-        for k in np.flatnonzero(kind == JOINT):
-            if k > 0:
-                kw["duration_s"][k] = float(np.max(np.abs(A[k] - A[k - 1]) / vmax)) * 100.0 / seq[k].speed
-    kw["row_start"][sorted(starts)] = True
-    kw["row_end"][sorted(ends)] = True
-    return ProgramMoves(**kw, where=where, row_names=names, tool_T_mm=tool_T, conf_convention="")
+    return _RunMoves(seq, vals, vias, where, part, starts, ends, names)
+
+
+def _fill_moves(kw: dict, run: _RunMoves, robot, profile, order, tool_T: np.ndarray) -> None:
+    """Into ``kw``: the moves' kinds and joints, an L / C move's pose (the TCP at its joint
+    position) and a C move's circle point, the speeds of L / C moves, every move's corner
+    radius and the J moves' durations."""
+    o = profile.options
+    seq = run.moves
+    kind = np.array([mv.kind for mv in seq])
+    kw["kind"] = kind.astype(kw["kind"].dtype)
+    qw = _model_joints(profile, robot, order, run.values)
+    kw["q"] = qw.copy()
+    chain = _Chain(robot.with_placement(tool_T_mm=tool_T))
+    cart = np.flatnonzero(kind != JOINT)
+    if len(cart):
+        # an L / C move ends at its joint position, its pose the TCP there; between, the controller
+        # solves the joints (the ProgramMoves of a Cartesian move leaves them to its IK)
+        P, R = chain.fk(qw[cart])
+        kw["q"][cart] = np.nan
+        kw["pose"][cart, :3, :3], kw["pose"][cart, :3, 3] = R, P
+        kw["pose"][cart, 3] = [0.0, 0.0, 0.0, 1.0]
+    circ = np.flatnonzero(kind == CIRCULAR)
+    if len(circ):
+        P, R = chain.fk(_model_joints(profile, robot, order, [run.vias[k] for k in circ]))
+        kw["via"][circ, :3, :3], kw["via"][circ, :3, 3] = R, P
+        kw["via"][circ, 3] = [0.0, 0.0, 0.0, 1.0]
+    for k, mv in enumerate(seq):
+        if mv.kind != JOINT:
+            kw["speed_mm_s"][k] = mv.speed
+        kw["blend_mm"][k] = 0.0 if mv.cnt is None else cnt_radius(mv.cnt, o.get("cnt", []), o.get("cnt_mm", []))
+    _joint_durations(kw, seq, robot, profile, order, qw, kind)
+
+
+def _model_joints(profile, robot, order, values: list) -> np.ndarray:
+    """(M, dof) camtool's joints of controller axis values (one list per position, in ``order``)."""
+    V = np.array(values, float)
+    return model_joints(profile, robot, {a.axis: V[:, j] for j, a in enumerate(order)})
+
+
+def _joint_durations(kw: dict, seq: list, robot, profile, order, qw: np.ndarray, kind: np.ndarray) -> None:
+    """Each J move's duration into ``kw``: the axis that needs longest at its % of the
+    profile's ``max_speed``."""
+    vmax = np.array([a.max_speed for a in order])
+    ax = controller_axes(profile, robot, qw)
+    A = np.stack([ax[a.axis] for a in order], axis=1)
+    for k in np.flatnonzero(kind == JOINT):
+        if k > 0:
+            kw["duration_s"][k] = float(np.max(np.abs(A[k] - A[k - 1]) / vmax)) * 100.0 / seq[k].speed
 
 
 def _joint_values(pg: LsProgram, p: int, where: str, order) -> list[float]:
