@@ -1,0 +1,429 @@
+"""Issue #46's acceptance figures, computed from a part's own mesh and a set of work poses, with
+nothing of camtool: used by benchmarks/freeform.py on camtool's output and on the noether baseline
+(rebuilt here, `plane_slicer`), and checked against closed forms by tests/test_freeform_metrics.py.
+
+Work poses are given as rows: a list of (points (n, 3) mm, tool axes (n, 3) unit) arrays, one per
+row segment in working order. The figures (issue #46, "Acceptance"):
+
+- ``coverage``: share of the face's area within ``0.6 x step_over`` of a work TCP (area-uniform
+  samples of the face, 3-D distance to the nearest TCP);
+- ``distance_to_mesh``: distance of each work TCP to the part's mesh (closest point on a triangle);
+- ``axis_error_deg``: angle between the tool axis and the part's normal averaged over a disc of
+  ``radius_mm`` (12.5 mm: the middle of the issue's 10-15 mm) around the TCP's closest point: the
+  area-weighted mean of the triangles' normals whose centroid lies within the radius, each turned
+  to agree with the closest triangle's (so a scan's inconsistent winding does not cancel it out).
+  Unsigned (a tool axis along +n or -n counts the same); a flip shows in ``turns_deg``;
+- ``turns_deg``: the angle between the tool axes of neighbouring work poses of one row;
+- ``row_steps``: the distance between neighbouring rows measured on the surface: for each work
+  TCP, the geodesic distance to the nearest other row whose nearest pose is not one of its ends
+  (a row's end is no neighbour: a row split at a hole or a shorter row beside a longer one);
+  geodesics on the mesh by Dijkstra on a Steiner graph (``STEINER`` points on every edge, every
+  pair of a triangle's points joined by a straight segment across it: Lanthier, Maheshwari and
+  Sack, "Approximating shortest paths on weighted polyhedral surfaces", 2001), which is within
+  about 1 % of the true geodesic (the closed-form tests bound it).
+
+The baseline, ``plane_slicer``: ros-industrial/noether's PlaneSlicerRasterPlanner
+(noether_tpp/src/tool_path_planners/raster/plane_slicer_raster_planner.cpp) rebuilt: PCA of the
+mesh's vertices; the cut direction is the second principal axis (PrincipalAxisDirectionGenerator),
+the cutting planes' normal the cut direction x the smallest axis (so the planes advance along the
+largest axis), the origin the centroid; planes every ``line_spacing`` measured along that normal
+(in space, not on the surface) over the oriented box; each plane's cut polylines (vtkCutter +
+vtkStripper: here trimesh's ``mesh_plane`` segments chained end to end) with the normals
+interpolated linearly from the mesh's vertex normals along the cut edges, then resampled at a
+uniform ``point_spacing`` (noether's uniform-spacing modifier) with the normals interpolated
+linearly between the cut points.
+
+Run as a script, it prints the closed-form checks (`make bench` runs every benchmarks/*.py).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy import sparse
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+
+STEINER = 4          # Steiner points on each edge of the geodesic graph
+AXIS_RADIUS_MM = 12.5
+COVER_FACTOR = 0.6   # coverage radius, in step-overs (issue #46)
+
+
+# --- the part -------------------------------------------------------------------------------
+def load_mesh(path, scale: float = 1.0) -> trimesh.Trimesh:
+    """The mesh in mm: duplicate vertices merged (a triangle soup gets its connectivity), degenerate
+    and duplicate triangles and unreferenced vertices dropped."""
+    m = trimesh.load(str(path), force="mesh", process=True)
+    m = trimesh.Trimesh(m.vertices * scale, m.faces, process=True)
+    m.update_faces(m.nondegenerate_faces(height=1e-9))
+    m.update_faces(m.unique_faces())
+    m.remove_unreferenced_vertices()
+    return m
+
+
+def face_region(mesh: trimesh.Trimesh, up=None, max_tilt_deg: float | None = None,
+                radius_mm: float = AXIS_RADIUS_MM) -> np.ndarray:
+    """Mask of the triangles that make the face to be worked: the largest connected piece (by area)
+    of the triangles whose normal, averaged over ``radius_mm``, lies within ``max_tilt_deg`` of
+    ``up`` (either sign: a scan's winding is not trusted); all triangles without ``up``."""
+    keep = np.ones(len(mesh.faces), bool)
+    if up is not None and max_tilt_deg is not None:
+        n = averaged_normals(mesh, mesh.triangles_center, radius_mm)
+        up = np.asarray(up, float) / np.linalg.norm(up)
+        keep = np.abs(n @ up) >= math.cos(math.radians(max_tilt_deg))
+    adj = mesh.face_adjacency
+    adj = adj[keep[adj[:, 0]] & keep[adj[:, 1]]]
+    g = sparse.coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(len(keep),) * 2)
+    _, lab = csgraph.connected_components(g, directed=False)
+    area = np.bincount(lab[keep], weights=mesh.area_faces[keep], minlength=lab.max() + 1)
+    return keep & (lab == int(np.argmax(area)))
+
+
+def surface_samples(mesh: trimesh.Trimesh, mask: np.ndarray | None = None, spacing_mm: float = 2.0,
+                    seed: int = 0) -> np.ndarray:
+    """Area-uniform random points on the masked triangles, about one per spacing_mm^2."""
+    idx = np.flatnonzero(mask) if mask is not None else np.arange(len(mesh.faces))
+    area = mesh.area_faces[idx]
+    n = max(1000, int(area.sum() / spacing_mm ** 2))
+    rng = np.random.default_rng(seed)
+    f = idx[rng.choice(len(idx), n, p=area / area.sum())]
+    u, v = rng.random(n), rng.random(n)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    t = mesh.triangles[f]
+    return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
+
+
+# --- the figures ----------------------------------------------------------------------------
+def coverage(samples: np.ndarray, tcps: np.ndarray, radius_mm: float) -> float:
+    """Share of the samples (area-uniform on the face) within radius_mm of a TCP."""
+    if len(tcps) == 0:
+        return 0.0
+    d, _ = cKDTree(tcps).query(samples, distance_upper_bound=radius_mm)
+    return float(np.mean(np.isfinite(d)))
+
+
+def closest(mesh: trimesh.Trimesh, pts: np.ndarray):
+    """(closest points, distances, triangle ids) on the mesh."""
+    c, d, f = trimesh.proximity.closest_point(mesh, np.asarray(pts, float))
+    return c, d, f
+
+
+def distance_to_mesh(mesh: trimesh.Trimesh, pts: np.ndarray) -> np.ndarray:
+    return closest(mesh, pts)[1]
+
+
+def averaged_normals(mesh: trimesh.Trimesh, pts: np.ndarray, radius_mm: float = AXIS_RADIUS_MM) -> np.ndarray:
+    """The part's normal at each point, averaged over the triangles whose centroid lies within
+    radius_mm of the point's closest point on the mesh (area-weighted, each turned to agree with
+    the closest triangle's normal)."""
+    c, _, f = closest(mesh, pts)
+    fn, fa = mesh.face_normals, mesh.area_faces
+    tree = cKDTree(mesh.triangles_center)
+    out = np.empty((len(c), 3))
+    for i, (p, f0) in enumerate(zip(c, f)):
+        near = tree.query_ball_point(p, radius_mm)
+        n0 = fn[f0]
+        if not near:
+            out[i] = n0
+            continue
+        nn = fn[near]
+        s = np.where(nn @ n0 < 0, -1.0, 1.0)
+        v = (nn * (s * fa[near])[:, None]).sum(axis=0) + 1e-12 * n0
+        out[i] = v / np.linalg.norm(v)
+    return out
+
+
+def axis_error_deg(axes: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Unsigned angle (deg) between each tool axis and the normal line."""
+    a = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+    return np.degrees(np.arccos(np.clip(np.abs(np.sum(a * normals, axis=1)), 0.0, 1.0)))
+
+
+def turns_deg(rows: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """Angle (deg) between the tool axes of neighbouring poses of each row (signed axes: a flip is 180)."""
+    out = []
+    for _, ax in rows:
+        if len(ax) > 1:
+            a = ax / np.linalg.norm(ax, axis=1, keepdims=True)
+            out.append(np.degrees(np.arccos(np.clip(np.sum(a[1:] * a[:-1], axis=1), -1.0, 1.0))))
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+# --- geodesics ------------------------------------------------------------------------------
+class SurfaceGeodesic:
+    """Approximate geodesic distances on a triangle mesh: Dijkstra on a Steiner graph (STEINER
+    points on every edge, a triangle's points joined pairwise by straight segments across it),
+    built per query on the triangles within reach only."""
+
+    def __init__(self, mesh: trimesh.Trimesh, steiner: int = STEINER):
+        self.mesh = mesh
+        v, e = mesh.vertices, mesh.edges_unique
+        t = np.arange(1, steiner + 1) / (steiner + 1)
+        st = v[e[:, 0], None, :] + t[None, :, None] * (v[e[:, 1]] - v[e[:, 0]])[:, None, :]
+        self.nodes = np.vstack([v, st.reshape(-1, 3)])
+        # each face's nodes: its 3 vertices, then the Steiner points of its 3 edges
+        fe = mesh.faces_unique_edges
+        st_ids = len(v) + fe[:, :, None] * steiner + np.arange(steiner)[None, None, :]
+        self.face_nodes = np.hstack([mesh.faces, st_ids.reshape(len(fe), -1)])
+        k = self.face_nodes.shape[1]
+        self._pairs = np.array([(i, j) for i in range(k) for j in range(i + 1, k)])
+        self._centers = cKDTree(mesh.triangles_center)
+        self._reach = float(mesh.edges_unique_length.max())
+
+    def distances(self, src: np.ndarray, dst: np.ndarray, limit: float) -> np.ndarray:
+        """Geodesic distance from the nearest of the points src to each point dst (both are projected
+        on the mesh first); inf beyond limit (mm)."""
+        _, _, fs = closest(self.mesh, src)
+        cs = closest(self.mesh, src)[0]
+        cd, _, fd = closest(self.mesh, dst)
+        # the triangles within reach of any source (a path of length <= limit stays in the ball)
+        near = self._centers.query_ball_point(cs, limit + self._reach)
+        faces = np.unique(np.concatenate([np.asarray(x, int) for x in near] + [fs, fd]))
+        fn = self.face_nodes[faces]
+        a = fn[:, self._pairs[:, 0]].ravel()
+        b = fn[:, self._pairs[:, 1]].ravel()
+        ab = np.unique(np.stack([np.minimum(a, b), np.maximum(a, b)], 1), axis=0)
+        ab = ab[ab[:, 0] != ab[:, 1]]
+        used, inv = np.unique(np.concatenate([ab.ravel(), self.face_nodes[fs].ravel(),
+                                              self.face_nodes[fd].ravel()]), return_inverse=True)
+        n = len(used)
+        li = inv[:ab.size].reshape(-1, 2)
+        w = np.linalg.norm(self.nodes[ab[:, 0]] - self.nodes[ab[:, 1]], axis=1)
+        # a super source (index n) joined to each source triangle's nodes at their straight distance
+        sn = self.face_nodes[fs]                                  # (ns, k)
+        sw = np.linalg.norm(self.nodes[sn] - cs[:, None, :], axis=2)
+        sl = inv[ab.size:ab.size + sn.size]
+        rows = np.concatenate([li[:, 0], li[:, 1], np.full(sl.size, n)])
+        cols = np.concatenate([li[:, 1], li[:, 0], sl])
+        data = np.concatenate([w, w, sw.ravel()])
+        # duplicates (one node reached from several sources) keep the smallest weight
+        key = rows.astype(np.int64) * (n + 1) + cols
+        order = np.lexsort((data, key))
+        first = np.ones(len(order), bool)
+        first[1:] = key[order][1:] != key[order][:-1]
+        o = order[first]
+        g = sparse.csr_matrix((np.maximum(data[o], 1e-12), (rows[o], cols[o])), shape=(n + 1, n + 1))
+        dist = csgraph.dijkstra(g, directed=True, indices=n, limit=limit * 1.05)
+        dn = self.face_nodes[fd]                                  # (nd, k)
+        dl = inv[ab.size + sn.size:].reshape(dn.shape)
+        out = np.min(dist[dl] + np.linalg.norm(self.nodes[dn] - cd[:, None, :], axis=2), axis=1)
+        # a target on a source's own triangle: the straight segment
+        same = {}
+        for i, f in enumerate(fs):
+            same.setdefault(int(f), []).append(i)
+        for j, f in enumerate(fd):
+            if int(f) in same:
+                out[j] = min(out[j], float(np.min(np.linalg.norm(cs[same[int(f)]] - cd[j], axis=1))))
+        out[out > limit] = np.inf
+        return out
+
+
+def _foot(row: np.ndarray, q: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """The nearest point of the polyline row to each q, given the nearest vertex j."""
+    best, out = np.full(len(q), np.inf), row[j].copy()
+    for a in (j - 1, j):
+        ok = (a >= 0) & (a + 1 < len(row))
+        a = np.clip(a, 0, len(row) - 2)
+        s0, s1 = row[a], row[a + 1]
+        t = np.clip(np.sum((q - s0) * (s1 - s0), 1) / np.maximum(np.sum((s1 - s0) ** 2, 1), 1e-12), 0, 1)
+        f = s0 + t[:, None] * (s1 - s0)
+        d = np.linalg.norm(q - f, axis=1)
+        take = ok & (d < best)
+        best[take], out[take] = d[take], f[take]
+    return out
+
+
+def _chord_path(mesh: trimesh.Trimesh, row: np.ndarray, q: np.ndarray, j: np.ndarray, n: int = 8) -> np.ndarray:
+    """Length of the straight segment from q to its foot on the row, projected on the mesh (n pieces):
+    a path on the surface, so never much shorter than the geodesic, and much nearer it than the
+    Steiner graph's on a smooth stretch; inf where the projection jumps (the segment spans a pocket,
+    a fold or a gap: the graph's path counts there)."""
+    f = _foot(row, q, j)
+    t = np.linspace(0.0, 1.0, n + 1)
+    pts = q[:, None, :] + t[None, :, None] * (f - q)[:, None, :]
+    proj = closest(mesh, pts.reshape(-1, 3))[0].reshape(pts.shape)
+    seg = np.linalg.norm(np.diff(proj, axis=1), axis=2)
+    straight = np.linalg.norm(f - q, axis=1)[:, None] / n
+    jump = np.any(seg > 2.0 * straight + 0.05, axis=1)
+    return np.where(jump, np.inf, seg.sum(axis=1))
+
+
+def row_steps(geo: SurfaceGeodesic, rows: list[np.ndarray], step_mm: float, reach: float = 3.0,
+              end_points: int = 1) -> np.ndarray:
+    """The distance between neighbouring rows on the surface, one value per work TCP that has a
+    neighbour row within reach x step_mm: the geodesic distance to the nearest other row whose
+    nearest pose (straight distance) is not among its first or last end_points poses."""
+    rows = [np.asarray(r, float) for r in rows if len(r) >= 2 * end_points + 1]
+    if len(rows) < 2:
+        return np.zeros(0)
+    allp = np.vstack(rows)
+    rid = np.concatenate([np.full(len(r), i) for i, r in enumerate(rows)])
+    best = np.full(len(allp), np.inf)
+    limit = reach * step_mm
+    for i, r in enumerate(rows):
+        tree = cKDTree(r)
+        d0, j = tree.query(allp, distance_upper_bound=limit)
+        ok = (rid != i) & np.isfinite(d0) & (j >= end_points) & (j < len(r) - end_points)
+        if not ok.any():
+            continue
+        d = np.minimum(geo.distances(r, allp[ok], limit), _chord_path(geo.mesh, r, allp[ok], j[ok]))
+        best[ok] = np.minimum(best[ok], d)
+    return best[np.isfinite(best)]
+
+
+# --- the baseline: noether's PlaneSlicerRasterPlanner ---------------------------------------
+def _chain(segs: np.ndarray, nrm: np.ndarray, tol: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Chain plane-cut segments (m, 2, 3) with per-end normals into polylines (vtkStripper)."""
+    key = np.round(segs.reshape(-1, 3) / tol).astype(np.int64)
+    _, ids = np.unique(key, axis=0, return_inverse=True)
+    ids = ids.reshape(-1, 2)
+    adj: dict[int, list[int]] = {}
+    for s, (a, b) in enumerate(ids):
+        adj.setdefault(int(a), []).append(s)
+        adj.setdefault(int(b), []).append(s)
+    used = np.zeros(len(segs), bool)
+    out = []
+    starts = [k for k, v in adj.items() if len(v) == 1] + list(adj)
+    for start in starts:
+        if all(used[s] for s in adj[start]):
+            continue
+        node, pts, nor = start, [], []
+        while True:
+            nxt = [s for s in adj[node] if not used[s]]
+            if not nxt:
+                break
+            s = nxt[0]
+            used[s] = True
+            e = 0 if ids[s, 0] == node else 1
+            if not pts:
+                pts.append(segs[s, e])
+                nor.append(nrm[s, e])
+            pts.append(segs[s, 1 - e])
+            nor.append(nrm[s, 1 - e])
+            node = int(ids[s, 1 - e])
+        if len(pts) >= 2:
+            out.append((np.array(pts), np.array(nor)))
+    return out
+
+
+def _resample(p: np.ndarray, n: np.ndarray, spacing: float):
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if s[-1] < 1e-9:
+        return p[:1], n[:1]
+    t = np.linspace(0.0, s[-1], max(2, int(math.ceil(s[-1] / spacing)) + 1))
+    pp = np.stack([np.interp(t, s, p[:, k]) for k in range(3)], 1)
+    nn = np.stack([np.interp(t, s, n[:, k]) for k in range(3)], 1)
+    return pp, nn / np.maximum(np.linalg.norm(nn, axis=1, keepdims=True), 1e-12)
+
+
+def plane_slicer(mesh: trimesh.Trimesh, line_spacing: float, point_spacing: float,
+                 cut_normal=None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """noether's PlaneSlicerRasterPlanner on mesh: rows of (points, unit normals), in cut order.
+    cut_normal: the planes' normal (default: from PCA as noether's principal-axis generator)."""
+    v = mesh.vertices
+    centroid = v.mean(axis=0)
+    _, _, vt = np.linalg.svd(v - centroid, full_matrices=False)
+    if cut_normal is None:
+        cut_dir, mesh_normal = vt[1], vt[2]
+        cut_normal = np.cross(cut_dir, mesh_normal)
+    else:
+        cut_normal = np.asarray(cut_normal, float)
+        cut_dir = np.cross(vt[2], cut_normal)
+        if np.linalg.norm(cut_dir) < 1e-9:
+            cut_dir = vt[1]
+    cut_normal = cut_normal / np.linalg.norm(cut_normal)
+    cut_dir = cut_dir / np.linalg.norm(cut_dir)
+    h = (v - centroid) @ cut_normal
+    k0, k1 = int(math.floor(h.min() / line_spacing)), int(math.ceil(h.max() / line_spacing))
+    vn = mesh.vertex_normals
+    rows = []
+    tol = 1e-6 * max(1.0, float(np.ptp(v, axis=0).max()))
+    for k in range(k0, k1 + 1):
+        origin = centroid + k * line_spacing * cut_normal
+        segs, faces = trimesh.intersections.mesh_plane(mesh, cut_normal, origin, return_faces=True)
+        if len(segs) == 0:
+            continue
+        # the normal at each cut point: linear in the vertex normals along the cut edge
+        tri = mesh.faces[faces]
+        nrm = np.empty_like(segs)
+        for e in range(2):
+            p = segs[:, e]
+            bc = trimesh.triangles.points_to_barycentric(v[tri], p)
+            nrm[:, e] = np.einsum("ij,ijk->ik", bc, vn[tri])
+        for pts, nor in _chain(segs, nrm, tol):
+            if (pts[-1] - pts[0]) @ cut_dir < 0:    # every row points along the cut direction
+                pts, nor = pts[::-1], nor[::-1]
+            rows.append(_resample(pts, nor, point_spacing))
+    return rows
+
+
+# --- summaries ------------------------------------------------------------------------------
+@dataclass
+class Figures:
+    coverage: float
+    dist_p50: float
+    dist_p99: float
+    axis_p95: float
+    turn_max: float
+    step_p5: float
+    step_p95: float
+    step_samples: int
+    work_poses: int
+
+    def row(self, step_mm: float) -> str:
+        return (f"cov {100 * self.coverage:6.2f} %  dist p50 {self.dist_p50:6.3f} p99 {self.dist_p99:6.3f} mm  "
+                f"axis p95 {self.axis_p95:5.2f} deg  turn max {self.turn_max:6.2f} deg  "
+                f"step p5-p95 {100 * self.step_p5 / step_mm:5.1f}-{100 * self.step_p95 / step_mm:5.1f} %  "
+                f"({self.step_samples} steps, {self.work_poses} poses)")
+
+
+def measure(mesh: trimesh.Trimesh, region: np.ndarray, rows: list[tuple[np.ndarray, np.ndarray]],
+            step_mm: float, geo: SurfaceGeodesic | None = None, samples: np.ndarray | None = None,
+            step_rows: list[np.ndarray] | None = None) -> Figures:
+    """Every figure for one set of work rows on one part (region: the face's triangles)."""
+    pts = np.vstack([r[0] for r in rows]) if rows else np.zeros((0, 3))
+    axes = np.vstack([r[1] for r in rows]) if rows else np.zeros((0, 3))
+    if samples is None:
+        samples = surface_samples(mesh, region, spacing_mm=max(1.0, step_mm / 5))
+    cov = coverage(samples, pts, COVER_FACTOR * step_mm)
+    d = distance_to_mesh(mesh, pts)
+    err = axis_error_deg(axes, averaged_normals(mesh, pts))
+    turn = turns_deg(rows)
+    geo = geo or SurfaceGeodesic(mesh)
+    steps = row_steps(geo, step_rows if step_rows is not None else [r[0] for r in rows], step_mm)
+    q = (lambda a, p: float(np.percentile(a, p)) if len(a) else float("nan"))
+    return Figures(cov, q(d, 50), q(d, 99), q(err, 95), float(turn.max()) if len(turn) else 0.0,
+                   q(steps, 5), q(steps, 95), int(len(steps)), int(len(pts)))
+
+
+def grid_mesh(fn, u, v) -> trimesh.Trimesh:
+    """A triangulated (u, v) grid of the surface fn(U, V) -> (..., 3) (tests and samples)."""
+    U, V = np.meshgrid(u, v, indexing="ij")
+    P = fn(U, V).reshape(-1, 3)
+    nu, nv = len(u), len(v)
+    i = np.arange(nu - 1)[:, None] * nv + np.arange(nv - 1)[None, :]
+    i = i.ravel()
+    f = np.vstack([np.stack([i, i + nv, i + 1], 1), np.stack([i + 1, i + nv, i + nv + 1], 1)])
+    return trimesh.Trimesh(P, f, process=True)
+
+
+if __name__ == "__main__":
+    # closed forms: a cylinder R 30 mm, rows along the axis 1 rad apart (arc 30 mm, chord 28.8 mm)
+    R = 30.0
+    cyl = grid_mesh(lambda a, z: np.stack([R * np.cos(a), R * np.sin(a), z], -1),
+                    np.linspace(0, 3.0, 91), np.linspace(0, 100, 51))
+    rows = [np.stack([R * np.cos(np.full(21, a)), R * np.sin(np.full(21, a)), np.linspace(10, 90, 21)], 1)
+            for a in (0.5, 1.5, 2.5)]
+    s = row_steps(SurfaceGeodesic(cyl), rows, 30.0)
+    print(f"cylinder R 30, rows 1 rad apart: geodesic step {np.median(s):.3f} mm (arc 30.000, chord "
+          f"{2 * R * math.sin(0.5):.3f})")
+    plane = grid_mesh(lambda x, y: np.stack([x, y * math.cos(math.radians(60)), y * math.sin(math.radians(60))], -1),
+                      np.linspace(0, 200, 41), np.linspace(0, 200, 41))
+    r = plane_slicer(plane, 10.0, 5.0, cut_normal=[0.0, 1.0, 0.0])
+    s = row_steps(SurfaceGeodesic(plane), [p for p, _ in r], 10.0)
+    print(f"plane tilted 60 deg from the slicing planes, spacing 10 mm: step on the surface {np.median(s):.3f} mm "
+          f"(10 / cos 60 = 20)")
