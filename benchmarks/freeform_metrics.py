@@ -156,7 +156,7 @@ def turns_deg(rows: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
 class SurfaceGeodesic:
     """Approximate geodesic distances on a triangle mesh: Dijkstra on a Steiner graph (STEINER
     points on every edge, a triangle's points joined pairwise by straight segments across it),
-    built per query on the triangles within reach only."""
+    built once; each query adds a source node joined to its points' triangles."""
 
     def __init__(self, mesh: trimesh.Trimesh, steiner: int = STEINER):
         self.mesh = mesh
@@ -169,54 +169,46 @@ class SurfaceGeodesic:
         st_ids = len(v) + fe[:, :, None] * steiner + np.arange(steiner)[None, None, :]
         self.face_nodes = np.hstack([mesh.faces, st_ids.reshape(len(fe), -1)])
         k = self.face_nodes.shape[1]
-        self._pairs = np.array([(i, j) for i in range(k) for j in range(i + 1, k)])
-        self._centers = cKDTree(mesh.triangles_center)
-        self._reach = float(mesh.edges_unique_length.max())
-
-    def distances(self, src: np.ndarray, dst: np.ndarray, limit: float) -> np.ndarray:
-        """Geodesic distance from the nearest of the points src to each point dst (both are projected
-        on the mesh first); inf beyond limit (mm)."""
-        _, _, fs = closest(self.mesh, src)
-        cs = closest(self.mesh, src)[0]
-        cd, _, fd = closest(self.mesh, dst)
-        # the triangles within reach of any source (a path of length <= limit stays in the ball)
-        near = self._centers.query_ball_point(cs, limit + self._reach)
-        faces = np.unique(np.concatenate([np.asarray(x, int) for x in near] + [fs, fd]))
-        fn = self.face_nodes[faces]
-        a = fn[:, self._pairs[:, 0]].ravel()
-        b = fn[:, self._pairs[:, 1]].ravel()
+        pairs = np.array([(i, j) for i in range(k) for j in range(i + 1, k)])
+        a = self.face_nodes[:, pairs[:, 0]].ravel()
+        b = self.face_nodes[:, pairs[:, 1]].ravel()
         ab = np.unique(np.stack([np.minimum(a, b), np.maximum(a, b)], 1), axis=0)
         ab = ab[ab[:, 0] != ab[:, 1]]
-        used, inv = np.unique(np.concatenate([ab.ravel(), self.face_nodes[fs].ravel(),
-                                              self.face_nodes[fd].ravel()]), return_inverse=True)
-        n = len(used)
-        li = inv[:ab.size].reshape(-1, 2)
-        w = np.linalg.norm(self.nodes[ab[:, 0]] - self.nodes[ab[:, 1]], axis=1)
-        # a super source (index n) joined to each source triangle's nodes at their straight distance
-        sn = self.face_nodes[fs]                                  # (ns, k)
-        sw = np.linalg.norm(self.nodes[sn] - cs[:, None, :], axis=2)
-        sl = inv[ab.size:ab.size + sn.size]
-        rows = np.concatenate([li[:, 0], li[:, 1], np.full(sl.size, n)])
-        cols = np.concatenate([li[:, 1], li[:, 0], sl])
-        data = np.concatenate([w, w, sw.ravel()])
-        # duplicates (one node reached from several sources) keep the smallest weight
-        key = rows.astype(np.int64) * (n + 1) + cols
-        order = np.lexsort((data, key))
-        first = np.ones(len(order), bool)
-        first[1:] = key[order][1:] != key[order][:-1]
-        o = order[first]
-        g = sparse.csr_matrix((np.maximum(data[o], 1e-12), (rows[o], cols[o])), shape=(n + 1, n + 1))
+        w = np.maximum(np.linalg.norm(self.nodes[ab[:, 0]] - self.nodes[ab[:, 1]], axis=1), 1e-12)
+        n = len(self.nodes)
+        self.graph = sparse.csr_matrix((np.concatenate([w, w]), (np.concatenate([ab[:, 0], ab[:, 1]]),
+                                        np.concatenate([ab[:, 1], ab[:, 0]]))), shape=(n, n))
+
+    def distances(self, src: np.ndarray, dst: np.ndarray, limit: float, dst_closest=None) -> np.ndarray:
+        """Geodesic distance from the nearest of the points src to each point dst (both are projected
+        on the mesh first; dst_closest: dst's (points, triangles) on the mesh if known); inf beyond
+        limit (mm)."""
+        cs, _, fs = closest(self.mesh, src)
+        if dst_closest is None:
+            cd, _, fd = closest(self.mesh, dst)
+        else:
+            cd, fd = dst_closest
+        G, n = self.graph, len(self.nodes)
+        # a source node (index n) joined to each source triangle's nodes at their straight distance,
+        # the smallest weight where several sources share a node
+        sn = self.face_nodes[fs].ravel()
+        sw = np.linalg.norm(self.nodes[self.face_nodes[fs]] - cs[:, None, :], axis=2).ravel()
+        o = np.lexsort((sw, sn))
+        first = np.ones(len(o), bool)
+        first[1:] = sn[o][1:] != sn[o][:-1]
+        cols, wts = sn[o][first], np.maximum(sw[o][first], 1e-12)
+        g = sparse.csr_matrix((np.concatenate([G.data, wts]), np.concatenate([G.indices, cols]),
+                               np.concatenate([G.indptr, [G.nnz + len(cols)]])), shape=(n + 1, n + 1))
         dist = csgraph.dijkstra(g, directed=True, indices=n, limit=limit * 1.05)
         dn = self.face_nodes[fd]                                  # (nd, k)
-        dl = inv[ab.size + sn.size:].reshape(dn.shape)
-        out = np.min(dist[dl] + np.linalg.norm(self.nodes[dn] - cd[:, None, :], axis=2), axis=1)
+        out = np.min(dist[dn] + np.linalg.norm(self.nodes[dn] - cd[:, None, :], axis=2), axis=1)
         # a target on a source's own triangle: the straight segment
-        same = {}
-        for i, f in enumerate(fs):
-            same.setdefault(int(f), []).append(i)
-        for j, f in enumerate(fd):
-            if int(f) in same:
-                out[j] = min(out[j], float(np.min(np.linalg.norm(cs[same[int(f)]] - cd[j], axis=1))))
+        same: dict[int, list[int]] = {}
+        for i, f in enumerate(fs.tolist()):
+            same.setdefault(f, []).append(i)
+        for j, f in enumerate(fd.tolist()):
+            if f in same:
+                out[j] = min(out[j], float(np.min(np.linalg.norm(cs[same[f]] - cd[j], axis=1))))
         out[out > limit] = np.inf
         return out
 
@@ -263,13 +255,15 @@ def row_steps(geo: SurfaceGeodesic, rows: list[np.ndarray], step_mm: float, reac
     rid = np.concatenate([np.full(len(r), i) for i, r in enumerate(rows)])
     best = np.full(len(allp), np.inf)
     limit = reach * step_mm
+    cp, _, cf = closest(geo.mesh, allp)
     for i, r in enumerate(rows):
         tree = cKDTree(r)
         d0, j = tree.query(allp, distance_upper_bound=limit)
         ok = (rid != i) & np.isfinite(d0) & (j >= end_points) & (j < len(r) - end_points)
         if not ok.any():
             continue
-        d = np.minimum(geo.distances(r, allp[ok], limit), _chord_path(geo.mesh, r, allp[ok], j[ok]))
+        d = np.minimum(geo.distances(r, allp[ok], limit, (cp[ok], cf[ok])),
+                       _chord_path(geo.mesh, r, allp[ok], j[ok]))
         best[ok] = np.minimum(best[ok], d)
     return best[np.isfinite(best)]
 

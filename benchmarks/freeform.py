@@ -1,0 +1,309 @@
+"""Free-form parts (issue #46): camtool against noether's PlaneSlicerRasterPlanner on real parts.
+
+The parts are public meshes and scans nobody here made (benchmarks/parts/freeform/LICENSES.md).
+For each part:
+
+- **the face**: the largest connected piece of the triangles whose normal, averaged over 12.5 mm,
+  lies within 60 deg of the part's smallest principal axis (a part's side walls are not the face);
+- **camtool**: a job on the whole part file with ``fit.model = "freeform"`` (the ABB IRB2400,
+  the part's face turned up towards the tool, its centre 1 m in front of the robot), run as a
+  user runs it (``python -m camtool.cli run JOB -o DIR``). Its work poses are read back from
+  ``points.csv`` (zone ``work``, one row per segment) and put through an independent forward
+  kinematics: the vendored ROS-Industrial URDF in Pinocchio, ``tool0`` then the job's TCP (the
+  TCP's position must agree with points.csv's within 0.01 mm, or the benchmark stops);
+- **the anchor**: noether's PlaneSlicerRasterPlanner rebuilt (freeform_metrics.plane_slicer) on
+  the face, its planes ``step_over_mm`` apart and its points ``pitch_mm`` apart, the tool axis
+  along the vertex normals it interpolates;
+- both measured with the same functions (freeform_metrics.measure) against the part's own mesh:
+  coverage (area within 0.6 x step-over of a work TCP), distance of the work TCPs to the mesh
+  (p50 / p99), tool axis against the 12.5 mm mean normal (p95), the largest turn between
+  neighbouring work poses, and the step between neighbouring rows on the surface (p5-p95, in %
+  of step_over_mm), with each side's wall time.
+
+Then the speed figures: the surface and raster of a one-million-point scan (``camtool raster``
+on the noether panel resampled to 10^6 points with 1 mm of noise, whole process), and a free-form
+sample end to end against ``samples/sphere.toml`` in the same run (the ratio; issue #46: <= 10 s
+and <= 2x).
+
+Targets (issue #46): coverage >= 99 %; CAD p99 <= 0.1 mm; scans p50 <= 0.5 mm and p99 <= 3 mm;
+axis p95 <= 3 deg; turns <= 5 deg; step p5-p95 within 90-110 %.
+
+    .venv/bin/python benchmarks/freeform.py [--parts a,b] [--no-camtool] [--no-speed]
+                                            [--camtool-tree DIR]
+
+``--camtool-tree`` runs another checkout's camtool (e.g. a branch not merged yet). Where camtool
+refuses a job (``fit.model = "freeform"`` not there yet) the benchmark prints the refusal's first
+line and carries on: the noether figures are printed either way.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+import freeform_metrics as fm  # noqa: E402
+
+PARTS_DIR = HERE / "parts" / "freeform"
+URDF = ROOT / "camtool" / "robots" / "data" / "ros-industrial" / "abb_irb2400_support" / "urdf" / "irb2400.urdf"
+TCP_MM = 150.0
+PLACE_MM = np.array([1000.0, 0.0, 350.0])   # the face's centre, in front of the robot
+# name: (file, kind, sha256, step_over_mm, pitch_mm)
+PARTS = {
+    "snp_dome_scan": ("snp_dome_scan.ply", "scan",
+                      "514ff6a81848eac3380676f1d8f37bee513379c288ddc0c2f166a4eadcbbd3f5", 15.0, 5.0),
+    "bezier_dac_cad": ("bezier_dac_cad.ply", "cad",
+                       "e6cb032d21e2ec829ee3721117aebde03e7a34b6957b04955301ff0041628177", 10.0, 5.0),
+    "bezier_dac_scan": ("bezier_dac_scan.ply", "scan",
+                        "e6220e97f71c63c7ba89b308d6f94297f1c080b94efadfb44b80002fac1fc989", 10.0, 5.0),
+    "noether_wavy_hole": ("noether_wavy_hole.ply", "cad",
+                          "cfc0fa0eb3e4e47c954c7d8f52daa5b5a6d405469e9f3ca7f8ec824b53300cc7", 10.0, 5.0),
+    "noether_panel_scan": ("noether_panel_scan.ply", "scan",
+                           "9a3d44f42faf03ff0146bcdfd6ec17a7dedefcd3bba8c9037796f59580e656f2", 25.0, 10.0),
+}
+TARGETS = {"coverage": 0.99, "cad_p99": 0.1, "scan_p50": 0.5, "scan_p99": 3.0, "axis_p95": 3.0, "turn": 5.0,
+           "step": (0.9, 1.1), "speed_1m_s": 10.0, "ratio": 2.0}
+
+
+# --- the part, placed ------------------------------------------------------------------------
+def placement(mesh, region) -> np.ndarray:
+    """World <- part (mm): the face's mean normal up (+z), its long side along y, its centre at PLACE_MM."""
+    sub = mesh.submesh([np.flatnonzero(region)], append=True)
+    c = sub.vertices.mean(axis=0)
+    _, _, vt = np.linalg.svd(sub.vertices - c, full_matrices=False)
+    z = vt[2] * (1.0 if (sub.face_normals * sub.area_faces[:, None]).sum(axis=0) @ vt[2] >= 0 else -1.0)
+    y = vt[0]
+    x = np.cross(y, z)
+    R = np.stack([x, y, z])              # rows: the world axes in part coordinates
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = PLACE_MM - R @ c
+    return T
+
+
+def job_text(name, file: Path, T: np.ndarray, step: float, pitch: float) -> str:
+    rpy = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
+    f = lambda v: "[" + ", ".join(f"{x:.6f}" for x in v) + "]"   # noqa: E731
+    return (f'# benchmarks/freeform.py: {name}\n[workpiece]\nfile = "{file}"\nunits = "m"\n\n'
+            f'[fit]\nmodel = "freeform"\n\n'
+            f'[raster]\nstep_over_mm = {step}\npitch_mm = {pitch}\nlead_mm = 15.0\n\n'
+            f'[robot]\nname = "irb2400"\n\n'
+            f'[cell]\nworkpiece_xyz_mm = {f(T[:3, 3])}\nworkpiece_rpy_deg = {f(rpy)}\n\n'
+            f'[tool]\nname = "polisher"\ntcp_xyz_mm = [0.0, 0.0, {TCP_MM}]\nmass_kg = 2.0\n\n'
+            f'[post]\nformats = ["rapid", "csv"]\nprogram_name = "FREEFORM"\n')
+
+
+# --- camtool, as a user runs it ---------------------------------------------------------------
+def camtool(args: list[str], tree: Path, timeout: float = 600.0):
+    """(wall s, exit code, stdout, stderr) of `python -m camtool.cli ARGS` from the tree."""
+    env = {**os.environ, "PYTHONPATH": str(tree)}
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-m", "camtool.cli", *args], cwd=tree, env=env,
+                       capture_output=True, text=True, timeout=timeout)
+    return time.perf_counter() - t0, p.returncode, p.stdout, p.stderr
+
+
+def first_line(text: str) -> str:
+    lines = [s for s in text.strip().splitlines() if s.strip()]
+    return lines[-1][:160] if lines else ""
+
+
+class Fk:
+    """The IRB2400's tool0 by Pinocchio on the vendored URDF, then the job's TCP (mm)."""
+
+    def __init__(self):
+        import pinocchio as pin
+        self.pin = pin
+        self.model = pin.buildModelFromUrdf(str(URDF))
+        self.data = self.model.createData()
+        self.fid = self.model.getFrameId("tool0")
+
+    def tcp(self, q_deg: np.ndarray) -> np.ndarray:
+        out = np.empty((len(q_deg), 4, 4))
+        for i, q in enumerate(np.radians(q_deg)):
+            self.pin.framesForwardKinematics(self.model, self.data, q)
+            M = self.data.oMf[self.fid]
+            T = np.eye(4)
+            T[:3, :3], T[:3, 3] = M.rotation, M.translation * 1000.0
+            out[i] = T
+        tool = np.eye(4)
+        tool[2, 3] = TCP_MM
+        return out @ tool
+
+
+def work_rows(points_csv: Path, fk: Fk, T_wp: np.ndarray):
+    """camtool's work poses as rows (one per segment) in the part's frame: (points, tool axes),
+    and the largest gap between the FK's TCP and points.csv's."""
+    with open(points_csv, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["zone"] == "work"]
+    if not rows:
+        return [], 0.0
+    jcols = [k for k in rows[0] if k.endswith("_deg") and k not in ("orientation_error_deg", "max_joint_step_deg")]
+    q = np.array([[float(r[k]) for k in jcols] for r in rows])
+    xyz = np.array([[float(r[k]) for k in ("x_mm", "y_mm", "z_mm")] for r in rows])
+    seg = np.array([int(r["segment"]) for r in rows])
+    T = fk.tcp(q)
+    gap = float(np.max(np.linalg.norm(T[:, :3, 3] - xyz, axis=1)))
+    inv = np.linalg.inv(T_wp)
+    p = T[:, :3, 3] @ inv[:3, :3].T + inv[:3, 3]
+    a = T[:, :3, 2] @ inv[:3, :3].T
+    out = []
+    for s in np.unique(seg):     # segments in working order, poses in order
+        k = np.flatnonzero(seg == s)
+        out.append((p[k], a[k]))
+    return out, gap
+
+
+def contour_rows(rows, mesh, region, step: float) -> np.ndarray:
+    """Which rows run along the face's boundary (a contour pass, not a row of the raster): 80 % of
+    their poses within 0.75 step-overs of a boundary edge."""
+    sub = mesh.submesh([np.flatnonzero(region)], append=True)
+    e = sub.edges_sorted
+    u, c = np.unique(e, axis=0, return_counts=True)
+    b = u[c == 1]
+    if len(b) == 0:
+        return np.zeros(len(rows), bool)
+    t = np.linspace(0, 1, 6)[:, None, None]
+    pts = (sub.vertices[b[:, 0]][None] * (1 - t) + sub.vertices[b[:, 1]][None] * t).reshape(-1, 3)
+    tree = fm.cKDTree(pts)
+    return np.array([np.mean(tree.query(p)[0] < 0.75 * step) >= 0.8 for p, _ in rows])
+
+
+# --- the report -------------------------------------------------------------------------------
+def verdict(fig: fm.Figures, kind: str, step: float) -> str:
+    bad = []
+    if fig.coverage < TARGETS["coverage"]:
+        bad.append("coverage")
+    if kind == "cad" and not fig.dist_p99 <= TARGETS["cad_p99"]:
+        bad.append("distance")
+    if kind == "scan" and not (fig.dist_p50 <= TARGETS["scan_p50"] and fig.dist_p99 <= TARGETS["scan_p99"]):
+        bad.append("distance")
+    if not fig.axis_p95 <= TARGETS["axis_p95"]:
+        bad.append("axis")
+    if not fig.turn_max <= TARGETS["turn"]:
+        bad.append("turns")
+    lo, hi = TARGETS["step"]
+    if not (fig.step_p5 >= lo * step and fig.step_p95 <= hi * step):
+        bad.append("step")
+    return "meets every target" if not bad else "misses: " + ", ".join(bad)
+
+
+def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path) -> None:
+    fname, kind, sha, step, pitch = PARTS[name]
+    path = PARTS_DIR / fname
+    if hashlib.sha256(path.read_bytes()).hexdigest() != sha:
+        raise SystemExit(f"{path} is not the file LICENSES.md records")
+    mesh = fm.load_mesh(path, 1000.0)
+    _, _, vt = np.linalg.svd(mesh.vertices - mesh.vertices.mean(0), full_matrices=False)
+    region = fm.face_region(mesh, up=vt[2], max_tilt_deg=60.0)
+    face = mesh.submesh([np.flatnonzero(region)], append=True)
+    samples = fm.surface_samples(mesh, region, spacing_mm=max(1.0, step / 5))
+    geo = fm.SurfaceGeodesic(mesh)
+    print(f"\n== {name} ({kind}): {len(mesh.vertices)} vertices, {len(mesh.faces)} triangles, "
+          f"face {face.area / 1e6:.3f} m^2 of {mesh.area / 1e6:.3f} m^2; step_over {step:g} mm, pitch {pitch:g} mm")
+
+    t0 = time.perf_counter()
+    base = fm.plane_slicer(face, step, pitch)
+    t_base = time.perf_counter() - t0
+    fig = fm.measure(mesh, region, [(p, -n) for p, n in base], step, geo=geo, samples=samples)
+    print(f"  noether  {fig.row(step)}  {t_base:6.2f} s  [{verdict(fig, kind, step)}]")
+
+    if tree is None:
+        return
+    T = placement(mesh, region)
+    job = out / f"{name}.toml"
+    job.write_text(job_text(name, path, T, step, pitch))
+    wall, rc, so, se = camtool(["run", str(job), "-o", str(out / name)], tree)
+    if rc != 0:
+        print(f"  camtool  refused (exit {rc}, {wall:.1f} s): {first_line(se or so)}")
+        return
+    rows, gap = work_rows(out / name / "points.csv", fk, T)
+    if gap > 0.01:
+        raise SystemExit(f"{name}: the URDF's TCP is {gap:.4f} mm from points.csv's: the FK does not read camtool's joints")
+    contour = contour_rows(rows, mesh, region, step)
+    fig = fm.measure(mesh, region, rows, step, geo=geo, samples=samples,
+                     step_rows=[p for (p, _), c in zip(rows, contour) if not c])
+    print(f"  camtool  {fig.row(step)}  {wall:6.2f} s  [{verdict(fig, kind, step)}]  "
+          f"({int(contour.sum())} contour runs; FK gap {gap:.1e} mm)")
+
+
+def million_point_scan(path: Path, n: int = 1_000_000, sigma_mm: float = 1.0) -> None:
+    """The noether panel resampled to n points, 1 mm of noise along the normal, as a PLY cloud (mm)."""
+    mesh = fm.load_mesh(PARTS_DIR / PARTS["noether_panel_scan"][0], 1000.0)
+    rng = np.random.default_rng(46)
+    area = mesh.area_faces
+    f = rng.choice(len(area), n, p=area / area.sum())
+    u, v = rng.random(n), rng.random(n)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    t = mesh.triangles[f]
+    p = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
+    p += rng.normal(0.0, sigma_mm, (n, 1)) * mesh.face_normals[f]
+    head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {n}\n"
+            "property float x\nproperty float y\nproperty float z\nend_header\n").encode()
+    path.write_bytes(head + p.astype("<f4").tobytes())
+
+
+def bench_speed(tree: Path, out: Path) -> None:
+    print("\n== speed")
+    mesh = fm.load_mesh(PARTS_DIR / PARTS["noether_panel_scan"][0], 1000.0)
+    _, _, vt = np.linalg.svd(mesh.vertices - mesh.vertices.mean(0), full_matrices=False)
+    region = fm.face_region(mesh, up=vt[2], max_tilt_deg=60.0)
+    T = placement(mesh, region)
+    cloud = out / "panel_1m.ply"
+    million_point_scan(cloud)
+    job = out / "panel_1m.toml"
+    job.write_text(job_text("panel_1m", cloud, T, 25.0, 10.0).replace('units = "m"', 'units = "mm"'))
+    wall, rc, so, se = camtool(["raster", str(job), "-o", str(out / "panel_1m")], tree)
+    status = "ok" if rc == 0 else f"refused (exit {rc}): {first_line(se or so)}"
+    print(f"  surface + raster of a 1 M-point scan: {wall:6.2f} s whole process (target <= "
+          f"{TARGETS['speed_1m_s']:g} s)  {status}")
+    samples = [s for s in ("freeform_hood.toml", "freeform_shell_scan.toml") if (ROOT / "samples" / s).exists()]
+    if not samples:
+        print("  no free-form sample shipped yet")
+        return
+    ws, rcs, _, ses = camtool(["run", str(ROOT / "samples" / "sphere.toml"), "-o", str(out / "sphere")], tree)
+    print(f"  samples/sphere.toml end to end: {ws:6.2f} s" + ("" if rcs == 0 else f"  FAILED: {first_line(ses)}"))
+    for s in samples:
+        w, rc, so, se = camtool(["run", str(ROOT / "samples" / s), "-o", str(out / s)], tree)
+        if rc != 0:
+            print(f"  samples/{s}: refused (exit {rc}, {w:.1f} s): {first_line(se or so)}")
+        else:
+            print(f"  samples/{s} end to end: {w:6.2f} s = {w / ws:4.2f} x the sphere (target <= {TARGETS['ratio']:g})")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--parts", default=",".join(PARTS), help="comma-separated part names")
+    ap.add_argument("--no-camtool", action="store_true", help="the noether baseline only")
+    ap.add_argument("--no-speed", action="store_true", help="skip the speed figures")
+    ap.add_argument("--camtool-tree", type=Path, default=ROOT, help="the camtool checkout to run")
+    a = ap.parse_args(argv)
+    tree = None if a.no_camtool else a.camtool_tree.resolve()
+    if tree is not None:
+        rev = subprocess.run(["git", "-C", str(tree), "log", "-1", "--format=%h %s"], capture_output=True, text=True)
+        print(f"camtool: {tree} at {rev.stdout.strip()[:90]}")
+    fk = Fk() if tree is not None else None
+    with tempfile.TemporaryDirectory(prefix="ffbench-") as tmp:
+        out = Path(tmp)
+        for name in [s for s in a.parts.split(",") if s]:
+            bench_part(name, tree, fk, out)
+        if tree is not None and not a.no_speed:
+            bench_speed(tree, out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
