@@ -25,6 +25,16 @@ parameters, and the face's outline sampled every 2 mm):
   45 deg chamfer (top, four chamfers, four sides; no bottom).
 
 pipe_half is also written as STEP (``pipe_half.step``, OCP), its faces exact.
+
+Free-form parts (issue 46), no plane, sphere or cylinder among them (``make_freeform``):
+
+- freeform_hood.stl: the top skin of a car-hood-like panel, 700 mm long (x) and
+  470 mm wide at the front narrowing to 440 mm at the back, a crown of 40 mm with
+  a cubic twist across it (no quadric fits it); 5 mm grid, normals +z;
+- freeform_shell_scan.ply: a raw scan of a shell: an elliptic dome (semi-axes
+  250 x 180 x 90 mm, cut at z = 30 mm) with a bump (12 mm, sigma 50 mm) and two
+  round holes (R 25 mm), 60k points with 1.0 mm of noise along the normal and
+  0.5 % outliers, no normals (as a depth camera gives it).
 """
 from __future__ import annotations
 
@@ -317,6 +327,71 @@ def make_parts() -> list[str]:
     return names + ["faces_truth.json", "pipe_half.step"]
 
 
+def hood_point(u, v):
+    """The hood's skin at (u, v) in [-1, 1]^2 (mm): x along its length, the crown and twist in z."""
+    u, v = np.asarray(u, float), np.asarray(v, float)
+    x = 350.0 * u
+    y = v * (235.0 - 15.0 * u)
+    z = 40.0 * (1.0 - u ** 2) * (1.0 - 0.3 * v ** 2) + 15.0 * v ** 3 * (0.5 + 0.5 * u) + 10.0 * u
+    return np.stack([x, y, z], axis=-1)
+
+
+def hood_mesh(cell_mm: float = 5.0) -> trimesh.Trimesh:
+    nu, nv = int(700 / cell_mm) + 1, int(470 / cell_mm) + 1
+    U, V = np.meshgrid(np.linspace(-1, 1, nu), np.linspace(-1, 1, nv), indexing="ij")
+    P = hood_point(U, V).reshape(-1, 3)
+    i = (np.arange(nu - 1)[:, None] * nv + np.arange(nv - 1)[None, :]).ravel()
+    f = np.vstack([np.stack([i, i + nv, i + 1], 1), np.stack([i + 1, i + nv, i + nv + 1], 1)])
+    mesh = trimesh.Trimesh(P, f, process=False)
+    if mesh.face_normals[:, 2].mean() < 0:
+        mesh.invert()
+    return mesh
+
+
+SHELL_HOLES = ((-120.0, 40.0), (60.0, -90.0))
+
+
+def shell_point(x, y):
+    """The shell's height over (x, y) (mm): the elliptic dome plus the bump."""
+    r2 = (x / 250.0) ** 2 + (y / 180.0) ** 2
+    return 90.0 * np.sqrt(np.clip(1.0 - r2, 0.0, None)) + 12.0 * np.exp(-((x - 80.0) ** 2 + (y + 40.0) ** 2) / 5000.0)
+
+
+def shell_scan(rng, n: int = 60_000, sigma_mm: float = 1.0, outlier_ratio: float = 0.005) -> np.ndarray:
+    # a fine triangulation of the shell (where z >= 30 mm, outside the holes), sampled area-uniformly
+    xs, ys = np.meshgrid(np.linspace(-250, 250, 501), np.linspace(-180, 180, 361), indexing="ij")
+    P = np.stack([xs, ys, shell_point(xs, ys)], -1).reshape(-1, 3)
+    nx, ny = xs.shape
+    i = (np.arange(nx - 1)[:, None] * ny + np.arange(ny - 1)[None, :]).ravel()
+    f = np.vstack([np.stack([i, i + ny, i + 1], 1), np.stack([i + 1, i + ny, i + ny + 1], 1)])
+    c = P[f].mean(axis=1)
+    keep = c[:, 2] >= 30.0
+    for hx, hy in SHELL_HOLES:
+        keep &= np.hypot(c[:, 0] - hx, c[:, 1] - hy) > 25.0
+    mesh = trimesh.Trimesh(P, f[keep], process=False)
+    m_in = n - int(round(n * outlier_ratio))
+    area = mesh.area_faces
+    fi = rng.choice(len(area), m_in, p=area / area.sum())
+    a, b = rng.random(m_in), rng.random(m_in)
+    flip = a + b > 1
+    a[flip], b[flip] = 1 - a[flip], 1 - b[flip]
+    t = mesh.triangles[fi]
+    pts = t[:, 0] + a[:, None] * (t[:, 1] - t[:, 0]) + b[:, None] * (t[:, 2] - t[:, 0])
+    nrm = mesh.face_normals[fi] * np.sign(mesh.face_normals[fi, 2:3])
+    pts += rng.normal(0.0, sigma_mm, (m_in, 1)) * nrm
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    out = rng.uniform(lo, hi + [0.0, 0.0, 60.0], (n - m_in, 3))
+    return np.vstack([pts, out])[rng.permutation(n)]
+
+
+def make_freeform() -> list[str]:
+    """Write the free-form samples (issue 46); returns the file names."""
+    rng = np.random.default_rng(20260046)
+    hood_mesh().export(OUT / "freeform_hood.stl")
+    trimesh.PointCloud(shell_scan(rng).astype(np.float32)).export(OUT / "freeform_shell_scan.ply")
+    return ["freeform_hood.stl", "freeform_shell_scan.ply"]
+
+
 def main() -> None:
     OUT.mkdir(exist_ok=True)
     rng = np.random.default_rng(20230601)
@@ -324,7 +399,7 @@ def main() -> None:
     trimesh.PointCloud(sphere_scan(rng).astype(np.float32)).export(OUT / "sphere_scan.ply")
     trimesh.PointCloud(wall_cloud(rng).astype(np.float32)).export(OUT / "wall.ply")
     plate_hole_mesh().export(OUT / "plate_hole.stl")
-    for name in ("sphere_patch.stl", "sphere_scan.ply", "wall.ply", "plate_hole.stl", *make_parts()):
+    for name in ("sphere_patch.stl", "sphere_scan.ply", "wall.ply", "plate_hole.stl", *make_parts(), *make_freeform()):
         print(f"wrote {OUT / name} ({(OUT / name).stat().st_size / 1e6:.2f} MB)")
 
 
