@@ -1,0 +1,55 @@
+"""Every shipped sample job runs end to end: `camtool run samples/X.toml -o DIR` exits 0 (every
+check on, as a user runs it).
+
+Marked ``samples`` and run only when selected (``pytest -m samples tests/test_samples.py``): each
+sample is a whole run, minutes in all, so a plain ``pytest`` skips them.
+
+- The two SIA20 wall samples fail today (issue #48: the TCP goes 1.846 mm inside the wall):
+  xfail(strict=True), so the fix shows as an unexpected pass to remove the mark.
+- The free-form samples (issue #46) need ``fit.model = "freeform"``: skipped while ``camtool fit``
+  refuses that key.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from conftest import run_camtool
+
+SAMPLES = Path(__file__).resolve().parents[1] / "samples"
+JOBS = sorted(p.name for p in SAMPLES.glob("*.toml"))
+BUG_48 = "issue #48: the TCP goes 1.846 mm inside the wall (the motion check refuses the program)"
+XFAIL = {"sia20_wall.toml": BUG_48, "sia20_paper_wall.toml": BUG_48}
+
+pytestmark = pytest.mark.samples
+
+
+@pytest.fixture(autouse=True)
+def _only_when_selected(request):
+    if "samples" not in (request.config.getoption("markexpr") or ""):
+        pytest.skip("a whole run per sample: select with -m samples")
+
+
+def _freeform_refused(job: Path) -> str:
+    """The refusal's text if this camtool does not take fit.model = "freeform" yet, else ''."""
+    if 'model = "freeform"' not in job.read_text():
+        return ""
+    r = run_camtool("fit", job)
+    text = r.stderr + r.stdout
+    return text.strip() if r.returncode != 0 and "freeform" in text and "expected one of" in text else ""
+
+
+def test_every_sample_is_tested():
+    assert {"sphere.toml", "freeform_hood.toml", "freeform_shell_scan.toml", *XFAIL} <= set(JOBS)
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=XFAIL[n]))
+                                  if n in XFAIL else n for n in JOBS])
+def test_sample_runs(name, tmp_path):
+    job = SAMPLES / name
+    refused = _freeform_refused(job)
+    if refused:
+        pytest.skip(f'fit.model = "freeform" not accepted yet: {refused.splitlines()[-1][:120]}')
+    r = run_camtool("run", job, "-o", tmp_path / "out")
+    assert r.returncode == 0, f"{name}: exit {r.returncode}\n{r.stderr[-2000:]}"
