@@ -6,7 +6,7 @@ For each part:
 - **the face**: the largest connected piece of the triangles whose normal, averaged over 12.5 mm,
   lies within 60 deg of the part's smallest principal axis (a part's side walls are not the face);
 - **camtool**: a job on the whole part file with ``fit.model = "freeform"`` (the ABB IRB2400,
-  the part's face turned up towards the tool, its centre 1 m in front of the robot), run as a
+  the part's face upright and turned towards the robot, its centre 1 m in front of it at 1.03 m), run as a
   user runs it (``python -m camtool.cli run JOB -o DIR``). Its work poses are read back from
   ``points.csv`` (zone ``work``, one row per segment) and put through an independent forward
   kinematics: the vendored ROS-Industrial URDF in Pinocchio, ``tool0`` then the job's TCP (the
@@ -20,6 +20,9 @@ For each part:
   neighbouring work poses, and the step between neighbouring rows on the surface (p5-p95, in %
   of step_over_mm), with each side's wall time.
 
+First a control: the same chain on samples/irb2400_plate.toml, a plane camtool works today (its
+figures must be near perfect: the FK, the frames and the metrics read camtool right).
+
 Then the speed figures: the surface and raster of a one-million-point scan (``camtool raster``
 on the noether panel resampled to 10^6 points with 1 mm of noise, whole process), and a free-form
 sample end to end against ``samples/sphere.toml`` in the same run (the ratio; issue #46: <= 10 s
@@ -29,7 +32,7 @@ Targets (issue #46): coverage >= 99 %; CAD p99 <= 0.1 mm; scans p50 <= 0.5 mm an
 axis p95 <= 3 deg; turns <= 5 deg; step p5-p95 within 90-110 %.
 
     .venv/bin/python benchmarks/freeform.py [--parts a,b] [--no-camtool] [--no-speed]
-                                            [--camtool-tree DIR]
+                                            [--camtool-tree DIR] [--set KEY=VALUE ...]
 
 ``--camtool-tree`` runs another checkout's camtool (e.g. a branch not merged yet). Where camtool
 refuses a job (``fit.model = "freeform"`` not there yet) the benchmark prints the refusal's first
@@ -59,8 +62,11 @@ import freeform_metrics as fm  # noqa: E402
 PARTS_DIR = HERE / "parts" / "freeform"
 URDF = ROOT / "camtool" / "robots" / "data" / "ros-industrial" / "abb_irb2400_support" / "urdf" / "irb2400.urdf"
 TCP_MM = 150.0
-PLACE_MM = np.array([1000.0, 0.0, 350.0])   # the face's centre, in front of the robot
-# name: (file, kind, sha256, step_over_mm, pitch_mm)
+PLACE_MM = np.array([1000.0, 0.0, 1030.0])   # the face's centre, upright in front of the robot
+# name: (file, kind, sha256, step_over_mm, pitch_mm); every file in metres but noether_wavy_hole,
+# which has no unit (a 10.5 x 10.5 sheet in noether's tests): taken as 0.05 m a unit (a 525 mm sheet)
+SCALE = {"noether_wavy_hole": 50.0}
+LONG_SIDE_UP = {"bezier_dac_cad", "bezier_dac_scan"}   # curved across their long side
 PARTS = {
     "snp_dome_scan": ("snp_dome_scan.ply", "scan",
                       "514ff6a81848eac3380676f1d8f37bee513379c288ddc0c2f166a4eadcbbd3f5", 15.0, 5.0),
@@ -78,27 +84,37 @@ TARGETS = {"coverage": 0.99, "cad_p99": 0.1, "scan_p50": 0.5, "scan_p99": 3.0, "
 
 
 # --- the part, placed ------------------------------------------------------------------------
-def placement(mesh, region) -> np.ndarray:
-    """World <- part (mm): the face's mean normal up (+z), its long side along y, its centre at PLACE_MM."""
+def placement(mesh, region, long_side_up: bool = False) -> np.ndarray:
+    """World <- part (mm): the face upright in front of the robot, its mean normal towards it (-x),
+    its long side along y (or up, long_side_up: a part curved across its long side then turns the
+    tool about the vertical, not the wrist's bend), its centre at PLACE_MM (as
+    samples/irb2400_plate.toml stands its plate)."""
     sub = mesh.submesh([np.flatnonzero(region)], append=True)
     c = sub.vertices.mean(axis=0)
     _, _, vt = np.linalg.svd(sub.vertices - c, full_matrices=False)
-    z = vt[2] * (1.0 if (sub.face_normals * sub.area_faces[:, None]).sum(axis=0) @ vt[2] >= 0 else -1.0)
-    y = vt[0]
-    x = np.cross(y, z)
-    R = np.stack([x, y, z])              # rows: the world axes in part coordinates
+    n = vt[2] * (1.0 if (sub.face_normals * sub.area_faces[:, None]).sum(axis=0) @ vt[2] >= 0 else -1.0)
+    wx, wy = -n, vt[1] if long_side_up else vt[0]
+    R = np.stack([wx, wy, np.cross(wx, wy)])    # rows: the world axes in part coordinates
     T = np.eye(4)
     T[:3, :3] = R
     T[:3, 3] = PLACE_MM - R @ c
     return T
 
 
-def job_text(name, file: Path, T: np.ndarray, step: float, pitch: float) -> str:
+def job_text(name, file: Path, T: np.ndarray, step: float, pitch: float, scale: float = 1000.0) -> str:
     rpy = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
     f = lambda v: "[" + ", ".join(f"{x:.6f}" for x in v) + "]"   # noqa: E731
-    return (f'# benchmarks/freeform.py: {name}\n[workpiece]\nfile = "{file}"\nunits = "m"\n\n'
+    units = {1000.0: "m", 1.0: "mm"}.get(scale)
+    if units is None:      # a file without units: scaled into a copy in mm beside the job
+        import trimesh
+        m = trimesh.load(str(file), force="mesh", process=False)
+        m.apply_scale(scale)
+        file = Path(tempfile.mkdtemp(prefix="ffpart-")) / (Path(file).stem + "_mm.ply")
+        m.export(file)
+        units = "mm"
+    return (f'# benchmarks/freeform.py: {name}\n[workpiece]\nfile = "{file}"\nunits = "{units}"\n\n'
             f'[fit]\nmodel = "freeform"\n\n'
-            f'[raster]\nstep_over_mm = {step}\npitch_mm = {pitch}\nlead_mm = 15.0\n\n'
+            f'[raster]\nstep_over_mm = {step}\npitch_mm = {pitch}\nlead_mm = 15.0\ntool_x_world = [0.0, 0.0, 1.0]\n\n'
             f'[robot]\nname = "irb2400"\n\n'
             f'[cell]\nworkpiece_xyz_mm = {f(T[:3, 3])}\nworkpiece_rpy_deg = {f(rpy)}\n\n'
             f'[tool]\nname = "polisher"\ntcp_xyz_mm = [0.0, 0.0, {TCP_MM}]\nmass_kg = 2.0\n\n'
@@ -115,16 +131,18 @@ def camtool(args: list[str], tree: Path, timeout: float = 600.0):
     return time.perf_counter() - t0, p.returncode, p.stdout, p.stderr
 
 
-def first_line(text: str) -> str:
+def first_line(text: str, width: int = 400) -> str:
+    """The error's line (the last non-empty line camtool wrote), cut to width."""
     lines = [s for s in text.strip().splitlines() if s.strip()]
-    return lines[-1][:160] if lines else ""
+    return lines[-1][:width] if lines else ""
 
 
 class Fk:
     """The IRB2400's tool0 by Pinocchio on the vendored URDF, then the job's TCP (mm)."""
 
-    def __init__(self):
+    def __init__(self, tcp_mm: float = TCP_MM):
         import pinocchio as pin
+        self.tcp_mm = tcp_mm
         self.pin = pin
         self.model = pin.buildModelFromUrdf(str(URDF))
         self.data = self.model.createData()
@@ -139,7 +157,7 @@ class Fk:
             T[:3, :3], T[:3, 3] = M.rotation, M.translation * 1000.0
             out[i] = T
         tool = np.eye(4)
-        tool[2, 3] = TCP_MM
+        tool[2, 3] = self.tcp_mm
         return out @ tool
 
 
@@ -200,12 +218,13 @@ def verdict(fig: fm.Figures, kind: str, step: float) -> str:
     return "meets every target" if not bad else "misses: " + ", ".join(bad)
 
 
-def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path) -> None:
+def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: list[str] = ()) -> None:
     fname, kind, sha, step, pitch = PARTS[name]
     path = PARTS_DIR / fname
     if hashlib.sha256(path.read_bytes()).hexdigest() != sha:
         raise SystemExit(f"{path} is not the file LICENSES.md records")
-    mesh = fm.load_mesh(path, 1000.0)
+    scale = SCALE.get(name, 1000.0)
+    mesh = fm.load_mesh(path, scale)
     _, _, vt = np.linalg.svd(mesh.vertices - mesh.vertices.mean(0), full_matrices=False)
     region = fm.face_region(mesh, up=vt[2], max_tilt_deg=60.0)
     face = mesh.submesh([np.flatnonzero(region)], append=True)
@@ -222,10 +241,10 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path) -> None:
 
     if tree is None:
         return
-    T = placement(mesh, region)
+    T = placement(mesh, region, long_side_up=name in LONG_SIDE_UP)
     job = out / f"{name}.toml"
-    job.write_text(job_text(name, path, T, step, pitch))
-    wall, rc, so, se = camtool(["run", str(job), "-o", str(out / name)], tree)
+    job.write_text(job_text(name, path, T, step, pitch, scale))
+    wall, rc, so, se = camtool(["run", str(job), "-o", str(out / name), *[x for k in sets for x in ("--set", k)]], tree)
     if rc != 0:
         print(f"  camtool  refused (exit {rc}, {wall:.1f} s): {first_line(se or so)}")
         return
@@ -237,6 +256,28 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path) -> None:
                      step_rows=[p for (p, _), c in zip(rows, contour) if not c])
     print(f"  camtool  {fig.row(step)}  {wall:6.2f} s  [{verdict(fig, kind, step)}]  "
           f"({int(contour.sum())} contour runs; FK gap {gap:.1e} mm)")
+
+
+def bench_control(tree: Path, out: Path) -> None:
+    """The measuring chain on a face camtool works today: samples/irb2400_plate.toml (a plane with a
+    square hole, upright at x = 1000 mm, TCP 120 mm): its figures must be near perfect."""
+    job = ROOT / "samples" / "irb2400_plate.toml"
+    wall, rc, so, se = camtool(["run", str(job), "-o", str(out / "control")], tree)
+    print("\n== control: samples/irb2400_plate.toml (plate_hole.stl, a plane; step_over 10 mm)")
+    if rc != 0:
+        print(f"  camtool  FAILED (exit {rc}): {first_line(se or so)}")
+        return
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("xyz", [0.0, -90.0, 0.0], degrees=True).as_matrix()
+    T[:3, 3] = [1000.0, 0.0, 900.0]
+    rows, gap = work_rows(out / "control" / "points.csv", Fk(120.0), T)
+    mesh = fm.load_mesh(ROOT / "samples" / "plate_hole.stl", 1.0)
+    region = np.ones(len(mesh.faces), bool)
+    contour = contour_rows(rows, mesh, region, 10.0)
+    fig = fm.measure(mesh, region, rows, 10.0, step_rows=[p for (p, _), c in zip(rows, contour) if not c])
+    print(f"  camtool  {fig.row(10.0)}  {wall:6.2f} s  ({int(contour.sum())} contour runs; FK gap {gap:.1e} mm)")
+    if gap > 0.01:
+        raise SystemExit("the URDF's TCP is not points.csv's: the FK does not read camtool's joints")
 
 
 def million_point_scan(path: Path, n: int = 1_000_000, sigma_mm: float = 1.0) -> None:
@@ -265,7 +306,7 @@ def bench_speed(tree: Path, out: Path) -> None:
     cloud = out / "panel_1m.ply"
     million_point_scan(cloud)
     job = out / "panel_1m.toml"
-    job.write_text(job_text("panel_1m", cloud, T, 25.0, 10.0).replace('units = "m"', 'units = "mm"'))
+    job.write_text(job_text("panel_1m", cloud, T, 25.0, 10.0, scale=1.0))
     wall, rc, so, se = camtool(["raster", str(job), "-o", str(out / "panel_1m")], tree)
     status = "ok" if rc == 0 else f"refused (exit {rc}): {first_line(se or so)}"
     print(f"  surface + raster of a 1 M-point scan: {wall:6.2f} s whole process (target <= "
@@ -290,6 +331,8 @@ def main(argv=None) -> int:
     ap.add_argument("--no-camtool", action="store_true", help="the noether baseline only")
     ap.add_argument("--no-speed", action="store_true", help="skip the speed figures")
     ap.add_argument("--camtool-tree", type=Path, default=ROOT, help="the camtool checkout to run")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="passed to each part's camtool run (e.g. fit.model=auto: camtool before free-form faces)")
     a = ap.parse_args(argv)
     tree = None if a.no_camtool else a.camtool_tree.resolve()
     if tree is not None:
@@ -298,8 +341,10 @@ def main(argv=None) -> int:
     fk = Fk() if tree is not None else None
     with tempfile.TemporaryDirectory(prefix="ffbench-") as tmp:
         out = Path(tmp)
+        if tree is not None:
+            bench_control(tree, out)
         for name in [s for s in a.parts.split(",") if s]:
-            bench_part(name, tree, fk, out)
+            bench_part(name, tree, fk, out, a.set)
         if tree is not None and not a.no_speed:
             bench_speed(tree, out)
     return 0

@@ -32,7 +32,7 @@ Free-form parts (issue 46), no plane, sphere or cylinder among them (``make_free
   470 mm wide at the front narrowing to 440 mm at the back, a crown of 40 mm with
   a cubic twist across it (no quadric fits it); 5 mm grid, normals +z;
 - freeform_shell_scan.ply: a raw scan of a shell: an elliptic dome (semi-axes
-  250 x 180 x 90 mm, cut at z = 30 mm) with a bump (12 mm, sigma 50 mm) and two
+  250 x 180 x 90 mm, cut at z = 55 mm: 400 x 285 mm) with a bump (12 mm, sigma 50 mm) and two
   round holes (R 25 mm), 60k points with 1.0 mm of noise along the normal and
   0.5 % outliers, no normals (as a depth camera gives it).
 """
@@ -358,14 +358,14 @@ def shell_point(x, y):
 
 
 def shell_scan(rng, n: int = 60_000, sigma_mm: float = 1.0, outlier_ratio: float = 0.005) -> np.ndarray:
-    # a fine triangulation of the shell (where z >= 30 mm, outside the holes), sampled area-uniformly
+    # a fine triangulation of the shell (where z >= 55 mm, outside the holes), sampled area-uniformly
     xs, ys = np.meshgrid(np.linspace(-250, 250, 501), np.linspace(-180, 180, 361), indexing="ij")
     P = np.stack([xs, ys, shell_point(xs, ys)], -1).reshape(-1, 3)
     nx, ny = xs.shape
     i = (np.arange(nx - 1)[:, None] * ny + np.arange(ny - 1)[None, :]).ravel()
     f = np.vstack([np.stack([i, i + ny, i + 1], 1), np.stack([i + 1, i + ny, i + ny + 1], 1)])
     c = P[f].mean(axis=1)
-    keep = c[:, 2] >= 30.0
+    keep = c[:, 2] >= 55.0
     for hx, hy in SHELL_HOLES:
         keep &= np.hypot(c[:, 0] - hx, c[:, 1] - hy) > 25.0
     mesh = trimesh.Trimesh(P, f[keep], process=False)
