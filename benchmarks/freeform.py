@@ -35,8 +35,9 @@ axis p95 <= 3 deg; turns <= 5 deg; step p5-p95 within 90-110 %.
                                             [--camtool-tree DIR] [--set KEY=VALUE ...]
 
 ``--camtool-tree`` runs another checkout's camtool (e.g. a branch not merged yet). Where camtool
-refuses a job (``fit.model = "freeform"`` not there yet) the benchmark prints the refusal's first
-line and carries on: the noether figures are printed either way.
+refuses a job, the benchmark prints the refusal's line, measures the raster alone (``camtool
+raster JOB``: its ``path.npz``, read with NumPy) if that runs, and carries on: the noether figures
+are printed either way.
 """
 from __future__ import annotations
 
@@ -247,6 +248,7 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
     wall, rc, so, se = camtool(["run", str(job), "-o", str(out / name), *[x for k in sets for x in ("--set", k)]], tree)
     if rc != 0:
         print(f"  camtool  refused (exit {rc}, {wall:.1f} s): {first_line(se or so)}")
+        bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out)
         return
     rows, gap = work_rows(out / name / "points.csv", fk, T)
     if gap > 0.01:
@@ -278,6 +280,35 @@ def bench_control(tree: Path, out: Path) -> None:
     print(f"  camtool  {fig.row(10.0)}  {wall:6.2f} s  ({int(contour.sum())} contour runs; FK gap {gap:.1e} mm)")
     if gap > 0.01:
         raise SystemExit("the URDF's TCP is not points.csv's: the FK does not read camtool's joints")
+
+
+ZONES = ("work", "self_motion", "lead_in", "lead_out", "approach", "depart", "retract")   # path.npz's zone codes
+
+
+def bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out) -> None:
+    """Where the run is refused: the raster alone (`camtool raster JOB`, its path.npz read with NumPy:
+    the work poses' TCP frames as rastered, before planning), measured the same way."""
+    wall, rc, so, se = camtool(["raster", str(job), "-o", str(out / f"{name}_raster")], tree)
+    if rc != 0:
+        print(f"  raster   refused (exit {rc}, {wall:.1f} s): {first_line(se or so)}")
+        return
+    z = np.load(out / f"{name}_raster" / "path.npz")
+    work = z["zone"] == ZONES.index("work")
+    inv = np.linalg.inv(T)
+    P = z["poses_mm"][work]
+    p = P[:, :3, 3] @ inv[:3, :3].T + inv[:3, 3]
+    a = P[:, :3, 2] @ inv[:3, :3].T
+    seg = z["segment"][work]
+    contour = z["contour"][work].astype(bool) if "contour" in z else np.zeros(len(seg), bool)
+    rows, step_rows = [], []
+    for sg in np.unique(seg):
+        k = np.flatnonzero(seg == sg)
+        rows.append((p[k], a[k]))
+        if not contour[k].any():
+            step_rows.append(p[k])
+    fig = fm.measure(mesh, region, rows, step, geo=geo, samples=samples, step_rows=step_rows)
+    print(f"  raster   {fig.row(step)}  {wall:6.2f} s  [{verdict(fig, kind, step)}]  (camtool raster's path.npz, "
+          f"not planned)")
 
 
 def million_point_scan(path: Path, n: int = 1_000_000, sigma_mm: float = 1.0) -> None:
