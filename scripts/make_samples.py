@@ -34,7 +34,8 @@ Free-form parts (issue 46), no plane, sphere or cylinder among them (``make_free
 - freeform_shell_scan.ply: a raw scan of a shell: an elliptic dome (semi-axes
   250 x 180 x 90 mm, cut at z = 55 mm: 400 x 285 mm) with a bump (12 mm, sigma 50 mm) and two
   round holes (R 25 mm), 60k points with 1.0 mm of noise along the normal and
-  0.5 % outliers, no normals (as a depth camera gives it).
+  0.5 % outliers, normals estimated by open3d from 30 neighbours and oriented
+  out of the material (as the other scans: a scanner's software does).
 """
 from __future__ import annotations
 
@@ -357,7 +358,7 @@ def shell_point(x, y):
     return 90.0 * np.sqrt(np.clip(1.0 - r2, 0.0, None)) + 12.0 * np.exp(-((x - 80.0) ** 2 + (y + 40.0) ** 2) / 5000.0)
 
 
-def shell_scan(rng, n: int = 60_000, sigma_mm: float = 1.0, outlier_ratio: float = 0.005) -> np.ndarray:
+def shell_scan(rng, n: int = 60_000, sigma_mm: float = 1.0, outlier_ratio: float = 0.005):
     # a fine triangulation of the shell (where z >= 55 mm, outside the holes), sampled area-uniformly
     xs, ys = np.meshgrid(np.linspace(-250, 250, 501), np.linspace(-180, 180, 361), indexing="ij")
     P = np.stack([xs, ys, shell_point(xs, ys)], -1).reshape(-1, 3)
@@ -381,14 +382,22 @@ def shell_scan(rng, n: int = 60_000, sigma_mm: float = 1.0, outlier_ratio: float
     pts += rng.normal(0.0, sigma_mm, (m_in, 1)) * nrm
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     out = rng.uniform(lo, hi + [0.0, 0.0, 60.0], (n - m_in, 3))
-    return np.vstack([pts, out])[rng.permutation(n)]
+    pts = np.vstack([pts, out])[rng.permutation(n)]
+    # normals as a scanner's software gives them: from 30 neighbours, oriented out of the material (+z)
+    import open3d as o3d
+
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
+    pc.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=30))
+    normals = np.asarray(pc.normals)
+    normals[normals[:, 2] < 0] *= -1
+    return pts, normals
 
 
 def make_freeform() -> list[str]:
     """Write the free-form samples (issue 46); returns the file names."""
     rng = np.random.default_rng(20260046)
     hood_mesh().export(OUT / "freeform_hood.stl")
-    trimesh.PointCloud(shell_scan(rng).astype(np.float32)).export(OUT / "freeform_shell_scan.ply")
+    write_ply_with_normals(OUT / "freeform_shell_scan.ply", *shell_scan(rng))
     return ["freeform_hood.stl", "freeform_shell_scan.ply"]
 
 
