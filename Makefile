@@ -3,7 +3,7 @@
 # hash of pyproject.toml, so a second run installs nothing).
 PY      := .venv/bin/python
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test samples bench clean
 
 setup:
 	@bash scripts/setup.sh
@@ -13,6 +13,9 @@ demo: setup
 
 test: setup
 	$(PY) -m pytest -n 2 --dist loadfile
+
+samples: setup   # every shipped sample end to end (CI runs it after `make test`)
+	$(PY) -m pytest -n 2 -m samples tests/test_samples.py
 
 bench: setup
 	$(PY) -m pip install -q -e '.[bench,design]'   # the anchors: pyransac3d, roboticstoolbox, toppra, pymoo
