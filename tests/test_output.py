@@ -57,3 +57,33 @@ def test_an_infeasible_rerun_leaves_no_program_of_the_earlier_run(tmp_path):
     assert report["status"] == "infeasible"
     assert not (tmp_path / "SPHERE.csv").exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".camtool-run-")]
+
+
+def test_a_run_failing_where_no_stage_reports_leaves_a_report_of_itself(tmp_path, monkeypatch):
+    """Issue #48: a failed run leaves a report of itself or none, never the previous run's report."""
+    import pytest
+
+    from camtool.errors import BadInput
+    from camtool.job import load_job
+    from camtool.run import pipeline, tasks
+
+    small = ["raster.step_over_mm=60", "raster.pitch_mm=8", 'post.formats=["csv"]']
+    pipeline.run_job(load_job(SAMPLES / "sphere.toml", small), tmp_path)
+    assert json.loads((tmp_path / "report.json").read_text())["status"] == "ok"
+    assert (tmp_path / "SPHERE.csv").exists() and (tmp_path / "report.html").exists()
+
+    def timing_fails(*args, **kwargs):  # a stage that writes no report (timing) failing inside: exit 1
+        raise RuntimeError("time law: the spline leaves the joint range")
+
+    with monkeypatch.context() as m:
+        m.setitem(tasks.TASKS, "raster", timing_fails)
+        with pytest.raises(RuntimeError):
+            pipeline.run_job(load_job(SAMPLES / "sphere.toml", small), tmp_path)
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["status"] == "failed" and report["exit_code"] == 1 and "spline" in report["reason"]
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file() and not p.name.startswith(".")) == ["report.json"]
+
+    with pytest.raises(BadInput):  # a bad post: refused before any work, and reported
+        pipeline.run_job(load_job(SAMPLES / "sphere.toml", small[:2] + ['post.formats=["nosuch"]']), tmp_path)
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["status"] == "bad_input" and report["exit_code"] == 2 and "nosuch" in report["reason"]

@@ -13,8 +13,10 @@ the run has finished are the files placed into ``OUT``:
 
 A run that fails after it wrote its failure report (infeasible, unsafe) is
 placed the same way, so the folder then holds that report.json (status and
-reason), report.html and plots, and no program. A run that fails before it
-has a report (bad input) leaves the folder as it was. Leftover staging folders
+reason), report.html and plots, and no program. A run that fails where no
+stage writes a report (bad input, a timing or post failure, an internal error)
+is placed with a report.json of that failure (``pipeline.failure_report``):
+never the previous run's report. Leftover staging folders
 of killed runs (their process is gone) are removed by the next run into the
 same folder. Only files camtool listed in its manifest are ever removed.
 
