@@ -58,6 +58,9 @@ EDGE_GAP_RAD = 2 * np.pi / 3  # a point with a larger angular gap round it is on
 EDGE_BAND = 3.0              # points this many spacings (p90) from a flagged edge point count as edge too
 CREASE_NEIGHBOURS = 8        # cloud: normals averaged for the sign where the offset is in-plane
 MLS_NEIGHBOURS = 8           # cloud: a point this near the surface is measured from the plane of this many points
+MLS_OUTLIER_SIGMAS = 6.0     # cloud: a neighbour this many RMS offsets off the plane of the others is a stray
+MLS_OUTLIER_FLOOR_MM = 0.05  # ... and farther than this off it (a noise-free cloud keeps its curvature)
+MLS_MIN_SPREAD = 0.01        # ... and only where the others span a plane (not points along one scan line)
 MLS_REACH_SPACINGS = 1.0     # ... when within this many lateral tolerances of its nearest point
 LATERAL_SPACINGS = 3.0       # cloud: in-plane offsets up to this many spacings (p90) are sampling holes
 HINT_NEAR_FACTOR = 3.0       # mesh orientation vote: faces within this many hint spacings vote
@@ -359,9 +362,7 @@ class PartGeometry:
         k = min(MLS_NEIGHBOURS, len(self.points_mm))
         _, nb = self._tree.query(p, k=k, workers=-1)
         Q = self.points_mm[nb]
-        mid = Q.mean(axis=1)
-        D = Q - mid[:, None, :]
-        n = np.linalg.eigh(np.einsum("mki,mkj->mij", D, D))[1][:, :, 0]
+        mid, n, _ = _plane(Q, _stray_free(Q))
         n = np.where((np.einsum("ij,ij->i", n, self.normals[nb].sum(axis=1)) < 0)[:, None], -n, n)
         return np.einsum("ij,ij->i", p - mid, n)
 
@@ -604,3 +605,31 @@ def import_part_libraries() -> None:
     from .grid_bounds import load_compiled
 
     load_compiled()
+
+
+def _plane(Q: np.ndarray, w: np.ndarray):
+    """(centroid, unit normal, spread) of the weighted least-squares plane of each row of points ``Q``
+    (..., k, 3); spread: the middle over the largest eigenvalue (near 0: the points lie on a line)."""
+    mid = np.einsum("...k,...ki->...i", w, Q) / w.sum(axis=-1)[..., None]
+    D = Q - mid[..., None, :]
+    lam, vec = np.linalg.eigh(np.einsum("...k,...ki,...kj->...ij", w, D, D))
+    return mid, vec[..., :, 0], lam[..., 1] / np.maximum(lam[..., 2], 1e-300)
+
+
+def _stray_free(Q: np.ndarray) -> np.ndarray:
+    """Weights (1 keep, 0 drop) of each row's neighbours ``Q`` (m, k, 3): a neighbour farther off the plane
+    of the other k - 1 than MLS_OUTLIER_SIGMAS times their RMS offset (and MLS_OUTLIER_FLOOR_MM) is a stray
+    scan point (an outlier within the fit's band, issue #48: one 4 mm off the wall among points 0.1 mm off
+    tilted the plane and read a pose on the wall as 1.8 mm behind it). At most k - 3 are dropped."""
+    m, k = Q.shape[:2]
+    if k < 4:
+        return np.ones((m, k))
+    others = ~np.eye(k, dtype=bool)  # row j: every neighbour but j
+    R = np.broadcast_to(Q[:, None, :, :], (m, k, k, 3))[:, others].reshape(m, k, k - 1, 3)
+    mid, n, spread = _plane(R, np.ones((m, k, k - 1)))
+    rms = np.sqrt(np.mean(np.einsum("mjki,mji->mjk", R - mid[:, :, None, :], n) ** 2, axis=2))
+    off = np.abs(np.einsum("mji,mji->mj", Q - mid, n))
+    stray = (off > np.maximum(MLS_OUTLIER_SIGMAS * rms, MLS_OUTLIER_FLOOR_MM)) & (spread > MLS_MIN_SPREAD)
+    w = (~stray).astype(float)
+    w[w.sum(axis=1) < 3] = 1.0
+    return w
