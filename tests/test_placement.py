@@ -189,3 +189,29 @@ def test_parse_vary_rejects(text):
 def test_parse_vary():
     v = parse_vary("yaw=-30:15")
     assert (v.name, v.lower, v.upper, v.unit) == ("yaw", -30.0, 15.0, "deg")
+
+
+def test_a_reach_hint_names_only_a_placement_that_plans(high, monkeypatch):
+    """Issue #48: the placement a reach failure prints has been planned and timed there; one that does not plan
+    is not printed: wider screen margins are tried, and if none plans the hint names no placement."""
+    from camtool.run import reach_hint
+
+    job, robot, st, wp, path = high
+    shift = reach_hint.planned_shift(job, st, robot, path)
+    assert shift["planned"] and "plans and times every pose (tried)" in shift["message"]
+    assert f"cell.workpiece_xyz_mm = [{', '.join(f'{v:g}' for v in shift['workpiece_xyz_mm'])}]" in shift["message"]
+    moved = reach_hint.placed(job, shift)
+    assert reach_hint.why_not_planned(moved) is None and moved.cell.workpiece_xyz_mm == shift["workpiece_xyz_mm"]
+
+    tried = []
+
+    def fails_first(j):
+        tried.append(list(j.cell.workpiece_xyz_mm))
+        return "timing: run of surface rows 1..2: time law: the spline leaves the joint range" if len(tried) == 1 else None
+
+    monkeypatch.setattr(reach_hint, "why_not_planned", fails_first)
+    wider = reach_hint.planned_shift(job, st, robot, path)
+    assert wider["planned"] and len(tried) == 2 and tried[0] != tried[1] and wider["workpiece_xyz_mm"] == tried[1]
+    monkeypatch.setattr(reach_hint, "why_not_planned", lambda j: "does not plan")
+    none = reach_hint.planned_shift(job, st, robot, path)
+    assert not none["planned"] and "cell.workpiece_xyz_mm =" not in none["message"] and "camtool place" in none["message"]

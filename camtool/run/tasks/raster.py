@@ -34,7 +34,7 @@ from ...report.figures import (
 )
 from ...placement.partial import partial_path, partial_summary, reachable_stretches
 from ...plan.kernel import load_compiled
-from ...placement.shift import nearest_feasible_shift
+from ..reach_hint import planned_shift
 from ..job_settings import JobSettings
 from ...part.surface import FaceSet
 from ...timing import sampled_for
@@ -195,7 +195,7 @@ def planned_and_timed(r: RasterRun, made: Rastered, part, ahead: Ahead | None = 
                 ahead.mapping.withdraw()   # the report draws the map with the failing poses
             shift = None
             if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, a bounded search
-                shift = nearest_feasible_shift(job, settings, robot, path)
+                shift = planned_shift(job, settings, robot, path)  # printed only if it plans and times
             report_unreachable(exc, path, robot, job, r.outdir, made.wp, made.surface, shift=shift,
                                world=collision_world(settings, robot))
             if shift is not None and not shift["already_reachable"]:
