@@ -58,11 +58,12 @@ def planned_shift(job, settings, robot, path, margins=HINT_MARGINS) -> dict | No
     ``nearest_feasible_shift`` with ``planned`` (True, or False with ``not_planned``: why the last one tried did
     not) and its message; None where the screen finds nothing."""
     tried: dict = {}
-    last = None
+    first = last = None
     for reach_margin, joint_margin in margins:
         shift = nearest_feasible_shift(job, settings, robot, path, reach_margin=reach_margin, joint_margin=joint_margin)
+        first = shift if first is None else first
         if shift is None or shift["already_reachable"]:
-            return shift if last is None else last
+            continue  # the screen passes this placement, which failed: wider margins may move it
         key = (tuple(shift["workpiece_xyz_mm"]), tuple(shift["workpiece_rpy_deg"]))
         if key not in tried:
             tried[key] = why_not_planned(placed(job, shift))
@@ -72,4 +73,4 @@ def planned_shift(job, settings, robot, path, margins=HINT_MARGINS) -> dict | No
                 "message": f"none of the {len(tried)} nearest placements the closed-form screen reaches plans too "
                            f"(report.json: nearest_feasible_shift; the last fails: {tried[key]}); camtool place "
                            "searches placements and plans them"}
-    return last
+    return last if last is not None else first

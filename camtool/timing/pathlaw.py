@@ -603,6 +603,10 @@ def _read_only(plan, smp, derate) -> tuple:
     return plan, smp, derate
 
 
+class LeavesJointRange(RuntimeError):
+    """The spline through a run's poses leaves a joint's range between them: no slower time law mends it."""
+
+
 def time_section(spline: PathSpline, target: np.ndarray, limits, fill_s: float = FILL_S):
     """Plan, sample and check a section; S-curve bounds are lowered until every Hermite piece is within
     ``CHECK_SHARE``. Returns (plan, samples, derate); raises RuntimeError if it never fits."""
@@ -614,7 +618,7 @@ def time_section(spline: PathSpline, target: np.ndarray, limits, fill_s: float =
         if not len(r) or r.max() <= 1.0:
             return plan, smp, derate
         if np.isinf(r).any():
-            raise RuntimeError("time law: the spline leaves the joint range")
+            raise LeavesJointRange("time law: the spline leaves the joint range")
         derate *= DERATE
         target = np.minimum(target, _plateau_caps(plan, smp, r, target))
     raise RuntimeError("time law: no S-curve bounds keep the section within the limits")

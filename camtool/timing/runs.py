@@ -29,9 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import CamtoolError
+from ..errors import CamtoolError, PlanInfeasible
 from ..path.toolpath import ZONE_CODE
-from .pathlaw import PathSpline, SectionPlan, scurve, speed_bounds, time_run_section, transition_limits
+from .pathlaw import LeavesJointRange, PathSpline, SectionPlan, scurve, speed_bounds, time_run_section, transition_limits
 from .quintic import MARGIN
 
 FEED_POLICIES = ("constant", "max")
@@ -125,6 +125,13 @@ def time_runs(q, step_mm, first, last, run_id, zone, limits, feed_mm_s: float, p
         tgt = targets(bound, z, feed_mm_s, policy, scope)
         try:
             plan, smp, _ = time_run_section(spline, tgt, limits)
+        except LeavesJointRange as exc:  # the poses run along a joint's limit: the plan cannot be timed (exit 3)
+            out = spline.derivatives(np.linspace(s[0], s[-1], 64 * (b - a) + 1))[0]
+            beyond = np.maximum(limits.lower - out, out - limits.upper).max(axis=0)
+            j = int(np.argmax(beyond))
+            raise PlanInfeasible(f"timing: run of surface rows {a}..{b}: {exc} (joint {j + 1} by {beyond[j]:.3g} "
+                                 "between its poses, which run along its limit)",
+                                 report={"timing_failed": {"rows": [int(a), int(b)], "joint": j + 1}}) from None
         except RuntimeError as exc:
             raise CamtoolError(f"timing: run of surface rows {a}..{b}: {exc}") from None
         knot_t = smp.t_s[smp.knot >= 0]

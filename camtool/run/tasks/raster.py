@@ -194,7 +194,7 @@ def planned_and_timed(r: RasterRun, made: Rastered, part, ahead: Ahead | None = 
             if ahead is not None:
                 ahead.mapping.withdraw()   # the report draws the map with the failing poses
             shift = None
-            if exc.report.get("unreachable"):  # where the part would fit: the nearest shift, a bounded search
+            if exc.report.get("unreachable") or exc.report.get("timing_failed"):  # where the part would fit and plan
                 shift = planned_shift(job, settings, robot, path)  # printed only if it plans and times
             report_unreachable(exc, path, robot, job, r.outdir, made.wp, made.surface, shift=shift,
                                world=collision_world(settings, robot))
