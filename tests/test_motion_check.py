@@ -506,3 +506,21 @@ def test_a_stray_scan_point_within_the_fit_band_does_not_tilt_the_local_plane():
                                        grid_nodes=GRID)
     q = np.array([[0.0, 0.0, 100.0], [10.0, 5.0, np.sqrt(100.0**2 - 125.0)]])
     assert np.all(np.abs(part.signed_distance(q)) < 0.05), part.signed_distance(q)
+
+
+def test_a_face_beside_an_edge_is_not_a_stray_point():
+    """The stray-point rule leaves a chamfer's points alone: each lies on the plane of its own neighbours
+    (samples/plate_chamfer_scan.toml's leads run over such an edge)."""
+    rng = np.random.default_rng(5)
+    g = np.arange(0.0, 40.0, 2.0)
+    X, Y = np.meshgrid(g, np.arange(-20.0, 20.0, 2.0))
+    flat = np.c_[X.ravel(), Y.ravel(), np.zeros(X.size)]
+    d = np.arange(1.0, 15.0, 2.0)
+    D, Yc = np.meshgrid(d, np.arange(-20.0, 20.0, 2.0))
+    chamfer = np.c_[40.0 + D.ravel() / np.sqrt(2), Yc.ravel(), -D.ravel() / np.sqrt(2)]
+    pts = np.vstack([flat, chamfer]) + rng.normal(0, 0.02, (len(flat) + len(chamfer), 3))
+    normals = np.vstack([np.tile([0.0, 0.0, 1.0], (len(flat), 1)), np.tile([0.5 ** 0.5, 0.0, 0.5 ** 0.5], (len(chamfer), 1))])
+    part = PartGeometry.from_workpiece(Workpiece(pts, normals), np.array([[20.0, 0, 0]]), np.array([[0.0, 0, 1]]),
+                                       grid_nodes=GRID)
+    assert not part._isolated(np.arange(len(flat), len(pts))).any()
+    assert not part._isolated(np.arange(len(flat))).any()

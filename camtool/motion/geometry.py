@@ -362,9 +362,22 @@ class PartGeometry:
         k = min(MLS_NEIGHBOURS, len(self.points_mm))
         _, nb = self._tree.query(p, k=k, workers=-1)
         Q = self.points_mm[nb]
-        mid, n, _ = _plane(Q, _stray_free(Q))
+        mid, n, _ = _plane(Q, _stray_free(Q, nb, self._isolated))
         n = np.where((np.einsum("ij,ij->i", n, self.normals[nb].sum(axis=1)) < 0)[:, None], -n, n)
         return np.einsum("ij,ij->i", p - mid, n)
+
+    def _isolated(self, idx: np.ndarray) -> np.ndarray:
+        """Per cloud point ``idx``: far off the plane of its own MLS_NEIGHBOURS nearest points (a stray scan
+        point), not a point of a surface beside them (a chamfer or an edge, whose own neighbours lie round it)."""
+        k = min(MLS_NEIGHBOURS + 1, len(self.points_mm))
+        if len(idx) == 0 or k < 5:
+            return np.zeros(len(idx), bool)
+        _, nb = self._tree.query(self.points_mm[idx], k=k, workers=-1)
+        R = self.points_mm[nb[:, 1:]]
+        mid, n, spread = _plane(R, np.ones(R.shape[:2]))
+        rms = np.sqrt(np.mean(np.einsum("mki,mi->mk", R - mid[:, None, :], n) ** 2, axis=1))
+        off = np.abs(np.einsum("mi,mi->m", self.points_mm[idx] - mid, n))
+        return (off > np.maximum(MLS_OUTLIER_SIGMAS * rms, MLS_OUTLIER_FLOOR_MM)) & (spread > MLS_MIN_SPREAD)
 
     def _feature(self, c: np.ndarray, prim: np.ndarray):
         """(pseudo-normal, on the patch's edge) of the corner or edge of each triangle nearest ``c``."""
@@ -616,11 +629,13 @@ def _plane(Q: np.ndarray, w: np.ndarray):
     return mid, vec[..., :, 0], lam[..., 1] / np.maximum(lam[..., 2], 1e-300)
 
 
-def _stray_free(Q: np.ndarray) -> np.ndarray:
-    """Weights (1 keep, 0 drop) of each row's neighbours ``Q`` (m, k, 3): a neighbour farther off the plane
-    of the other k - 1 than MLS_OUTLIER_SIGMAS times their RMS offset (and MLS_OUTLIER_FLOOR_MM) is a stray
-    scan point (an outlier within the fit's band, issue #48: one 4 mm off the wall among points 0.1 mm off
-    tilted the plane and read a pose on the wall as 1.8 mm behind it). At most k - 3 are dropped."""
+def _stray_free(Q: np.ndarray, nb: np.ndarray, isolated) -> np.ndarray:
+    """Weights (1 keep, 0 drop) of each row's neighbours ``Q`` (m, k, 3), cloud indices ``nb`` (m, k): a
+    neighbour farther off the plane of the other k - 1 than MLS_OUTLIER_SIGMAS times their RMS offset (and
+    MLS_OUTLIER_FLOOR_MM), and off the plane of its own neighbours too (``isolated(indices)``: not a point of
+    a face beside an edge), is a stray scan point (an outlier within the fit's band, issue #48: one 4 mm off
+    the wall among points 0.1 mm off tilted the plane and read a pose on the wall as 1.8 mm behind it). At
+    most k - 3 are dropped."""
     m, k = Q.shape[:2]
     if k < 4:
         return np.ones((m, k))
@@ -630,6 +645,9 @@ def _stray_free(Q: np.ndarray) -> np.ndarray:
     rms = np.sqrt(np.mean(np.einsum("mjki,mji->mjk", R - mid[:, :, None, :], n) ** 2, axis=2))
     off = np.abs(np.einsum("mji,mji->mj", Q - mid, n))
     stray = (off > np.maximum(MLS_OUTLIER_SIGMAS * rms, MLS_OUTLIER_FLOOR_MM)) & (spread > MLS_MIN_SPREAD)
+    if stray.any():
+        cand = np.unique(nb[stray])
+        stray &= np.isin(nb, cand[isolated(cand)])
     w = (~stray).astype(float)
     w[w.sum(axis=1) < 3] = 1.0
     return w
