@@ -14,7 +14,7 @@ import dataclasses
 
 from ..errors import CamtoolError
 from ..job import Section
-from ..placement.shift import nearest_feasible_shift
+from ..placement.shift import ShiftSearch, nearest_feasible_shift
 from ..timing import limit_findings
 from ..timing.pathlaw import remembered_runs
 from .job_settings import JobSettings
@@ -60,7 +60,8 @@ def planned_shift(job, settings, robot, path, margins=HINT_MARGINS) -> dict | No
     tried: dict = {}
     first = last = None
     for reach_margin, joint_margin in margins:
-        shift = nearest_feasible_shift(job, settings, robot, path, reach_margin=reach_margin, joint_margin=joint_margin)
+        shift = nearest_feasible_shift(job, settings, robot, path,
+                                       ShiftSearch(reach_margin=reach_margin, joint_margin=joint_margin))
         first = shift if first is None else first
         if shift is None or shift["already_reachable"]:
             continue  # the screen passes this placement, which failed: wider margins may move it
