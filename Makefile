@@ -15,7 +15,7 @@ test: setup
 	$(PY) -m pytest -n 2 --dist loadfile
 
 samples: setup   # every shipped sample end to end (CI runs it after `make test`)
-	$(PY) -m pytest -n 2 -m samples tests/test_samples.py
+	$(PY) -m pytest -n 2 -m samples tests/test_samples.py tests/test_same_bytes.py
 
 bench: setup
 	$(PY) -m pip install -q -e '.[bench,design]'   # the anchors: pyransac3d, roboticstoolbox, toppra, pymoo

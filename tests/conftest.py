@@ -38,6 +38,12 @@ LONGEST_FIRST = ("test_cli_batch.py", "test_pipeline.py", "test_faces.py", "test
 
 
 def pytest_collection_modifyitems(config, items):
-    """Longest files first (a stable sort: the order within a file is kept)."""
+    """Longest files first (a stable sort: the order within a file is kept). Tests marked ``samples`` (whole
+    runs of shipped jobs: `make samples`, which CI runs after `make test`) skip unless selected with -m samples."""
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(Path(str(item.fspath)).name, len(rank)))
+    if "samples" not in (config.getoption("markexpr") or ""):
+        skip = pytest.mark.skip(reason="a whole run of a shipped job: select with -m samples (make samples)")
+        for item in items:
+            if item.get_closest_marker("samples"):
+                item.add_marker(skip)

@@ -4,7 +4,11 @@ an earlier report found "depends on machine load"."""
 import subprocess
 import sys
 
+import pytest
+
 from conftest import SAMPLES, run_camtool
+
+pytestmark = pytest.mark.samples  # two whole runs (minutes): with the samples, `make samples`
 
 
 def test_the_sia20_wall_writes_the_same_program_under_load(tmp_path):
