@@ -23,6 +23,7 @@ import json
 import os
 import stat
 import tempfile
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -73,7 +74,37 @@ def _what(mode: int) -> str:
     return "not a regular file"
 
 
+_HELD = threading.local()  # abspath -> (fd, stat) of inputs held open by ``held_input`` in this thread
+
+
+def _held() -> dict:
+    return _HELD.__dict__.setdefault("fds", {})
+
+
+@contextmanager
+def held_input(path, kind: str):
+    """Open and check ``path`` once and hold that descriptor for the block: every ``read_input_bytes``,
+    ``check_input``, ``opened_input`` and ``private_copy`` of the same path inside the block uses it
+    (a duplicate read with ``pread``), never the name again. A file swapped or renamed after the first
+    check is never seen. Yields the stat of the checked file."""
+    key = os.path.abspath(path)
+    held = _held()
+    if key in held:
+        yield held[key][1]
+        return
+    fd, st = _open_input(Path(path), kind)
+    held[key] = (fd, st)
+    try:
+        yield st
+    finally:
+        del held[key]
+        os.close(fd)
+
+
 def _open_input(path: Path, kind: str, follow: bool = True) -> tuple[int, os.stat_result]:
+    held = _held().get(os.path.abspath(path))
+    if held is not None:
+        return os.dup(held[0]), held[1]
     flags = os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC | (0 if follow else os.O_NOFOLLOW)
     try:
         fd = os.open(path, flags)
@@ -114,7 +145,7 @@ def read_input_bytes(path, kind: str, follow: bool = True) -> bytes:
     try:
         chunks, total = [], 0
         while True:
-            chunk = os.read(fd, 1 << 20)
+            chunk = os.pread(fd, 1 << 20, total)  # by offset: a held descriptor is shared, its position is not used
             if not chunk:
                 break
             total += len(chunk)
@@ -431,6 +462,35 @@ def opened_input(path, kind: str):
         os.close(fd)
 
 
+@contextmanager
+def private_copy(path, kind: str, suffix: str = ""):
+    """A name for a library that can only open files by name and must not be handed ``/proc/self/fd``
+    (OpenCASCADE): a copy of the checked descriptor's bytes in a private folder (``mkdtemp``, mode 0700,
+    created ``O_EXCL | O_NOFOLLOW``), removed after the block. The library reads the very bytes checked."""
+    fd, _st = _open_input(Path(path), kind)
+    tmpdir = tempfile.mkdtemp(prefix="camtool-input-")
+    copy = os.path.join(tmpdir, "input" + suffix)
+    try:
+        try:
+            out = os.open(copy, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
+            with os.fdopen(out, "wb") as f:
+                offset, cap = 0, size_cap_bytes(kind)
+                while chunk := os.pread(fd, 1 << 20, offset):
+                    offset += len(chunk)
+                    if offset > cap:
+                        raise BadInput(f"{path}: grew past the {cap / 2**20:g} MB cap for a {kind} file while read")
+                    f.write(chunk)
+        finally:
+            os.close(fd)
+        yield copy
+    finally:
+        try:
+            os.unlink(copy)
+        except FileNotFoundError:
+            pass
+        os.rmdir(tmpdir)
+
+
 def save_figure(fig, file, **savefig_kw) -> Path:
     """``fig.savefig`` through ``write_file``: rendered in memory, then created O_EXCL|O_NOFOLLOW and
     renamed into place (a planted link at the PNG's name is refused, never written through)."""
@@ -459,3 +519,99 @@ def read_program_bytes(path) -> bytes:
         return read_input_bytes(path, "program")
     except BadInput as exc:
         raise OSError(str(exc)) from None
+
+
+MAX_NPZ_MEMBERS = 64
+MAX_JSON_DEPTH = 64
+
+
+def load_json(data: bytes | str, where) -> object:
+    """JSON from checked bytes; BadInput (one line, no quote of the text) when it is not JSON or nested
+    deeper than ``MAX_JSON_DEPTH`` (camtool's own files are a few levels deep: no RecursionError)."""
+    try:
+        text = data.decode("utf-8") if isinstance(data, bytes) else data
+    except UnicodeDecodeError as exc:
+        raise BadInput(f"{where}: not UTF-8 text (byte {exc.start})") from None
+    depth = _json_depth(text)
+    if depth > MAX_JSON_DEPTH:
+        raise BadInput(f"{where}: the JSON is nested {depth} levels deep, more than the {MAX_JSON_DEPTH} camtool reads")
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise BadInput(f"{where}: the JSON is nested too deeply to read") from None
+    except ValueError as exc:
+        raise BadInput(f"{where}: not valid JSON ({type(exc).__name__} at character "
+                       f"{getattr(exc, 'pos', '?')})") from None
+
+
+def _json_depth(text: str) -> int:
+    """The deepest bracket nesting of a JSON text, strings skipped (a linear scan, no recursion)."""
+    import re
+
+    stripped = re.sub(r'"(?:[^"\\]|\\.)*"', '""', text)
+    depth = best = 0
+    for ch in stripped:
+        if ch in "[{":
+            depth += 1
+            if depth > best:
+                best = depth
+                if best > MAX_JSON_DEPTH:
+                    return best
+        elif ch in "]}":
+            depth -= 1
+    return best
+
+
+def load_npz(data: bytes, where, cap_bytes: int) -> dict:
+    """The arrays of an ``.npz`` held in memory (checked bytes, never a path), each read without pickle.
+
+    What the archive inflates to is bounded before anything is allocated: at most ``MAX_NPZ_MEMBERS``
+    members, and the sum of every member's declared size and of every array's ``shape x itemsize`` (from
+    its .npy header) at most ``cap_bytes``. A 35 MB file claiming 8 GB is one line, never a MemoryError.
+    """
+    import io
+    import math
+    import zipfile
+
+    import numpy as np
+    from numpy.lib import format as npformat
+
+    def damaged(exc=None):
+        why = f" ({type(exc).__name__})" if exc is not None else ""
+        return BadInput(f"{where}: not an .npz archive, or a damaged one{why}")
+
+    def too_big(n):
+        return BadInput(f"{where}: the archive inflates to {n / 2**20:.1f} MB, over the {cap_bytes / 2**20:g} MB cap")
+
+    try:
+        zf = zipfile.ZipFile(io.BytesIO(data))
+        infos = zf.infolist()
+        if len(infos) > MAX_NPZ_MEMBERS:
+            raise BadInput(f"{where}: holds {len(infos)} entries; an .npz camtool reads has at most {MAX_NPZ_MEMBERS}")
+        declared = sum(i.file_size for i in infos)
+        if declared > cap_bytes:
+            raise too_big(declared)
+        arrays, total = {}, 0
+        for info in infos:
+            name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+            with zf.open(info) as f:
+                version = npformat.read_magic(f)
+                if version == (1, 0):
+                    shape, fortran, dtype = npformat.read_array_header_1_0(f)
+                elif version in ((2, 0), (3, 0)):
+                    shape, fortran, dtype = npformat.read_array_header_2_0(f)
+                else:
+                    raise damaged()
+                if dtype.hasobject:
+                    raise BadInput(f"{where}: entry {snippet(name, 40)} holds Python objects; camtool reads numbers and text only")
+                total += math.prod(int(s) for s in shape) * max(dtype.itemsize, 1)
+                if total > cap_bytes:
+                    raise too_big(total)
+            with zf.open(info) as f:
+                arrays[name] = npformat.read_array(f, allow_pickle=False)
+        return arrays
+    except BadInput:
+        raise
+    except (ValueError, OSError, EOFError, KeyError, TypeError, OverflowError, zipfile.BadZipFile,
+            NotImplementedError, RuntimeError, MemoryError) as exc:
+        raise damaged(exc) from None

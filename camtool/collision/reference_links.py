@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BadInput
+from ..safe_io import read_input_bytes
 from ..robots.urdf_meshes import collision_geometry
 from ..robots.joint_frames import joint_frames_mm
 from .body import BASE, MM_PER_M, Body, hull_points, mesh_points, se3_mm
@@ -50,12 +51,13 @@ def _read_bodies(robot, q_rad) -> list[Body]:
 
     conv = robot.conventions
     path = Path(conv.urdf_path)
+    data = read_input_bytes(path, "robot")  # opened once, a regular file under the cap: a FIFO never blocks
     try:
-        um = pin.buildModelFromUrdf(str(path))
+        um = pin.buildModelFromXML(data.decode("utf-8"))  # the checked text, never the file again by name
     except Exception as exc:
-        raise BadInput(f"{path}: cannot read the URDF ({(str(exc).splitlines() or [''])[0]})") from None
+        raise BadInput(f"{path}: cannot read the URDF ({type(exc).__name__})") from None
     # package://<pkg>/... resolves against the folders above the URDF (<pkg>/urdf/<robot>.urdf)
-    gm = collision_geometry(um, path, list(path.resolve().parents)[:3])
+    gm = collision_geometry(um, path, list(path.resolve().parents)[:3], data)
     if q_rad is None:
         lo, hi = robot.limits.lower, robot.limits.upper
         q_rad = lo + REFERENCE_Q_FRACTION * (hi - lo)

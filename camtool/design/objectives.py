@@ -252,16 +252,23 @@ class DesignProblem:
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
     def _load_cache(self) -> None:
-        try:
-            data = json.loads(self.cache_file.read_text())
-        except FileNotFoundError:
+        import os
+
+        if not os.path.lexists(self.cache_file):
             return
-        except (OSError, json.JSONDecodeError) as exc:
-            raise BadInput(f"{self.cache_file}: cannot read the design cache ({exc})") from None
-        if data.get("fingerprint") != self.fingerprint():
-            return  # another job or setting: start afresh (the file is rewritten by save_cache)
-        for key, ev in data.get("entries", {}).items():
-            self.cache[tuple(float(x) for x in key.split(","))] = Evaluation(**ev)
+        # opened once (a FIFO or device is one line), bounded depth, and its shape checked: never an internal error
+        data = safe_io.load_json(safe_io.read_input_bytes(self.cache_file, "manifest"), self.cache_file)
+        if not isinstance(data, dict) or data.get("fingerprint") != self.fingerprint():
+            return  # another job or setting, or not a cache: start afresh (the file is rewritten by save_cache)
+        entries = data.get("entries", {})
+        if not isinstance(entries, dict):
+            raise BadInput(f"{self.cache_file}: not a camtool design cache (entries is not a table)")
+        try:
+            for key, ev in entries.items():
+                self.cache[tuple(float(x) for x in key.split(","))] = Evaluation(**ev)
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise BadInput(f"{self.cache_file}: a damaged design cache entry ({type(exc).__name__}); "
+                           "remove the file to start afresh") from None
 
     def save_cache(self) -> None:
         """Write the cache file (if any) through a temporary file."""

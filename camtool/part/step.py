@@ -90,7 +90,11 @@ def read_step_faces(path: Path) -> list[StepFace]:
                        "reinstall camtool), or export the part as STL") from None
     reader = STEPControl_Reader()
     with _ocp_output_to_log():
-        ok = reader.ReadFile(str(path)) == IFSelect_RetDone and reader.TransferRoots() > 0
+        from ..safe_io import private_copy  # OCP reads a private copy of the checked descriptor, never the name
+
+        with private_copy(path, "workpiece", ".step") as name:
+            ok = reader.ReadFile(name) == IFSelect_RetDone
+        ok = ok and reader.TransferRoots() > 0
         shape = reader.OneShape() if ok else None
         if ok:
             BRepMesh_IncrementalMesh(shape, DEFLECTION_MM, False, ANGLE_RAD, True)

@@ -885,11 +885,13 @@ def load_workpiece(path: Path, units: str = "mm", sample_points: int = 100000,
                        f"use one of {' '.join(supported_extensions())}")
     if not path.exists():
         raise BadInput(f"{path}: workpiece file not found; check the name and the folder")
-    from ..safe_io import check_input
+    from ..safe_io import held_input
 
-    if check_input(path, "workpiece").st_size == 0:  # regular file under the cap (O_NONBLOCK open, fstat)
-        raise BadInput(f"{path}: the file is empty; export the workpiece again")
-    with _library_output_to_log():
+    # opened and checked once (regular file under the cap, O_NONBLOCK, fstat); every loader below reads that
+    # descriptor (safe_io's held inputs), never the name again
+    with held_input(path, "workpiece") as st, _library_output_to_log():
+        if st.st_size == 0:
+            raise BadInput(f"{path}: the file is empty; export the workpiece again")
         try:
             raw = loader(path)
         except BadInput:

@@ -29,6 +29,7 @@ from pathlib import Path as FsPath
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
+from .. import safe_io
 from ..errors import BadInput
 from ..settings import ProcessSettings
 from ..path.toolpath import SURFACE_CODES, WORK
@@ -56,18 +57,22 @@ def load_target(file, grid: MapGrid) -> np.ndarray:
     """The target removal (um) on ``grid``: an .npz with ``u``, ``v`` (the surface's uv unit) and ``values_um``
     (or ``values``, as process_map.npz has), linear between its cells; BadInput naming the file otherwise."""
     p = FsPath(file)
+    # opened once through safe_io (regular file, size cap, no FIFO hang), never np.load by name, and what
+    # the archive inflates to capped before anything is allocated
     try:
-        if not p.is_file():
-            raise BadInput(f"{p}: process.target_removal_file: not a file")
-        if p.stat().st_size > MAX_TARGET_BYTES:
-            raise BadInput(f"{p}: process.target_removal_file: larger than {MAX_TARGET_BYTES / 1e6:g} MB")
-        with np.load(p, allow_pickle=False) as d:
-            u, v = np.asarray(d["u"], float), np.asarray(d["v"], float)
-            values = np.asarray(d["values_um"] if "values_um" in d.files else d["values"], float)
-    except BadInput:
-        raise
-    except (OSError, ValueError, KeyError) as exc:
-        raise BadInput(f"{p}: process.target_removal_file: expected an .npz with u, v and values_um ({exc})") from None
+        d = safe_io.load_npz(safe_io.read_input_bytes(p, "stage"), f"{p}: process.target_removal_file",
+                             MAX_TARGET_BYTES)
+    except BadInput as exc:
+        msg = str(exc)
+        raise BadInput(msg if "target_removal_file" in msg else f"process.target_removal_file: {msg}") from None
+    try:
+        u, v = np.asarray(d["u"], float), np.asarray(d["v"], float)
+        values = np.asarray(d["values_um"] if "values_um" in d else d["values"], float)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise BadInput(f"{p}: process.target_removal_file: expected an .npz with u, v and values_um "
+                       f"({type(exc).__name__})") from None
+    if u.ndim != 1 or v.ndim != 1:
+        raise BadInput(f"{p}: process.target_removal_file: u and v must be 1-D")
     if values.shape != (len(v), len(u)) or len(u) < 2 or len(v) < 2 or not np.all(np.isfinite(values)):
         raise BadInput(f"{p}: process.target_removal_file: values_um must be finite, shaped (len(v), len(u)) = "
                        f"({len(v)}, {len(u)}), found {values.shape}")

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -60,6 +61,7 @@ from ..transforms import matrix_from_xyz_rpy
 from .conventions import conventions_from_table
 from .dh import MAX_LENGTH_MM, DHRow, build_pinocchio_model
 from .model import Limits, Robot
+from .validate import validate_robot
 
 BUILTIN_ROBOTS = ("seed8", "irb2400", "irb2400_paper", "sia20", "sia20_paper", "kr16", "m20ia")
 
@@ -138,12 +140,16 @@ def get_robot(spec: str, params: dict | None = None, base_dir: Path | None = Non
         path = base_dir / path
     if spec in BUILTIN_ROBOTS or path.suffix.lower() == ".toml":
         source = f"builtin:{spec}" if spec in BUILTIN_ROBOTS else str(path)
-        return robot_from_toml(robot_toml_data(spec, base_dir), source, params)
+        robot = robot_from_toml(robot_toml_data(spec, base_dir), source, params)
+        validate_robot(robot, source)
+        return robot
     if path.suffix.lower() == ".urdf":
-        if not path.is_file():
+        if not os.path.lexists(path):
             raise BadInput(f"{path}: robot file not found")
         from .urdf import robot_from_urdf
-        return robot_from_urdf(path)
+        robot = robot_from_urdf(path)
+        validate_robot(robot, str(path))
+        return robot
     raise BadInput(f"unknown robot {spec!r}: use one of {', '.join(BUILTIN_ROBOTS)}, or a .toml/.urdf file")
 
 

@@ -64,12 +64,15 @@ def _limit(joint: ET.Element, key: str, where: str) -> float:
     return value
 
 
-def check_urdf(path: Path) -> None:
-    """BadInput for a URDF camtool cannot use, before Pinocchio reads it (see module doc)."""
+def check_urdf(path: Path, data: bytes | None = None) -> str:
+    """BadInput for a URDF camtool cannot use, before Pinocchio reads it (see module doc); returns the
+    checked text, which is what Pinocchio parses (``buildModelFromXML``): the file is opened once."""
     try:
         from ..safe_io import read_input_bytes  # regular file under the cap: never a FIFO hang
 
-        root = ET.fromstring(read_input_bytes(path, "robot"))
+        data = read_input_bytes(path, "robot") if data is None else data
+        text = data.decode("utf-8")
+        root = ET.fromstring(data)
     except ET.ParseError as exc:
         raise BadInput(f"{path}: not a URDF: XML error ({exc})") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -141,14 +144,15 @@ def check_urdf(path: Path) -> None:
     if len(roots) != 1:
         raise BadInput(f"{path}: the links form {len(roots)} separate trees ({', '.join(sorted(roots)[:3])}); "
                        "a robot has one base link")
+    return text
 
 
 def robot_from_urdf(path: Path, flange_link: str | None = None) -> Robot:
     """Load a serial robot from URDF; the flange is ``flange_link`` or the last link."""
     path = Path(path)
-    check_urdf(path)
+    text = check_urdf(path)
     try:
-        model = pin.buildModelFromUrdf(str(path))
+        model = pin.buildModelFromXML(text)  # the checked text: Pinocchio never reopens the file by name
     except Exception as exc:  # Pinocchio raises plain ValueError/RuntimeError
         raise BadInput(f"{path}: cannot read URDF ({(str(exc).splitlines() or [''])[0]})") from None
     if model.nq == 0:

@@ -58,14 +58,15 @@ def _refusal(path: Path) -> str | None:
     return None
 
 
-def checked_collision_urdf(urdf_path: Path, package_dirs) -> str:
-    """The URDF's text with every collision mesh filename replaced by the absolute path of its
-    checked file; BadInput naming the link and the mesh when one is missing or refused."""
+def checked_collision_urdf(urdf_path: Path, package_dirs, data: bytes | None = None) -> str:
+    """The URDF's text (``data``, the checked bytes, or read through safe_io) with every collision mesh
+    filename replaced by the absolute path of its checked file; BadInput naming the link and the mesh
+    when one is missing or refused."""
     from ..safe_io import read_input_bytes
 
     urdf_path = Path(urdf_path)
     try:
-        root = ET.fromstring(read_input_bytes(urdf_path, "robot"))
+        root = ET.fromstring(read_input_bytes(urdf_path, "robot") if data is None else data)
     except ET.ParseError as exc:
         raise BadInput(f"{urdf_path}: not a URDF: XML error ({exc})") from None
     for link in root.findall("link"):
@@ -83,11 +84,12 @@ def checked_collision_urdf(urdf_path: Path, package_dirs) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-def collision_geometry(model, urdf_path: Path, package_dirs):
-    """Pinocchio's collision GeometryModel of a URDF whose meshes were checked first."""
+def collision_geometry(model, urdf_path: Path, package_dirs, data: bytes | None = None):
+    """Pinocchio's collision GeometryModel of a URDF whose meshes were checked first (``data``: the
+    URDF's checked bytes, when the caller already read them)."""
     import pinocchio as pin
 
-    text = checked_collision_urdf(urdf_path, package_dirs)
+    text = checked_collision_urdf(urdf_path, package_dirs, data)
     try:
         return pin.buildGeomFromUrdfString(model, text, pin.GeometryType.COLLISION,
                                            package_dirs=[str(d) for d in package_dirs])

@@ -9,12 +9,12 @@ output folder always holds one consistent run (``camtool/run/output.py``).
 """
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import Callable
 
+from .. import safe_io
 from ..errors import CamtoolError
 from ..job import Job
 from ..report.run_report import write_json_atomic
@@ -69,8 +69,11 @@ def run_job(job: Job, outdir: Path, compare: bool = False, on_stage: Callable | 
             if isinstance(exc, CamtoolError):
                 exc.args = tuple(a.replace(str(stage), str(outdir)) if isinstance(a, str) else a for a in exc.args)
             raise
+        # read in the private staging folder, before placing, with the paths as placed: never OUT/report.json again
+        report = safe_io.load_json(safe_io.read_input_bytes(stage / "report.json", "manifest", follow=False)
+                                   .replace(str(stage).encode(), str(outdir).encode()), stage / "report.json")
         place(stage, outdir)
     outputs = dict(result.outputs)
-    outputs["report"] = json.loads((outdir / "report.json").read_text())  # the paths as placed
+    outputs["report"] = report
     return replace(result, files=tuple(final_path(f, stage, outdir) for f in result.files),
                    outputs=MappingProxyType(outputs))

@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
-import zipfile
+import os
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -58,7 +58,10 @@ def _jsonable(x):
 def _restore(x):
     if isinstance(x, dict):
         if "__array__" in x:
-            return np.asarray(x["__array__"], dtype=x["dtype"])
+            dtype = np.dtype(str(x.get("dtype")))
+            if dtype.kind not in "biuf" or dtype.itemsize > 16:  # real numbers only: no objects, no huge voids
+                raise TypeError("array dtype")
+            return np.asarray(x["__array__"], dtype=dtype)
         if "__tuple__" in x:
             return tuple(_restore(v) for v in x["__tuple__"])
         return {k: _restore(v) for k, v in x.items()}
@@ -94,30 +97,35 @@ def save_stage(box, file: str | FsPath) -> FsPath:
 def load_stage(file: str | FsPath, expect: tuple[str, ...] = ()):
     """Read a stage box saved by ``save_stage``; BadInput naming the file when it is not one (of ``expect``)."""
     file = FsPath(file)
-    if not file.exists():
+    if not os.path.lexists(file):
         raise BadInput(f"{file}: stage file not found")
-    data = io.BytesIO(safe_io.read_input_bytes(file, "stage"))  # a regular file under the cap: no FIFO hang
-    try:
-        with np.load(data, allow_pickle=False) as d:
-            header = json.loads(str(d["header"]))
-            arrays = {k: d[k] for k in d.files if k != "header"}
-    except FileNotFoundError:
-        raise BadInput(f"{file}: stage file not found") from None
-    except (KeyError, ValueError, OSError, EOFError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
-        raise BadInput(f"{file}: not a camtool stage file, or a damaged one ({type(exc).__name__})") from None
-    if header.get("format") != FORMAT or header.get("kind") not in KINDS:
+    # a regular file under the cap, read once (no FIFO hang); inflated size capped before any allocation
+    arrays = safe_io.load_npz(safe_io.read_input_bytes(file, "stage"), f"{file}: not a camtool stage file:",
+                              safe_io.size_cap_bytes("stage"))
+    head = arrays.pop("header", None)
+    if head is None or head.ndim != 0 or head.dtype.kind != "U":
+        raise BadInput(f"{file}: not a camtool stage file (no JSON header)")
+    header = safe_io.load_json(str(head), f"{file}: the stage file's header")
+    if not isinstance(header, dict) or header.get("format") != FORMAT or not isinstance(header.get("kind"), str) \
+            or header["kind"] not in KINDS:
         raise BadInput(f"{file}: not a camtool stage file")
-    if header.get("version") != VERSION:
-        raise BadInput(f"{file}: stage file version {header.get('version')} is not supported "
+    if header.get("version") != VERSION or isinstance(header.get("version"), bool):
+        raise BadInput(f"{file}: stage file version {safe_io.snippet(header.get('version'), 20)} is not supported "
                        f"(this camtool reads version {VERSION}); rerun the stage")
     kind = header["kind"]
     if expect and kind not in expect:
         raise BadInput(f"{file}: holds a {kind} (the {STAGE_OF_KIND[kind]} stage's output), "
                        f"expected {' or '.join(expect)}")
-    if kind == "Path" and tuple(header.get("zones", ())) != ZONES:
-        raise BadInput(f"{file}: path file uses zone labels {header.get('zones')}, expected {list(ZONES)}")
+    zones = header.get("zones", ())
+    if kind == "Path" and (not isinstance(zones, list) or tuple(zones) != ZONES):
+        raise BadInput(f"{file}: path file's zone labels are not {list(ZONES)}")
+    if not isinstance(header.get("fields"), dict):
+        raise BadInput(f"{file}: the stage file's header has no fields table; the file is damaged")
     cls = KINDS[kind]
-    values = {k: _restore(v) for k, v in header["fields"].items()}
+    try:
+        values = {k: _restore(v) for k, v in header["fields"].items()}
+    except (TypeError, ValueError, KeyError, OverflowError, MemoryError, RecursionError) as exc:
+        raise BadInput(f"{file}: a field of the {kind} in it is damaged ({type(exc).__name__})") from None
     names = {f.name for f in dataclasses.fields(cls) if f.init}
     missing = [n for n in names if n not in values and n not in arrays
                and next(f for f in dataclasses.fields(cls) if f.name == n).default is dataclasses.MISSING
@@ -128,8 +136,8 @@ def load_stage(file: str | FsPath, expect: tuple[str, ...] = ()):
     _check_rows(file, kind, kwargs)
     try:
         return cls(**kwargs)
-    except (TypeError, ValueError) as exc:
-        raise BadInput(f"{file}: the {kind} in it is damaged ({exc})") from None
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError) as exc:
+        raise BadInput(f"{file}: the {kind} in it is damaged ({type(exc).__name__})") from None
 
 
 # per-row arrays of each box: the same length, and their shapes past the first axis
@@ -144,7 +152,10 @@ def _check_rows(file, kind: str, fields: dict) -> None:
     """BadInput unless the box's per-row arrays agree in length and shape and hold finite numbers."""
     n = None
     for name, tail in ROWS[kind].items():
-        a = np.asarray(fields.get(name))
+        a = fields.get(name)
+        if not isinstance(a, np.ndarray) or a.dtype.kind not in "biuf":
+            what = type(a).__name__ if not isinstance(a, np.ndarray) else f"{a.dtype.kind!r}-kind values"
+            raise BadInput(f"{file}: {kind}.{name} holds {what}, not real numbers; the file is damaged")
         if a.ndim == 0 or (tail is not None and a.shape[1:] != tail) or (tail is None and a.ndim != 2):
             raise BadInput(f"{file}: {kind}.{name} has shape {a.shape}; the file is damaged")
         if n is None:
