@@ -278,6 +278,7 @@ def _describe(value) -> str:
     return text if len(text) <= 80 else f"{text[:80]}... ({len(text)} characters)"
 
 
+MIN_GRID_MM = 0.05  # process.grid_mm: finer is no measurement and a map of billions of cells
 MAX_STRING_CHARS = 4096  # any string of a job (names, file names): more is a mistake or an attack
 # program names whose file would be one of camtool's own (points.csv, report.json, plots/, stage files)
 OWN_FILE_STEMS = {"points": "points.csv", "report": "report.json and report.html", "plots": "the plots/ folder",
@@ -384,7 +385,30 @@ def parse_override(text: str) -> tuple[str, str, Any]:
         value = tomllib.loads(f"v = {raw}")["v"]
     except (tomllib.TOMLDecodeError, RecursionError):
         value = raw  # a bare word such as plane or ruckig
+    except ValueError:  # an integer past Python's 4300-digit conversion limit
+        raise BadInput(f"--set {section.strip()}.{key.strip()}: a number with too many digits") from None
     return section, key, value
+
+
+def _check_values(value, where: str, depth: int = 0) -> None:
+    """BadInput for a value no key of a job takes: a NUL byte in any string (no file name holds one), an
+    integer no float holds (5000 digits), nesting deeper than a job's tables."""
+    if depth > 16:
+        raise BadInput(f"{where}: nested more than 16 levels; a job's values are flat")
+    if isinstance(value, str):
+        if "\0" in value:
+            raise BadInput(f"{where}: holds a NUL byte; no name or file name has one")
+    elif isinstance(value, int) and not isinstance(value, bool):
+        if value.bit_length() > 1000:
+            raise BadInput(f"{where}: an integer of more than 300 digits; give a real value")
+    elif isinstance(value, dict):
+        for k, v in value.items():
+            _check_values(k, where, depth + 1)
+            named = depth < 2 and "\0" not in str(k) and len(str(k)) < 100
+            _check_values(v, (f"{where}: {k}" if depth == 0 else f"{where}.{k}") if named else where, depth + 1)
+    elif isinstance(value, list):
+        for v in value:
+            _check_values(v, where, depth + 1)
 
 
 def validate(data: dict, source: str, overrides: list[str] = ()) -> dict[str, Section]:
@@ -397,6 +421,7 @@ def validate(data: dict, source: str, overrides: list[str] = ()) -> dict[str, Se
         if key not in SCHEMA[section]:
             raise BadInput(f"--set {section}.{key}: unknown key{_closest(key, SCHEMA[section])} (see docs/job-file.md)")
         data.setdefault(section, {})[key] = value
+    _check_values(data, source)
     sections = {}
     for name in data:
         if name not in SCHEMA:
@@ -440,6 +465,10 @@ def _check_cross(job: Job) -> None:
     """Checks that involve more than one key or the file system."""
     from .robots import BUILTIN_ROBOTS
 
+    grid = job.process.grid_mm
+    if job.process.kind != "none" and 0 < grid < MIN_GRID_MM:  # before any work: the map's size is bounded later
+        raise BadInput(f"{job.path}: process.grid_mm = {grid:g}: a process map cell is at least {MIN_GRID_MM:g} mm "
+                       "(0 = diameter / 25)")
     name = job.robot.name
     if name not in BUILTIN_ROBOTS:
         if not name.lower().endswith((".toml", ".urdf")):

@@ -416,8 +416,16 @@ def new_file(folder, name: str, append: bool = False):
     return os.fdopen(fd, "ab" if append else "wb")
 
 
+PATH_ERRNOS = {errno.ENAMETOOLONG: "a name in the path is too long (at most 255 bytes a name, 4096 a path)",
+               errno.ELOOP: "too many levels of symbolic links", errno.ENOTDIR: "a part of the path is not a folder"}
+
+
 def disk_error(exc: OSError) -> BadInput | None:
-    """The one-line BadInput for an OS error the user can fix (full disk, quota, permission, read-only), else None."""
+    """The one-line BadInput for an OS error the user can fix (full disk, quota, permission, read-only, a
+    name too long), else None."""
+    if exc.errno in PATH_ERRNOS:
+        where = snippet(exc.filename, 200) if exc.filename else "a path"
+        return BadInput(f"{where}: {PATH_ERRNOS[exc.errno]}")
     why = DISK_ERRNOS.get(exc.errno)
     if why is None:
         return None
@@ -447,6 +455,8 @@ def load_toml(path, kind: str, text: str | None = None) -> dict:
         raise BadInput(f"{path}: TOML syntax error: {str(exc)[:200]}") from None  # tomllib quotes no user text
     except RecursionError:
         raise BadInput(f"{path}: the TOML is nested too deeply to read; a {kind} file is a few flat tables") from None
+    except ValueError:  # tomllib's int(): past Python's 4300-digit conversion limit
+        raise BadInput(f"{path}: a number with too many digits (more than 4300); a {kind} file holds real values") from None
 
 
 @contextmanager

@@ -108,7 +108,6 @@ def write_placed_job(job: Job, offset, file: FsPath, overrides=None, note: str =
     overrides, so every other key keeps its schema default as the original job
     does; without, every key is written out. File names become absolute.
     """
-    import tomllib
 
     import tomli_w
 
@@ -119,7 +118,9 @@ def write_placed_job(job: Job, offset, file: FsPath, overrides=None, note: str =
     if overrides is None:
         data = placed_job(job, offset).as_dict()
     else:
-        data = tomllib.loads(FsPath(job.path).read_text())
+        from .. import safe_io
+
+        data = safe_io.load_toml(job.path, "job")  # one checked read, never the name by a plain open
         for text in overrides:
             section, key, value = parse_override(text)
             data.setdefault(section, {})[key] = value

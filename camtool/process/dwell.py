@@ -35,7 +35,7 @@ from ..settings import ProcessSettings
 from ..path.toolpath import SURFACE_CODES, WORK
 from .figures import edge_distance_mm
 from .footprint import Footprint
-from .grid import MapGrid, map_grid
+from .grid import MapGrid, grid_shape, map_grid
 from .integrate import ProcessMap, _bin_bilinear, _fftconvolve, amounts
 
 
@@ -119,7 +119,11 @@ def _rms(x, mask):
 def check_target_inputs(job, process: ProcessSettings | None, surface) -> None:
     """Before any planning: BadInput when ``process.target_removal_file`` cannot be met on this job (the file,
     the surface, a removal that follows dwell)."""
-    if process is None or not process.enabled or not process.target_removal_file:
+    if process is None or not process.enabled:
+        return
+    # the map's size, counted before any planning (a grid_mm of 0.001 is one line now, not after the plan)
+    grid_shape(surface, process.grid_mm, 0.5 * process.diameter_mm + 2 * process.grid_mm)
+    if not process.target_removal_file:
         return
     _check_model(surface, process)
     fp = Footprint.from_settings(process)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import BadInput
 from ..path.toolpath import freeze_arrays
 
 MAX_CELLS = 4_000_000  # a finer grid is refused: coarsen process.grid_mm
@@ -61,8 +62,9 @@ class MapGrid:
         return getattr(self.surface, "uv_unit", "mm")
 
 
-def map_grid(surface, cell_mm: float, pad_mm: float) -> MapGrid:
-    """The grid of ``surface`` at ``cell_mm`` (see the module doc); ValueError when it would be too fine."""
+def grid_shape(surface, cell_mm: float, pad_mm: float) -> tuple[int, int, float, float]:
+    """(nu, nv, du, dv) of the map grid, counted before anything is allocated: BadInput past ``MAX_CELLS``
+    (checked before any planning, ``dwell.check_target_inputs``)."""
     lo, hi = surface.boundary.bounds()
     if surface.model == "sphere":
         R = float(surface.radius_mm)
@@ -74,11 +76,18 @@ def map_grid(surface, cell_mm: float, pad_mm: float) -> MapGrid:
     else:
         du = dv = cell_mm
         pad_u = pad_v = pad_mm
-    nu = int(math.ceil((hi[0] - lo[0] + 2 * pad_u) / du)) + 1
-    nv = int(math.ceil((hi[1] - lo[1] + 2 * pad_v) / dv)) + 1
-    if nu * nv > MAX_CELLS:
-        raise ValueError(f"the process map would have {nu * nv:.3g} cells (limit {MAX_CELLS:.0e}); "
-                         f"use a coarser process.grid_mm than {cell_mm:g} mm")
+    cells_u = (hi[0] - lo[0] + 2 * pad_u) / du
+    cells_v = (hi[1] - lo[1] + 2 * pad_v) / dv
+    if not (math.isfinite(cells_u) and math.isfinite(cells_v)) or (cells_u + 1) * (cells_v + 1) > MAX_CELLS:
+        raise BadInput(f"process.grid_mm = {cell_mm:g}: the process map would have {(cells_u + 1) * (cells_v + 1):.3g} "
+                       f"cells (limit {MAX_CELLS:.0e}); use a coarser process.grid_mm")
+    return int(math.ceil(cells_u)) + 1, int(math.ceil(cells_v)) + 1, du, dv
+
+
+def map_grid(surface, cell_mm: float, pad_mm: float) -> MapGrid:
+    """The grid of ``surface`` at ``cell_mm`` (see the module doc); BadInput when it would be too fine."""
+    lo, hi = surface.boundary.bounds()
+    nu, nv, du, dv = grid_shape(surface, cell_mm, pad_mm)
     cu, cv = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
     u = cu + (np.arange(nu) - 0.5 * (nu - 1)) * du
     v = cv + (np.arange(nv) - 0.5 * (nv - 1)) * dv

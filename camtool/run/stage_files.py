@@ -109,8 +109,10 @@ def load_stage(file: str | FsPath, expect: tuple[str, ...] = ()):
     if not isinstance(header, dict) or header.get("format") != FORMAT or not isinstance(header.get("kind"), str) \
             or header["kind"] not in KINDS:
         raise BadInput(f"{file}: not a camtool stage file")
-    if header.get("version") != VERSION or isinstance(header.get("version"), bool):
-        raise BadInput(f"{file}: stage file version {safe_io.snippet(header.get('version'), 20)} is not supported "
+    version = header.get("version")
+    if version != VERSION or isinstance(version, bool):
+        shown = version if isinstance(version, int) and abs(version) < 10**9 else f"({type(version).__name__})"
+        raise BadInput(f"{file}: stage file version {shown} is not supported "
                        f"(this camtool reads version {VERSION}); rerun the stage")
     kind = header["kind"]
     if expect and kind not in expect:
