@@ -225,11 +225,18 @@ def check_outdir(outdir) -> Path:
     return out
 
 
-def _camtool_summary(file: Path) -> bool:
+def read_own_json(file) -> object | None:
+    """One of camtool's own JSON files in an output folder (a manifest, summary.json, report.json): read once
+    without following a link, through ``load_json`` (depth bounded); None when it is absent, refused, not
+    JSON or nested too deep: a planted file is never trusted and never an internal error."""
     try:
-        data = json.loads(read_input_bytes(file, "manifest", follow=False))
-    except (BadInput, ValueError):
-        return False
+        return load_json(read_input_bytes(file, "manifest", follow=False), file)
+    except (BadInput, ValueError, RecursionError):
+        return None
+
+
+def _camtool_summary(file: Path) -> bool:
+    data = read_own_json(file)
     return isinstance(data, dict) and "camtool" in data and "jobs" in data
 
 
@@ -583,7 +590,6 @@ def load_npz(data: bytes, where, cap_bytes: int) -> dict:
     import math
     import zipfile
 
-    import numpy as np
     from numpy.lib import format as npformat
 
     def damaged(exc=None):

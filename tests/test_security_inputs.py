@@ -272,3 +272,58 @@ def test_every_shipped_robot_meets_the_bounds():
 
     for name in BUILTIN_ROBOTS:
         get_robot(name)
+
+
+# ---------------------------------------------------------------- planted files in -o, surfaces
+
+DEEP = "[" * 100_000 + "]" * 100_000
+
+
+@pytest.mark.parametrize("name", [".camtool-manifest.json", ".camtool-programs.json", "summary.json",
+                                  ".camtool-cache.json"])
+def test_planted_deep_json_in_the_output_folder_is_never_an_internal_error(tmp_path, name):
+    from camtool.batch.cache import read_manifest
+    from camtool.batch.watch import _read_entries
+    from camtool.run.output import _manifest, forget_previous
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / name).write_text(DEEP)
+    (out / "report.json").write_text(DEEP)
+    assert safe_io.read_own_json(out / name) is None
+    assert _manifest(out) == [] and _read_entries(out / name) == []
+    assert read_manifest(out) is None
+    if name == "summary.json":  # a deep summary vouches for nothing: report.json there is foreign
+        with pytest.raises(BadInput):
+            safe_io.check_outdir(out)
+    forget_previous(out)
+
+
+def test_a_deep_surface_file_is_one_line(tmp_path):
+    from camtool.part.surface import load_surface
+
+    f = tmp_path / "surface.json"
+    f.write_text('{"format": "camtool-surface", "version": 1, "boundary": ' + DEEP + "}")
+    with pytest.raises(BadInput) as err:
+        load_surface(f)
+    _one_line(err.value, "nested")
+
+
+def test_a_surface_with_a_huge_boundary_is_refused_at_once(tmp_path):
+    import time
+
+    from camtool.part.surface import load_surface
+
+    n = 400_000
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    d = {"format": "camtool-surface", "version": 1, "model": "plane", "origin_mm": [0, 0, 0], "normal": [0, 0, 1],
+         "u_axis": [1, 0, 0], "v_axis": [0, 1, 0],
+         "boundary": {"outer_uv": np.column_stack([100 * np.cos(t), 100 * np.sin(t)]).round(3).tolist(),
+                      "holes_uv": []}}
+    f = tmp_path / "surface.json"
+    f.write_text(json.dumps(d))
+    t0 = time.monotonic()
+    with pytest.raises(BadInput) as err:
+        load_surface(f)
+    _one_line(err.value, "vertices")
+    assert time.monotonic() - t0 < 10

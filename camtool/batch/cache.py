@@ -73,10 +73,7 @@ def manifest_path(outdir: Path) -> Path:
 
 def read_manifest(outdir: Path) -> dict | None:
     """The stored manifest of a job folder, or None when absent or unreadable."""
-    try:
-        data = json.loads(safe_io.read_input_bytes(manifest_path(outdir), "manifest", follow=False))
-    except (BadInput, ValueError):
-        return None
+    data = safe_io.read_own_json(manifest_path(outdir))
     return data if isinstance(data, dict) else None
 
 

@@ -314,7 +314,5 @@ def _ok_result(base: dict, out: bytes, folder: Path, wall: float) -> JobResult:
 
 
 def _report_points(folder: Path) -> int | None:
-    try:
-        return json.loads(safe_io.read_input_bytes(folder / "report.json", "manifest", follow=False)).get("points_total")
-    except (BadInput, ValueError, AttributeError):
-        return None
+    data = safe_io.read_own_json(folder / "report.json")
+    return data.get("points_total") if isinstance(data, dict) else None

@@ -211,10 +211,7 @@ class Watcher:
 
 def _read_entries(file: Path) -> list[dict]:
     """The job entries of an existing summary.json ([] when absent or unreadable)."""
-    try:
-        data = json.loads(safe_io.read_input_bytes(file, "manifest", follow=False))
-    except (BadInput, ValueError):
-        return []
+    data = safe_io.read_own_json(file)
     jobs = data.get("jobs") if isinstance(data, dict) else None
     return [e for e in jobs if isinstance(e, dict) and isinstance(e.get("outdir"), str)] if isinstance(jobs, list) else []
 

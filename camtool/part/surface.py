@@ -326,18 +326,38 @@ def save_surface(surface: Surface, path: str | FsPath) -> None:
     safe_io.write_file(output_file(path).parent, FsPath(path).name, json.dumps(d, indent=1) + "\n")
 
 
+MAX_BOUNDARY_VERTICES = 50_000  # a fitted boundary has hundreds to a few thousand (simplified at 0.5 mm)
+
+
+def _check_boundary_size(p, b) -> None:
+    """BadInput for a boundary no fit writes: more than ``MAX_BOUNDARY_VERTICES`` vertices in all (each
+    point-in-polygon test of the run would scan them all: 400k vertices ran past 90 s)."""
+    if not isinstance(b, dict):
+        return
+    polys = [b.get("outer_uv"), *(b.get("holes_uv") or [])] if isinstance(b.get("holes_uv", []), list) else []
+    total = sum(len(x) for x in polys if isinstance(x, list))
+    if total > MAX_BOUNDARY_VERTICES:
+        raise BadInput(f"{p}: the boundary has {total} vertices, more than the {MAX_BOUNDARY_VERTICES} camtool reads; "
+                       "rerun camtool fit")
+
+
 def load_surface(path: str | FsPath) -> Surface:
     """Read a surface saved by ``save_surface``."""
     p = FsPath(path)
     try:
-        d = json.loads(safe_io.read_input_text(p, "stage"))  # a regular file under the cap: no FIFO hang
+        # a regular file under the cap, read once (no FIFO hang); nesting bounded (no RecursionError)
+        d = safe_io.load_json(safe_io.read_input_bytes(p, "stage"), f"{p}: not a camtool surface file:")
+        if not isinstance(d, dict):
+            raise BadInput(f"{p}: not a camtool surface file (not a JSON object)")
+        _check_boundary_size(p, d.get("boundary"))
         if d.get("version", SURFACE_VERSION) != SURFACE_VERSION:
             raise BadInput(f"{p}: surface file version {d['version']} is not supported "
                            f"(this camtool reads version {SURFACE_VERSION}); rerun camtool fit")
         return surface_from_dict(d)
     except FileNotFoundError:
         raise BadInput(f"{p}: surface file not found") from None
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise BadInput(f"{p}: not a camtool surface file ({exc})") from None
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError, IndexError, OverflowError,
+            RecursionError) as exc:
+        raise BadInput(f"{p}: not a camtool surface file ({type(exc).__name__})") from None
     except (IsADirectoryError, PermissionError, UnicodeDecodeError) as exc:
         raise BadInput(f"{p}: cannot read the surface file ({type(exc).__name__})") from None

@@ -118,8 +118,6 @@ def write_placed_job(job: Job, offset, file: FsPath, overrides=None, note: str =
     if overrides is None:
         data = placed_job(job, offset).as_dict()
     else:
-        from .. import safe_io
-
         data = safe_io.load_toml(job.path, "job")  # one checked read, never the name by a plain open
         for text in overrides:
             section, key, value = parse_override(text)

@@ -169,10 +169,9 @@ def _forget_stale_programs(outdir: Path, final: list[Path]) -> None:
     names = sorted(f.name for f in final)
     from .. import safe_io
 
-    try:
-        before = json.loads(safe_io.read_input_bytes(manifest, "manifest", follow=False)).get("programs", [])
-    except (BadInput, ValueError, AttributeError):
-        before = []
+    data = safe_io.read_own_json(manifest)
+    before = data.get("programs", []) if isinstance(data, dict) else []
+    before = before if isinstance(before, list) else []
     for name in set(before) - set(names):
         if isinstance(name, str) and "/" not in name and name not in ("", ".", ".."):
             safe_io.remove_file(outdir, name)  # a regular file inside outdir only, never through a link

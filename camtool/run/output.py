@@ -70,11 +70,9 @@ def remove_leftovers(outdir: Path) -> list[Path]:
 
 
 def _manifest(outdir: Path) -> list[str]:
-    try:
-        data = json.loads(safe_io.read_input_bytes(outdir / MANIFEST, "manifest", follow=False))
-        return [str(x) for x in data.get("files", [])]
-    except (BadInput, ValueError, AttributeError, TypeError):
-        return []
+    data = safe_io.read_own_json(outdir / MANIFEST)
+    files = data.get("files", []) if isinstance(data, dict) else []
+    return [x for x in files if isinstance(x, str)] if isinstance(files, list) else []
 
 
 def forget_previous(outdir: Path) -> None:
