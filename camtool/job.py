@@ -85,6 +85,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "lead_max_mm": _pos("Longest lead that lead_auto may choose.", 100.0, " mm", 10_000),
         "clearance_mm": _nonneg("Lift of lead and transition points along the surface normal (the leads rise to it as the cube of the distance from the work, leaving the surface without a kink).", 0.0),
         "self_motion_lift_mm": _nonneg("The self-motion zone between rows runs at least this far off the surface (a sine arc along the normal), so the transition never cuts into the part: on a convex part a chord between two surface points dips below the surface.", 5.0),
+        "max_poses": Key("int", 1_000_000, "The most poses a raster may have: a larger one is refused before any work (a run plans, times and checks every pose, minutes per million; at most 5000000, the memory cap).", check=lambda x: 1000 <= x <= 5_000_000, expect="an integer in 1000..5000000"),
         "transition_points": Key("int", 5, "Poses in each self-motion zone between segments.", check=lambda x: 2 <= x <= 1000, expect="an integer in 2..1000"),
         "tool_x": Key("str", "fixed", "Tool x axis: a fixed world direction, or the travel direction.", choices=("fixed", "travel")),
         "tool_x_world": Key("vec3", [0.0, 0.0, 1.0], "World direction the tool x axis follows when tool_x = 'fixed'."),

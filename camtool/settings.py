@@ -107,6 +107,7 @@ class RasterSettings(_FromSection):
     edge_margin: float = 0.25      # the first and last rows at least this share of a step-over inside the edges
     contour: str = "auto"          # a contour pass along the boundary: "auto" (where the rows leave slivers), "on", "off"
     lead_path: str = "surface"     # the leads: on the face's surface continued, or lifted clear of the row's tangent
+    max_poses: int = 1_000_000     # the most poses a raster may have (estimated before any work)
 
     @classmethod
     def from_section(cls, sec):
@@ -119,7 +120,8 @@ class RasterSettings(_FromSection):
                    tool_x=sec["tool_x"], tool_x_world=tuple(float(x) for x in sec["tool_x_world"]),
                    lead_rad=math.radians(sec["lead_deg"]), tilt_rad=math.radians(sec["tilt_deg"]),
                    free_spin=bool(sec["free_spin"]), cylinder_rows=sec["cylinder_rows"],
-                   edge_margin=float(sec["edge_margin"]), contour=sec["contour"], lead_path=sec["lead_path"])
+                   edge_margin=float(sec["edge_margin"]), contour=sec["contour"], lead_path=sec["lead_path"],
+                   max_poses=int(sec["max_poses"]))
 
 
 @dataclass(frozen=True)

@@ -381,9 +381,11 @@ def _rows_and_runs(boundary, chart: _Chart, g_lo: float, settings: RasterSetting
         raise BadInput(f"raster.pitch_mm: {pitch:g} mm is longer than the part ({s_hi - s_lo:.1f} mm along the "
                        "rows); use a pitch of a few mm")
     estimate = len(rows_t) * ((s_hi - s_lo) / (g_lo * pitch) + 2 * (lead / pitch + 1) + m)
-    if estimate > MAX_POSES:
-        raise BadInput(f"raster: step_over_mm={step:g} and pitch_mm={pitch:g} would give about "
-                       f"{estimate:.3g} poses (limit {MAX_POSES:.0e}); use a coarser raster")
+    cap = min(int(getattr(settings, "max_poses", MAX_POSES)), MAX_POSES)  # time, then memory: before any work
+    if estimate > cap:
+        raise BadInput(f"raster: step_over_mm={step:g} and pitch_mm={pitch:g} would give about {estimate:.3g} poses, "
+                       f"over raster.max_poses = {cap}; use a coarser raster (raster.pitch_mm, raster.step_over_mm) "
+                       "or raise raster.max_poses")
     run_row, run_a, run_b = _row_runs(boundary, chart, rows_t, e0, e1)
     if len(run_row) == 0:
         raise BadInput("surface boundary is empty: no material inside the boundary polygons")

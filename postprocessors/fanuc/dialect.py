@@ -46,7 +46,7 @@ ROW_RE = re.compile(r"^ROW (?P<n>\d+)/(?P<of>\d+)\b(?P<rest>.*)$")
 ROW_END_RE = re.compile(r"^END ROW (?P<n>\d+)\b")
 PROG_RE = re.compile(r"^/PROG\s+(?P<name>[A-Za-z][A-Za-z0-9_]*)\s*$")
 POS_HEAD_RE = re.compile(r"^P\[(?P<p>\d+)(?::\"[^\"]*\")?\]\s*\{\s*$")
-NUM = r"-?(?:\d+\.?\d*|\.\d+)"
+NUM = r"-?+(?:\d++(?:\.\d*+)?+|\.\d++)"  # possessive: linear on long digit runs
 POS_FIELD_RE = re.compile(rf"(?P<key>J\d|E\d|X|Y|Z|W|P|R)\s*=\s*(?P<v>{NUM})\s*(?P<unit>deg|mm)")
 UFUT_RE = re.compile(r"UF\s*:\s*(?P<uf>\d+)\s*,\s*UT\s*:\s*(?P<ut>\d+)")
 CONFIG_RE = re.compile(r"CONFIG\s*:\s*'(?P<conf>[^']*)'")

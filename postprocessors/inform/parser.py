@@ -382,13 +382,30 @@ def _move_problems(j: JbiText, p: str) -> list[str]:
     return out
 
 
+MAX_CALLS = 10_000          # CALL JOB lines one job may hold (camtool writes one per part)
+MAX_RUN_MOVES = 5_000_000   # moves of a job and its called jobs, in run order (the pose cap)
+
+
 def job_files(path: Path) -> list[tuple[Path, JbiText]]:
-    """A job and, in run order, the jobs it CALLs (found as NAME.JBI in the same folder)."""
+    """A job and, in run order, the jobs it CALLs (found as NAME.JBI in the same folder).
+
+    Each called job is read and parsed once, however often it is called; more than ``MAX_CALLS``
+    calls, or more than ``MAX_RUN_MOVES`` moves in run order, is BadInput (one line) before any work
+    per call: 100,000 ``CALL JOB:NEW`` lines re-read the called job 100,000 times."""
     path = Path(path)
     j = parse_jbi(path)
+    if len(j.calls) > MAX_CALLS:
+        raise BadInput(f"{path}: {len(j.calls)} CALL JOB lines; camtool follows at most {MAX_CALLS}")
     out = [(path, j)]
+    called: dict[str, tuple[Path, JbiText]] = {}
+    moves = len(j.moves)
     for _n, name in j.calls:
-        out.append((path.parent / f"{name}.JBI", parse_jbi(path.parent / f"{name}.JBI")))
+        if name not in called:
+            called[name] = (path.parent / f"{name}.JBI", parse_jbi(path.parent / f"{name}.JBI"))
+        out.append(called[name])
+        moves += len(called[name][1].moves)
+        if moves > MAX_RUN_MOVES:
+            raise BadInput(f"{path}: its calls run more than {MAX_RUN_MOVES} moves; camtool checks at most that many")
     return out
 
 

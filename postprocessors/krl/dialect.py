@@ -34,7 +34,7 @@ GOTO HALT WAIT SEC DELAY RETURN EXIT INTERRUPT ON OFF WHEN DO TRIGGER DISTANCE P
 ANIN ANOUT INT REAL BOOL CHAR FRAME POS E6POS AXIS E6AXIS TRUE FALSE AND OR NOT EXOR B_AND B_OR B_NOT B_EXOR
 IN OUT MAXIMUM MINIMUM BAS""".split())
 
-NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)"
+NUM = r"[-+]?+(?:\d++(?:\.\d*+)?+|\.\d++)"  # possessive: linear on long digit runs
 # statements of the .src files camtool writes (one a line; ``;`` starts a comment)
 DEF_RE = re.compile(r"^DEF\s+(?P<name>[A-Za-z_][A-Za-z0-9_]*)\s*\(\s*\)$", re.I)
 END_RE = re.compile(r"^END$", re.I)

@@ -240,7 +240,7 @@ def _parse_src(path: Path, raw: bytes, m: Module) -> None:
     m.settings = dict(st)
 
 
-_NUM_VALUE = re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)$")
+_NUM_VALUE = re.compile(r"^[-+]?+(?:\d++(?:\.\d*+)?+|\.\d++)$")
 _FRAME_VALUE = re.compile(r"^\{(?P<body>[^{}]*)\}$")
 _KNOWN_ENUMS = {"$ORI_TYPE": ("#VAR", "#CONSTANT", "#JOINT"), "$CIRC_TYPE": ("#BASE", "#PATH")}
 

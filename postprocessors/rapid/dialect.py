@@ -33,14 +33,16 @@ T_RESOLUTION_S = 1e-4
 V_RESOLUTION = 0.01   # mm/s of a linear move's v_tcp
 MOTIONS = ("joint", "cartesian")
 
-_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-_TAIL = (r"\s*,\s*(?P<speed>\w+|\[[^\[\]]*\])\s*(?:\\T:=(?P<t>" + _NUM + r"))?\s*,\s*(?P<zone>\w+)\s*,"
-         r"\s*(?P<tool>\w+)\s*(?:\\WObj:=(?P<wobj>\w+))?\s*;$")
+# possessive quantifiers (*+, ++): no ambiguity to backtrack through, so a line of 200,000 digits or spaces
+# fails in linear time (``\d+\.?\d*`` split one run of digits every way: quadratic, minutes per line)
+_NUM = r"[-+]?+(?:\d++(?:\.\d*+)?+|\.\d++)(?:[eE][-+]?+\d++)?+"
+_TAIL = (r"\s*+,\s*+(?P<speed>\w++|\[[^\[\]]*+\])\s*+(?:\\T:=(?P<t>" + _NUM + r"))?+\s*+,\s*+(?P<zone>\w++)\s*+,"
+         r"\s*+(?P<tool>\w++)\s*+(?:\\WObj:=(?P<wobj>\w++))?+\s*+;$")
 
 
 def _robt(p: str) -> str:
-    return (rf"\[\[(?P<{p}pos>[^\[\]]*)\],\[(?P<{p}q>[^\[\]]*)\],\[(?P<{p}cf>[^\[\]]*)\],"
-            rf"\[(?P<{p}ex>[^\[\]]*)\]\]")
+    return (rf"\[\[(?P<{p}pos>[^\[\]]*+)\],\[(?P<{p}q>[^\[\]]*+)\],\[(?P<{p}cf>[^\[\]]*+)\],"
+            rf"\[(?P<{p}ex>[^\[\]]*+)\]\]")
 
 
 MOVE_RE = re.compile(
