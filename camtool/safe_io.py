@@ -107,7 +107,7 @@ def _open_input(path: Path, kind: str, follow: bool = True) -> tuple[int, os.sta
         return os.dup(held[0]), held[1]
     flags = os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC | (0 if follow else os.O_NOFOLLOW)
     try:
-        fd = os.open(path, flags)
+        fd = os.open(at(path), flags)
     except FileNotFoundError:
         raise BadInput(f"{path}: {kind} file not found") from None
     except OSError as exc:
@@ -178,6 +178,113 @@ def snippet(text, limit: int = 60) -> str:
 
 # ---------------------------------------------------------------- the output folder
 
+# output folders held by their descriptor for a run: display path (absolute, as given) -> fd
+_OUTDIRS: dict[str, int] = {}
+_OUTDIRS_LOCK = threading.Lock()
+
+
+def _fd_path(fd: int, rel: str = "") -> str:
+    """A name that reaches ``rel`` under the folder open as ``fd`` (``/proc/<pid>/fd/<fd>``; a forked helper
+    of this process reaches it too), whatever has been renamed, swapped or linked at its old path since."""
+    base = f"/proc/{os.getpid()}/fd/{fd}"
+    return f"{base}/{rel}" if rel else f"{base}/."
+
+
+def at(path) -> str:
+    """The name to hand the OS for ``path``: below an output folder this process holds (``held_outdir``),
+    a name relative to that folder's descriptor; anything else unchanged. Every primitive of this module
+    goes through it, so a held ``-o`` swapped for a symlink or renamed mid-run is never written elsewhere."""
+    raw = os.fspath(path)
+    if not _OUTDIRS or raw.startswith("/proc/"):
+        return raw
+    p = os.path.abspath(raw)
+    for root, fd in _OUTDIRS.items():
+        if p == root:
+            return _fd_path(fd)
+        if p.startswith(root + "/"):
+            return _fd_path(fd, p[len(root) + 1:])
+    return raw
+
+
+def shown(path) -> str:
+    """A path as the user knows it: a held folder's ``/proc/<pid>/fd/<fd>`` name turned back into ``-o``'s."""
+    text = os.fspath(path)
+    for root, fd in _OUTDIRS.items():
+        base = f"/proc/{os.getpid()}/fd/{fd}"
+        text = text.replace(base + "/.", root).replace(base, root)
+    return text
+
+
+def resolve_outdir(outdir, create: bool = True) -> int:
+    """The output folder opened once, component by component from ``/`` with ``O_NOFOLLOW``: a symlink in
+    any component (``link/../out``, ``A/x/../../home`` with ``A/x`` a link) is refused, never followed, so
+    ``..`` only ever climbs the folder it names; missing folders are made (``mkdirat``) when ``create``.
+    Returns a descriptor of the folder (the caller closes it)."""
+    raw = os.fspath(outdir)
+    if "\0" in raw:
+        raise BadInput(f"{snippet(raw)}: a NUL byte in the output folder's name")
+    full = raw if os.path.isabs(raw) else os.path.join(os.getcwd(), raw)
+    fd = os.open("/", _DIR_FLAGS)
+    walked = ""
+    try:
+        for name in full.split("/"):
+            if name in ("", "."):
+                continue
+            walked = walked + "/" + name
+            try:
+                nfd = os.open(name, _DIR_FLAGS, dir_fd=fd)
+            except FileNotFoundError:
+                if not create or name == "..":
+                    raise BadInput(f"{raw}: {walked} does not exist") from None
+                try:
+                    os.mkdir(name, 0o755, dir_fd=fd)
+                except FileExistsError:
+                    pass
+                nfd = os.open(name, _DIR_FLAGS, dir_fd=fd)
+            except OSError as exc:
+                if exc.errno not in (errno.ELOOP, errno.ENOTDIR):
+                    raise BadInput(f"{raw}: cannot open the output folder ({exc.strerror or exc})") from None
+                mode = os.lstat(name, dir_fd=fd).st_mode
+                if stat.S_ISLNK(mode):
+                    raise BadInput(f"{raw}: {walked} is a symlink; camtool resolves -o without following links "
+                                   "(give the folder's real path)") from None
+                raise BadInput(f"{raw}: {walked} exists and is not a folder; give an output folder") from None
+            os.close(fd)
+            fd = nfd
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+@contextmanager
+def held_outdir(outdir, create: bool = True, check: bool = False):
+    """Hold ``outdir`` by its descriptor for the block (``resolve_outdir``): every path below it that this
+    module (and whatever writes into a staging folder made here) opens goes through ``at``, relative to
+    that descriptor, from the first check to the last rename. Nested holds of the same folder share it."""
+    key = os.path.abspath(os.fspath(outdir))
+    if key in _OUTDIRS:
+        if check:
+            check_outdir(outdir)
+        yield Path(key)
+        return
+    try:
+        fd = resolve_outdir(outdir, create)
+    except OSError as exc:
+        err = disk_error(exc)
+        raise (err or BadInput(f"{outdir}: cannot open the output folder ({exc.strerror or exc})")) from None
+    with _OUTDIRS_LOCK:
+        _OUTDIRS[key] = fd
+    try:
+        if check:  # the folder held is the folder checked (check_outdir, through the descriptor)
+            check_outdir(outdir)
+        yield Path(key)
+    finally:
+        with _OUTDIRS_LOCK:
+            _OUTDIRS.pop(key, None)
+        os.close(fd)
+
+
 def _refuse_special(path: Path, mode: int) -> None:
     raise BadInput(f"{path}: is {_what(mode)} inside the output folder; camtool never follows links or writes "
                    "through special files it did not make: remove it or choose another -o")
@@ -191,13 +298,14 @@ def check_outdir(outdir) -> Path:
     output names (``OWN_NAMES``) that no camtool manifest or lock file vouches for.
     """
     out = Path(os.path.abspath(outdir))
-    real = Path(os.path.realpath(out))
+    held = _OUTDIRS.get(str(out))
+    real = Path(os.readlink(f"/proc/self/fd/{held}") if held is not None else os.path.realpath(out))
     homes = {Path(os.path.realpath(Path.home()))} if Path.home() != Path("/") else set()
     if real == Path("/") or real in homes:
         raise BadInput(f"{outdir}: refusing to write into {'the root folder' if real == Path('/') else 'the home folder'}; "
                        "give camtool an output folder of its own")
     try:
-        st = os.lstat(out)
+        st = os.lstat(at(out))
     except FileNotFoundError:
         return out
     if stat.S_ISLNK(st.st_mode):
@@ -205,19 +313,20 @@ def check_outdir(outdir) -> Path:
     if not stat.S_ISDIR(st.st_mode):
         raise BadInput(f"{outdir}: exists and is not a folder; give an output folder")
     seen = 0
-    for root, dirs, files in os.walk(out, followlinks=False):
+    for root, dirs, files in os.walk(at(out), followlinks=False):
         for name in dirs + files:
             seen += 1
             p = Path(root) / name
             try:
                 mode = os.lstat(p).st_mode
+                p = Path(shown(p))
             except FileNotFoundError:
                 continue
             if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
                 _refuse_special(p, mode)
         if seen > MAX_SCAN_ENTRIES:
             raise BadInput(f"{outdir}: holds more than {MAX_SCAN_ENTRIES} entries; give camtool an output folder of its own")
-    names = set(os.listdir(out))
+    names = set(os.listdir(at(out)))
     if names & set(OWN_NAMES) and not names & {LOCK_NAME, *MANIFESTS} and not _camtool_summary(out / "summary.json"):
         foreign = sorted(names & set(OWN_NAMES))
         raise BadInput(f"{outdir}: holds {', '.join(foreign)} that camtool did not write (no camtool manifest "
@@ -249,8 +358,9 @@ def locked(outdir):
     """
     out = Path(outdir)
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        fd = os.open(out / LOCK_NAME, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
+        if os.path.abspath(out) not in _OUTDIRS:
+            out.mkdir(parents=True, exist_ok=True)
+        fd = os.open(at(out / LOCK_NAME), os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
     except OSError as exc:
         if exc.errno == errno.ELOOP:
             _refuse_special(out / LOCK_NAME, stat.S_IFLNK)
@@ -268,6 +378,18 @@ def locked(outdir):
         os.close(fd)  # closing releases the lock
 
 
+@contextmanager
+def writing_into(outdir):
+    """The rules of ``camtool run``'s output folder for any command that writes into ``-o`` (run, post, batch,
+    watch, fit, raster, plan, time): held by its descriptor (``held_outdir``), checked through it
+    (``check_outdir``) and locked (``locked``) for the block. ``None`` (no -o): nothing."""
+    if outdir is None:
+        yield None
+        return
+    with held_outdir(outdir, check=True), locked(outdir):
+        yield Path(os.path.abspath(outdir))
+
+
 def _parts(rel) -> list[str]:
     """The components of a path relative to the output folder; BadInput when it could leave it."""
     text = str(rel)
@@ -279,7 +401,7 @@ def _parts(rel) -> list[str]:
 
 def _open_dir(outdir, parts: list[str], create: bool) -> int:
     """A descriptor of ``outdir/parts...``, walked with O_NOFOLLOW (created with ``create``)."""
-    fd = os.open(outdir, _DIR_FLAGS)
+    fd = os.open(at(outdir), _DIR_FLAGS)
     try:
         for i, name in enumerate(parts):
             if create:
@@ -339,7 +461,7 @@ def place_file(src, outdir, rel) -> Path:
     check_target(outdir, rel)
     dfd = _open_dir(outdir, parts[:-1], create=True)
     try:
-        os.rename(src, parts[-1], dst_dir_fd=dfd)
+        os.rename(at(src), parts[-1], dst_dir_fd=dfd)
     finally:
         os.close(dfd)
     return Path(outdir, rel)
@@ -368,7 +490,8 @@ def remove_file(outdir, rel) -> bool:
 def make_folder(outdir, rel) -> Path:
     """``outdir/rel`` created folder by folder with O_NOFOLLOW (a symlink on the way is refused);
     ``outdir`` itself (the user's -o) is created when missing."""
-    Path(outdir).mkdir(parents=True, exist_ok=True)
+    if os.path.abspath(outdir) not in _OUTDIRS:
+        Path(at(outdir)).mkdir(parents=True, exist_ok=True)
     os.close(_open_dir(outdir, _parts(rel), create=True))
     return Path(outdir, rel)
 
@@ -378,7 +501,7 @@ def write_file(folder, name: str, data: bytes | str, mode: int = 0o644) -> Path:
     inside ``folder``, then renamed into place (``place_file``). Never half-written, never through a link."""
     folder = Path(folder)
     check_target(folder, name)
-    tmpdir = tempfile.mkdtemp(prefix=".camtool-write-", dir=folder)
+    tmpdir = tempfile.mkdtemp(prefix=".camtool-write-", dir=at(folder))
     try:
         tmp = os.path.join(tmpdir, "file")
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, mode)
@@ -403,7 +526,7 @@ def new_file(folder, name: str, append: bool = False):
     """
     folder = Path(folder)
     check_target(folder, name)
-    dfd = os.open(folder, _DIR_FLAGS)
+    dfd = os.open(at(folder), _DIR_FLAGS)
     try:
         if append:
             fd = os.open(name, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC,

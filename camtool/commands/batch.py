@@ -50,8 +50,8 @@ def command(paths, outdir: Path, workers, executor: str, scheduler, overrides, t
         from ..batch.executors import get_executor
 
         get_executor("dask", workers or os.cpu_count() or 1, scheduler)  # BadInput before anything runs
-    safe_io.check_outdir(outdir)  # not / or home, no link or special file below it, no foreign files
-    with safe_io.locked(outdir), sigterm_as_interrupt():  # one batch per folder; SIGTERM kills the jobs too
+    # held by its descriptor, checked through it (not / or home, no link or special file below, no foreign files)
+    with safe_io.writing_into(outdir), sigterm_as_interrupt():  # one batch per folder; SIGTERM kills the jobs too
         _batch(paths, outdir, workers, executor, scheduler, overrides, timeout, force, as_json)
 
 

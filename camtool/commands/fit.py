@@ -68,6 +68,9 @@ def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, m
     from ..part.surface import PlaneSurface, save_surface
     from ..part.workpiece import load_workpiece
 
+    from .. import safe_io
+
+    click.get_current_context().with_resource(safe_io.writing_into(outdir))  # checked, held and locked as run's
     if input_file.suffix.lower() == ".toml":
         job = load_job(input_file, list(overrides))
         wp = workpiece_for_job(job)

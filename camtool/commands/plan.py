@@ -30,7 +30,10 @@ def command(job_file: Path, from_file: Path | None, outdir: Path, overrides: tup
     from ..run.stage_files import save_stage
     from ..run.stages import robot_for_job
 
+    from .. import safe_io
+
     job = load_job(job_file, list(overrides))
+    click.get_current_context().with_resource(safe_io.writing_into(outdir))  # checked, held and locked as run's
     robot = robot_for_job(job)
     settings = JobSettings.from_job(job, robot)
     path, joint_path = joint_path_of(job, settings, robot, None, from_file)

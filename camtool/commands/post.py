@@ -32,7 +32,8 @@ def command(job_file: Path, from_file: Path | None, path_file: Path | None, outd
 
     job = load_job(job_file, list(overrides))
     robot = robot_for_job(job)
-    safe_io.check_outdir(outdir)  # not / or home, no link or special file below it, no foreign files
+    # held by its descriptor, checked through it: not / or home, no link or special file below, no foreign files
+    click.get_current_context().with_resource(safe_io.held_outdir(outdir, check=True))
     preflight(robot, job, outdir)
     settings = JobSettings.from_job(job, robot)
     path, trajectory = trajectory_of(job, settings, robot, from_file, path_file)

@@ -47,6 +47,9 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
         if f is not None and f.suffix.lower() != ext:
             raise BadInput(f"{f}: expected a {ext} file name")
     job = load_job(job_file, list(overrides))
+    from .. import safe_io
+
+    click.get_current_context().with_resource(safe_io.writing_into(outdir))  # checked, held and locked as run's
     if from_file is not None:
         surface = load_surface(from_file)
     else:

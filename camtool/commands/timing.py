@@ -30,7 +30,10 @@ def command(job_file: Path, from_file: Path | None, path_file: Path | None, outd
     from ..run.stages import robot_for_job, time_for_job
     from ..timing.pathlaw import remembered_runs
 
+    from .. import safe_io
+
     job = load_job(job_file, list(overrides))
+    click.get_current_context().with_resource(safe_io.writing_into(outdir))  # checked, held and locked as run's
     robot = robot_for_job(job)
     settings = JobSettings.from_job(job, robot)
     with remembered_runs():   # planned now: lead sizing's run time laws are the timing's

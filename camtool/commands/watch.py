@@ -47,7 +47,7 @@ def command(indir: Path, outdir: Path, template: Path, overrides, workers, inter
     from ..batch.watch import Watcher
 
     watcher = Watcher.create(indir, outdir, template, overrides, timeout, workers or os.cpu_count() or 1)
-    with safe_io.locked(watcher.outdir), sigterm_as_interrupt():  # one watcher per folder; SIGTERM kills the jobs
+    with safe_io.writing_into(watcher.outdir), sigterm_as_interrupt():  # one watcher per folder; SIGTERM kills the jobs
         _watch(watcher, interval, once, max_jobs, as_json)
 
 

@@ -58,7 +58,7 @@ def _alive(pid: int) -> bool:
 def remove_leftovers(outdir: Path) -> list[Path]:
     """Remove staging folders of killed camtool runs in ``outdir``; returns what was removed."""
     removed = []
-    for d in Path(outdir).glob(".camtool-*"):
+    for d in Path(safe_io.at(outdir)).glob(".camtool-*"):
         if d.is_symlink() or not d.is_dir() or not d.name.startswith(LEFTOVER_PREFIXES):
             continue
         pid_text = d.name.split("-")[2] if d.name.startswith(STAGING_PREFIX) else ""
@@ -79,7 +79,7 @@ def forget_previous(outdir: Path) -> None:
     """Remove the files the previous run placed (its manifest's, report.json first) and the manifest:
     a rerun that is killed or fails then never leaves the old report or plots looking current."""
     outdir = Path(outdir)
-    if not outdir.is_dir():
+    if not os.path.isdir(safe_io.at(outdir)):
         return
     safe_io.remove_file(outdir, REPORT)
     for old in _manifest(outdir):
@@ -91,11 +91,12 @@ def forget_previous(outdir: Path) -> None:
 def staged_output(outdir: Path):
     """A fresh staging folder inside ``outdir`` (created if needed); removed on exit whatever happens."""
     outdir = Path(outdir)
-    safe_io.check_outdir(outdir)
-    with safe_io.locked(outdir):
+    # held by its descriptor from the first check to the last rename: the staging folder is named through it
+    # (/proc/<pid>/fd/<fd>/.camtool-run-...), so a -o swapped for a link or renamed mid-run is never left
+    with safe_io.held_outdir(outdir, check=True), safe_io.locked(outdir):
         try:
             remove_leftovers(outdir)
-            stage = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=outdir))
+            stage = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=safe_io.at(outdir)))
         except OSError as exc:
             raise BadInput(f"{outdir}: cannot write into the output folder ({exc.strerror or exc})") from None
         try:
