@@ -151,6 +151,9 @@ def drop_working_folder_from_path() -> None:
 def main() -> None:
     """Console-script entry point: the command, then a quick exit (``leave``)."""
     drop_working_folder_from_path()
+    from .console import take_result_channel
+
+    take_result_channel()  # a batch job's JSON goes to its own pipe, never mixed with what plugins print
     try:
         cli(prog_name="camtool")
         code = 0

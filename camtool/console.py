@@ -26,7 +26,37 @@ def to_json(obj) -> str:
     return json.dumps(_plain(obj), indent=2, sort_keys=False)
 
 
+_RESULT_FD: list[int] = []  # a batch job's result pipe (CAMTOOL_RESULT_FD), taken once at start
+
+
+def take_result_channel() -> None:
+    """In a batch or watch job: take the result pipe its parent passed (``CAMTOOL_RESULT_FD``) and keep it
+    from every process this one starts; ``echo_json`` then writes there, and stdout is only a log."""
+    import os
+
+    raw = os.environ.pop("CAMTOOL_RESULT_FD", None)
+    if raw is None or not raw.isdigit():
+        return
+    fd = int(raw)
+    try:
+        os.set_inheritable(fd, False)
+    except OSError:
+        return
+    _RESULT_FD.append(fd)
+
+
 def echo_json(obj) -> None:
+    if _RESULT_FD:
+        import os
+
+        fd = _RESULT_FD.pop()
+        data = (to_json(obj) + "\n").encode()
+        try:
+            while data:
+                data = data[os.write(fd, data):]
+        finally:
+            os.close(fd)
+        return
     click.echo(to_json(obj))
 
 

@@ -102,7 +102,7 @@ def test_no_plugins_loads_only_the_builtins(fake_entry_points, monkeypatch):
 
 def test_the_allow_list_loads_only_the_plugins_it_names(fake_entry_points, monkeypatch):
     fake_entry_points(_ep("txt", lambda: _Txt), _ep("broken", _raise(SystemExit(3))))
-    monkeypatch.setenv(registry.ALLOW_ENV, "txt")
+    monkeypatch.setenv(registry.ALLOW_ENV, "third-party:txt")  # a distribution and its entry point (#49)
     registry.clear_cache()
     assert set(registry.discover()) == {"rapid", "inform", "csv", "krl", "fanuc", "txt"}
     monkeypatch.setenv(registry.ALLOW_ENV, "")

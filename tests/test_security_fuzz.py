@@ -104,7 +104,6 @@ def test_set_overrides_with_random_values_are_ok_or_one_line(seed):
 # ---------------------------------------------------------------- stage files
 
 def _boxes():
-    from camtool.path.toolpath import Path
     from camtool.trajectory import JointPath
 
     n = 4

@@ -9,6 +9,7 @@ whole process group.
 """
 from __future__ import annotations
 
+import atexit
 import hashlib
 import json
 import os
@@ -31,6 +32,29 @@ TIMEOUT_EXIT = 124  # the exit code `timeout(1)` uses; camtool run itself never 
 STATUS_BY_EXIT = {0: "ok", 2: "bad_input", 3: "infeasible", 4: "unavailable"}
 JOB_CWD = "/"  # a job runs from a folder only root can write to, never from the hot or batch folder
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+RESULT_FD_ENV = "CAMTOOL_RESULT_FD"  # the job's JSON result goes to this pipe, never to its stdout
+MAX_RESULT_BYTES = 64 << 20
+PR_SET_PDEATHSIG = 1
+
+
+def _load_prctl():
+    """libc's prctl, looked up once in the parent (the child between fork and exec only calls it)."""
+    try:
+        import ctypes
+
+        return ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+
+
+_PRCTL = _load_prctl() if sys.platform.startswith("linux") else None
+
+
+def _die_with_parent() -> None:
+    """In the job process, before exec: SIGKILL when the batch (the thread that started it) dies, even by
+    SIGKILL, so no job outlives its batch (``PR_SET_PDEATHSIG``)."""
+    if _PRCTL is not None:
+        _PRCTL(PR_SET_PDEATHSIG, signal.SIGKILL)
 
 _live: set[subprocess.Popen] = set()
 _live_lock = threading.Lock()
@@ -205,11 +229,14 @@ def job_env() -> dict[str, str]:
 
 
 def kill_running() -> None:
-    """Kill the process groups of every job still running (on interrupt)."""
+    """Kill the process groups of every job still running (on interrupt, and at exit whatever the way)."""
     with _live_lock:
         procs = list(_live)
     for p in procs:
         _kill_group(p)
+
+
+atexit.register(kill_running)
 
 
 def _kill_group(proc: subprocess.Popen) -> None:
@@ -252,20 +279,32 @@ def run_one(spec: JobSpec) -> JobResult:
             log.write((f"# camtool {__version__} batch job {spec.name}: {spec.job}\n# command: "
                        + " ".join(cmd) + "\n").encode())
             log.flush()
-            proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=log, stdin=subprocess.DEVNULL,
-                                    env=job_env(), start_new_session=True, cwd=JOB_CWD)
+            # the result comes back on a pipe of its own: whatever the job (or a plugin it imports) prints
+            # on stdout goes to the log and never into the JSON
+            read_fd, write_fd = os.pipe()
+            try:
+                proc = subprocess.Popen(cmd, stdout=log, stderr=log, stdin=subprocess.DEVNULL,
+                                        env={**job_env(), RESULT_FD_ENV: str(write_fd)}, pass_fds=(write_fd,),
+                                        start_new_session=True, cwd=JOB_CWD, preexec_fn=_die_with_parent)
+            except BaseException:
+                os.close(read_fd)
+                raise
+            finally:
+                os.close(write_fd)
             with _live_lock:
                 _live.add(proc)
+            reader = _ResultReader(read_fd)
             try:
-                out, _ = proc.communicate(timeout=spec.timeout_s)
+                proc.wait(timeout=spec.timeout_s)
                 timed_out = False
             except subprocess.TimeoutExpired:
-                _kill_group(proc)
-                out, _ = proc.communicate()
                 timed_out = True
             finally:
+                _kill_group(proc)  # its helpers too, on every way out (a timeout, an interrupt, an error)
+                proc.wait()
                 with _live_lock:
                     _live.discard(proc)
+            out = reader.result()
         wall = round(time.perf_counter() - t0, 3)
         rc = proc.returncode
         text = safe_io.read_input_bytes(log_file, "text", follow=False).decode(errors="replace")
@@ -304,8 +343,34 @@ def run_one(spec: JobSpec) -> JobResult:
                          wall_time_s=round(time.perf_counter() - t0, 3))
 
 
+class _ResultReader:
+    """Reads a job's result pipe to its end in a thread (a result larger than the pipe never blocks the job)."""
+
+    def __init__(self, fd: int):
+        self.fd, self.chunks, self.size = fd, [], 0
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        try:
+            while chunk := os.read(self.fd, 1 << 16):
+                self.size += len(chunk)
+                if self.size <= MAX_RESULT_BYTES:
+                    self.chunks.append(chunk)
+        except OSError:
+            pass
+        finally:
+            os.close(self.fd)
+
+    def result(self) -> bytes:
+        self.thread.join(timeout=10)  # the group is gone: every write end is closed
+        return b"".join(self.chunks)
+
+
 def _ok_result(base: dict, out: bytes, folder: Path, wall: float) -> JobResult:
-    report = json.loads(out.decode())
+    report = safe_io.load_json(out, f"{folder}: the job's result")
+    if not isinstance(report, dict):
+        raise BadInput(f"{folder}: the job's result is not a JSON object")
     files = [*report.get("programs", []), str(folder / "report.json"), str(folder / "points.csv"),
              *report.get("plots", [])]
     rel = sorted({str(Path(f).resolve().relative_to(folder.resolve())) for f in files})

@@ -16,7 +16,10 @@ def format_of(path: Path) -> str:
     from .registry import discover
 
     ext = Path(path).suffix.lower()
-    known = {name: info.plugin.file_types() for name, info in discover().items() if info.plugin is not None}
+    # the built-ins first: a third-party plugin is imported only when no built-in reads this extension
+    known = {name: info.plugin.file_types() for name, info in discover(load=False).items() if info.plugin is not None}
+    if not any(ext in exts for exts in known.values()):
+        known = {name: info.plugin.file_types() for name, info in discover().items() if info.plugin is not None}
     fmts = [name for name, exts in known.items() if ext in exts]
     if not fmts:
         every = sorted({e for exts in known.values() for e in exts})
