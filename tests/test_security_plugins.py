@@ -147,3 +147,25 @@ def test_sighup_is_handled_like_sigterm():
         with pytest.raises(KeyboardInterrupt):
             os.kill(os.getpid(), signal.SIGHUP)
             time.sleep(1)
+
+
+# ---------------------------------------------------------------- hot-folder names
+
+def test_hot_folder_names_that_collide_across_rounds_get_a_suffix(tmp_path):
+    import json as _json
+
+    from camtool.batch.watch import Watcher, output_names
+
+    indir, out = tmp_path / "in", tmp_path / "out"
+    indir.mkdir()
+    out.mkdir()
+    first, second = indir / "a b.stl", indir / "a_b.stl"
+    (out / "summary.json").write_text(_json.dumps({"camtool": "x", "jobs": [
+        {"name": "a_b.stl", "outdir": str(out / "a_b.stl"), "source": str(first), "status": "ok"}]}))
+    w = Watcher(indir, out, tmp_path / "t.toml", {})
+    again = w._unclaimed(output_names([first]))
+    assert again == {first: "a_b.stl"}                      # its own folder, rerun in place
+    later = w._unclaimed(output_names([second]))
+    assert later[second].startswith("a_b.stl-") and len(later[second]) == len("a_b.stl-") + 8
+    w._sources["b.stl"] = {"source": str(indir / "b.stl")}   # claimed earlier in this session
+    assert w._unclaimed({indir / "sub" / "b.stl": "b.stl"})[indir / "sub" / "b.stl"] != "b.stl"

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import atexit
 import hashlib
-import json
 import os
 import signal
 import subprocess

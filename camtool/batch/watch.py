@@ -161,7 +161,7 @@ class Watcher:
         """Run ``files`` (paths in INDIR) as one round on the local pool, merge them into
         summary.json, and return their results (sorted by output folder)."""
         files = sorted(Path(f).resolve() for f in files)
-        names = output_names(files)
+        names = self._unclaimed(output_names(files))
         specs, decided = [], []
         for f in files:
             item = self._prepare(f, names[f])
@@ -177,6 +177,21 @@ class Watcher:
         self.results.extend(results)
         self.write_summary()
         return results
+
+    def _unclaimed(self, names: dict[Path, str]) -> dict[Path, str]:
+        """``names`` with a suffix on every folder name that another source already has (in this session or
+        in summary.json from earlier ones): after ``a b.stl`` ran into ``OUT/a_b.stl``, a later ``a_b.stl``
+        runs into ``OUT/a_b.stl-<8 hex>``, never over the first one's programs and summary entry."""
+        claimed = {e["name"]: e.get("source") for e in _read_entries(self.outdir / "summary.json")
+                   if isinstance(e.get("name"), str)}
+        claimed.update({n: v.get("source") for n, v in self._sources.items()})
+        out = {}
+        for f, name in names.items():
+            owner = claimed.get(name)
+            if owner is not None and owner != str(f):
+                name = f"{name}-{hashlib.sha1(str(f).encode()).hexdigest()[:8]}"
+            out[f] = name
+        return out
 
     def _prepare(self, src: Path, name: str) -> JobSpec | JobResult:
         """The JobSpec of one file, or its decided result (bad_input, failed or cached)."""
