@@ -139,11 +139,16 @@ def robot_acm(robot, bodies) -> AllowedCollisions:
     h = geometry_hash(robot, bodies)
     if h in _MEMO:
         return _MEMO[h]
-    f = DATA_DIR / f"acm_{robot.name}.json"
+    from .. import safe_io
+
     acm = None
-    if f.is_file():
-        cached = _from_json(f.read_text())
-        if cached.geometry_hash == h:
+    if safe_io.safe_name(robot.name) == robot.name:  # a robot's name never reaches outside the shipped data
+        f = DATA_DIR / f"acm_{robot.name}.json"
+        try:  # the shipped matrix, read once through safe_io; anything else is made now
+            cached = _from_json(safe_io.read_input_bytes(f, "manifest", follow=False).decode())
+        except (BadInput, ValueError, KeyError, TypeError, RecursionError):
+            cached = None
+        if cached is not None and cached.geometry_hash == h:
             acm = cached
     if acm is None:
         acm = compute_acm(robot, bodies)
