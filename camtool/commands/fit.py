@@ -70,7 +70,6 @@ def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, m
 
     from .. import safe_io
 
-    click.get_current_context().with_resource(safe_io.writing_into(outdir))  # checked, held and locked as run's
     if input_file.suffix.lower() == ".toml":
         job = load_job(input_file, list(overrides))
         wp = workpiece_for_job(job)
@@ -82,6 +81,7 @@ def command(input_file: Path, overrides: tuple[str, ...], outdir: Path | None, m
         for w in wp.warnings:
             click.echo(f"camtool: warning: {w}", err=True)
         surface = fit_surface(wp, FitSettings.make(model=model, threshold_mm=threshold_mm, seed=seed))
+    click.get_current_context().with_resource(safe_io.writing_into(outdir))  # checked, held and locked as run's
     if outdir is not None:
         save = save or outdir / SURFACE_FILE
     if save is not None:

@@ -49,7 +49,6 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
     job = load_job(job_file, list(overrides))
     from .. import safe_io
 
-    click.get_current_context().with_resource(safe_io.writing_into(outdir))  # checked, held and locked as run's
     if from_file is not None:
         surface = load_surface(from_file)
     else:
@@ -59,6 +58,7 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
         surface = surface_for_job(job, workpiece)
     path = path_for_job(job, surface)
     summary = {"job": str(job_file), "surface": surface.model, **path_figures(path, surface)}
+    click.get_current_context().with_resource(safe_io.writing_into(outdir))  # checked, held and locked as run's
     if outdir is not None:
         save_file = save_file or outdir / PATH_FILE
     if save_file is not None:
