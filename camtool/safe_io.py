@@ -181,6 +181,7 @@ def snippet(text, limit: int = 60) -> str:
 # output folders held by their descriptor for a run: display path (absolute, as given) -> fd
 _OUTDIRS: dict[str, int] = {}
 _OUTDIRS_LOCK = threading.Lock()
+_PROC_FD = os.path.isdir(f"/proc/{os.getpid()}/fd")
 
 
 def _fd_path(fd: int, rel: str = "") -> str:
@@ -274,7 +275,8 @@ def held_outdir(outdir, create: bool = True, check: bool = False):
         err = disk_error(exc)
         raise (err or BadInput(f"{outdir}: cannot open the output folder ({exc.strerror or exc})")) from None
     with _OUTDIRS_LOCK:
-        _OUTDIRS[key] = fd
+        if _PROC_FD:  # elsewhere (no /proc/<pid>/fd) the folder is checked by name: docs/security.md
+            _OUTDIRS[key] = fd
     try:
         if check:  # the folder held is the folder checked (check_outdir, through the descriptor)
             check_outdir(outdir)

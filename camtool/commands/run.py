@@ -67,9 +67,15 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     click.echo(f"accuracy: {report['max_position_error_mm']:.2e} mm, {report['max_orientation_error_deg']:.2e} deg;"
                f" cycle time {report['cycle_time_s']:.1f} s; peak speed {100 * report['peak_joint_speed_ratio']:.0f}%"
                f", acc {100 * report['peak_joint_acc_ratio']:.0f}% of limits")
-    table = outdir / "arm_angle_families.txt"
-    if "arm_angle_sqp" in report and table.exists():
-        click.echo(table.read_text().rstrip())
+    if "arm_angle_sqp" in report:  # read once, no link followed, never a FIFO swapped in after the run
+        from .. import safe_io
+        from ..errors import BadInput
+
+        try:
+            text = safe_io.read_input_bytes(outdir / "arm_angle_families.txt", "text", follow=False)
+            click.echo(text.decode(errors="replace").rstrip())
+        except BadInput:
+            pass
     if "cartesian" in report:
         c = report["cartesian"]
         click.echo("cartesian: " + ", ".join(f"{k} {v}" for k, v in c.items() if not isinstance(v, (list, dict))))
