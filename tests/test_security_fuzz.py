@@ -109,9 +109,17 @@ def _boxes():
     n = 4
     z = np.zeros(n)
     b = np.zeros(n, bool)
+    from camtool.path.toolpath import Path
+    from camtool.trajectory import Trajectory
+
     jp = JointPath(q=np.zeros((n, 6)), path_index=np.arange(n), zone=np.zeros(n, int), position_error_mm=z,
                    orientation_error_rad=z, jump=b, reverse_planned=b, retract=b, singular=b, reached=~b)
-    return [jp]
+    path = Path(poses_mm=np.tile(np.eye(4), (n, 1, 1)), segment=np.zeros(n, int), point=np.arange(n),
+                zone=np.zeros(n, int), step_over_mm=10.0, pitch_mm=5.0)
+    traj = Trajectory(robot_name="seed8", joint_names=tuple(f"j{i}" for i in range(6)), prismatic=np.zeros(6, bool),
+                      t_s=np.arange(n, dtype=float), q=np.zeros((n, 6)), qd=np.zeros((n, 6)), qdd=np.zeros((n, 6)),
+                      zone=np.zeros(n, int), path_index=np.arange(n), limits={"velocity": np.ones(6)})
+    return [jp, path, traj]
 
 
 def _saved(box, tmp_path):
