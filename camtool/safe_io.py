@@ -41,6 +41,8 @@ DISK_ERRNOS = {errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota i
                errno.EACCES: "permission denied", errno.EPERM: "permission denied",
                errno.EROFS: "the file system is read-only"}
 _DIR_FLAGS = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
+# resolving -o: O_PATH where there is one, so a folder one may pass through but not list (0711) is walked too
+_WALK_FLAGS = getattr(os, "O_PATH", os.O_RDONLY) | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
 
 
 # ---------------------------------------------------------------- inputs
@@ -225,7 +227,7 @@ def resolve_outdir(outdir, create: bool = True) -> int:
     if "\0" in raw:
         raise BadInput(f"{snippet(raw)}: a NUL byte in the output folder's name")
     full = raw if os.path.isabs(raw) else os.path.join(os.getcwd(), raw)
-    fd = os.open("/", _DIR_FLAGS)
+    fd = os.open("/", _WALK_FLAGS)
     walked = ""
     try:
         for name in full.split("/"):
@@ -233,7 +235,7 @@ def resolve_outdir(outdir, create: bool = True) -> int:
                 continue
             walked = walked + "/" + name
             try:
-                nfd = os.open(name, _DIR_FLAGS, dir_fd=fd)
+                nfd = os.open(name, _WALK_FLAGS, dir_fd=fd)
             except FileNotFoundError:
                 if not create or name == "..":
                     raise BadInput(f"{raw}: {walked} does not exist") from None
@@ -241,7 +243,7 @@ def resolve_outdir(outdir, create: bool = True) -> int:
                     os.mkdir(name, 0o755, dir_fd=fd)
                 except FileExistsError:
                     pass
-                nfd = os.open(name, _DIR_FLAGS, dir_fd=fd)
+                nfd = os.open(name, _WALK_FLAGS, dir_fd=fd)
             except OSError as exc:
                 if exc.errno not in (errno.ELOOP, errno.ENOTDIR):
                     raise BadInput(f"{raw}: cannot open the output folder ({exc.strerror or exc})") from None
