@@ -20,9 +20,10 @@ never the previous run's report. Leftover staging folders
 of killed runs (their process is gone) are removed by the next run into the
 same folder. Only files camtool listed in its manifest are ever removed.
 
-Hostile cells (docs/security.md): the folder is checked first (``safe_io.check_outdir``: not ``/``
-or the home folder, no symlink or special file anywhere below it, no foreign files) and locked for
-the run (``safe_io.locked``); every file is placed, and every stale one removed, through
+Hostile cells (docs/security.md): the folder is resolved once without following links and held by its
+descriptor for the whole run (``safe_io.held_outdir``: the staging folder is named through it), checked
+through it (``safe_io.check_outdir``: not ``/`` or the home folder, no symlink or special file anywhere
+below it, no foreign files) and locked for the run (``safe_io.locked``); every file is placed, and every stale one removed, through
 ``safe_io`` (dir descriptors and O_NOFOLLOW): a manifest naming ``../x`` or ``/x`` removes nothing,
 and a folder or link where a file goes is one clear line (exit 2) before anything changes.
 """
