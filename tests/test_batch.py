@@ -121,8 +121,10 @@ def test_a_crash_or_traceback_in_one_job_does_not_stop_the_others(tmp_path, monk
     scripts = {
         "abort": "import os; os.abort()",
         "boom": "raise RuntimeError('boom in the job')",
-        "fine": ("import json, sys; print(json.dumps({'points_total': 7, 'cycle_time_s': 1.5, "
-                 "'programs': [sys.argv[1] + '/P.mod'], 'plots': []}))"),
+        # a job's result goes to the pipe its batch passed (CAMTOOL_RESULT_FD), never to its stdout
+        "fine": ("import json, os, sys; print('noise on stdout'); "
+                 "os.write(int(os.environ['CAMTOOL_RESULT_FD']), json.dumps({'points_total': 7, "
+                 "'cycle_time_s': 1.5, 'programs': [sys.argv[1] + '/P.mod'], 'plots': []}).encode())"),
     }
     monkeypatch.setattr(runner, "job_command",
                         lambda spec: [sys.executable, "-c", scripts[spec.name], spec.outdir])
