@@ -26,8 +26,10 @@ where the analytic faces really hold it:
    region runs over it (a chamfered plate's scan). Two dozen cylinders and spheres
    tiling a mould's trough along smooth seams are a free-form region. Otherwise it is free-form: the analytic faces that lie mostly in
    it are dropped, unless one holds ``KEEP_SHARE`` of the region solidly (``SOLID_SHARE``
-   of its points' neighbours its own: a plane a trough runs into tangentially, not a
-   sphere speckled over a noisy scan), and its points (those the kept analytic faces do
+   of its points' neighbours its own: a plane a trough runs into, not a sphere speckled
+   over a noisy scan) and less than ``SMOOTH_BORDER_SHARE`` of its border with the other
+   analytic faces is a smooth seam (a fragment is surrounded by fragments it meets
+   tangentially; a plane the trough's rim creases into is not), and its points (those the kept analytic faces do
    not hold) become one
    ``FreeformSurface`` (``freeform.freeform_surface``, a mesh's own triangles of the
    region sampled exactly, a scan smoothed).
@@ -57,7 +59,9 @@ MAX_PIECES = 3            # ... and one whose largest MAX_PIECES analytic faces 
 KEEP_SHARE = 0.2          # an analytic face holding this share of a free-form region stays a face of its own ...
 SOLID_SHARE = 0.8         # ... when this share of its points' nearest neighbours are its own (not a noisy speckle)
 SOLID_NEIGHBOURS = 8      # neighbours of a sample point for the solidity and the seams between analytic faces
+SMOOTH_BORDER_SHARE = 0.5 # ... and less than this share of its border runs along smooth seams (no fragment)
 SEAM_PAIRS = 200          # neighbouring point pairs a seam's angle is measured on at most
+JOIN_PASSES = 3           # passes of edge points joining the regions of their neighbours
 MIN_REGION_SHARE = 0.01   # regions holding less than this share of the sample are not faces of their own
 
 
@@ -113,13 +117,18 @@ def smooth_regions(P: np.ndarray, N: np.ndarray | None, sharp_edge_deg: float, c
     graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
     _, comp = connected_components(graph, directed=False)
     label = np.where(edge, -1, comp).astype(np.int64)
-    # an edge point joins the region of its nearest smooth neighbour whose normal agrees
-    e = np.flatnonzero(edge)
-    if len(e):
-        ok = (~edge[nb[e]]) & (cos_nb[e] >= cos_sharp) & within[e]
+    # an edge point joins the region of its nearest labelled neighbour whose normal agrees (a few passes: a noisy
+    # scan's edge marks come in clusters)
+    for _ in range(JOIN_PASSES):
+        e = np.flatnonzero(label < 0)
+        if len(e) == 0:
+            break
+        ok = (label[nb[e]] >= 0) & (cos_nb[e] >= cos_sharp) & within[e]
         first = np.argmax(ok, axis=1)
         has = ok[np.arange(len(e)), first]
-        label[e[has]] = comp[nb[e[has], first[has]]]
+        if not has.any():
+            break
+        label[e[has]] = label[nb[e[has], first[has]]]
     # regions numbered by size, small ones dropped
     ids, counts = np.unique(label[label >= 0], return_counts=True)
     keep = ids[counts >= max(MIN_REGION_SHARE * n, 30)]
@@ -137,8 +146,8 @@ def _face_normals(face, P: np.ndarray) -> np.ndarray:
 
 
 def _smooth_groups(idx: np.ndarray, owner_s: np.ndarray, nb: np.ndarray, S: np.ndarray, by_index: dict,
-                   cos_sharp: float) -> list[int]:
-    """Sizes of the groups of analytic faces of a region (sample points ``idx``) that meet at smooth seams: two
+                   cos_sharp: float) -> dict[int, int]:
+    """Each analytic face of the region's group size: the groups of analytic faces of a region (sample points ``idx``) that meet at smooth seams: two
     faces whose neighbouring points' model normals agree within the sharp-edge angle (median over the seam) are
     one group (the fragments of a free-form surface); faces meeting at a crease (a chamfer the scan's noise
     blurred) are not."""
@@ -165,17 +174,40 @@ def _smooth_groups(idx: np.ndarray, owner_s: np.ndarray, nb: np.ndarray, S: np.n
         cos = np.abs(np.sum(_face_normals(by_index[x], S[i]) * _face_normals(by_index[y], S[j]), axis=1))
         if float(np.median(cos)) >= cos_sharp:
             parent[root(x)] = root(y)
-    groups = np.unique([root(f) for f in parent], return_counts=True)[1]
-    return [int(g) for g in groups]
+    roots = {f: root(f) for f in parent}
+    size = {r: sum(1 for q in roots.values() if q == r) for r in set(roots.values())}
+    return {f: size[r] for f, r in roots.items()}
 
 
-def _is_freeform(idx: np.ndarray, owner_s: np.ndarray, nb: np.ndarray, S: np.ndarray, by_index: dict,
-                 cos_sharp: float) -> bool:
+def _smooth_border_share(face, owner_s: np.ndarray, nb: np.ndarray, S: np.ndarray, by_index: dict,
+                         cos_sharp: float) -> float:
+    """The share of the face's border (its points' neighbours on other analytic faces) where the two models' normals
+    agree within the sharp-edge angle: about 1 for a fragment tiling a smooth surface with others, small for a face
+    bounded by creases."""
+    mine = np.flatnonzero(owner_s == face.index)
+    a = np.repeat(mine, nb.shape[1] - 1)
+    b = nb[mine, 1:].ravel()
+    other = owner_s[b]
+    cross = (other >= 0) & (other != face.index)
+    a, b, other = a[cross], b[cross], other[cross]
+    if len(a) == 0:
+        return 0.0
+    sel = np.linspace(0, len(a) - 1, min(len(a), 20 * SEAM_PAIRS)).astype(int)
+    a, b, other = a[sel], b[sel], other[sel]
+    na = _face_normals(face, S[a])
+    nb_ = np.zeros_like(na)
+    for g in np.unique(other):
+        k = other == g
+        nb_[k] = _face_normals(by_index[int(g)], S[b[k]])
+    return float((np.abs(np.sum(na * nb_, axis=1)) >= cos_sharp).mean())
+
+
+def _is_freeform(idx: np.ndarray, owner_s: np.ndarray, groups: dict) -> bool:
     """The region's analytic faces hold too little of it, or in too many pieces joined at smooth seams."""
     held = owner_s[idx] >= 0
     if held.sum() < COVER_SHARE * len(idx):
         return True
-    return max(_smooth_groups(idx, owner_s, nb, S, by_index, cos_sharp), default=0) > MAX_PIECES
+    return max(groups.values(), default=0) > MAX_PIECES
 
 
 def _region_workpiece(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int):
@@ -223,8 +255,11 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
     _, nb = tree.query(P[pick], k=min(SOLID_NEIGHBOURS + 1, len(pick)))
     by_index = {f.index: f for f in faces}
     cos_sharp = math.cos(math.radians(settings.sharp_edge_deg))
-    free = [r for r in range(int(region.max()) + 1)
-            if _is_freeform(np.flatnonzero(region == r), owner_s, nb, P[pick], by_index, cos_sharp)]
+    groups = {}
+    for r in range(int(region.max()) + 1):
+        idx = np.flatnonzero(region == r)
+        groups[r] = _smooth_groups(idx, owner_s, nb, P[pick], by_index, cos_sharp)
+    free = [r for r in groups if _is_freeform(np.flatnonzero(region == r), owner_s, groups[r])]
     if not free:
         return seg
     # each workpiece point's region: its nearest sample point's
@@ -241,7 +276,8 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
             kept.append(f)
             continue
         solid = float((owner_s[nb[s, 1:]] == f.index).mean())
-        if s.sum() >= KEEP_SHARE * (region == r).sum() and solid >= SOLID_SHARE:
+        if s.sum() >= KEEP_SHARE * (region == r).sum() and solid >= SOLID_SHARE \
+                and _smooth_border_share(f, owner_s, nb, P[pick], by_index, cos_sharp) < SMOOTH_BORDER_SHARE:
             kept.append(f)
     taken = np.zeros(n, bool)
     for f in kept:
