@@ -17,7 +17,8 @@ where the analytic faces really hold it:
    other points, linked to their nearest neighbours closer than ``segment.CONNECT_SPACINGS``
    spacings, fall into connected regions; an edge point joins the region of its nearest
    non-edge neighbour whose normal agrees within ``sharp_edge_deg``.
-2. **Analytic or free-form.** A region is analytic when the RANSAC faces hold at least
+2. **Analytic or free-form.** A region smaller than ``MIN_FREE_SHARE`` of the sample
+   stays as RANSAC left it (a scan's thin rim). A larger region is analytic when the RANSAC faces hold at least
    ``COVER_SHARE`` of its points and no more than ``MAX_PIECES`` of them meet one another
    at smooth seams (a dome on a cylinder, a fillet between two planes: two or three
    models meeting along tangent seams; a seam is smooth when the two models' normals at
@@ -34,7 +35,8 @@ where the analytic faces really hold it:
    ``FreeformSurface`` (``freeform.freeform_surface``, a mesh's own triangles of the
    region sampled exactly, a scan smoothed).
 
-When no region is free-form the segmentation is returned unchanged: the faces of a
+When no region is free-form (or none gives a free-form face of ``min_area_mm2``) the
+segmentation is returned unchanged: the faces of a
 purely analytic part do not depend on this pass. Deterministic (no random draws).
 """
 from __future__ import annotations
@@ -61,6 +63,7 @@ SOLID_SHARE = 0.8         # ... when this share of its points' nearest neighbour
 SOLID_NEIGHBOURS = 8      # neighbours of a sample point for the solidity and the seams between analytic faces
 SMOOTH_BORDER_SHARE = 0.5 # ... and less than this share of its border runs along smooth seams (no fragment)
 SEAM_PAIRS = 200          # neighbouring point pairs a seam's angle is measured on at most
+MIN_FREE_SHARE = 0.05     # a free-form region holds at least this share of the sample (a scan's thin rim is none)
 JOIN_PASSES = 3           # passes of edge points joining the regions of their neighbours
 MIN_REGION_SHARE = 0.01   # regions holding less than this share of the sample are not faces of their own
 
@@ -259,7 +262,8 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
     for r in range(int(region.max()) + 1):
         idx = np.flatnonzero(region == r)
         groups[r] = _smooth_groups(idx, owner_s, nb, P[pick], by_index, cos_sharp)
-    free = [r for r in groups if _is_freeform(np.flatnonzero(region == r), owner_s, groups[r])]
+    free = [r for r in groups if (region == r).sum() >= MIN_FREE_SHARE * len(pick)
+            and _is_freeform(np.flatnonzero(region == r), owner_s, groups[r])]
     if not free:
         return seg
     # each workpiece point's region: its nearest sample point's
@@ -299,6 +303,8 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
             dropped += 1
             continue
         built.append((surface, idx, area))
+    if len(built) == len(kept):   # no free-form face after all: the analytic segmentation as it was
+        return seg
     order = sorted(range(len(built)), key=lambda k: (-round(built[k][2], 6), k))
     out = tuple(make_face(i, built[k][0], built[k][1], built[k][2]) for i, k in enumerate(order))
     assigned = sum(len(f.inliers) for f in out)
