@@ -388,8 +388,8 @@ def segment(workpiece, settings: SegmentSettings = SegmentSettings()) -> Segment
     if not models:
         seg = with_freeform_faces(None, workpiece, settings, Face)
         if seg is None or not seg[0]:
-            raise BadInput(f"{source}: no plane, sphere, cylinder or free-form face found within threshold_mm = "
-                           f"{thr:g}; check the units or raise the threshold")
+            raise BadInput(f"{source}: no plane, sphere or cylinder face found within threshold_mm = {thr:g}, "
+                           "and no smooth region for a free-form face; check the units or raise the threshold")
         return Segmentation(*seg)
     # every point: the best-fitting face whose occupied cells it falls in
     cell = max(2.0 * spacing, 1e-3)
