@@ -33,7 +33,8 @@ where the analytic faces really hold it:
    tangentially; a plane the trough's rim creases into is not), and its points (those the kept analytic faces do
    not hold) become one
    ``FreeformSurface`` (``freeform.freeform_surface``, a mesh's own triangles of the
-   region sampled exactly, a scan smoothed).
+   region sampled exactly, a scan smoothed); its points are those over its material
+   nodes (a scan's rim within two smoothing sigmas) and near it (``_on_material``).
 
 When no region is free-form (or none gives a free-form face of ``min_area_mm2``) the
 segmentation is returned unchanged: the faces of a
@@ -63,6 +64,7 @@ SOLID_SHARE = 0.8         # ... when this share of its points' nearest neighbour
 SOLID_NEIGHBOURS = 8      # neighbours of a sample point for the solidity and the seams between analytic faces
 SMOOTH_BORDER_SHARE = 0.5 # ... and less than this share of its border runs along smooth seams (no fragment)
 SEAM_PAIRS = 200          # neighbouring point pairs a seam's angle is measured on at most
+OFF_SURFACE_THRESHOLDS = 10.0  # a point of a free-form region farther than this many thresholds is not its face's
 MIN_FREE_SHARE = 0.05     # a free-form region holds at least this share of the sample (a scan's thin rim is none)
 JOIN_PASSES = 3           # passes of edge points joining the regions of their neighbours
 MIN_REGION_SHARE = 0.01   # regions holding less than this share of the sample are not faces of their own
@@ -213,6 +215,24 @@ def _is_freeform(idx: np.ndarray, owner_s: np.ndarray, groups: dict) -> bool:
     return max(groups.values(), default=0) > MAX_PIECES
 
 
+def _on_material(surface, P: np.ndarray, threshold_mm: float) -> np.ndarray:
+    """Which points lie on the free-form face: over one of its material nodes (or a scan's rim) and within ``OFF_SURFACE_THRESHOLDS``
+    thresholds of it (not a stray edge point of the region that the face's largest connected region left out)."""
+    c = (P - surface.origin_mm) @ surface.frame
+    g = surface.grid
+    i = np.rint((c[:, 0] - g.x0) / g.g).astype(np.int64)
+    j = np.rint((c[:, 1] - g.y0) / g.g).astype(np.int64)
+    inside = (i >= 0) & (i < g.nx) & (j >= 0) & (j < g.ny)
+    from scipy.ndimage import binary_dilation
+
+    # a scan's face keeps a smoothing sigma inside its last points (freeform.py): its rim points are its own
+    near = binary_dilation(surface.material, iterations=1 + int(round(2.0 * surface.smoothing_mm / g.g)))
+    on = np.zeros(len(P), bool)
+    on[inside] = near[j[inside], i[inside]]
+    h = g.interp(surface.height, c[:, 0], c[:, 1])
+    return on & (np.abs(c[:, 2] - h) <= OFF_SURFACE_THRESHOLDS * threshold_mm + 3.0 * surface.smoothing_mm)
+
+
 def _region_workpiece(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int):
     """The workpiece's points ``idx`` as a workpiece; a mesh keeps the triangles whose middle lies in region r."""
     from .workpiece import Workpiece
@@ -298,8 +318,9 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
         except BadInput:
             dropped += 1
             continue
+        idx = idx[_on_material(surface, P[idx], keys.threshold_mm)]
         area = surface.area_mm2()
-        if area < settings.min_area_mm2:
+        if area < settings.min_area_mm2 or len(idx) < MIN_FACE_SAMPLES:
             dropped += 1
             continue
         built.append((surface, idx, area))
