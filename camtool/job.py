@@ -210,11 +210,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "feed_factor_min": Key("float", 0.25, "target_removal_file: lowest feed, as a share of timing.tcp_speed_mm_s (the longest dwell).", check=lambda x: 0.01 <= x <= 1, expect="a number in 0.01..1"),
     },
     "faces": {
-        "select": Key("select", "single", "Which faces of the workpiece the job works: single = the one surface [fit] finds (as before faces existed); all; a list of face indices as `camtool faces JOB` prints them (largest first); a model name (plane, sphere, cylinder); {largest = N}; or {nearest_mm = [x, y, z]} (world frame). Any other choice splits the workpiece into faces (docs/faces.md); several faces are worked in one program."),
+        "select": Key("select", "single", "Which faces of the workpiece the job works: single = the one surface [fit] finds (as before faces existed); all; a list of face indices as `camtool faces JOB` prints them (largest first); a model name (plane, sphere, cylinder, freeform); {largest = N}; or {nearest_mm = [x, y, z]} (world frame). Any other choice splits the workpiece into faces (docs/faces.md); several faces are worked in one program."),
         "normal_tol_deg": Key("float", 10.0, "A point belongs to a face only when its normal is within this angle of the face's normal there.", check=lambda x: 0.5 <= x <= 45, expect="an angle in 0.5..45 deg"),
         "min_area_mm2": _nonneg("Faces smaller than this are dropped or merged (small_faces).", 100.0),
         "small_faces": Key("str", "drop", "What becomes of a face smaller than min_area_mm2: drop it, or merge its points into the neighbouring face they fit (within 3x fit.threshold_mm, normals agreeing).", choices=("drop", "merge")),
         "max_faces": Key("int", 32, "Most faces the segmentation looks for.", check=lambda x: 1 <= x <= 256, expect="an integer in 1..256"),
+        "sharp_edge_deg": Key("float", 30.0, "Smooth regions of the part are split where the surface turns by more than this angle between neighbouring points (a sharp edge); a smooth region the plane, sphere and cylinder faces hold only in fragments is one free-form face (docs/faces.md).", check=lambda x: 5 <= x <= 90, expect="an angle in 5..90 deg"),
         "raster": Key("table", {}, "Raster keys per face index, e.g. {\"2\" = {step_over_mm = 5, cylinder_rows = \"along\"}}; needs select = [indices] or {largest = N}."),
     },
     "post": {
@@ -349,12 +350,12 @@ def _coerce(key: Key, value, where: str):
     return value
 
 
-FACE_MODELS = ("plane", "sphere", "cylinder")
+FACE_MODELS = ("plane", "sphere", "cylinder", "freeform")
 
 
 def _faces_select(value, fail):
     """faces.select: 'single', 'all', a model name, [indices], {largest = N} or {nearest_mm = [x, y, z]}."""
-    expect = ("'single', 'all', 'plane', 'sphere', 'cylinder', a list of face indices, {largest = N} "
+    expect = ("'single', 'all', 'plane', 'sphere', 'cylinder', 'freeform', a list of face indices, {largest = N} "
               "or {nearest_mm = [x, y, z]}")
     if isinstance(value, str):
         if value not in ("single", "all", *FACE_MODELS):

@@ -17,12 +17,14 @@ PNG_FILE = "faces.png"
               help=f"Write the picture OUTDIR/{PNG_FILE} (the points coloured and numbered by face).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON for scripts.")
 def command(job_file: Path, overrides: tuple[str, ...], outdir: Path | None, as_json: bool) -> None:
-    """List the faces of a JOB's workpiece (planes, spheres, cylinders), numbered largest first.
+    """List the faces of a JOB's workpiece (planes, spheres, cylinders, free-form), numbered largest first.
 
     The numbers are what [faces] select = [indices] names. Each face: its
-    model, area, normal (plane) or axis (cylinder), radius, centre, inliers
-    and RMS residual; `selected` marks the faces the job's selection takes.
-    Settings: [faces] and fit.threshold_mm, fit.seed (docs/faces.md).
+    model, area, normal (plane; a free-form face's mean normal) or axis
+    (cylinder), radius, centre, inliers and RMS residual (a free-form face's
+    curvature range in --json); `selected` marks the faces the job's
+    selection takes. Settings: [faces] and fit.threshold_mm, fit.seed
+    (docs/faces.md).
     """
     from ..part.faces import faces_png, segment_faces, select_faces   # heavy: only when the command runs
     from ..run.part_stages import faces_settings

@@ -263,15 +263,21 @@ def _refine_sphere(P, c, r, thr, rounds=3, steps=6):
         for _ in range(steps):  # Gauss-Newton on f_i = |q_i - c| - r
             diff = Q - c
             dist = np.linalg.norm(diff, axis=1)
-            J = np.hstack([-diff / dist[:, None], -np.ones((len(Q), 1))])
+            J = np.hstack([-diff / np.maximum(dist, 1e-300)[:, None], -np.ones((len(Q), 1))])
             f = dist - r
-            # lstsq on the 4x4 normal equations: a huge sphere (flat data) is near singular
-            step = np.linalg.lstsq(J.T @ J, -J.T @ f, rcond=None)[0]
-            c, r = c + step[:3], r + step[3]
-            if not np.isfinite(r) or np.abs(step).max() < 1e-9:
+            A, g = J.T @ J, -J.T @ f
+            # a huge sphere (flat data, a car hood) walks its centre off towards infinity: its normal equations
+            # overflow before r does, and LAPACK, handed inf or NaN, prints "illegal value" on stderr; such a
+            # step is never taken (the sphere so far stays, and a plane wins over it)
+            if not (np.isfinite(A).all() and np.isfinite(g).all()):
                 break
-        if not np.isfinite(r):
-            break
+            # lstsq on the 4x4 normal equations: a huge sphere (flat data) is near singular
+            step = np.linalg.lstsq(A, g, rcond=None)[0]
+            if not np.isfinite(step).all() or not np.isfinite(r + step[3]) or not np.isfinite(c + step[:3]).all():
+                break
+            c, r = c + step[:3], r + step[3]
+            if np.abs(step).max() < 1e-9:
+                break
     return c, float(r)
 
 

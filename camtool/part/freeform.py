@@ -129,6 +129,12 @@ class FreeformSurface:
         n = self.normals[self.material].mean(axis=0)
         return n / np.linalg.norm(n)
 
+    def middle_mm(self) -> np.ndarray:
+        """The surface point over the middle of the material nodes (world mm)."""
+        xy = self.grid.node_xy()[self.material].mean(axis=0)
+        h = float(self.grid.interp(self.height, xy[0], xy[1]))
+        return self.origin_mm + self.frame @ np.array([xy[0], xy[1], h])
+
     def curvature_range(self) -> tuple[float, float]:
         """(min, max) mean curvature (1/mm; > 0 convex towards the tool) over the material, 1st..99th percentile."""
         g = self.grid.g

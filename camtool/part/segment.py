@@ -46,6 +46,8 @@ from ..errors import BadInput
 from .fit import (LARGE_SPHERE_FACTOR, _refine_plane, _refine_sphere, cylinder_hypotheses, cylinder_radial,
                   cylinder_residuals, cylinder_surface, plane_surface, refine_cylinder, sphere_patch)
 from .face_edges import FreeEdges, flat_mm, on_edges, spacing_mm, uv_of_flat
+from .freeform import FreeformSurface
+from .freeform_faces import SHARP_EDGE_DEG, with_freeform_faces
 from .surface import Cylinder, FitStats, PlaneSurface, SpherePatch
 
 SAMPLE = 20000            # points the RANSAC rounds search
@@ -76,6 +78,7 @@ class SegmentSettings:
     boundary_cell_mm: float = 2.0
     close_gaps_mm: float = 6.0
     simplify_mm: float = 0.5
+    sharp_edge_deg: float = SHARP_EDGE_DEG
 
 
 @dataclass(frozen=True)
@@ -83,7 +86,7 @@ class Face:
     """One face of a segmented part: its surface (model, parameters, boundary, stats) and its points."""
 
     index: int
-    surface: PlaneSurface | SpherePatch | Cylinder
+    surface: PlaneSurface | SpherePatch | Cylinder | FreeformSurface
     inliers: np.ndarray  # indices into the workpiece's points
     area_mm2: float
 
@@ -95,7 +98,12 @@ class Face:
         """The ``camtool faces --json`` entry: index, model, area, normal or axis, radius, centre, inliers."""
         s = self.surface
         d = {"index": self.index, "model": s.model, "area_mm2": round(self.area_mm2, 3)}
-        if isinstance(s, PlaneSurface):
+        if s.model == "freeform":
+            d["normal"] = [round(float(x), 6) for x in s.mean_normal()]
+            d["center_mm"] = [round(float(x), 4) for x in s.middle_mm()]
+            d["radius_mm"] = None
+            d["curvature_range"] = [round(float(x), 6) for x in s.curvature_range()]
+        elif isinstance(s, PlaneSurface):
             d["normal"] = [round(float(x), 6) for x in s.normal]
             lo, hi = s.boundary.bounds()
             mid = s.point_mm(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]))
@@ -378,8 +386,11 @@ def segment(workpiece, settings: SegmentSettings = SegmentSettings()) -> Segment
     keep = [k for k, m in enumerate(members) if len(m) >= MIN_FACE_SAMPLES]
     models, members = [models[k] for k in keep], [members[k] for k in keep]
     if not models:
-        raise BadInput(f"{source}: no plane, sphere or cylinder face found within threshold_mm = {thr:g}; "
-                       "check the units or raise the threshold")
+        seg = with_freeform_faces(None, workpiece, settings, Face)
+        if seg is None or not seg[0]:
+            raise BadInput(f"{source}: no plane, sphere or cylinder face found within threshold_mm = {thr:g}, "
+                           "and no smooth region for a free-form face; check the units or raise the threshold")
+        return Segmentation(*seg)
     # every point: the best-fitting face whose occupied cells it falls in
     cell = max(2.0 * spacing, 1e-3)
     best_res = np.full(len(P), np.inf)
@@ -393,7 +404,9 @@ def segment(workpiece, settings: SegmentSettings = SegmentSettings()) -> Segment
         best_res[cand] = res[cand]
     faces, dropped = _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
     assigned = sum(len(f.inliers) for f in faces)
-    return Segmentation(tuple(faces), len(P), len(P) - assigned, dropped)
+    # smooth regions the analytic faces hold only in fragments become free-form faces (none on an analytic part)
+    return with_freeform_faces(Segmentation(tuple(faces), len(P), len(P) - assigned, dropped), workpiece,
+                               settings, Face)
 
 
 def _equivalent(m1: _Model, m2: _Model, thr: float, angle_rad: float) -> bool:

@@ -74,6 +74,7 @@ MAX_ABS_COORDINATE_MM = 1e9
 # Non-zero coordinates smaller than this (in the file's unit) are damaged numbers.
 TINY_COORDINATE = 1e-30
 
+INDEXED = (".obj", ".off", ".ply", ".glb", ".gltf")   # mesh formats whose duplicate vertices are a defect
 DROP_HINT = "fix the file or set workpiece.drop_nonfinite = true to drop them"
 
 
@@ -921,7 +922,10 @@ def _workpiece_from_raw(raw: _Raw, path: Path, units: str, sample_points: int, n
     warnings = dropped + _unit_warnings(points, path, units)
     rng = np.random.default_rng(seed)
     if faces is not None:
-        verts_mm, faces = _merged_mesh(points * scale, faces)
+        from .mesh_repair import repaired_mesh
+
+        verts_mm, faces, repairs = repaired_mesh(points * scale, faces, str(path), path.suffix.lower() in INDEXED)
+        warnings = tuple(warnings) + repairs
         pts_mm, face_normals = _sample_mesh(verts_mm, faces, sample_points, rng, path)
         return Workpiece(pts_mm, face_normals, faces, str(path), units, warnings, verts_mm)
     pts_mm = points * scale
@@ -992,15 +996,6 @@ def _screen_values(raw: _Raw, points: np.ndarray, normals: np.ndarray | None, fa
     msg = (f"{path}: dropped {n_bad} {'vertex' if n_bad == 1 else 'vertices'} with {kind} coordinates and the "
            f"{int(face_bad.sum())} of {len(faces)} triangles using them (workpiece.drop_nonfinite)")
     return points[keep], None, kept_faces, (msg,)
-
-
-def _merged_mesh(verts_mm: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Duplicate vertices merged, as trimesh's default processing does (a closed STL becomes
-    watertight); the values were checked first, so this drops nothing."""
-    import trimesh
-
-    mesh = trimesh.Trimesh(verts_mm, faces, process=True)
-    return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
 
 
 def _check_coordinates(points: np.ndarray, path: Path, units: str, scale: float) -> None:

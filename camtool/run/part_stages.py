@@ -55,7 +55,7 @@ def segment_settings(job: Job) -> SegmentSettings:
                            min_area_mm2=float(f.min_area_mm2), small_faces=f.small_faces,
                            max_faces=int(f.max_faces), seed=int(fit.seed),
                            boundary_cell_mm=float(fit.boundary_cell_mm), close_gaps_mm=float(fit.close_gaps_mm),
-                           simplify_mm=float(fit.simplify_mm))
+                           simplify_mm=float(fit.simplify_mm), sharp_edge_deg=float(f.sharp_edge_deg))
 
 
 def placement_mm(job: Job) -> np.ndarray:

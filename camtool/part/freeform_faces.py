@@ -1,0 +1,332 @@
+"""Free-form faces in a segmentation: smooth regions split at sharp edges, kept analytic where a model fits.
+
+``segment.segment`` finds plane, sphere and cylinder faces by RANSAC. On a free-form part
+(a scanned dome, a mould's trough, a car panel) that search breaks each smooth region into
+dozens of analytic fragments and leaves a share of its points on no face. This pass looks
+at the part as a set of **smooth regions** and gives each region the analytic model only
+where the analytic faces really hold it:
+
+1. **Smooth regions.** On an evenly strided sample of the points (at most ``SAMPLE``), each
+   point's normal is its triangle's on a mesh, and on a scan the thinnest principal
+   direction of its ``EDGE_NEIGHBOURS`` nearest neighbours (a scan's own normals are as
+   noisy as the scan; the sample's neighbours span several millimetres). A point is on a **sharp
+   edge** when ``EDGE_VOTES`` of those neighbours within ``EDGE_SPACINGS`` point spacings
+   turn its normal (unsigned) by more than ``sharp_edge_deg``
+   (``faces.sharp_edge_deg``, default 30 deg: a chamfer of 45 deg or a box's 90 deg
+   corner is an edge; a dome's or a door's curvature over a few millimetres is not). The
+   other points, linked to their nearest neighbours closer than ``segment.CONNECT_SPACINGS``
+   spacings, fall into connected regions; an edge point joins the region of its nearest
+   non-edge neighbour whose normal agrees within ``sharp_edge_deg``.
+2. **Analytic or free-form.** A region smaller than ``MIN_FREE_SHARE`` of the sample
+   stays as RANSAC left it (a scan's thin rim). A larger region is analytic when the RANSAC faces hold at least
+   ``COVER_SHARE`` of its points and no more than ``MAX_PIECES`` of them meet one another
+   at smooth seams (a dome on a cylinder, a fillet between two planes: two or three
+   models meeting along tangent seams; a seam is smooth when the two models' normals at
+   neighbouring points agree within ``sharp_edge_deg``, median over the seam). Faces that
+   meet at creases stay apart even where a scan's noise blurred the crease and the
+   region runs over it (a chamfered plate's scan). Two dozen cylinders and spheres
+   tiling a mould's trough along smooth seams are a free-form region. Otherwise it is free-form: the analytic faces that lie mostly in
+   it are dropped, unless one holds ``KEEP_SHARE`` of the region solidly (``SOLID_SHARE``
+   of its points' neighbours its own: a plane a trough runs into, not a sphere speckled
+   over a noisy scan) and less than ``SMOOTH_BORDER_SHARE`` of its border with the other
+   analytic faces is a smooth seam (a fragment is surrounded by fragments it meets
+   tangentially; a plane the trough's rim creases into is not), and its points (those the kept analytic faces do
+   not hold) become one
+   ``FreeformSurface`` (``freeform.freeform_surface``, a mesh's own triangles of the
+   region sampled exactly, a scan smoothed); its points are those over its material
+   nodes (a scan's rim within two smoothing sigmas) and near it (``_on_material``).
+
+When no region is free-form (or none gives a free-form face of ``min_area_mm2``) the
+segmentation is returned unchanged: the faces of a
+purely analytic part do not depend on this pass. Deterministic (no random draws).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from ..errors import BadInput
+
+SHARP_EDGE_DEG = 30.0     # default of faces.sharp_edge_deg: a dihedral angle above this splits two regions
+SAMPLE = 20000            # points (strided) the regions are found on
+EDGE_NEIGHBOURS = 16      # the edge test looks at this many nearest neighbours ...
+EDGE_SPACINGS = 4.0       # ... closer than this many median point spacings ...
+EDGE_VOTES = 1            # ... and a point is on an edge when this many of them turn its normal past sharp_edge_deg
+COVER_SHARE = 0.9         # a region whose analytic faces hold less than this share of its points is free-form,
+MAX_PIECES = 3            # ... and one whose largest MAX_PIECES analytic faces hold less than COVER_SHARE of it
+KEEP_SHARE = 0.2          # an analytic face holding this share of a free-form region stays a face of its own ...
+SOLID_SHARE = 0.8         # ... when this share of its points' nearest neighbours are its own (not a noisy speckle)
+SOLID_NEIGHBOURS = 8      # neighbours of a sample point for the solidity and the seams between analytic faces
+SMOOTH_BORDER_SHARE = 0.5 # ... and less than this share of its border runs along smooth seams (no fragment)
+SEAM_PAIRS = 200          # neighbouring point pairs a seam's angle is measured on at most
+OFF_SURFACE_THRESHOLDS = 10.0  # a point of a free-form region farther than this many thresholds is not its face's
+MIN_FREE_SHARE = 0.05     # a free-form region holds at least this share of the sample (a scan's thin rim is none)
+JOIN_PASSES = 3           # passes of edge points joining the regions of their neighbours
+MIN_REGION_SHARE = 0.01   # regions holding less than this share of the sample are not faces of their own
+
+
+@dataclass(frozen=True)
+class _FitKeys:
+    """The ``FitSettings`` fields ``freeform_surface`` reads, from the segmentation settings."""
+
+    threshold_mm: float
+    close_gaps_mm: float
+    smoothing_mm: float = 0.0
+
+
+def _sample(n: int) -> np.ndarray:
+    return np.arange(n) if n <= SAMPLE else np.linspace(0, n - 1, SAMPLE).astype(np.int64)
+
+
+def _unit(N: np.ndarray) -> np.ndarray:
+    N = np.where(np.isfinite(N), N, 0.0)
+    return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-12)
+
+
+def _pca_normals(P: np.ndarray, nb: np.ndarray) -> np.ndarray:
+    """Unit normals (unsigned) of the points: the thinnest principal direction of each point's neighbours ``nb``
+    (a scan's own normals, estimated over a few points, are as noisy as the scan; these average over the
+    sample's neighbours, several millimetres)."""
+    Q = P[nb] - P[nb].mean(axis=1, keepdims=True)
+    C = np.einsum("nki,nkj->nij", Q, Q)
+    C += np.eye(3) * 1e-12 * np.maximum(np.trace(C, axis1=1, axis2=2), 1e-300)[:, None, None]
+    _, vecs = np.linalg.eigh(C)
+    return vecs[:, :, 0]
+
+
+def smooth_regions(P: np.ndarray, N: np.ndarray | None, sharp_edge_deg: float, connect_spacings: float) -> np.ndarray:
+    """Region label of each point (-1: none), the points split at sharp edges (see the module docstring).
+    ``N``: the points' normals when they are exact (a mesh's triangles'); None: estimated (a scan)."""
+    n = len(P)
+    if n < 2 * EDGE_NEIGHBOURS:
+        return np.full(n, -1, np.int64)
+    tree = cKDTree(P)
+    k = min(EDGE_NEIGHBOURS, n - 1) + 1
+    dist, nb = tree.query(P, k=k)
+    spacing = max(float(np.median(dist[:, 1])), 1e-9)
+    N = _pca_normals(P, nb) if N is None else _unit(np.asarray(N, float))
+    cos_sharp = math.cos(math.radians(sharp_edge_deg))
+    cos_nb = np.abs(np.einsum("ij,ikj->ik", N, N[nb]))   # unsigned: scans' normals are unoriented
+    within = dist <= EDGE_SPACINGS * spacing
+    edge = ((cos_nb < cos_sharp) & within).sum(axis=1) >= EDGE_VOTES
+    # the smooth points linked to their near neighbours that are smooth too
+    link = within & (dist <= connect_spacings * spacing) & (cos_nb >= cos_sharp) & ~edge[:, None] & ~edge[nb]
+    link[:, 0] = False
+    rows = np.repeat(np.arange(n), k)[link.ravel()]
+    cols = nb.ravel()[link.ravel()]
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    _, comp = connected_components(graph, directed=False)
+    label = np.where(edge, -1, comp).astype(np.int64)
+    # an edge point joins the region of its nearest labelled neighbour whose normal agrees (a few passes: a noisy
+    # scan's edge marks come in clusters)
+    for _ in range(JOIN_PASSES):
+        e = np.flatnonzero(label < 0)
+        if len(e) == 0:
+            break
+        ok = (label[nb[e]] >= 0) & (cos_nb[e] >= cos_sharp) & within[e]
+        first = np.argmax(ok, axis=1)
+        has = ok[np.arange(len(e)), first]
+        if not has.any():
+            break
+        label[e[has]] = label[nb[e[has], first[has]]]
+    # regions numbered by size, small ones dropped
+    ids, counts = np.unique(label[label >= 0], return_counts=True)
+    keep = ids[counts >= max(MIN_REGION_SHARE * n, 30)]
+    order = keep[np.argsort(-counts[np.isin(ids, keep)], kind="stable")]
+    out = np.full(n, -1, np.int64)
+    for r, i in enumerate(order):
+        out[label == i] = r
+    return out
+
+
+def _face_normals(face, P: np.ndarray) -> np.ndarray:
+    """The analytic face's model normals at points P (unit)."""
+    uv = face.surface.uv_from_points(P)
+    return _unit(np.asarray(face.surface.normal_at(uv[:, 0], uv[:, 1]), float).reshape(-1, 3))
+
+
+def _smooth_groups(idx: np.ndarray, owner_s: np.ndarray, nb: np.ndarray, S: np.ndarray, by_index: dict,
+                   cos_sharp: float) -> dict[int, int]:
+    """Each analytic face of the region's group size: the groups of analytic faces of a region (sample points ``idx``) that meet at smooth seams: two
+    faces whose neighbouring points' model normals agree within the sharp-edge angle (median over the seam) are
+    one group (the fragments of a free-form surface); faces meeting at a crease (a chamfer the scan's noise
+    blurred) are not."""
+    a = np.repeat(idx, nb.shape[1] - 1)
+    b = nb[idx, 1:].ravel()
+    fa, fb = owner_s[a], owner_s[b]
+    cross = (fa >= 0) & (fb >= 0) & (fa != fb)
+    a, b, fa, fb = a[cross], b[cross], fa[cross], fb[cross]
+    pieces = np.unique(owner_s[idx][owner_s[idx] >= 0])
+    parent = {int(f): int(f) for f in pieces}
+
+    def root(f):
+        while parent[f] != f:
+            f = parent[f]
+        return f
+
+    for x, y in {(int(min(p, q)), int(max(p, q))) for p, q in zip(fa, fb)}:
+        if x not in parent or y not in parent:
+            continue
+        sel = np.flatnonzero(((fa == x) & (fb == y)) | ((fa == y) & (fb == x)))
+        sel = sel[np.linspace(0, len(sel) - 1, min(len(sel), SEAM_PAIRS)).astype(int)]
+        i = np.where(fa[sel] == x, a[sel], b[sel])
+        j = np.where(fa[sel] == x, b[sel], a[sel])
+        cos = np.abs(np.sum(_face_normals(by_index[x], S[i]) * _face_normals(by_index[y], S[j]), axis=1))
+        if float(np.median(cos)) >= cos_sharp:
+            parent[root(x)] = root(y)
+    roots = {f: root(f) for f in parent}
+    size = {r: sum(1 for q in roots.values() if q == r) for r in set(roots.values())}
+    return {f: size[r] for f, r in roots.items()}
+
+
+def _smooth_border_share(face, owner_s: np.ndarray, nb: np.ndarray, S: np.ndarray, by_index: dict,
+                         cos_sharp: float) -> float:
+    """The share of the face's border (its points' neighbours on other analytic faces) where the two models' normals
+    agree within the sharp-edge angle: about 1 for a fragment tiling a smooth surface with others, small for a face
+    bounded by creases."""
+    mine = np.flatnonzero(owner_s == face.index)
+    a = np.repeat(mine, nb.shape[1] - 1)
+    b = nb[mine, 1:].ravel()
+    other = owner_s[b]
+    cross = (other >= 0) & (other != face.index)
+    a, b, other = a[cross], b[cross], other[cross]
+    if len(a) == 0:
+        return 0.0
+    sel = np.linspace(0, len(a) - 1, min(len(a), 20 * SEAM_PAIRS)).astype(int)
+    a, b, other = a[sel], b[sel], other[sel]
+    na = _face_normals(face, S[a])
+    nb_ = np.zeros_like(na)
+    for g in np.unique(other):
+        k = other == g
+        nb_[k] = _face_normals(by_index[int(g)], S[b[k]])
+    return float((np.abs(np.sum(na * nb_, axis=1)) >= cos_sharp).mean())
+
+
+def _is_freeform(idx: np.ndarray, owner_s: np.ndarray, groups: dict) -> bool:
+    """The region's analytic faces hold too little of it, or in too many pieces joined at smooth seams."""
+    held = owner_s[idx] >= 0
+    if held.sum() < COVER_SHARE * len(idx):
+        return True
+    return max(groups.values(), default=0) > MAX_PIECES
+
+
+def _on_material(surface, P: np.ndarray, threshold_mm: float) -> np.ndarray:
+    """Which points lie on the free-form face: over one of its material nodes (or a scan's rim) and within ``OFF_SURFACE_THRESHOLDS``
+    thresholds of it (not a stray edge point of the region that the face's largest connected region left out)."""
+    c = (P - surface.origin_mm) @ surface.frame
+    g = surface.grid
+    i = np.rint((c[:, 0] - g.x0) / g.g).astype(np.int64)
+    j = np.rint((c[:, 1] - g.y0) / g.g).astype(np.int64)
+    inside = (i >= 0) & (i < g.nx) & (j >= 0) & (j < g.ny)
+    from scipy.ndimage import binary_dilation
+
+    # a scan's face keeps a smoothing sigma inside its last points (freeform.py): its rim points are its own
+    near = binary_dilation(surface.material, iterations=1 + int(round(2.0 * surface.smoothing_mm / g.g)))
+    on = np.zeros(len(P), bool)
+    on[inside] = near[j[inside], i[inside]]
+    h = g.interp(surface.height, c[:, 0], c[:, 1])
+    return on & (np.abs(c[:, 2] - h) <= OFF_SURFACE_THRESHOLDS * threshold_mm + 3.0 * surface.smoothing_mm)
+
+
+def _region_workpiece(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int):
+    """The workpiece's points ``idx`` as a workpiece; a mesh keeps the triangles whose middle lies in region r."""
+    from .workpiece import Workpiece
+
+    P = np.asarray(workpiece.points_mm, float)
+    F, V = getattr(workpiece, "faces", None), getattr(workpiece, "vertices_mm", None)
+    tris = None
+    if F is not None and V is not None and len(F):
+        V = np.asarray(V, float)
+        F = np.asarray(F)
+        middle = V[F].mean(axis=1)
+        _, near = cKDTree(P).query(middle)
+        tris = F[point_region[near] == r]
+        if len(tris) == 0:
+            tris, V = None, None
+    return Workpiece(P[idx], np.asarray(workpiece.normals, float)[idx], tris, workpiece.source, workpiece.units,
+                     (), V if tris is not None else None)
+
+
+def with_freeform_faces(seg, workpiece, settings, make_face):
+    """``seg`` with each free-form smooth region of the workpiece as one free-form face (module docstring).
+
+    ``make_face(index, surface, inliers, area)``: the segmentation's ``Face``. Faces numbered by area, largest
+    first. ``seg`` itself when no region is free-form."""
+    from .freeform import freeform_surface
+
+    P = np.asarray(workpiece.points_mm, float)
+    n = len(P)
+    pick = _sample(n)
+    finite = np.isfinite(P[pick]).all(axis=1)
+    pick = pick[finite]
+    from .segment import CONNECT_SPACINGS, MIN_FACE_SAMPLES
+
+    mesh = getattr(workpiece, "faces", None) is not None
+    N = np.asarray(workpiece.normals, float)[pick] if mesh else None
+    region = smooth_regions(P[pick], N, settings.sharp_edge_deg, CONNECT_SPACINGS)
+    owner = np.full(n, -1, np.int64)
+    faces = list(seg.faces) if seg is not None else []
+    for f in faces:
+        owner[f.inliers] = f.index
+    owner_s = owner[pick]
+    tree = cKDTree(P[pick])
+    _, nb = tree.query(P[pick], k=min(SOLID_NEIGHBOURS + 1, len(pick)))
+    by_index = {f.index: f for f in faces}
+    cos_sharp = math.cos(math.radians(settings.sharp_edge_deg))
+    groups = {}
+    for r in range(int(region.max()) + 1):
+        idx = np.flatnonzero(region == r)
+        groups[r] = _smooth_groups(idx, owner_s, nb, P[pick], by_index, cos_sharp)
+    free = [r for r in groups if (region == r).sum() >= MIN_FREE_SHARE * len(pick)
+            and _is_freeform(np.flatnonzero(region == r), owner_s, groups[r])]
+    if not free:
+        return seg
+    # each workpiece point's region: its nearest sample point's
+    _, near = tree.query(np.where(np.isfinite(P), P, 0.0))
+    point_region = region[near]
+    kept = []
+    for f in faces:   # an analytic face that lies mostly in a free-form region is a fragment of it, unless it
+        s = owner_s == f.index          # holds a large solid part of it (a plane the free-form region runs into)
+        if s.sum() == 0:
+            kept.append(f)
+            continue
+        r = np.bincount(np.maximum(region[s], 0) if (region[s] >= 0).any() else [0]).argmax()
+        if r not in free or (region[s] == r).mean() <= 0.5:
+            kept.append(f)
+            continue
+        solid = float((owner_s[nb[s, 1:]] == f.index).mean())
+        if s.sum() >= KEEP_SHARE * (region == r).sum() and solid >= SOLID_SHARE \
+                and _smooth_border_share(f, owner_s, nb, P[pick], by_index, cos_sharp) < SMOOTH_BORDER_SHARE:
+            kept.append(f)
+    taken = np.zeros(n, bool)
+    for f in kept:
+        taken[f.inliers] = True
+    keys = _FitKeys(float(settings.threshold_mm), float(settings.close_gaps_mm))
+    built = [(f.surface, f.inliers, f.area_mm2) for f in kept]
+    dropped = seg.dropped_faces if seg is not None else 0
+    for r in free:
+        idx = np.flatnonzero((point_region == r) & ~taken & np.isfinite(P).all(axis=1))
+        if len(idx) < max(MIN_FACE_SAMPLES, 100):
+            continue
+        try:
+            surface = freeform_surface(_region_workpiece(workpiece, idx, point_region, r), keys)
+        except BadInput:
+            dropped += 1
+            continue
+        idx = idx[_on_material(surface, P[idx], keys.threshold_mm)]
+        area = surface.area_mm2()
+        if area < settings.min_area_mm2 or len(idx) < MIN_FACE_SAMPLES:
+            dropped += 1
+            continue
+        built.append((surface, idx, area))
+    if len(built) == len(kept):   # no free-form face after all: the analytic segmentation as it was
+        return seg
+    order = sorted(range(len(built)), key=lambda k: (-round(built[k][2], 6), k))
+    out = tuple(make_face(i, built[k][0], built[k][1], built[k][2]) for i, k in enumerate(order))
+    assigned = sum(len(f.inliers) for f in out)
+    return type(seg)(out, n, n - assigned, dropped) if seg is not None else (out, n, n - assigned, dropped)
