@@ -451,7 +451,10 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     a nearer meeting breaking ties (in place)."""
     best_t = np.full(len(rays.xy), np.inf)
     best_score = np.full(len(rays.xy), np.inf)
+    near = _near_rays(rays, others)
     for j, (other, tree) in enumerate(others):
+        if not near[j]:
+            continue
         tk = _meeting(surface, other, rays.X, rays.t, rays.uv)
         rows = np.flatnonzero(np.isfinite(tk))
         if len(rows) == 0:
@@ -463,6 +466,19 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
         best_t[idx], best_score[idx], source[idx] = tk[idx], score[better], j
     on = source >= 0
     new_xy[on] = rays.xy[on] + best_t[on, None] * rays.outward[on]
+
+
+def _near_rays(rays: _Rays, others) -> np.ndarray:
+    """Per neighbour, whether any of its points can be within ``SNAP_REACH_MM`` of the rays: its points' box
+    meets the rays' box grown by that reach. A neighbour counts only where its points come that near a
+    meeting point on a ray, so the others are skipped with the same result (on a part of many faces, most
+    faces are far from each other: this keeps the pass from growing as the square of the faces)."""
+    X = rays.X.reshape(-1, 3)
+    if len(X) == 0 or not np.isfinite(X).all():
+        return np.ones(len(others), bool)
+    lo, hi = X.min(axis=0) - SNAP_REACH_MM, X.max(axis=0) + SNAP_REACH_MM
+    return np.array([tree.n == 0 or bool(np.all(tree.maxes >= lo) and np.all(tree.mins <= hi))
+                     for _, tree in others], bool)
 
 
 def _onto_free_edges(surface, rays: _Rays, free_edges: FreeEdges, new_xy, source) -> None:

@@ -72,8 +72,30 @@ def _vec(p) -> np.ndarray:
     return np.array([p.X(), p.Y(), p.Z()], dtype=float)
 
 
+# the last file read: (its path, size and modification time), its faces. The loader and the segmentation both
+# read the part; OpenCASCADE's reading and tessellation are most of their time, so they are done once.
+_LAST: dict = {}
+
+
 def read_step_faces(path: Path) -> list[StepFace]:
-    """The faces of a STEP file, in the file's order; BadInput when it cannot be read."""
+    """The faces of a STEP file, in the file's order; BadInput when it cannot be read.
+
+    The last file's faces are kept (the same path, size and modification time read again gives them)."""
+    try:
+        st = os.stat(path)
+        key = (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+    except OSError:
+        key = None
+    if key is not None and _LAST.get("key") == key:
+        return _LAST["faces"]
+    faces = _read_step_faces(path)
+    _LAST.clear()
+    if key is not None:
+        _LAST.update(key=key, faces=faces)
+    return faces
+
+
+def _read_step_faces(path: Path) -> list[StepFace]:
     try:
         from OCP.BRep import BRep_Tool
         from OCP.BRepAdaptor import BRepAdaptor_Surface
@@ -88,6 +110,8 @@ def read_step_faces(path: Path) -> list[StepFace]:
     except ImportError:
         raise BadInput(f"{path}: STEP needs OCP: pip install cadquery-ocp-novtk (a camtool dependency; "
                        "reinstall camtool), or export the part as STL") from None
+    from .workpiece import TINY_COORDINATE
+
     reader = STEPControl_Reader()
     with _ocp_output_to_log():
         from ..safe_io import private_copy  # OCP reads a private copy of the checked descriptor, never the name
@@ -111,6 +135,9 @@ def read_step_faces(path: Path) -> list[StepFace]:
             continue
         T = loc.Transformation()
         verts = np.array([_vec(tri.Node(i).Transformed(T)) for i in range(1, tri.NbNodes() + 1)])
+        # a coordinate below TINY_COORDINATE in magnitude is the tessellator's rounding of zero (e.g. 9.86e-31
+        # from a cosine of 90 degrees): zero, not damage (NaN and infinity stay, and are refused by the loader)
+        verts[np.abs(verts) < TINY_COORDINATE] = 0.0
         tris = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64) - 1
         reversed_ = face.Orientation() == TopAbs_REVERSED
         if reversed_:
