@@ -77,6 +77,29 @@ def _vec(p) -> np.ndarray:
 _LAST: dict = {}
 
 
+def _nodes(tri, loc) -> np.ndarray:
+    """The triangulation's nodes (n, 3) placed by the face's location, as ``gp_Pnt.Transformed`` places them
+    (``gp_Trsf``: the matrix, the scale, then the translation), one array op per coordinate, not per node."""
+    from OCP.gp import gp_Identity, gp_Translation
+
+    xyz = np.array([(p.X(), p.Y(), p.Z()) for p in map(tri.Node, range(1, tri.NbNodes() + 1))], float).reshape(-1, 3)
+    T = loc.Transformation()
+    form = T.Form()
+    if form == gp_Identity:
+        return xyz
+    t = _vec(T.TranslationPart())
+    if form == gp_Translation:
+        return xyz + t
+    M = T.HVectorialPart()   # the rotation part; the scale apart
+    m = np.array([[M.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
+    x, y, z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    out = np.stack([m[r, 0] * x + m[r, 1] * y + m[r, 2] * z for r in range(3)], axis=1)
+    s = T.ScaleFactor()
+    if s != 1.0:
+        out = out * s
+    return out + t
+
+
 def read_step_faces(path: Path) -> list[StepFace]:
     """The faces of a STEP file, in the file's order; BadInput when it cannot be read.
 
@@ -133,8 +156,7 @@ def _read_step_faces(path: Path) -> list[StepFace]:
         tri = BRep_Tool.Triangulation_s(face, loc)
         if tri is None or tri.NbTriangles() == 0:
             continue
-        T = loc.Transformation()
-        verts = np.array([_vec(tri.Node(i).Transformed(T)) for i in range(1, tri.NbNodes() + 1)])
+        verts = _nodes(tri, loc)
         # a coordinate below TINY_COORDINATE in magnitude is the tessellator's rounding of zero (e.g. 9.86e-31
         # from a cosine of 90 degrees): zero, not damage (NaN and infinity stay, and are refused by the loader)
         verts[np.abs(verts) < TINY_COORDINATE] = 0.0
