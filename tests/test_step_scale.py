@@ -82,3 +82,31 @@ def test_faces_of_a_real_step_part_stay_within_memory(tmp_path):
     assert code == 0, out[-2000:]
     assert "plane" in out and "cylinder" in out
     assert peak < PEAK_MB, f"camtool faces peaked at {peak:.0f} MB (bound {PEAK_MB} MB)"
+
+
+def test_a_part_too_large_is_refused_in_one_line(tmp_path, monkeypatch):
+    """More triangles than ``MAX_TRIANGLES``: BadInput (exit 2) naming the file and the bound, before the
+    segmentation grows with them."""
+    from camtool.errors import BadInput
+    from camtool.part import step as step_module
+
+    step = _box_step(tmp_path / "box.step", (0.0, 0.0, 0.0))
+    monkeypatch.setattr(step_module, "MAX_TRIANGLES", 4)
+    with pytest.raises(BadInput, match="more than 4 triangles") as caught:
+        load_workpiece(step, sample_points=100)
+    assert "\n" not in str(caught.value) and str(step) in str(caught.value)
+
+
+def test_the_part_is_read_once_for_the_same_file(tmp_path, monkeypatch):
+    """The loader and the segmentation read the same STEP file: OpenCASCADE reads and tessellates it once."""
+    from camtool.part import step as step_module
+
+    step = _box_step(tmp_path / "box.step", (0.0, 0.0, 0.0))
+    calls = []
+    real = step_module._read_step_faces
+    monkeypatch.setattr(step_module, "_read_step_faces", lambda p: calls.append(p) or real(p))
+    first = step_module.read_step_faces(step)
+    assert step_module.read_step_faces(step) is first and len(calls) == 1
+    step.write_bytes(step.read_bytes() + b"\n")   # another file now: read again
+    step_module.read_step_faces(step)
+    assert len(calls) == 2

@@ -96,8 +96,11 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     bkw = dict(cell_mm=settings.boundary_cell_mm, close_gaps_mm=settings.close_gaps_mm,
                simplify_mm=settings.simplify_mm, source=str(file))
     built, rest = [], []
-    for k, f in enumerate(read_step_faces(file)):
-        idx = np.flatnonzero(label == k)
+    step_faces = read_step_faces(file)
+    by_face = np.argsort(label, kind="stable")   # each face's points, ascending: one sort, not a pass per face
+    starts = np.searchsorted(label[by_face], np.arange(len(step_faces) + 1))
+    for k, f in enumerate(step_faces):
+        idx = by_face[starts[k]:starts[k + 1]]
         if f.model == "other":
             rest.append(idx)
             continue
@@ -143,7 +146,8 @@ CHUNK_POINTS = 20000    # points per block of the nearest-triangle search: bound
 
 def nearest_triangle(mesh, P: np.ndarray) -> np.ndarray:
     """The index of the triangle of ``mesh`` nearest to each point P (n, 3), as ``trimesh.proximity.closest_point``
-    gives it, in bounded memory and time.
+    gives it, in bounded memory and time (at an exact tie, as on the coincident faces of two bodies of an
+    assembly, the lowest-numbered triangle).
 
     The workpiece's points are sampled from this very mesh, so each lies on a triangle: its candidates are the
     triangles whose box holds the point (within ``ON_MESH_MM``), a handful, where trimesh's search takes every

@@ -10,7 +10,11 @@ the VTK viewer.
 
 Each face is tessellated by ``BRepMesh_IncrementalMesh`` (chordal deflection
 ``DEFLECTION_MM``); triangles are wound so their normals point out of the
-material (the face's orientation says which way).
+material (the face's orientation says which way). A node coordinate below
+``workpiece.TINY_COORDINATE`` in magnitude (9.86e-31 from a cosine of 90
+degrees) is zero. The last file's faces are kept: the loader and the
+segmentation read the part once. A part of more than ``MAX_TRIANGLES``
+triangles is refused in one line (issue 48: bounded memory).
 """
 from __future__ import annotations
 
@@ -33,6 +37,10 @@ _fd_lock = threading.Lock()
 
 DEFLECTION_MM = 0.05    # largest distance of the tessellation from the B-rep surface
 ANGLE_RAD = 0.1         # largest angle between neighbouring triangles of one face
+# The most triangles a part may tessellate into: the load and the segmentation take about 1 kB per triangle
+# (a 2046-face SolidWorks assembly: 0.8 M triangles, 1.1 GB), so this keeps `camtool faces` within about 4 GB;
+# a larger part is refused with one line instead of growing until the kernel kills the process.
+MAX_TRIANGLES = 3_000_000
 
 
 @dataclass(frozen=True)
@@ -147,7 +155,7 @@ def _read_step_faces(path: Path) -> list[StepFace]:
             BRepMesh_IncrementalMesh(shape, DEFLECTION_MM, False, ANGLE_RAD, True)
     if not ok:
         raise BadInput(f"{path}: not a readable STEP file (OpenCASCADE could not transfer it); export it again")
-    faces = []
+    faces, total = [], 0
     explorer = TopExp_Explorer(shape, TopAbs_FACE)
     while explorer.More():
         face = TopoDS.Face(explorer.Current())
@@ -156,6 +164,11 @@ def _read_step_faces(path: Path) -> list[StepFace]:
         tri = BRep_Tool.Triangulation_s(face, loc)
         if tri is None or tri.NbTriangles() == 0:
             continue
+        total += tri.NbTriangles()
+        if total > MAX_TRIANGLES:
+            raise BadInput(f"{path}: the part tessellates into more than {MAX_TRIANGLES:,} triangles at "
+                           f"{DEFLECTION_MM} mm (at face {len(faces) + 1}), more than camtool works in bounded "
+                           "memory; export only the faces to work, or the part as STL at a coarser tolerance")
         verts = _nodes(tri, loc)
         # a coordinate below TINY_COORDINATE in magnitude is the tessellator's rounding of zero (e.g. 9.86e-31
         # from a cosine of 90 degrees): zero, not damage (NaN and infinity stay, and are refused by the loader)
