@@ -452,9 +452,18 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     a nearer meeting breaking ties (in place)."""
     best_t = np.full(len(rays.xy), np.inf)
     best_score = np.full(len(rays.xy), np.inf)
+    with np.errstate(invalid="ignore"):   # (a ray off its surface is NaN: its box meets nothing)
+        lo, hi = rays.X.min(axis=1) - SNAP_REACH_MM, rays.X.max(axis=1) + SNAP_REACH_MM   # each ray's box
     for j in _near_rays(rays, others):
         other, tree = others[j]
-        tk = _meeting(surface, other, rays.X, rays.t, rays.uv)
+        # only the rays the neighbour's points can come near (``_near_rays``, ray by ray): the others meet
+        # nothing of it (``_meeting`` takes each ray on its own)
+        near_lo, near_hi = others.box(j)
+        sub = np.flatnonzero(np.all(hi >= near_lo, axis=1) & np.all(lo <= near_hi, axis=1))
+        if len(sub) == 0:
+            continue
+        tk = np.full(len(rays.xy), np.inf)
+        tk[sub] = _meeting(surface, other, rays.X[sub], rays.t, rays.uv[sub])
         rows = np.flatnonzero(np.isfinite(tk))
         if len(rows) == 0:
             continue
@@ -509,6 +518,10 @@ class _Neighbours:
 
     def __iter__(self):
         return (self[j] for j in range(len(self)))
+
+    def box(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """Neighbour j's box (lo, hi)."""
+        return self._lo[j], self._hi[j]
 
     def within(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """The neighbours whose box meets the box [lo, hi], in order."""
