@@ -48,6 +48,15 @@ def test_a_tiny_step_coordinate_reads_as_zero(tmp_path):
     assert not wp.warnings
 
 
+@pytest.mark.skipif(not (PARTS / "bug33398.step").exists(), reason="benchmarks/parts/step not in this checkout")
+def test_a_real_solidworks_part_with_tiny_coordinates_loads():
+    """The SolidWorks 2012 valve tessellates with three coordinates of about 1e-32 mm (vertex 2572: -4.81e-32):
+    refused as damaged before issue 48, it loads now, nothing dropped."""
+    wp = load_workpiece(PARTS / "bug33398.step", sample_points=2000)
+    V = np.asarray(wp.vertices_mm)
+    assert len(V) > 50000 and np.isfinite(V).all() and not wp.warnings
+
+
 def test_a_damaged_mesh_coordinate_is_still_refused(tmp_path):
     """Only the tessellator's zero is read as zero: a mesh file's 1e-300 and NaN stay errors."""
     from camtool.errors import BadInput
