@@ -18,7 +18,7 @@ from camtool.part.workpiece import TINY_COORDINATE, load_workpiece
 ROOT = Path(__file__).resolve().parent.parent
 PARTS = ROOT / "benchmarks" / "parts" / "step"
 MID_PART = PARTS / "trj5_s1-in-214.stp"   # Autodesk Inventor 4.0, 108 faces (an assembly of machined bodies)
-PEAK_MB = 1500   # camtool faces on it peaked at 4.2 GB before issue 48; about 0.7 GB after
+PEAK_MB = 1000   # with 30 000 points camtool faces on it peaked at 1585 MB before issue 48, 605 MB after
 
 
 def _box_step(path: Path, corner) -> Path:
