@@ -196,12 +196,13 @@ def on_edges(surfaces: list, points_mm: list[np.ndarray], cloud_mm: np.ndarray, 
     none; near an edge a scan's normals blend and its points are nobody's) say where
     the face ends."""
     trees = [cKDTree(_strided(p, NEIGHBOUR_POINTS)) for p in points_mm]
+    boxes = _Boxes.of(trees)
     out = []
     for k, s in enumerate(surfaces):
-        others = [(surfaces[j], trees[j]) for j in range(len(surfaces)) if j != k]
+        others = _Neighbours(surfaces, trees, boxes, k)
         b = s.boundary
-        own = _FacePoints(_strided(cloud_mm[(np.abs(level(s, cloud_mm)) < threshold_mm) &
-                                            ((owner == k) | (owner < 0))], EXTENT_POINTS))
+        mine = np.flatnonzero((owner == k) | (owner < 0))   # (the level only of these: a part has many faces)
+        own = _FacePoints(_strided(cloud_mm[mine[np.abs(level(s, cloud_mm[mine])) < threshold_mm]], EXTENT_POINTS))
         moved = [_moved_again(s, poly, others, free_edges, own) for poly in (b.outer_uv, *b.holes_uv)]
         if all(m is None for m in moved):
             out.append(s)
@@ -451,8 +452,18 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     a nearer meeting breaking ties (in place)."""
     best_t = np.full(len(rays.xy), np.inf)
     best_score = np.full(len(rays.xy), np.inf)
-    for j, (other, tree) in enumerate(others):
-        tk = _meeting(surface, other, rays.X, rays.t, rays.uv)
+    with np.errstate(invalid="ignore"):   # (a ray off its surface is NaN: its box meets nothing)
+        lo, hi = rays.X.min(axis=1) - SNAP_REACH_MM, rays.X.max(axis=1) + SNAP_REACH_MM   # each ray's box
+    for j in _near_rays(rays, others):
+        other, tree = others[j]
+        # only the rays the neighbour's points can come near (``_near_rays``, ray by ray): the others meet
+        # nothing of it (``_meeting`` takes each ray on its own)
+        near_lo, near_hi = others.box(j)
+        sub = np.flatnonzero(np.all(hi >= near_lo, axis=1) & np.all(lo <= near_hi, axis=1))
+        if len(sub) == 0:
+            continue
+        tk = np.full(len(rays.xy), np.inf)
+        tk[sub] = _meeting(surface, other, rays.X[sub], rays.t, rays.uv[sub])
         rows = np.flatnonzero(np.isfinite(tk))
         if len(rows) == 0:
             continue
@@ -463,6 +474,58 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
         best_t[idx], best_score[idx], source[idx] = tk[idx], score[better], j
     on = source >= 0
     new_xy[on] = rays.xy[on] + best_t[on, None] * rays.outward[on]
+
+
+def _near_rays(rays: _Rays, others: "_Neighbours") -> np.ndarray:
+    """The neighbours (indices into ``others``) whose points can be within ``SNAP_REACH_MM`` of the rays: their
+    points' box meets the rays' box grown by that reach. A neighbour counts only where its points come that near
+    a meeting point on a ray, so the others are skipped with the same result (on a part of many faces, most
+    faces are far from each other: this keeps the pass from growing as the square of the faces)."""
+    X = rays.X.reshape(-1, 3)
+    if len(X) == 0 or not np.isfinite(X).all():
+        return np.arange(len(others))
+    return others.within(X.min(axis=0) - SNAP_REACH_MM, X.max(axis=0) + SNAP_REACH_MM)
+
+
+@dataclass(frozen=True)
+class _Boxes:
+    """The boxes of the faces' neighbour points (a face without points: a box holding everything)."""
+
+    lo: np.ndarray   # (F, 3)
+    hi: np.ndarray   # (F, 3)
+
+    @staticmethod
+    def of(trees: list) -> "_Boxes":
+        lo = np.array([t.mins if t.n else np.full(3, -np.inf) for t in trees], float).reshape(-1, 3)
+        hi = np.array([t.maxes if t.n else np.full(3, np.inf) for t in trees], float).reshape(-1, 3)
+        return _Boxes(lo, hi)
+
+
+class _Neighbours:
+    """Every face but face ``k``, as ``(surface, tree)`` pairs numbered 0.. (face k left out), with their boxes."""
+
+    def __init__(self, surfaces: list, trees: list, boxes: _Boxes, k: int):
+        self._faces = [j for j in range(len(surfaces)) if j != k]
+        self._surfaces, self._trees = surfaces, trees
+        self._lo, self._hi = np.delete(boxes.lo, k, axis=0), np.delete(boxes.hi, k, axis=0)
+
+    def __len__(self) -> int:
+        return len(self._faces)
+
+    def __getitem__(self, j: int) -> tuple:
+        f = self._faces[j]
+        return self._surfaces[f], self._trees[f]
+
+    def __iter__(self):
+        return (self[j] for j in range(len(self)))
+
+    def box(self, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """Neighbour j's box (lo, hi)."""
+        return self._lo[j], self._hi[j]
+
+    def within(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """The neighbours whose box meets the box [lo, hi], in order."""
+        return np.flatnonzero(np.all(self._hi >= lo, axis=1) & np.all(self._lo <= hi, axis=1))
 
 
 def _onto_free_edges(surface, rays: _Rays, free_edges: FreeEdges, new_xy, source) -> None:

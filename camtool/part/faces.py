@@ -92,13 +92,15 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     mesh = trimesh.Trimesh(verts @ R.T + t, tris, process=False)
     P = np.asarray(workpiece.points_mm, float)
     N = np.asarray(workpiece.normals, float)
-    _, _, tri_id = trimesh.proximity.closest_point(mesh, P)
-    label = owner[tri_id]
+    label = owner[nearest_triangle(mesh, P)]
     bkw = dict(cell_mm=settings.boundary_cell_mm, close_gaps_mm=settings.close_gaps_mm,
                simplify_mm=settings.simplify_mm, source=str(file))
     built, rest = [], []
-    for k, f in enumerate(read_step_faces(file)):
-        idx = np.flatnonzero(label == k)
+    step_faces = read_step_faces(file)
+    by_face = np.argsort(label, kind="stable")   # each face's points, ascending: one sort, not a pass per face
+    starts = np.searchsorted(label[by_face], np.arange(len(step_faces) + 1))
+    for k, f in enumerate(step_faces):
+        idx = by_face[starts[k]:starts[k + 1]]
         if f.model == "other":
             rest.append(idx)
             continue
@@ -136,6 +138,45 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     order = sorted(range(len(kept)), key=lambda k: (-round(areas[k], 6), k))
     faces = tuple(Face(i, kept[k][0], kept[k][1], areas[k]) for i, k in enumerate(order))
     return Segmentation(faces, len(P), len(P) - sum(len(f.inliers) for f in faces), dropped)
+
+
+ON_MESH_MM = 1e-7       # a point this near a triangle lies on the mesh (sampled from it)
+CHUNK_POINTS = 20000    # points per block of the nearest-triangle search: bounds its memory
+
+
+def nearest_triangle(mesh, P: np.ndarray) -> np.ndarray:
+    """The index of the triangle of ``mesh`` nearest to each point P (n, 3), as ``trimesh.proximity.closest_point``
+    gives it, in bounded memory and time (at an exact tie, as on the coincident faces of two bodies of an
+    assembly, the lowest-numbered triangle).
+
+    The workpiece's points are sampled from this very mesh, so each lies on a triangle: its candidates are the
+    triangles whose box holds the point (within ``ON_MESH_MM``), a handful, where trimesh's search takes every
+    triangle within the distance to the nearest vertex (on a part of large flat triangles, thousands per point:
+    gigabytes). The nearest candidate is the nearest triangle; a point on no candidate (not on the mesh) is
+    looked up by trimesh itself. Both go block by block (``CHUNK_POINTS``)."""
+    import trimesh
+
+    P = np.asarray(P, float)
+    tri_id = np.full(len(P), -1, np.int64)
+    tree = mesh.triangles_tree
+    triangles = mesh.triangles.view(np.ndarray)
+    for a in range(0, len(P), CHUNK_POINTS):
+        Q = P[a:a + CHUNK_POINTS]
+        hit, count = tree.intersection_v(Q - ON_MESH_MM, Q + ON_MESH_MM)
+        hit = np.asarray(hit, np.int64)
+        row = np.repeat(np.arange(len(Q)), np.asarray(count, np.int64))
+        if len(hit):
+            close = trimesh.triangles.closest_point(triangles[hit], Q[row])
+            d2 = np.einsum("ij,ij->i", Q[row] - close, Q[row] - close)
+            order = np.lexsort((hit, d2, row))   # per point, its candidates nearest first (a tie: the first)
+            first = order[np.r_[True, row[order][1:] != row[order][:-1]]]
+            on = d2[first] <= ON_MESH_MM ** 2
+            tri_id[a + row[first[on]]] = hit[first[on]]
+    rest = np.flatnonzero(tri_id < 0)
+    for a in range(0, len(rest), CHUNK_POINTS // 10):
+        idx = rest[a:a + CHUNK_POINTS // 10]
+        tri_id[idx] = trimesh.proximity.closest_point(mesh, P[idx])[2]
+    return tri_id
 
 
 def _distance_mm(face: Face, workpiece, point_mm: np.ndarray) -> float:

@@ -10,7 +10,11 @@ the VTK viewer.
 
 Each face is tessellated by ``BRepMesh_IncrementalMesh`` (chordal deflection
 ``DEFLECTION_MM``); triangles are wound so their normals point out of the
-material (the face's orientation says which way).
+material (the face's orientation says which way). A node coordinate below
+``workpiece.TINY_COORDINATE`` in magnitude (9.86e-31 from a cosine of 90
+degrees) is zero. The last file's faces are kept: the loader and the
+segmentation read the part once. A part of more than ``MAX_TRIANGLES``
+triangles is refused in one line (issue 48: bounded memory).
 """
 from __future__ import annotations
 
@@ -33,6 +37,10 @@ _fd_lock = threading.Lock()
 
 DEFLECTION_MM = 0.05    # largest distance of the tessellation from the B-rep surface
 ANGLE_RAD = 0.1         # largest angle between neighbouring triangles of one face
+# The most triangles a part may tessellate into: the load and the segmentation take about 1 kB per triangle
+# (a 2046-face SolidWorks assembly: 0.8 M triangles, 1.1 GB), so this keeps `camtool faces` within about 4 GB;
+# a larger part is refused with one line instead of growing until the kernel kills the process.
+MAX_TRIANGLES = 3_000_000
 
 
 @dataclass(frozen=True)
@@ -72,8 +80,53 @@ def _vec(p) -> np.ndarray:
     return np.array([p.X(), p.Y(), p.Z()], dtype=float)
 
 
+# the last file read: (its path, size and modification time), its faces. The loader and the segmentation both
+# read the part; OpenCASCADE's reading and tessellation are most of their time, so they are done once.
+_LAST: dict = {}
+
+
+def _nodes(tri, loc) -> np.ndarray:
+    """The triangulation's nodes (n, 3) placed by the face's location, as ``gp_Pnt.Transformed`` places them
+    (``gp_Trsf``: the matrix, the scale, then the translation), one array op per coordinate, not per node."""
+    from OCP.gp import gp_Identity, gp_Translation
+
+    xyz = np.array([(p.X(), p.Y(), p.Z()) for p in map(tri.Node, range(1, tri.NbNodes() + 1))], float).reshape(-1, 3)
+    T = loc.Transformation()
+    form = T.Form()
+    if form == gp_Identity:
+        return xyz
+    t = _vec(T.TranslationPart())
+    if form == gp_Translation:
+        return xyz + t
+    M = T.HVectorialPart()   # the rotation part; the scale apart
+    m = np.array([[M.Value(r, c) for c in (1, 2, 3)] for r in (1, 2, 3)])
+    x, y, z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    out = np.stack([m[r, 0] * x + m[r, 1] * y + m[r, 2] * z for r in range(3)], axis=1)
+    s = T.ScaleFactor()
+    if s != 1.0:
+        out = out * s
+    return out + t
+
+
 def read_step_faces(path: Path) -> list[StepFace]:
-    """The faces of a STEP file, in the file's order; BadInput when it cannot be read."""
+    """The faces of a STEP file, in the file's order; BadInput when it cannot be read.
+
+    The last file's faces are kept (the same path, size and modification time read again gives them)."""
+    try:
+        st = os.stat(path)
+        key = (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+    except OSError:
+        key = None
+    if key is not None and _LAST.get("key") == key:
+        return _LAST["faces"]
+    faces = _read_step_faces(path)
+    _LAST.clear()
+    if key is not None:
+        _LAST.update(key=key, faces=faces)
+    return faces
+
+
+def _read_step_faces(path: Path) -> list[StepFace]:
     try:
         from OCP.BRep import BRep_Tool
         from OCP.BRepAdaptor import BRepAdaptor_Surface
@@ -88,6 +141,8 @@ def read_step_faces(path: Path) -> list[StepFace]:
     except ImportError:
         raise BadInput(f"{path}: STEP needs OCP: pip install cadquery-ocp-novtk (a camtool dependency; "
                        "reinstall camtool), or export the part as STL") from None
+    from .workpiece import TINY_COORDINATE
+
     reader = STEPControl_Reader()
     with _ocp_output_to_log():
         from ..safe_io import private_copy  # OCP reads a private copy of the checked descriptor, never the name
@@ -100,7 +155,7 @@ def read_step_faces(path: Path) -> list[StepFace]:
             BRepMesh_IncrementalMesh(shape, DEFLECTION_MM, False, ANGLE_RAD, True)
     if not ok:
         raise BadInput(f"{path}: not a readable STEP file (OpenCASCADE could not transfer it); export it again")
-    faces = []
+    faces, total = [], 0
     explorer = TopExp_Explorer(shape, TopAbs_FACE)
     while explorer.More():
         face = TopoDS.Face(explorer.Current())
@@ -109,8 +164,15 @@ def read_step_faces(path: Path) -> list[StepFace]:
         tri = BRep_Tool.Triangulation_s(face, loc)
         if tri is None or tri.NbTriangles() == 0:
             continue
-        T = loc.Transformation()
-        verts = np.array([_vec(tri.Node(i).Transformed(T)) for i in range(1, tri.NbNodes() + 1)])
+        total += tri.NbTriangles()
+        if total > MAX_TRIANGLES:
+            raise BadInput(f"{path}: the part tessellates into more than {MAX_TRIANGLES:,} triangles at "
+                           f"{DEFLECTION_MM} mm (at face {len(faces) + 1}), more than camtool works in bounded "
+                           "memory; export only the faces to work, or the part as STL at a coarser tolerance")
+        verts = _nodes(tri, loc)
+        # a coordinate below TINY_COORDINATE in magnitude is the tessellator's rounding of zero (e.g. 9.86e-31
+        # from a cosine of 90 degrees): zero, not damage (NaN and infinity stay, and are refused by the loader)
+        verts[np.abs(verts) < TINY_COORDINATE] = 0.0
         tris = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64) - 1
         reversed_ = face.Orientation() == TopAbs_REVERSED
         if reversed_:
