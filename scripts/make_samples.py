@@ -393,11 +393,15 @@ def shell_scan(rng, n: int = 60_000, sigma_mm: float = 1.0, outlier_ratio: float
     return pts, normals
 
 
+FREEFORM_OUT = OUT.parent / "benchmarks" / "parts" / "freeform" / "jobs"  # not shipped as samples until they run
+
+
 def make_freeform() -> list[str]:
-    """Write the free-form samples (issue 46); returns the file names."""
+    """Write the free-form parts (issue 46) beside their jobs in benchmarks/parts/freeform/jobs; returns the
+    file names. They move to samples/ once `camtool run` passes on them (see that folder's README)."""
     rng = np.random.default_rng(20260046)
-    hood_mesh().export(OUT / "freeform_hood.stl")
-    write_ply_with_normals(OUT / "freeform_shell_scan.ply", *shell_scan(rng))
+    hood_mesh().export(FREEFORM_OUT / "freeform_hood.stl")
+    write_ply_with_normals(FREEFORM_OUT / "freeform_shell_scan.ply", *shell_scan(rng))
     return ["freeform_hood.stl", "freeform_shell_scan.ply"]
 
 

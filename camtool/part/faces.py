@@ -80,7 +80,8 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     import trimesh
 
     from .fit import cylinder_surface, plane_surface, sphere_patch
-    from .segment import MIN_FACE_SAMPLES, area_mm2, boundaries_on_edges, boundary_on_points
+    from .sampling import MIN_FACE_SAMPLES
+    from .segment import area_mm2, boundaries_on_edges, boundary_on_points
     from .step import read_step_faces, step_mesh
     from .surface import FitStats
     from .workpiece import Workpiece

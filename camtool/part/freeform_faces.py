@@ -14,7 +14,7 @@ where the analytic faces really hold it:
    turn its normal (unsigned) by more than ``sharp_edge_deg``
    (``faces.sharp_edge_deg``, default 30 deg: a chamfer of 45 deg or a box's 90 deg
    corner is an edge; a dome's or a door's curvature over a few millimetres is not). The
-   other points, linked to their nearest neighbours closer than ``segment.CONNECT_SPACINGS``
+   other points, linked to their nearest neighbours closer than ``sampling.CONNECT_SPACINGS``
    spacings, fall into connected regions; an edge point joins the region of its nearest
    non-edge neighbour whose normal agrees within ``sharp_edge_deg``.
 2. **Analytic or free-form.** A region smaller than ``MIN_FREE_SHARE`` of the sample
@@ -264,7 +264,7 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
     pick = _sample(n)
     finite = np.isfinite(P[pick]).all(axis=1)
     pick = pick[finite]
-    from .segment import CONNECT_SPACINGS, MIN_FACE_SAMPLES
+    from .sampling import CONNECT_SPACINGS, MIN_FACE_SAMPLES
 
     mesh = getattr(workpiece, "faces", None) is not None
     N = np.asarray(workpiece.normals, float)[pick] if mesh else None

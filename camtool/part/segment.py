@@ -48,14 +48,13 @@ from .fit import (LARGE_SPHERE_FACTOR, _refine_plane, _refine_sphere, cylinder_h
 from .face_edges import FreeEdges, flat_mm, on_edges, spacing_mm, uv_of_flat
 from .freeform import FreeformSurface
 from .freeform_faces import SHARP_EDGE_DEG, with_freeform_faces
+from .sampling import CONNECT_SPACINGS, MIN_FACE_SAMPLES
 from .surface import Cylinder, FitStats, PlaneSurface, SpherePatch
 
 SAMPLE = 20000            # points the RANSAC rounds search
 SCORE_POINTS = 2000       # remaining points every hypothesis of a round is scored on
 HYPOTHESES = 300          # hypotheses per model and round
 PLANE_MARGIN = 0.98       # a plane wins when it holds this share of the best model's support
-CONNECT_SPACINGS = 6.0    # points closer than this many median nearest-neighbour spacings are connected
-MIN_FACE_SAMPLES = 30     # a round whose best face holds fewer sample points ends the search
 PAIR_NEIGHBOURS = 64      # the second point of a sphere / cylinder pair is one of the seed's nearest sample points
 SELECT_REFINE_POINTS = 3000  # points (strided) a candidate is refined on while the models of a round compete
 BOUNDARY_POINTS = 100000  # points of a face (strided) its boundary is traced from (a job samples 100k in all)

@@ -11,7 +11,7 @@ the VTK viewer.
 Each face is tessellated by ``BRepMesh_IncrementalMesh`` (chordal deflection
 ``DEFLECTION_MM``); triangles are wound so their normals point out of the
 material (the face's orientation says which way). A node coordinate below
-``workpiece.TINY_COORDINATE`` in magnitude (9.86e-31 from a cosine of 90
+``sampling.TINY_COORDINATE`` in magnitude (9.86e-31 from a cosine of 90
 degrees) is zero. The last file's faces are kept: the loader and the
 segmentation read the part once. A part of more than ``MAX_TRIANGLES``
 triangles is refused in one line (issue 48: bounded memory).
@@ -141,7 +141,7 @@ def _read_step_faces(path: Path) -> list[StepFace]:
     except ImportError:
         raise BadInput(f"{path}: STEP needs OCP: pip install cadquery-ocp-novtk (a camtool dependency; "
                        "reinstall camtool), or export the part as STL") from None
-    from .workpiece import TINY_COORDINATE
+    from .sampling import TINY_COORDINATE
 
     reader = STEPControl_Reader()
     with _ocp_output_to_log():

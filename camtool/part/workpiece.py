@@ -62,6 +62,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from ..errors import BadInput
+from .sampling import TINY_COORDINATE
 
 log = logging.getLogger("camtool.workpiece")
 
@@ -72,7 +73,6 @@ PLAUSIBLE_DIAGONAL_MM = (5.0, 20_000.0)
 # Coordinates beyond this (mm, 1000 km) are treated as corrupt, not as a unit slip.
 MAX_ABS_COORDINATE_MM = 1e9
 # Non-zero coordinates smaller than this (in the file's unit) are damaged numbers.
-TINY_COORDINATE = 1e-30
 
 INDEXED = (".obj", ".off", ".ply", ".glb", ".gltf")   # mesh formats whose duplicate vertices are a defect
 DROP_HINT = "fix the file or set workpiece.drop_nonfinite = true to drop them"

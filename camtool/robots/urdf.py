@@ -67,6 +67,25 @@ def _limit(joint: ET.Element, key: str, where: str) -> float:
 def check_urdf(path: Path, data: bytes | None = None) -> str:
     """BadInput for a URDF camtool cannot use, before Pinocchio reads it (see module doc); returns the
     checked text, which is what Pinocchio parses (``buildModelFromXML``): the file is opened once."""
+    text, root = _urdf_root(path, data)
+    links = _link_names(path, root)
+    names: set[str] = set()
+    children: set[str] = set()
+    movable = sum(_check_joint(path, joint, links, names, children) for joint in root.findall("joint"))
+    if movable == 0:
+        raise BadInput(f"{path}: the URDF has no movable joint (revolute or prismatic); "
+                       "a robot needs at least one joint to move")
+    roots = links - children
+    if not roots:
+        raise BadInput(f"{path}: the joints form a loop (every link is some joint's child); a robot has one base link")
+    if len(roots) != 1:
+        raise BadInput(f"{path}: the links form {len(roots)} separate trees ({', '.join(sorted(roots)[:3])}); "
+                       "a robot has one base link")
+    return text
+
+
+def _urdf_root(path: Path, data: bytes | None):
+    """The URDF's text and its parsed <robot> element (read once through safe_io unless ``data`` is given)."""
     try:
         from ..safe_io import read_input_bytes  # regular file under the cap: never a FIFO hang
 
@@ -79,6 +98,11 @@ def check_urdf(path: Path, data: bytes | None = None) -> str:
         raise BadInput(f"{path}: cannot read the URDF ({type(exc).__name__}: {exc})") from None
     if root.tag != "robot":
         raise BadInput(f"{path}: not a URDF: the root element is <{root.tag}>, expected <robot>")
+    return text, root
+
+
+def _link_names(path: Path, root) -> set[str]:
+    """The names of the robot's links: each named, none twice."""
     links: set[str] = set()
     for link in root.findall("link"):
         name = link.get("name")
@@ -87,64 +111,61 @@ def check_urdf(path: Path, data: bytes | None = None) -> str:
         if name in links:
             raise BadInput(f"{path}: link {name!r} is defined twice")
         links.add(name)
-    names: set[str] = set()
-    children: set[str] = set()
-    movable = 0
-    for joint in root.findall("joint"):
-        name, kind = joint.get("name"), joint.get("type")
-        if not name:
-            raise BadInput(f"{path}: a <joint> has no name")
-        where = f"{path}: joint {name!r}"
-        if name in names:
-            raise BadInput(f"{where} is defined twice; joint names must be unique")
-        names.add(name)
-        if kind not in _URDF_JOINT_TYPES:
-            raise BadInput(f"{where}: type {kind!r} is not a URDF joint type ({', '.join(_URDF_JOINT_TYPES)})")
-        if kind in ("continuous", "floating", "planar"):
-            hint = " (write it as revolute with wide limits)" if kind == "continuous" else ""
-            raise BadInput(f"{where}: {kind} joints are not supported; camtool plans revolute and prismatic "
-                           f"joints with limits{hint}")
-        for tag in ("parent", "child"):
-            el = joint.find(tag)
-            link = None if el is None else el.get("link")
-            if link not in links:
-                raise BadInput(f"{where}: <{tag} link={link!r}> is not a <link> of the robot")
-        child = joint.find("child").get("link")
-        if child in children:
-            raise BadInput(f"{where}: link {child!r} is the child of two joints; a robot is a tree")
-        children.add(child)
-        origin = joint.find("origin")
-        xyz = _floats(None if origin is None else origin.get("xyz"), f"{where}: <origin xyz>", "0 0 0")
-        _floats(None if origin is None else origin.get("rpy"), f"{where}: <origin rpy>", "0 0 0")
-        if math.hypot(*xyz) / MM_TO_M > MAX_LENGTH_MM:
-            raise BadInput(f"{where}: <origin xyz> is {math.hypot(*xyz):g} m from its parent; that is not a "
-                           f"robot (more than {MAX_LENGTH_MM * MM_TO_M:g} m): check the value and its unit (m)")
-        if kind not in _MOVABLE:
-            continue
-        movable += 1
-        axis = joint.find("axis")
-        ax = _floats(None if axis is None else axis.get("xyz"), f"{where}: <axis xyz>", "1 0 0")
-        if math.hypot(*ax) < 1e-9:
-            raise BadInput(f"{where}: <axis xyz> is zero; give the joint's axis direction")
-        lower, upper = _limit(joint, "lower", where), _limit(joint, "upper", where)
-        velocity = _limit(joint, "velocity", where)
-        if lower >= upper:
-            raise BadInput(f"{where}: <limit lower={lower:g} upper={upper:g}>: lower must be below upper")
-        if velocity <= 0:
-            raise BadInput(f"{where}: <limit velocity={velocity:g}> must be > 0")
-        if kind == "prismatic" and max(abs(lower), abs(upper)) / MM_TO_M > MAX_LENGTH_MM:
-            raise BadInput(f"{where}: <limit lower upper> reach {max(abs(lower), abs(upper)):g} m; that is not a "
-                           f"robot (more than {MAX_LENGTH_MM * MM_TO_M:g} m): check the value and its unit (m)")
-    if movable == 0:
-        raise BadInput(f"{path}: the URDF has no movable joint (revolute or prismatic); "
-                       "a robot needs at least one joint to move")
-    roots = links - children
-    if not roots:
-        raise BadInput(f"{path}: the joints form a loop (every link is some joint's child); a robot has one base link")
-    if len(roots) != 1:
-        raise BadInput(f"{path}: the links form {len(roots)} separate trees ({', '.join(sorted(roots)[:3])}); "
-                       "a robot has one base link")
-    return text
+    return links
+
+
+def _check_joint(path: Path, joint, links: set[str], names: set[str], children: set[str]) -> int:
+    """One <joint> checked (name, type, parent and child links, origin, and a movable one's axis and limits);
+    its name and child link added to ``names`` and ``children``. Returns 1 for a movable joint, else 0."""
+    name, kind = joint.get("name"), joint.get("type")
+    if not name:
+        raise BadInput(f"{path}: a <joint> has no name")
+    where = f"{path}: joint {name!r}"
+    if name in names:
+        raise BadInput(f"{where} is defined twice; joint names must be unique")
+    names.add(name)
+    if kind not in _URDF_JOINT_TYPES:
+        raise BadInput(f"{where}: type {kind!r} is not a URDF joint type ({', '.join(_URDF_JOINT_TYPES)})")
+    if kind in ("continuous", "floating", "planar"):
+        hint = " (write it as revolute with wide limits)" if kind == "continuous" else ""
+        raise BadInput(f"{where}: {kind} joints are not supported; camtool plans revolute and prismatic "
+                       f"joints with limits{hint}")
+    for tag in ("parent", "child"):
+        el = joint.find(tag)
+        link = None if el is None else el.get("link")
+        if link not in links:
+            raise BadInput(f"{where}: <{tag} link={link!r}> is not a <link> of the robot")
+    child = joint.find("child").get("link")
+    if child in children:
+        raise BadInput(f"{where}: link {child!r} is the child of two joints; a robot is a tree")
+    children.add(child)
+    origin = joint.find("origin")
+    xyz = _floats(None if origin is None else origin.get("xyz"), f"{where}: <origin xyz>", "0 0 0")
+    _floats(None if origin is None else origin.get("rpy"), f"{where}: <origin rpy>", "0 0 0")
+    if math.hypot(*xyz) / MM_TO_M > MAX_LENGTH_MM:
+        raise BadInput(f"{where}: <origin xyz> is {math.hypot(*xyz):g} m from its parent; that is not a "
+                       f"robot (more than {MAX_LENGTH_MM * MM_TO_M:g} m): check the value and its unit (m)")
+    if kind not in _MOVABLE:
+        return 0
+    _check_motion_limits(joint, kind, where)
+    return 1
+
+
+def _check_motion_limits(joint, kind: str, where: str) -> None:
+    """A movable joint's axis (not zero) and limits (lower below upper, a positive speed, a real reach)."""
+    axis = joint.find("axis")
+    ax = _floats(None if axis is None else axis.get("xyz"), f"{where}: <axis xyz>", "1 0 0")
+    if math.hypot(*ax) < 1e-9:
+        raise BadInput(f"{where}: <axis xyz> is zero; give the joint's axis direction")
+    lower, upper = _limit(joint, "lower", where), _limit(joint, "upper", where)
+    velocity = _limit(joint, "velocity", where)
+    if lower >= upper:
+        raise BadInput(f"{where}: <limit lower={lower:g} upper={upper:g}>: lower must be below upper")
+    if velocity <= 0:
+        raise BadInput(f"{where}: <limit velocity={velocity:g}> must be > 0")
+    if kind == "prismatic" and max(abs(lower), abs(upper)) / MM_TO_M > MAX_LENGTH_MM:
+        raise BadInput(f"{where}: <limit lower upper> reach {max(abs(lower), abs(upper)):g} m; that is not a "
+                       f"robot (more than {MAX_LENGTH_MM * MM_TO_M:g} m): check the value and its unit (m)")
 
 
 def robot_from_urdf(path: Path, flange_link: str | None = None) -> Robot:
