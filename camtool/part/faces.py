@@ -11,7 +11,7 @@ A selection of several faces is worked in one program (``camtool.path.face_set``
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -127,7 +127,9 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     if rest:  # the other faces: RANSAC on their points
         idx_rest = np.concatenate(rest)
         if len(idx_rest) >= 4 * MIN_FACE_SAMPLES:
-            sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)), settings)
+            # the B-rep's other faces by RANSAC, as planes, spheres and cylinders only (their free-form charts
+            # do not take the B-rep edges' boundary pass)
+            sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)), replace(settings, freeform_faces=False))
             built += [(f.surface, idx_rest[f.inliers]) for f in sub.faces]
             dropped += sub.dropped_faces
     kept = [(s, idx) for s, idx in built if area_mm2(s) >= settings.min_area_mm2]

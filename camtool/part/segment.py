@@ -78,6 +78,7 @@ class SegmentSettings:
     close_gaps_mm: float = 6.0
     simplify_mm: float = 0.5
     sharp_edge_deg: float = SHARP_EDGE_DEG
+    freeform_faces: bool = True  # False: planes, spheres and cylinders only (a STEP part's non-analytic faces)
 
 
 @dataclass(frozen=True)
@@ -384,6 +385,9 @@ def segment(workpiece, settings: SegmentSettings = SegmentSettings()) -> Segment
     members = _relabel_sample(S, NS, models, members, CONNECT_SPACINGS * spacing, thr, cos_tol)
     keep = [k for k, m in enumerate(members) if len(m) >= MIN_FACE_SAMPLES]
     models, members = [models[k] for k in keep], [members[k] for k in keep]
+    if not models and not settings.freeform_faces:
+        raise BadInput(f"{source}: no plane, sphere or cylinder face found within threshold_mm = {thr:g}; "
+                       "check the units or raise the threshold")
     if not models:
         seg = with_freeform_faces(None, workpiece, settings, Face)
         if seg is None or not seg[0]:
@@ -403,6 +407,8 @@ def segment(workpiece, settings: SegmentSettings = SegmentSettings()) -> Segment
         best_res[cand] = res[cand]
     faces, dropped = _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
     assigned = sum(len(f.inliers) for f in faces)
+    if not settings.freeform_faces:
+        return Segmentation(tuple(faces), len(P), len(P) - assigned, dropped)
     # smooth regions the analytic faces hold only in fragments become free-form faces (none on an analytic part)
     return with_freeform_faces(Segmentation(tuple(faces), len(P), len(P) - assigned, dropped), workpiece,
                                settings, Face)
@@ -471,7 +477,11 @@ def _relabel_sample(S, NS, models, members, radius, thr, cos_tol):
 
 
 def area_mm2(surface) -> float:
-    """Area of the material region (outer polygon minus holes) in the surface's flat chart (mm^2)."""
+    """Area of the material region (outer polygon minus holes) in the surface's flat chart (mm^2); a
+    free-form face's own (its chart is not area-true)."""
+    if surface.model == "freeform":
+        return float(surface.area_mm2())
+
     def area(poly):  # the flat chart is area-true (a sphere's is sinusoidal)
         xy = flat_mm(surface, np.asarray(poly, float))
         x, y = xy[:, 0], xy[:, 1]

@@ -925,7 +925,8 @@ def _workpiece_from_raw(raw: _Raw, path: Path, units: str, sample_points: int, n
         from .mesh_repair import repaired_mesh
 
         verts_mm, faces, repairs = repaired_mesh(points * scale, faces, str(path), path.suffix.lower() in INDEXED)
-        warnings = tuple(warnings) + repairs
+        if path.suffix.lower() not in (".step", ".stp"):  # camtool's own tessellation: its slivers are no damage
+            warnings = tuple(warnings) + repairs
         pts_mm, face_normals = _sample_mesh(verts_mm, faces, sample_points, rng, path)
         return Workpiece(pts_mm, face_normals, faces, str(path), units, warnings, verts_mm)
     pts_mm = points * scale

@@ -380,7 +380,9 @@ def _rows_and_runs(boundary, chart: _Chart, g_lo: float, settings: RasterSetting
     if pitch > s_hi - s_lo:  # chart s is mm at the largest metric scale: an upper bound of any row's length
         raise BadInput(f"raster.pitch_mm: {pitch:g} mm is longer than the part ({s_hi - s_lo:.1f} mm along the "
                        "rows); use a pitch of a few mm")
-    estimate = len(rows_t) * ((s_hi - s_lo) / (g_lo * pitch) + 2 * (lead / pitch + 1) + m)
+    # the rows' length at half the largest metric scale at least: g_lo is floored at 0.05 for the rows'
+    # spacing, which would make this estimate of the work up to 20 times too large (a free-form chart's rim)
+    estimate = len(rows_t) * ((s_hi - s_lo) / (max(g_lo, 0.5) * pitch) + 2 * (lead / pitch + 1) + m)
     cap = min(int(getattr(settings, "max_poses", MAX_POSES)), MAX_POSES)  # time, then memory: before any work
     if estimate > cap:
         raise BadInput(f"raster: step_over_mm={step:g} and pitch_mm={pitch:g} would give about {estimate:.3g} poses, "
