@@ -97,3 +97,35 @@ def test_the_job_check_sees_a_job_parameter(tmp_path):
     f = tmp_path / "stage.py"
     f.write_text("from ..job import Job\n\ndef stage(job: Job, settings: JobSettings):\n    pass\n")
     assert len(_takes_a_job(f, tmp_path)) == 2
+
+
+MAX_FUNCTION_LINES = 80
+
+
+def long_functions(root: Path = ROOT) -> list[str]:
+    """Functions over MAX_FUNCTION_LINES lines in camtool/ and postprocessors/, but click commands (argument
+    parsing) and numba kernels (one compiled loop), which issue #45 leaves whole."""
+    found = []
+    for pkg in ("camtool", "postprocessors"):
+        for f in sorted((root / pkg).rglob("*.py")):
+            for node in ast.walk(ast.parse(f.read_text())):
+                if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    continue
+                decorators = " ".join(ast.unparse(d) for d in node.decorator_list)
+                if "click." in decorators or "njit" in decorators or "numba" in decorators:
+                    continue
+                if node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES:
+                    found.append(f"{f.relative_to(root)}:{node.lineno} {node.name}")
+    return found
+
+
+def test_no_function_hides_its_steps_in_over_80_lines():
+    assert not long_functions()
+
+
+def test_a_long_function_is_found(tmp_path):
+    (tmp_path / "camtool").mkdir()
+    (tmp_path / "postprocessors").mkdir()
+    body = "".join(f"    x{i} = {i}\n" for i in range(MAX_FUNCTION_LINES))
+    (tmp_path / "camtool" / "long.py").write_text(f"def long():\n{body}")
+    assert long_functions(tmp_path) == ["camtool/long.py:1 long"]
