@@ -412,3 +412,12 @@ def test_jbi_pulse_beyond_int64_is_a_finding_and_bad_input_when_read(tmp_path):
     vals[2] = str(2 ** 63 - 1)  # the largest int64 reads; it is just far outside the limits
     _edit(files[0], f"C00004={','.join(vals[:2])},{2 ** 63}", f"C00004={','.join(vals[:2])},{2 ** 63 - 1}")
     assert any("outside the limits" in f for f in check_program(files[0], r, p))
+
+
+def test_row_markers_out_of_pair_are_findings_across_files():
+    from camtool.program.check import row_marker_findings
+
+    out, open_row = row_marker_findings("A.mod", [("row", 3), ("move", 4), ("row", 5)], None)
+    assert out == ["A.mod:5: a row starts before the previous one ended"] and open_row == 5
+    out, open_row = row_marker_findings("B.mod", [("end_row", 2), ("end_row", 7)], open_row)
+    assert out == ["B.mod:7: a row ends that never started"] and open_row is None

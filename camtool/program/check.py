@@ -32,6 +32,22 @@ def dedupe(findings) -> list[str]:
     return list(dict.fromkeys(findings))
 
 
+def row_marker_findings(file: Path, items, open_row: int | None) -> tuple[list[str], int | None]:
+    """Row markers out of pair in one file's ``items`` (``("row", line)`` / ``("end_row", line)`` among
+    others), given the row left open by the file before; returns the findings and the row open after it."""
+    out = []
+    for it in items:
+        if it[0] == "row":
+            if open_row is not None:
+                out.append(f"{file}:{it[1]}: a row starts before the previous one ended")
+            open_row = it[1]
+        elif it[0] == "end_row":
+            if open_row is None:
+                out.append(f"{file}:{it[1]}: a row ends that never started")
+            open_row = None
+    return out, open_row
+
+
 def _edge(robot, i: int, v: float) -> str:
     return f"{v:.3f} mm" if robot.prismatic[i] else f"{np.degrees(v):.4f} deg"
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from camtool.errors import BadInput
-from camtool.program.check import arc_findings, check_motion, resolution_tol
+from camtool.program.check import arc_findings, check_motion, resolution_tol, row_marker_findings
 from camtool.program.durations import move_durations
 from camtool.program.moves import CIRCULAR
 from camtool.program.targets import target_joints
@@ -64,7 +64,7 @@ def _program_file_findings(files, mapped: list[str], max_len: int) -> tuple[list
         for p, k in used.items():
             if k > 1:
                 out.append(f"{pp}: P[{p}] is the target of {k} moves (camtool writes one position per move)")
-        rows, open_row = _row_findings(pp, pg, open_row)
+        rows, open_row = row_marker_findings(pp, pg.items, open_row)
         out += rows
     return out, moves, open_row
 
@@ -107,21 +107,6 @@ def _position_findings(pp: Path, pg, mapped: list[str]) -> tuple[list[str], dict
                 out.append(f"{w}: P[{p}] is recorded in UF {pos.uf} / UT {pos.ut}, the move runs with UFRAME_NUM "
                            f"{mv.uframe} / UTOOL_NUM {mv.utool}")
     return out, used
-
-
-def _row_findings(pp: Path, pg, open_row: int | None) -> tuple[list[str], int | None]:
-    """Row markers out of pair, and the line of the row open after the program."""
-    out = []
-    for it in pg.items:
-        if it[0] == "row":
-            if open_row is not None:
-                out.append(f"{pp}:{it[1]}: a row starts before the previous one ended")
-            open_row = it[1]
-        elif it[0] == "end_row":
-            if open_row is None:
-                out.append(f"{pp}:{it[1]}: a row ends that never started")
-            open_row = None
-    return out, open_row
 
 
 def _motion_findings(path: Path, robot, profile) -> list[str]:

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from camtool.errors import BadInput
+from camtool.program.calls import called_programs
 from camtool.program.convention import controller_axes, model_joints
 from camtool.program.moves import CIRCULAR, JOINT, LINEAR, ProgramMoves, empty_moves
 from camtool.program.plan import profile_tool
@@ -385,28 +386,12 @@ def _position(block, pg: LsProgram, path: Path) -> None:
 def program_files(path: Path) -> list[tuple[Path, LsProgram]]:
     """The programs of a run in order: the entry, then every program it calls (same folder,
     ``NAME.LS``), each once."""
-    path = Path(path)
-    out: list[tuple[Path, LsProgram]] = []
-    seen = set()
+    return called_programs(path, parse_ls, _program_file, lambda name: f"CALL {name}: no {name}.LS in the folder")
 
-    def visit(p: Path, depth: int) -> None:
-        if depth > 2:
-            raise BadInput(f"{p}: calls nested deeper than camtool writes them")
-        pg = parse_ls(p)
-        out.append((p, pg))
-        seen.add(p.stem.upper())
-        for n, name in pg.calls:
-            if name.upper() in seen:
-                pg.problems.append(f"{p}:{n}: {name} is called twice (or calls itself)")
-                continue
-            q = next((c for c in (p.parent / f"{name}.LS", p.parent / f"{name}.ls", p.parent / f"{name.lower()}.ls")
-                      if c.is_file()), None)
-            if q is None:
-                pg.problems.append(f"{p}:{n}: CALL {name}: no {name}.LS in the folder")
-                continue
-            visit(q, depth + 1)
-    visit(path, 0)
-    return out
+
+def _program_file(folder: Path, name: str) -> Path | None:
+    return next((c for c in (folder / f"{name}.LS", folder / f"{name}.ls", folder / f"{name.lower()}.ls")
+                 if c.is_file()), None)
 
 
 def frame_pose(pos: Position) -> np.ndarray:

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from camtool.errors import BadInput
-from camtool.program.check import arc_findings, check_motion, resolution_tol
+from camtool.program.check import arc_findings, check_motion, resolution_tol, row_marker_findings
 from camtool.program.durations import move_durations
 from camtool.program.moves import JOINT
 from camtool.program.targets import target_joints
@@ -55,7 +55,7 @@ def _module_findings(modules, mapped: set[str]) -> tuple[list[str], list, list[s
         out += mt.problems
         out += _name_findings(mp, mt)
         out += _data_findings(mp, mt, mapped)
-        rows, open_row = _row_findings(mp, mt, open_row)
+        rows, open_row = row_marker_findings(mp, mt.items, open_row)
         out += rows
         out += _move_findings(mp, mt, mapped)
         moves += mt.moves
@@ -90,21 +90,6 @@ def _data_findings(mp: Path, mt, mapped: set[str]) -> list[str]:
         elif typ == "E6POS" and (not set("XYZABC") <= set(fields) or set(fields) - set("XYZABCST") - set(AXES)):
             out.append(f"{w}: {nm}: an E6POS needs X, Y, Z, A, B, C, found {', '.join(fields)}")
     return out
-
-
-def _row_findings(mp: Path, mt, open_row: int | None) -> tuple[list[str], int | None]:
-    """Row markers out of pair, and the line of the row open after the module."""
-    out = []
-    for it in mt.items:
-        if it[0] == "row":
-            if open_row is not None:
-                out.append(f"{mp}:{it[1]}: a row starts before the previous one ended")
-            open_row = it[1]
-        elif it[0] == "end_row":
-            if open_row is None:
-                out.append(f"{mp}:{it[1]}: a row ends that never started")
-            open_row = None
-    return out, open_row
 
 
 def _move_findings(mp: Path, mt, mapped: set[str]) -> list[str]:

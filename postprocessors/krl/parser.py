@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from camtool.errors import BadInput
+from camtool.program.calls import called_programs
 from camtool.program.convention import base_pose, controller_axes, model_joints
 from camtool.program.durations import move_durations
 from camtool.program.moves import CIRCULAR, JOINT, LINEAR, ProgramMoves, empty_moves, joint_travel
@@ -306,26 +307,8 @@ def program_modules(path: Path) -> list[tuple[Path, Module]]:
     path = Path(path)
     if path.suffix.lower() == ".dat":
         path = path.with_suffix(".src")
-    out: list[tuple[Path, Module]] = []
-    seen = set()
-
-    def visit(p: Path, depth: int) -> None:
-        if depth > 2:
-            raise BadInput(f"{p}: calls nested deeper than camtool writes them")
-        m = parse_module(p)
-        out.append((p, m))
-        seen.add(p.stem.upper())
-        for n, name in m.calls:
-            if name.upper() in seen:
-                m.problems.append(f"{p}:{n}: {name} is called twice (or calls itself)")
-                continue
-            q = _module_file(p.parent, name)
-            if q is None:
-                m.problems.append(f"{p}:{n}: calls {name}: no regular file {name}.src in the folder")
-                continue
-            visit(q, depth + 1)
-    visit(path, 0)
-    return out
+    return called_programs(path, parse_module, _module_file,
+                           lambda name: f"calls {name}: no regular file {name}.src in the folder")
 
 
 def _module_file(folder: Path, name: str) -> Path | None:
