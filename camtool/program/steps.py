@@ -107,8 +107,8 @@ class JoinNullLinear(MoveStep):
         return replace(plan, kind=kind)
 
 
-def _angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
-    """Rotation angles (rad) from each Ra to Rb."""
+def rotation_angles_rad(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """Rotation angles (rad) from each Ra to Rb (N x 3 x 3 each), by atan2: accurate near 0 and pi."""
     R = np.transpose(Ra, (0, 2, 1)) @ Rb
     s = 0.5 * np.linalg.norm(np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
                                        R[:, 1, 0] - R[:, 0, 1]], axis=1), axis=1)
@@ -221,7 +221,7 @@ class FitArcs(MoveStep):
                 if len(w) and not _on_circle(P[a], P[m], P[b], WP[w], tol)[0]:
                     break
                 s = geo[4][1:-1] / sweep if sweep > 0 else np.zeros(0)
-                if len(s) and np.max(_angle(_slerp(R[a], R[b], s), R[a + 1:b])) > ori_tol:
+                if len(s) and np.max(rotation_angles_rad(_slerp(R[a], R[b], s), R[a + 1:b])) > ori_tol:
                     break
                 best = (a, m, b)
                 b += 1

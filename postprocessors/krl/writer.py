@@ -14,7 +14,7 @@ from camtool.program.convention import controller_axes, controller_pose, tool_in
 from camtool.program.moves import joint_travel
 from camtool.program.plan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
 from camtool.program.process import ProcessInfo, program_date
-from camtool.program.steps import context_for, program_steps
+from camtool.program.steps import context_for, program_steps, rotation_angles_rad
 
 from .dialect import (AXES, EXTERNAL_AXES, LINE_MAX, MAX_ARC_DEG, ROBOT_AXES, VEL_CP_DECIMALS, comment_text,
                       cptp_percent, fmt_column, frame_text, krl_name, validate_profile)
@@ -216,7 +216,7 @@ def _moves(plan, robot, m: _Motion, o, starts: set[int]) -> tuple[list[list[str]
     governing = np.max(np.abs(np.diff(values, axis=0)) / vmax[None, :], axis=1) if n > 1 else np.zeros(0)
     fastest = np.max(np.abs(np.diff(plan.q, axis=0)) / robot.limits.velocity[None, :], axis=1) \
         if n > 1 else np.zeros(0)
-    angle = np.r_[0.0, _angles(plan.R[:-1], plan.R[1:])] if n > 1 else np.zeros(n)
+    angle = np.r_[0.0, rotation_angles_rad(plan.R[:-1], plan.R[1:])] if n > 1 else np.zeros(n)
     planned = written = 0.0
     step = 10.0 ** -VEL_CP_DECIMALS * 1000.0   # mm/s of one written digit of $VEL.CP
     for i in range(n):
@@ -299,15 +299,6 @@ def _pose(p, R) -> np.ndarray:
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, p
     return T
-
-
-def _angles(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
-    """Rotation angles (rad) from each Ra to Rb."""
-    R = np.transpose(Ra, (0, 2, 1)) @ Rb
-    s = 0.5 * np.linalg.norm(np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
-                                       R[:, 1, 0] - R[:, 0, 1]], axis=1), axis=1)
-    c = (np.trace(R, axis1=1, axis2=2) - 1.0) / 2.0
-    return np.arctan2(s, c)
 
 
 def _src(name: str, header: list[str], body: list[str]) -> list[str]:

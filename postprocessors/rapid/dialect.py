@@ -117,16 +117,6 @@ def _quat_column(R: np.ndarray) -> np.ndarray:
     return np.where(q[:, :1] < 0, -q, q)
 
 
-
-def _angles(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
-    """Rotation angles (rad) from each Ra to Rb."""
-    R = np.transpose(Ra, (0, 2, 1)) @ Rb
-    s = 0.5 * np.linalg.norm(np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
-                                       R[:, 1, 0] - R[:, 0, 1]], axis=1), axis=1)
-    c = (np.trace(R, axis1=1, axis2=2) - 1.0) / 2.0
-    return np.arctan2(s, c)
-
-
 # One MoveC covers less than 240 degrees of its circle, so a full circle takes at least two
 # (ABB, Technical reference manual RAPID Instructions, MoveC; e.g. the summary at
 # https://blog.csdn.net/weixin_46026089/article/details/118248669: "圆弧运动时的圆周角不能超过240°").

@@ -13,11 +13,11 @@ from camtool.program.convention import controller_axes, controller_pose
 from camtool.robots.confdata import abb_confdata
 from camtool.program.kinematics import Kinematics
 from camtool.program.plan import KIND_CIRCULAR, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
-from camtool.program.steps import context_for, program_steps
+from camtool.program.steps import context_for, program_steps, rotation_angles_rad
 from camtool.program.process import ProcessInfo, program_date
 from camtool.transforms import matrix_from_xyz_rpy, quaternion_wxyz_from_matrix
 
-from .dialect import (BLEND_ZONES, comment_text, EAX, MAX_ARC_DEG, RAX, T_RESOLUTION_S, V_RESOLUTION, ZONE_MM, _angles, _quat_column,
+from .dialect import (BLEND_ZONES, comment_text, EAX, MAX_ARC_DEG, RAX, T_RESOLUTION_S, V_RESOLUTION, ZONE_MM, _quat_column,
                       fmt_column, fmt_num, rapid_identifier, validate_profile)
 
 
@@ -94,7 +94,7 @@ def _timing(plan, robot, kind: np.ndarray) -> tuple[list[str], list[str]]:
     dt = np.diff(plan.t)
     fastest = np.max(np.abs(np.diff(plan.q, axis=0)) / robot.limits.velocity[None, :], axis=1) \
         if n > 1 else np.zeros(0)
-    angle = np.r_[0.0, _angles(plan.R[:-1], plan.R[1:])] if n > 1 else np.zeros(n)
+    angle = np.r_[0.0, rotation_angles_rad(plan.R[:-1], plan.R[1:])] if n > 1 else np.zeros(n)
     speed_txt = [""] * n
     t_txt = [""] * n
     planned = written = 0.0
