@@ -608,31 +608,70 @@ def opened_input(path, kind: str):
 
 @contextmanager
 def private_copy(path, kind: str, suffix: str = ""):
-    """A name for a library that can only open files by name and must not be handed ``/proc/self/fd``
-    (OpenCASCADE): a copy of the checked descriptor's bytes in a private folder (``mkdtemp``, mode 0700,
-    created ``O_EXCL | O_NOFOLLOW``), removed after the block. The library reads the very bytes checked."""
+    """A name for a library that can only open files by name and must not be handed the checked
+    descriptor's own ``/proc/self/fd`` (OpenCASCADE): a copy of that descriptor's bytes in an anonymous
+    memory file (``memfd_create``), named by its ``/proc/self/fd`` path. No file is made on any file system
+    and nobody else can reach it; the library reads the very bytes checked. Where there is no memfd, a
+    private folder (``mkdtemp``, mode 0700, the copy created ``O_EXCL | O_NOFOLLOW``) removed after the block."""
     fd, _st = _open_input(Path(path), kind)
-    tmpdir = tempfile.mkdtemp(prefix="camtool-input-")
-    copy = os.path.join(tmpdir, "input" + suffix)
     try:
+        memfd = _memfd(suffix)
+        if memfd is not None:
+            try:
+                _copy_checked(fd, memfd, path, kind)
+                os.lseek(memfd, 0, os.SEEK_SET)
+                name = f"/proc/self/fd/{memfd}"
+                if os.path.exists(name):
+                    yield name
+                    return
+            finally:
+                os.close(memfd)
+        tmpdir = tempfile.mkdtemp(prefix="camtool-input-")
+        copy = os.path.join(tmpdir, "input" + suffix)
         try:
             out = os.open(copy, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
-            with os.fdopen(out, "wb") as f:
-                offset, cap = 0, size_cap_bytes(kind)
-                while chunk := os.pread(fd, 1 << 20, offset):
-                    offset += len(chunk)
-                    if offset > cap:
-                        raise BadInput(f"{path}: grew past the {cap / 2**20:g} MB cap for a {kind} file while read")
-                    f.write(chunk)
+            try:
+                _copy_checked(fd, out, path, kind)
+            finally:
+                os.close(out)
+            yield copy
         finally:
-            os.close(fd)
-        yield copy
+            try:
+                os.unlink(copy)
+            except FileNotFoundError:
+                pass
+            os.rmdir(tmpdir)
     finally:
-        try:
-            os.unlink(copy)
-        except FileNotFoundError:
-            pass
-        os.rmdir(tmpdir)
+        os.close(fd)
+
+
+def anonymous_file():
+    """A binary read-write file object that no file system holds: a memory file (``memfd_create``) on
+    Linux, else ``tempfile.TemporaryFile`` (whose first use probes the temporary folder with a named file)."""
+    memfd = _memfd("")
+    if memfd is None:
+        return tempfile.TemporaryFile(mode="w+b")
+    return os.fdopen(memfd, "w+b")
+
+
+def _memfd(suffix: str) -> int | None:
+    """An anonymous memory file (Linux), or None."""
+    try:
+        return os.memfd_create("camtool-input" + suffix, os.MFD_CLOEXEC)
+    except (AttributeError, OSError):
+        return None
+
+
+def _copy_checked(src: int, dst: int, path, kind: str) -> None:
+    """Copy descriptor ``src`` to ``dst`` in 1 MB reads, refusing a file that grows past its cap."""
+    offset, cap = 0, size_cap_bytes(kind)
+    while chunk := os.pread(src, 1 << 20, offset):
+        offset += len(chunk)
+        if offset > cap:
+            raise BadInput(f"{path}: grew past the {cap / 2**20:g} MB cap for a {kind} file while read")
+        view = memoryview(chunk)
+        while view:
+            view = view[os.write(dst, view):]
 
 
 def save_figure(fig, file, **savefig_kw) -> Path:

@@ -57,7 +57,8 @@ def _read_bodies(robot, q_rad) -> list[Body]:
     except Exception as exc:
         raise BadInput(f"{path}: cannot read the URDF ({type(exc).__name__})") from None
     # package://<pkg>/... resolves against the folders above the URDF (<pkg>/urdf/<robot>.urdf)
-    gm = collision_geometry(um, path, list(path.resolve().parents)[:3], data)
+    geometry = collision_geometry(um, path, list(path.resolve().parents)[:3], data)
+    gm = geometry.model
     if q_rad is None:
         lo, hi = robot.limits.lower, robot.limits.upper
         q_rad = lo + REFERENCE_Q_FRACTION * (hi - lo)
@@ -77,10 +78,10 @@ def _read_bodies(robot, q_rad) -> list[Body]:
     pin.forwardKinematics(um, ud, q_urdf)
     pin.updateGeometryPlacements(um, ud, gm, gd)
     out = []
-    for k, go in enumerate(gm.geometryObjects):
-        if not go.meshPath:
+    for k, (go, mesh) in enumerate(zip(gm.geometryObjects, geometry.meshes)):
+        if mesh is None:
             continue
-        pts = hull_points(_vertices_m(go.meshPath) * np.asarray(go.meshScale) * MM_PER_M)
+        pts = hull_points(_vertices_m(mesh.path) * np.asarray(mesh.scale) * MM_PER_M)
         T_world = se3_mm(gd.oMg[k])
         parent = _moving_parent(um, go.parentJoint, joint_of_urdf)
         name = um.frames[go.parentFrame].name if go.parentFrame < len(um.frames) else go.name

@@ -116,21 +116,21 @@ def urdf_bodies(robot) -> list[Body]:
 
     path = Path(robot.source)
     data_dir = Path(__file__).resolve().parents[1] / "robots" / "data" / "ros-industrial"
-    gm = collision_geometry(robot.model, path, [path.parent, data_dir])
+    geometry = collision_geometry(robot.model, path, [path.parent, data_dir])
     out = []
-    for k, go in enumerate(gm.geometryObjects):
+    for k, (go, mesh) in enumerate(zip(geometry.model.geometryObjects, geometry.meshes)):
         T = se3_mm(go.placement)
         g = go.geometry
         name = f"{go.name}" if go.name else f"collision{k}"
-        if isinstance(g, coal.Box):
+        if mesh is not None:
+            pts = mesh_points(mesh.path, "m", drop_damaged=True) * np.asarray(mesh.scale)
+            out.append(Body(name, "link", go.parentJoint, "convex", (), T, hull_points(pts)))
+        elif isinstance(g, coal.Box):
             out.append(Body(name, "link", go.parentJoint, "box", tuple(2.0 * MM_PER_M * np.asarray(g.halfSide)), T))
         elif isinstance(g, coal.Cylinder):
             out.append(Body(name, "link", go.parentJoint, "cylinder", (g.radius * MM_PER_M, 2 * g.halfLength * MM_PER_M), T))
         elif isinstance(g, coal.Sphere):
             out.append(Body(name, "link", go.parentJoint, "sphere", (g.radius * MM_PER_M,), T))
-        elif go.meshPath:
-            pts = mesh_points(Path(go.meshPath), "m", drop_damaged=True) * np.asarray(go.meshScale)
-            out.append(Body(name, "link", go.parentJoint, "convex", (), T, hull_points(pts)))
     return [b if b.parent > 0 else Body(b.name, "base", BASE, b.shape, b.size_mm, b.local_T_mm, b.points_mm)
             for b in out]
 

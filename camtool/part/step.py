@@ -21,7 +21,6 @@ from __future__ import annotations
 import logging
 import os
 import sys
-import tempfile
 import threading
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -61,7 +60,9 @@ class StepFace:
 def _ocp_output_to_log() -> Iterator[None]:
     """OpenCASCADE prints its reader's messages on the process's stdout (file descriptor 1), which
     ``--json`` keeps for results: while it reads, fd 1 goes to a temporary file, logged at debug level."""
-    with _fd_lock, tempfile.TemporaryFile(mode="w+b") as sink:
+    from ..safe_io import anonymous_file
+
+    with _fd_lock, anonymous_file() as sink:
         sys.stdout.flush()
         saved = os.dup(1)
         os.dup2(sink.fileno(), 1)

@@ -283,11 +283,14 @@ def _trimesh_load(path: Path, file_type: str):
 
     from ..safe_io import opened_input
 
-    if file_type == "gltf":  # a .gltf names its buffers beside it: trimesh needs the real path
-        from ..safe_io import check_input
+    if file_type == "gltf":  # a .gltf names its buffers beside it: each read through safe_io (gltf_buffers.py)
+        import io
 
-        check_input(path, "workpiece")
-        return trimesh.load(str(path), file_type=file_type, process=False)
+        from .gltf_buffers import CheckedBuffers
+
+        data = _read_checked(path)
+        return trimesh.load(io.BytesIO(data), file_type=file_type, process=False,
+                            resolver=CheckedBuffers(path.parent, path.name))
     with opened_input(path, "workpiece") as name:  # the checked file itself (regular, capped), opened once
         return trimesh.load(name, file_type=file_type, process=False)
 

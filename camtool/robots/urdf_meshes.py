@@ -13,21 +13,42 @@ not name the link. So the description is read here first:
 - the file must exist, not be a symlink, be a regular file (opened without
   blocking) and be under the mesh size cap; otherwise one line names the
   link, the mesh and what is wrong;
-- Pinocchio then parses the same text with each filename replaced by the
-  absolute path that was checked (``buildGeomFromUrdfString``), so it opens
-  only those files.
+- Pinocchio then parses the same text with each mesh replaced by a point-sized
+  sphere (``buildGeomFromUrdfString``), so it opens no file at all: it gives
+  the placements and parent joints, and camtool reads each checked mesh itself
+  (through the workpiece loader's descriptor checks). ``CollisionGeometry``
+  keeps, per geometry object, the checked file and its scale.
 """
 from __future__ import annotations
 
 import os
 import stat
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import BadInput
 
 PACKAGE = "package://"
 FILE = "file://"
+PLACEHOLDER = '<sphere radius="1e-9"/>'  # what Pinocchio parses in a mesh's place: no file to open
+
+
+@dataclass(frozen=True)
+class CollisionMesh:
+    """A checked collision mesh file and the URDF's scale for it (unitless, per axis)."""
+
+    path: Path
+    scale: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class CollisionGeometry:
+    """Pinocchio's collision GeometryModel (each mesh a point-sized sphere) and, per geometry object
+    in its order, the mesh it stands for (None: a box, cylinder or sphere of the URDF itself)."""
+
+    model: object
+    meshes: tuple[CollisionMesh | None, ...]
 
 
 def resolve_mesh(filename: str, urdf_path: Path, package_dirs) -> Path | None:
@@ -58,10 +79,22 @@ def _refusal(path: Path) -> str | None:
     return None
 
 
-def checked_collision_urdf(urdf_path: Path, package_dirs, data: bytes | None = None) -> str:
+def _scale(mesh, where: str) -> tuple[float, float, float]:
+    text = (mesh.get("scale") or "1 1 1").split()
+    try:
+        values = tuple(float(v) for v in text)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(0.0 < abs(v) < 1e6 for v in values):
+        raise BadInput(f"{where}: scale must be three finite non-zero numbers")
+    return values
+
+
+def checked_collision_urdf(urdf_path: Path, package_dirs, data: bytes | None = None
+                           ) -> tuple[str, dict[str, list[CollisionMesh | None]]]:
     """The URDF's text (``data``, the checked bytes, or read through safe_io) with every collision mesh
-    filename replaced by the absolute path of its checked file; BadInput naming the link and the mesh
-    when one is missing or refused."""
+    replaced by ``PLACEHOLDER``, and per link its collision elements' checked meshes in order (None for
+    a primitive); BadInput naming the link and the mesh when one is missing or refused."""
     from ..safe_io import read_input_bytes
 
     urdf_path = Path(urdf_path)
@@ -69,8 +102,15 @@ def checked_collision_urdf(urdf_path: Path, package_dirs, data: bytes | None = N
         root = ET.fromstring(read_input_bytes(urdf_path, "robot") if data is None else data)
     except ET.ParseError as exc:
         raise BadInput(f"{urdf_path}: not a URDF: XML error ({exc})") from None
+    meshes: dict[str, list[CollisionMesh | None]] = {}
     for link in root.findall("link"):
-        for mesh in link.findall("collision/geometry/mesh"):
+        found = meshes.setdefault(link.get("name") or "", [])
+        for collision in link.findall("collision"):
+            geometry = collision.find("geometry")
+            mesh = geometry.find("mesh") if geometry is not None else None
+            if mesh is None:
+                found.append(None)
+                continue
             filename = mesh.get("filename") or ""
             where = f"{urdf_path}: link {link.get('name')!r} collision mesh {filename!r}"
             path = resolve_mesh(filename, urdf_path, package_dirs)
@@ -80,19 +120,30 @@ def checked_collision_urdf(urdf_path: Path, package_dirs, data: bytes | None = N
             why = _refusal(path)
             if why is not None:
                 raise BadInput(f"{where}: {path} {why}")
-            mesh.set("filename", str(Path(os.path.abspath(path))))
-    return ET.tostring(root, encoding="unicode")
+            found.append(CollisionMesh(Path(os.path.abspath(path)), _scale(mesh, where)))
+            geometry.remove(mesh)
+            geometry.append(ET.fromstring(PLACEHOLDER))
+    return ET.tostring(root, encoding="unicode"), meshes
 
 
-def collision_geometry(model, urdf_path: Path, package_dirs, data: bytes | None = None):
-    """Pinocchio's collision GeometryModel of a URDF whose meshes were checked first (``data``: the
-    URDF's checked bytes, when the caller already read them)."""
+def collision_geometry(model, urdf_path: Path, package_dirs, data: bytes | None = None) -> CollisionGeometry:
+    """The collision geometry of a URDF whose meshes were checked first (``data``: the URDF's checked
+    bytes, when the caller already read them); Pinocchio opens no file."""
     import pinocchio as pin
 
-    text = checked_collision_urdf(urdf_path, package_dirs, data)
+    text, meshes = checked_collision_urdf(urdf_path, package_dirs, data)
     try:
-        return pin.buildGeomFromUrdfString(model, text, pin.GeometryType.COLLISION,
-                                           package_dirs=[str(d) for d in package_dirs])
-    except Exception as exc:  # a mesh assimp cannot parse: one line for the user
-        raise BadInput(f"{urdf_path}: cannot read its collision meshes "
+        gm = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.COLLISION)
+    except Exception as exc:  # a description Pinocchio cannot place: one line for the user
+        raise BadInput(f"{urdf_path}: cannot read its collision elements "
                        f"({(str(exc).splitlines() or [''])[0]})") from None
+    # Pinocchio adds each link's collision elements together, in the URDF's order
+    taken: dict[str, int] = {}
+    per_object = []
+    for go in gm.geometryObjects:
+        link = model.frames[go.parentFrame].name if go.parentFrame < len(model.frames) else ""
+        k = taken.get(link, 0)
+        taken[link] = k + 1
+        found = meshes.get(link, [])
+        per_object.append(found[k] if k < len(found) else None)
+    return CollisionGeometry(gm, tuple(per_object))
