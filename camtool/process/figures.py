@@ -1,7 +1,8 @@
 """The figures of a process map (report.json ``process_map``), its PNG and its npz file.
 
-All figures are taken over the worked area (the grid cells on material),
-weighted by cell area:
+All figures are taken over the worked area (the map's sites on material: grid
+cells, or a free-form face's mesh vertices; ``surface_map.SurfaceMap``), weighted
+by their area on the surface:
 
 - ``mean``, ``pv`` (max - min), ``rms`` (RMS deviation from the mean) and ``rms_pct`` of the mean;
 - ``uniformity_within_5pct`` / ``_10pct``: the share of the worked area within +-5 % / +-10 % of the mean;
@@ -22,7 +23,6 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
 from ..files import output_file
 from .integrate import ProcessMap
@@ -35,16 +35,8 @@ def _weighted(values, weights):
 
 
 def edge_distance_mm(pmap: ProcessMap) -> np.ndarray:
-    """(nv, nu) distance of each cell from the nearest off-material cell (mm, approximate on a sphere)."""
-    g = pmap.grid
-    if g.surface.model == "sphere":
-        R = float(g.surface.radius_mm)
-        v_mid = float(np.mean(g.v[np.any(g.material, axis=1)])) if g.material.any() else 0.0
-        sampling = (R * g.dv, R * math.cos(v_mid) * g.du)
-    else:
-        sampling = (g.dv, g.du)
-    padded = np.pad(g.material, 1, constant_values=False)
-    return distance_transform_edt(padded, sampling=sampling)[1:-1, 1:-1]
+    """Each site's distance from the nearest off-material site (mm; ``SurfaceMap.edge_distance_mm``)."""
+    return pmap.grid.edge_distance_mm()
 
 
 def map_figures(pmap: ProcessMap, band: float = 0.05) -> dict:
@@ -109,12 +101,12 @@ def _atomic(file: Path, write) -> Path:
 
 
 def save_map_npz(pmap: ProcessMap, file) -> Path:
-    """``process_map.npz``: u, v (cell centres, uv unit), values (nv, nu), material, area_mm2 and the units."""
+    """``process_map.npz``: the map's geometry (``SurfaceMap.npz_arrays``: u, v, material, area_mm2 ... for a grid;
+    vertices, faces ... for a mesh), values (the sites' shape) and the units."""
     g = pmap.grid
 
-    arrays = {"u": g.u, "v": g.v, "values": pmap.values, "material": g.material, "area_mm2": g.area_mm2,
-              "units": pmap.units, "quantity": pmap.quantity, "kind": pmap.kind, "uv_unit": g.uv_unit(),
-              "cell_mm": g.cell_mm, "surface_model": g.surface.model}
+    arrays = {**g.npz_arrays(), "values": pmap.values, "units": pmap.units, "quantity": pmap.quantity,
+              "kind": pmap.kind}
 
     def write(tmp):
         # np.savez's layout (one .npy per name in a zip) with a fixed time stamp: the same map, the same bytes
@@ -128,24 +120,16 @@ def save_map_npz(pmap: ProcessMap, file) -> Path:
 
 
 def plot_map_png(pmap: ProcessMap, figures: dict, file, title: str = "") -> Path:
-    """A heat map of the worked area in (u, v) (mm, or deg on a sphere), with the headline figures."""
+    """A heat map of the worked area (``SurfaceMap.draw``: (u, v) of a grid, the chart of a mesh), with the headline
+    figures."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    g = pmap.grid
-    sphere = g.surface.model == "sphere"
-    u = np.degrees(g.u) if sphere else np.asarray(g.u)
-    v = np.degrees(g.v) if sphere else np.asarray(g.v)
-    shown = np.ma.masked_where(~g.material, pmap.values)
     fig, ax = plt.subplots(figsize=(8, 6))
-    mesh = ax.pcolormesh(u, v, shown, shading="nearest", cmap="viridis")
+    mesh = pmap.grid.draw(ax, pmap.values)
     fig.colorbar(mesh, ax=ax, label=f"{pmap.quantity} [{pmap.units}]")
-    unit = "deg" if sphere else "mm"
-    ax.set_xlabel(f"u [{unit}]")
-    ax.set_ylabel(f"v [{unit}]")
-    ax.set_aspect("auto" if sphere else "equal")
     if figures.get("mean") is not None:
         ax.set_title(f"{title}\nmean {figures['mean']:.4g} {pmap.units}, RMS {figures['rms_pct']:.2f} %, "
                      f"within 5 %: {100 * figures['uniformity_within_5pct']:.1f} % of the area, "

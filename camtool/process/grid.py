@@ -18,13 +18,16 @@ import numpy as np
 
 from ..errors import BadInput
 from ..path.toolpath import freeze_arrays
+from .surface_map import SurfaceMap
 
 MAX_CELLS = 4_000_000  # a finer grid is refused: coarsen process.grid_mm
 
 
 @dataclass(frozen=True)
-class MapGrid:
+class MapGrid(SurfaceMap):
     """Cell centres ``u`` (nu,) and ``v`` (nv,) in the surface's uv unit; arrays are (nv, nu)."""
+
+    layout = "grid"
 
     surface: object
     u: np.ndarray
@@ -58,8 +61,36 @@ class MapGrid:
         uv = np.atleast_2d(uv)
         return np.stack([(uv[:, 0] - self.u[0]) / self.du, (uv[:, 1] - self.v[0]) / self.dv], axis=-1)
 
-    def uv_unit(self) -> str:
-        return getattr(self.surface, "uv_unit", "mm")
+    def edge_distance_mm(self) -> np.ndarray:
+        """(nv, nu) distance of each cell from the nearest off-material cell (mm, approximate on a sphere)."""
+        from scipy.ndimage import distance_transform_edt
+
+        if self.surface.model == "sphere":
+            R = float(self.surface.radius_mm)
+            v_mid = float(np.mean(self.v[np.any(self.material, axis=1)])) if self.material.any() else 0.0
+            sampling = (R * self.dv, R * math.cos(v_mid) * self.du)
+        else:
+            sampling = (self.dv, self.du)
+        padded = np.pad(self.material, 1, constant_values=False)
+        return distance_transform_edt(padded, sampling=sampling)[1:-1, 1:-1]
+
+    def npz_arrays(self) -> dict:
+        """u, v (cell centres, uv unit), material, area_mm2, uv_unit, cell_mm, surface_model, layout."""
+        return {"u": self.u, "v": self.v, "material": self.material, "area_mm2": self.area_mm2,
+                "uv_unit": self.uv_unit(), "cell_mm": self.cell_mm, "surface_model": self.surface.model,
+                "layout": self.layout}
+
+    def draw(self, ax, values: np.ndarray):
+        """A heat map in (u, v): mm, or deg on a sphere."""
+        sphere = self.surface.model == "sphere"
+        u = np.degrees(self.u) if sphere else np.asarray(self.u)
+        v = np.degrees(self.v) if sphere else np.asarray(self.v)
+        mesh = ax.pcolormesh(u, v, np.ma.masked_where(~self.material, values), shading="nearest", cmap="viridis")
+        unit = "deg" if sphere else "mm"
+        ax.set_xlabel(f"u [{unit}]")
+        ax.set_ylabel(f"v [{unit}]")
+        ax.set_aspect("auto" if sphere else "equal")
+        return mesh
 
 
 def grid_shape(surface, cell_mm: float, pad_mm: float) -> tuple[int, int, float, float]:

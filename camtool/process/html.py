@@ -1,8 +1,12 @@
 """The process map in report.html: a heat map on the 3-D surface, read back from ``process_map.npz``.
 
-The grid is decimated to at most ``MAX_SIDE`` cells a side for display and
-rounded (0.1 mm, 4 significant digits), so the page stays small and the same
-map gives the same bytes; cells off material are left out (NaN).
+The file's ``layout`` (``surface_map.SurfaceMap``) says how it is drawn: a grid
+(``"grid"``, and files without a layout) as a plotly surface over the analytic
+surface's (u, v), a free-form face's mesh (``"mesh"``) as a plotly mesh3d of its
+own vertices with a colour per vertex. Either is decimated to at most
+``MAX_SIDE`` sites a side for display and rounded (0.1 mm, 4 significant
+digits), so the page stays small and the same map gives the same bytes; sites
+off material are left out (NaN cells, or the triangles not wholly on material).
 """
 from __future__ import annotations
 
@@ -29,12 +33,15 @@ def _load(file) -> dict | None:
         return None
 
 
-def process_heat_map_figure(figures: dict, surface):
-    """A plotly figure of the map on the 3-D surface, or None when the map's file or surface is missing."""
+def _rounded(values: np.ndarray) -> np.ndarray:
+    return np.vectorize(lambda x: float(f"{x:.4g}") if np.isfinite(x) else np.nan, otypes=[float])(values)
+
+
+def _grid_trace(data: dict, surface):
+    """A plotly surface of a grid map over ``surface``'s (u, v), or None without the surface."""
     import plotly.graph_objects as go
 
-    data = _load(figures.get("file", "")) if figures else None
-    if data is None or surface is None:
+    if surface is None:
         return None
     u, v, values, material = data["u"], data["v"], data["values"], data["material"]
     su = max(1, int(np.ceil(len(u) / MAX_SIDE)))
@@ -42,13 +49,54 @@ def process_heat_map_figure(figures: dict, surface):
     u, v, values, material = u[::su], v[::sv], values[::sv, ::su], material[::sv, ::su]
     U, V = np.meshgrid(u, v)
     P = np.round(surface.point_mm(U, V), 1)
-    shown = np.where(material, values, np.nan)
-    shown = np.vectorize(lambda x: float(f"{x:.4g}") if np.isfinite(x) else np.nan)(shown)
+    shown = _rounded(np.where(material, values, np.nan))
     units = str(data["units"])
-    fig = go.Figure(go.Surface(x=np.where(material, P[..., 0], np.nan), y=np.where(material, P[..., 1], np.nan),
-                               z=np.where(material, P[..., 2], np.nan), surfacecolor=shown,
-                               colorscale="Viridis", colorbar={"title": f"{data['quantity']} [{units}]"},
-                               hovertemplate=f"%{{surfacecolor:.4g}} {units}<extra></extra>"))
+    return go.Surface(x=np.where(material, P[..., 0], np.nan), y=np.where(material, P[..., 1], np.nan),
+                      z=np.where(material, P[..., 2], np.nan), surfacecolor=shown,
+                      colorscale="Viridis", colorbar={"title": f"{data['quantity']} [{units}]"},
+                      hovertemplate=f"%{{surfacecolor:.4g}} {units}<extra></extra>")
+
+
+def _mesh_trace(data: dict, surface):
+    """A plotly mesh3d of a free-form face's map: its own vertices, a colour per vertex (the surface not needed)."""
+    import plotly.graph_objects as go
+
+    from ..part.freeform_grid import triangles
+
+    nx, ny = len(data["chart_x"]), len(data["chart_y"])
+    sx, sy = max(1, int(np.ceil(nx / MAX_SIDE))), max(1, int(np.ceil(ny / MAX_SIDE)))
+    keep = np.arange(nx * ny).reshape(ny, nx)[::sy, ::sx]
+    P = np.round(data["vertices_mm"][keep.ravel()], 1)
+    material = data["material"][keep.ravel()]
+    F = triangles(keep.shape[1], keep.shape[0])
+    F = F[material[F].all(axis=1)]
+    used = np.unique(F)
+    new_index = np.full(len(P), -1)
+    new_index[used] = np.arange(len(used))
+    F = new_index[F]
+    units = str(data["units"])
+    return go.Mesh3d(x=P[used, 0], y=P[used, 1], z=P[used, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2],
+                     intensity=_rounded(data["values"][keep.ravel()][used]), intensitymode="vertex",
+                     colorscale="Viridis", colorbar={"title": f"{data['quantity']} [{units}]"},
+                     hovertemplate=f"%{{intensity:.4g}} {units}<extra></extra>")
+
+
+TRACES = {"grid": _grid_trace, "mesh": _mesh_trace}   # by process_map.npz's layout
+
+
+def process_heat_map_figure(figures: dict, surface):
+    """A plotly figure of the map on the 3-D surface, or None when the map's file (or a grid map's surface) is
+    missing."""
+    import plotly.graph_objects as go
+
+    data = _load(figures.get("file", "")) if figures else None
+    if data is None:
+        return None
+    layout = str(data["layout"]) if "layout" in data else "grid"
+    trace = TRACES[layout](data, surface) if layout in TRACES else None
+    if trace is None:
+        return None
+    fig = go.Figure(trace)
     fig.update_layout(scene={"aspectmode": "data", "xaxis_title": "x [mm]", "yaxis_title": "y [mm]",
                              "zaxis_title": "z [mm]"}, height=600, margin={"l": 0, "r": 0, "t": 30, "b": 0})
     return fig

@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from .figures import map_figures, plot_map_png, save_map_npz
-from .integrate import trajectory_map
+from .maps import trajectory_surface_map
 
 MAP_FILE = "process_map.npz"
 PNG_FILE = "plots/process_map.png"
@@ -30,7 +30,7 @@ def process_outputs(job, settings, trajectory, robot, surface, outdir, extra: di
         return None, []
     start, cpu = time.perf_counter(), time.process_time()
     grid = None if dwell is None else dwell.before.grid
-    pmap = trajectory_map(process, surface, trajectory, robot, settings.check.dt_s, grid=grid)
+    pmap = trajectory_surface_map(process, surface, trajectory, robot, settings.check.dt_s, sites=grid)
     figures = map_figures(pmap, process.uniformity_band)
     outdir = Path(outdir)
     files = [save_map_npz(pmap, outdir / MAP_FILE),

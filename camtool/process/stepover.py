@@ -15,12 +15,13 @@ worked area within ``uniformity_band_pct`` of the mean) is taken:
    surface is evaluated until one meets the target.
 
 The record says what limits the choice: ``ripple`` (the first candidate met the
-target, the rows' overlap decides), ``curvature`` (on a sphere, the first
+target, the rows' overlap decides), ``curvature`` (on a sphere or a free-form face, the first
 candidate already fails away from the edges: the rows' spacing and the
 footprint change over the patch) or ``edges`` (the roll-off at the material's
 edges needed a smaller step-over than the ripple alone); when no candidate
 met the target, the best one is taken and a note gives its share. On a
-sphere patch the surface's curvature is part of the predicted map. Reach is not part of the choice: the chosen raster is planned like any other.
+sphere patch and on a free-form face (whose map lies on its own mesh, ``mesh_map``)
+the surface's curvature is part of the predicted map. Reach is not part of the choice: the chosen raster is planned like any other.
 """
 from __future__ import annotations
 
@@ -33,11 +34,12 @@ from ..settings import ProcessSettings, RasterSettings
 from ..path.toolpath import SURFACE_CODES
 from .figures import edge_distance_mm, map_figures
 from .footprint import Footprint
-from .integrate import process_map
+from .maps import track_map
 
 STEP_FRACTION = 0.06   # each further candidate is this share of the ripple bound smaller
 MIN_FRACTION = 0.05    # the smallest candidate, as a share of the footprint's diameter
 MAX_CANDIDATES = 12    # full-map evaluations at most
+CURVED_MODELS = ("sphere", "freeform")  # surfaces whose curvature the predicted map holds
 
 
 def ripple_share(fp: Footprint, step_mm: float, band: float, samples: int = 400) -> float:
@@ -92,7 +94,7 @@ def predicted_map(surface, raster: RasterSettings, process: ProcessSettings, fee
 
     path = raster_path(surface, raster)
     t, tcp = _track(path, feed_mm_s, 0.5 * process.grid_mm, 10.0 * process.contact_tol_mm + 1.0)
-    return path, process_map(process, surface, t, tcp)
+    return path, track_map(process, surface, t, tcp)
 
 
 def _interior_share(pmap, fp: Footprint, band: float, kind: str) -> float:
@@ -151,7 +153,7 @@ def choose_step_over(surface, raster: RasterSettings, process: ProcessSettings, 
     if met and chosen.step_over_mm == first["step_over_mm"]:
         limit = "ripple"
     elif first["interior_share_within_band"] < target:
-        limit = "curvature" if surface.model == "sphere" else "ripple"  # away from the edges it already fails
+        limit = "curvature" if surface.model in CURVED_MODELS else "ripple"  # away from the edges it already fails
     else:
         limit = "edges"
     record = {"step_over_mm": chosen.step_over_mm, "predicted_share_within_band": share, "target": target,

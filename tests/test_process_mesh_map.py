@@ -1,0 +1,195 @@
+"""camtool.process.mesh_map: the process map on a free-form face's own mesh.
+
+A flat mesh gives the analytic plane's figures; on a curved CAD mesh (a saddle) the map equals direct sums of
+the footprint over a dense sampling of the true surface (written here, independent of the module); the vertex
+areas are on the surface, not on the projection; ``step_over_mm = "auto"`` meets its target on a free-form face."""
+import math
+
+import numpy as np
+import pytest
+
+from camtool.part.fit import fit_surface
+from camtool.part.surface import Boundary, PlaneSurface
+from camtool.path.raster import raster_path
+from camtool.process.figures import map_figures, plot_map_png, save_map_npz
+from camtool.process.grid import MapGrid
+from camtool.process.html import process_heat_map_figure
+from camtool.process.integrate import contacts_from_tcp, process_map
+from camtool.process.maps import surface_map, track_map
+from camtool.process.mesh_map import MeshMap
+from camtool.process.stepover import _track, choose_step_over, predicted_map
+from camtool.settings import ProcessSettings, RasterSettings
+from tests.test_freeform import FIT, grid_mesh, mesh_workpiece
+
+POLISH = ProcessSettings.make(kind="polish", profile="parabolic", diameter_mm=30, grid_mm=2.0)
+TILT = math.radians(30.0)
+
+
+def tilted(P):
+    """Points turned by TILT about world x."""
+    c, s = math.cos(TILT), math.sin(TILT)
+    return P @ np.array([[1, 0, 0], [0, c, s], [0, -s, c]], float)
+
+
+@pytest.fixture(scope="module")
+def flat_pair():
+    """(the analytic plane, the same plane as a free-form face from its mesh), 300 x 200 mm, tilted 30 deg."""
+    V, F = grid_mesh(np.linspace(-150, 150, 31), np.linspace(-100, 100, 21), lambda X, Y: 0 * X)
+    wp, _ = mesh_workpiece(tilted(V), F)
+    free = fit_surface(wp, FIT)
+    ex, ey = tilted(np.eye(3))[0], tilted(np.eye(3))[1]
+    b = Boundary(np.array([[-150, -100], [150, -100], [150, 100], [-150, 100]], float))
+    plane = PlaneSurface(np.zeros(3), np.cross(ex, ey), ex, ey, b)
+    return plane, free
+
+
+def saddle(X, Y):
+    return (X ** 2 - Y ** 2) / 400.0
+
+
+@pytest.fixture(scope="module")
+def saddle_face():
+    V, F = grid_mesh(np.linspace(-120, 120, 97), np.linspace(-90, 90, 73), saddle)
+    wp, _ = mesh_workpiece(V, F)
+    return fit_surface(wp, FIT)
+
+
+def plane_track(plane, step_mm=10.0):
+    path = raster_path(plane, RasterSettings.make(step_over_mm=step_mm, pitch_mm=5, lead_mm=20))
+    return _track(path, 100.0, 1.0, 11.0)
+
+
+def test_a_flat_mesh_gives_the_analytic_planes_figures(flat_pair):
+    plane, free = flat_pair
+    t, tcp = plane_track(plane)
+    grid_map, mesh_map = track_map(POLISH, plane, t, tcp), track_map(POLISH, free, t, tcp)
+    assert isinstance(mesh_map.grid, MeshMap) and mesh_map.method == "mesh-direct"
+    assert grid_map.method == "convolution"
+    a, b = map_figures(grid_map), map_figures(mesh_map)
+    # the face's material is its 1 mm nodes' (camtool.part.freeform): its edge may lie half a node off the plate's
+    assert b["worked_area_mm2"] == pytest.approx(a["worked_area_mm2"], rel=0.01)
+    assert b["mean"] == pytest.approx(a["mean"], rel=0.002)
+    for key in ("uniformity_within_5pct", "uniformity_within_10pct", "uncovered_share"):
+        assert b[key] == pytest.approx(a[key], abs=0.015), key
+    assert b["rms_pct"] == pytest.approx(a["rms_pct"], abs=0.2)
+    assert b["edge_rolloff_width_mm"] == pytest.approx(a["edge_rolloff_width_mm"], abs=POLISH.grid_mm)
+    # at the same sites the mesh map is the plane's direct sums (process.integrate, method "direct")
+    m = mesh_map.grid
+    uv = plane.uv_from_points(m.points_mm()).reshape(len(m.ys), len(m.xs), 2)
+    us, vs = uv[0, :, 0], uv[:, 0, 1]
+    U, V = np.meshgrid(us, vs)
+    on_plane = plane.boundary.contains(np.column_stack([U.ravel(), V.ravel()]))
+    same_sites = MapGrid(plane, us, vs, POLISH.grid_mm, on_plane.reshape(U.shape), np.full(U.shape, 4.0))
+    direct = process_map(POLISH, plane, t, tcp, method="direct", grid=same_sites).values.ravel()
+    both = m.material & on_plane
+    assert np.abs(mesh_map.values[both] - direct[both]).max() < 1e-4 * direct.max()
+    # every contact puts exactly its amount on the surface
+    c = contacts_from_tcp(POLISH, free, t, tcp, spacing_mm=0.5 * m.spacing_mm)
+    assert np.sum(mesh_map.values * m.area_mm2) == pytest.approx(c.amount.sum(), rel=1e-9)
+
+
+def test_vertex_areas_are_on_the_surface_not_the_projection(saddle_face):
+    m = surface_map(POLISH, saddle_face)
+    P = m.points_mm()
+    inner = m.material & (m.edge_distance_mm() > 5.0)
+    slope = np.hypot(2 * P[inner, 0] / 400.0, -2 * P[inner, 1] / 400.0)
+    on_surface = np.sqrt(1.0 + slope ** 2) * m.spacing_mm ** 2   # the area element of z = (x^2 - y^2) / 400
+    assert np.percentile(np.abs(m.area_mm2[inner] / on_surface - 1.0), 99) < 0.005
+    assert np.max(on_surface / m.spacing_mm ** 2) > 1.1        # the projection would be 10 % short there
+    assert np.abs(P[m.material, 2] - saddle(P[m.material, 0], P[m.material, 1])).max() < 0.05
+
+
+def dense_reference(points, contacts, normals, weights, fp_radius, shape, step=0.5):
+    """Per point: sum over contacts of weight * footprint(tangent distance) / (the footprint summed over a dense
+    sampling of the true saddle round the contact, each sample with its exact area element)."""
+    r = np.arange(-1.3 * fp_radius, 1.3 * fp_radius + step, step)
+    out = np.zeros(len(points))
+    for c, n, w in zip(contacts, normals, weights):
+        X, Y = np.meshgrid(c[0] + r, c[1] + r)
+        Q = np.stack([X, Y, saddle(X, Y)], -1).reshape(-1, 3)
+        dA = step * step * np.sqrt(1 + (X / 200.0) ** 2 + (Y / 200.0) ** 2).ravel()
+        dq = Q - c
+        dq -= np.outer(dq @ n, n)
+        norm = np.sum(shape(np.linalg.norm(dq, axis=1)) * dA)
+        dp = points - c
+        dp -= np.outer(dp @ n, n)
+        out += w * shape(np.linalg.norm(dp, axis=1)) / norm
+    return out
+
+
+def test_a_curved_mesh_matches_direct_sums_over_the_true_surface(saddle_face):
+    # three passes across the saddle, along x at y = -10, 0, 10, on the true surface, lifted between them
+    rows = []
+    for k, y0 in enumerate((-10.0, 0.0, 10.0)):
+        x = np.arange(-80.0, 80.0 + 1e-9, 0.5) * (1 if k % 2 == 0 else -1)
+        rows.append(np.column_stack([x, np.full_like(x, y0), saddle(x, y0)]))
+        rows.append(rows[-1][-1:] + [0, 0, 20.0])
+    tcp = np.vstack(rows)
+    t = np.arange(len(tcp)) * 0.005    # 100 mm/s
+    pm = track_map(POLISH, saddle_face, t, tcp)
+    m = pm.grid
+    # the reference: one contact per 0.5 mm interval, at its midpoint, the true normal, k_p F travel
+    per_mm = POLISH.preston_coefficient_per_pa * POLISH.force_n * 1e-3 * 1e12   # um * mm^2 per mm of travel
+    mids, weights = [], []
+    for row in rows[0::2]:
+        mids.append(0.5 * (row[1:] + row[:-1]))
+        weights.append(per_mm * np.linalg.norm(np.diff(row, axis=0), axis=1))
+    mids, weights = np.vstack(mids), np.concatenate(weights)
+    normals = np.column_stack([-mids[:, 0] / 200.0, mids[:, 1] / 200.0, np.ones(len(mids))])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    P = m.points_mm()
+    near = m.material & (np.abs(P[:, 1]) < 30) & (np.abs(P[:, 0]) < 100)
+    from camtool.process.footprint import Footprint
+
+    fp = Footprint.from_settings(POLISH)
+    ref = dense_reference(P[near], mids, normals, weights, fp.radius_mm, fp.shape)
+    got = pm.values[near]
+    # the passes' middle (away from their ends): the map within 0.5 % of the reference's peak everywhere
+    mid = np.abs(P[near, 0]) < 60
+    assert np.abs(got[mid] - ref[mid]).max() < 0.005 * ref.max()
+    assert np.sum(got * m.area_mm2[near]) == pytest.approx(np.sum(ref * m.area_mm2[near]), rel=0.01)
+    # the map's total is what the passes did
+    assert np.sum(pm.values * m.area_mm2) == pytest.approx(weights.sum(), rel=0.01)
+
+
+def test_inspect_counts_the_passes_on_the_mesh(saddle_face):
+    s = ProcessSettings.make(kind="inspect", diameter_mm=30, grid_mm=2.0)
+    x = np.arange(-80.0, 80.0, 0.5)
+    a = np.column_stack([x, np.zeros_like(x), saddle(x, 0.0)])
+    b = np.column_stack([x[::-1], np.full_like(x, 10.0), saddle(x[::-1], 10.0)])
+    tcp = np.vstack([a, a[-1:] + [0, 0, 30.0], b])
+    pm = track_map(s, saddle_face, np.arange(len(tcp)) * 0.005, tcp)
+    P = pm.grid.points_mm()
+    at = lambda p: pm.values[np.argmin(np.linalg.norm(P - p, axis=1))]   # noqa: E731
+    assert at([0, 5.0, saddle(0, 5.0)]) == 2 and at([0, -12.0, saddle(0, -12.0)]) == 1
+    assert at([0, 40.0, saddle(0, 40.0)]) == 0
+
+
+def test_files_and_the_3d_view_of_a_mesh_map(saddle_face, tmp_path):
+    x = np.arange(-80.0, 80.0, 0.5)
+    tcp = np.column_stack([x, np.zeros_like(x), saddle(x, 0.0)])
+    pm = track_map(POLISH, saddle_face, np.arange(len(tcp)) * 0.005, tcp)
+    fig = map_figures(pm)
+    npz = save_map_npz(pm, tmp_path / "process_map.npz")
+    assert save_map_npz(pm, tmp_path / "again.npz").read_bytes() == npz.read_bytes()
+    d = np.load(npz)
+    assert str(d["layout"]) == "mesh" and d["values"].shape == (len(d["vertices_mm"]),)
+    assert d["faces"].max() < len(d["vertices_mm"])
+    assert plot_map_png(pm, fig, tmp_path / "plots" / "process_map.png").stat().st_size > 1000
+    trace = process_heat_map_figure({**fig, "file": str(npz)}, None).data[0]
+    assert trace.type == "mesh3d"
+    shown = np.asarray(trace.intensity, float)
+    assert len(shown) == len(trace.x) and np.nanmax(shown) == pytest.approx(pm.values.max(), rel=1e-3)
+    assert len(trace.x) <= int(pm.grid.material.sum())   # the material's vertices only
+
+
+def test_auto_step_over_meets_its_target_on_a_free_form_face():
+    V, F = grid_mesh(np.linspace(-150, 150, 61), np.linspace(-105, 105, 43), lambda X, Y: (X ** 2 - Y ** 2) / 1000.0)
+    face = fit_surface(mesh_workpiece(V, F)[0], FIT)
+    raster = RasterSettings.make(step_over_mm="auto", pitch_mm=10, lead_mm=20)
+    chosen, record = choose_step_over(face, raster, POLISH, 100.0)
+    assert record["surface"] == "freeform" and record["met"] and chosen.step_over_mm == record["step_over_mm"]
+    assert record["predicted_share_within_band"] >= POLISH.uniformity_target
+    path, pmap = predicted_map(face, chosen, POLISH, 100.0)
+    assert isinstance(pmap.grid, MeshMap) and len(path) > 0
+    assert map_figures(pmap, POLISH.uniformity_band)["uniformity_within_band"] >= POLISH.uniformity_target
