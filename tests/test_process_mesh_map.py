@@ -193,3 +193,4 @@ def test_auto_step_over_meets_its_target_on_a_free_form_face():
     path, pmap = predicted_map(face, chosen, POLISH, 100.0)
     assert isinstance(pmap.grid, MeshMap) and len(path) > 0
     assert map_figures(pmap, POLISH.uniformity_band)["uniformity_within_band"] >= POLISH.uniformity_target
+

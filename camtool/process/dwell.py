@@ -35,7 +35,8 @@ from ..settings import ProcessSettings
 from ..path.toolpath import SURFACE_CODES, WORK
 from .figures import edge_distance_mm
 from .footprint import Footprint
-from .grid import MapGrid, grid_shape, map_grid
+from .grid import MapGrid, map_grid
+from .maps import check_map_size
 from .integrate import ProcessMap, _bin_bilinear, _fftconvolve, amounts
 
 
@@ -121,8 +122,9 @@ def check_target_inputs(job, process: ProcessSettings | None, surface) -> None:
     the surface, a removal that follows dwell)."""
     if process is None or not process.enabled:
         return
-    # the map's size, counted before any planning (a grid_mm of 0.001 is one line now, not after the plan)
-    grid_shape(surface, process.grid_mm, 0.5 * process.diameter_mm + 2 * process.grid_mm)
+    # the map's size, counted before any planning (a grid_mm of 0.001 is one line now, not after the plan); each
+    # face's of several, a free-form face's mesh
+    check_map_size(process, surface)
     if not process.target_removal_file:
         return
     _check_model(surface, process)

@@ -3,7 +3,8 @@
 The file's ``layout`` (``surface_map.SurfaceMap``) says how it is drawn: a grid
 (``"grid"``, and files without a layout) as a plotly surface over the analytic
 surface's (u, v), a free-form face's mesh (``"mesh"``) as a plotly mesh3d of its
-own vertices with a colour per vertex. Either is decimated to at most
+own vertices with a colour per vertex; several faces in one program (``"faces"``)
+as each face's own map, from its own file, on one colour scale. Each is decimated to at most
 ``MAX_SIDE`` sites a side for display and rounded (0.1 mm, 4 significant
 digits), so the page stays small and the same map gives the same bytes; sites
 off material are left out (NaN cells, or the triangles not wholly on material).
@@ -37,12 +38,12 @@ def _rounded(values: np.ndarray) -> np.ndarray:
     return np.vectorize(lambda x: float(f"{x:.4g}") if np.isfinite(x) else np.nan, otypes=[float])(values)
 
 
-def _grid_trace(data: dict, surface):
-    """A plotly surface of a grid map over ``surface``'s (u, v), or None without the surface."""
+def _grid_trace(data: dict, surface, folder: Path):
+    """[A plotly surface of a grid map over ``surface``'s (u, v)], or [] without the surface."""
     import plotly.graph_objects as go
 
     if surface is None:
-        return None
+        return []
     u, v, values, material = data["u"], data["v"], data["values"], data["material"]
     su = max(1, int(np.ceil(len(u) / MAX_SIDE)))
     sv = max(1, int(np.ceil(len(v) / MAX_SIDE)))
@@ -51,14 +52,14 @@ def _grid_trace(data: dict, surface):
     P = np.round(surface.point_mm(U, V), 1)
     shown = _rounded(np.where(material, values, np.nan))
     units = str(data["units"])
-    return go.Surface(x=np.where(material, P[..., 0], np.nan), y=np.where(material, P[..., 1], np.nan),
-                      z=np.where(material, P[..., 2], np.nan), surfacecolor=shown,
-                      colorscale="Viridis", colorbar={"title": f"{data['quantity']} [{units}]"},
-                      hovertemplate=f"%{{surfacecolor:.4g}} {units}<extra></extra>")
+    return [go.Surface(x=np.where(material, P[..., 0], np.nan), y=np.where(material, P[..., 1], np.nan),
+                       z=np.where(material, P[..., 2], np.nan), surfacecolor=shown,
+                       colorscale="Viridis", colorbar={"title": f"{data['quantity']} [{units}]"},
+                       hovertemplate=f"%{{surfacecolor:.4g}} {units}<extra></extra>")]
 
 
-def _mesh_trace(data: dict, surface):
-    """A plotly mesh3d of a free-form face's map: its own vertices, a colour per vertex (the surface not needed)."""
+def _mesh_trace(data: dict, surface, folder: Path):
+    """[A plotly mesh3d of a free-form face's map]: its own vertices, a colour per vertex (no surface needed)."""
     import plotly.graph_objects as go
 
     from ..part.freeform_grid import triangles
@@ -75,13 +76,33 @@ def _mesh_trace(data: dict, surface):
     new_index[used] = np.arange(len(used))
     F = new_index[F]
     units = str(data["units"])
-    return go.Mesh3d(x=P[used, 0], y=P[used, 1], z=P[used, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2],
-                     intensity=_rounded(data["values"][keep.ravel()][used]), intensitymode="vertex",
-                     colorscale="Viridis", colorbar={"title": f"{data['quantity']} [{units}]"},
-                     hovertemplate=f"%{{intensity:.4g}} {units}<extra></extra>")
+    return [go.Mesh3d(x=P[used, 0], y=P[used, 1], z=P[used, 2], i=F[:, 0], j=F[:, 1], k=F[:, 2],
+                      intensity=_rounded(data["values"][keep.ravel()][used]), intensitymode="vertex",
+                      colorscale="Viridis", colorbar={"title": f"{data['quantity']} [{units}]"},
+                      hovertemplate=f"%{{intensity:.4g}} {units}<extra></extra>")]
 
 
-TRACES = {"grid": _grid_trace, "mesh": _mesh_trace}   # by process_map.npz's layout
+def _faces_traces(data: dict, surface, folder: Path):
+    """Each face's map (of several in one program) from its own file, on the colour scale of all of them."""
+    faces = dict(zip(getattr(surface, "indices", ()), getattr(surface, "surfaces", ())))
+    traces = []
+    for index, name in zip(data["face_indices"], data["face_files"]):
+        face = _load(folder / str(name))
+        if face is not None and ("layout" not in face or str(face["layout"]) != "faces"):  # one level, no loop
+            traces += _traces(face, faces.get(int(index)), folder)
+    shown = data["values"][data["material"]]
+    lo, hi = (float(f"{shown.min():.4g}"), float(f"{shown.max():.4g}")) if len(shown) else (0.0, 1.0)
+    for k, trace in enumerate(traces):
+        trace.update(cmin=lo, cmax=hi, showscale=k == 0)
+    return traces
+
+
+TRACES = {"grid": _grid_trace, "mesh": _mesh_trace, "faces": _faces_traces}   # by process_map.npz's layout
+
+
+def _traces(data: dict, surface, folder: Path) -> list:
+    layout = str(data["layout"]) if "layout" in data else "grid"
+    return TRACES[layout](data, surface, folder) if layout in TRACES else []
 
 
 def process_heat_map_figure(figures: dict, surface):
@@ -89,14 +110,12 @@ def process_heat_map_figure(figures: dict, surface):
     missing."""
     import plotly.graph_objects as go
 
-    data = _load(figures.get("file", "")) if figures else None
-    if data is None:
+    file = Path(figures.get("file", "")) if figures else None
+    data = None if file is None else _load(file)
+    traces = [] if data is None else _traces(data, surface, file.parent)
+    if not traces:
         return None
-    layout = str(data["layout"]) if "layout" in data else "grid"
-    trace = TRACES[layout](data, surface) if layout in TRACES else None
-    if trace is None:
-        return None
-    fig = go.Figure(trace)
+    fig = go.Figure(traces)
     fig.update_layout(scene={"aspectmode": "data", "xaxis_title": "x [mm]", "yaxis_title": "y [mm]",
                              "zaxis_title": "z [mm]"}, height=600, margin={"l": 0, "r": 0, "t": 30, "b": 0})
     return fig

@@ -113,9 +113,9 @@ def _chart_spacing_mm(surface, cell_mm: float) -> float:
     return cell_mm * min(1.0, max(steep, MIN_SLOPE_COS))
 
 
-def mesh_map(surface, cell_mm: float, pad_mm: float) -> MeshMap:
-    """The mesh of the free-form face ``surface`` for a map at ``cell_mm`` (see the module doc); BadInput when it
-    would have more than ``grid.MAX_CELLS`` vertices."""
+def lattice_axes(surface, cell_mm: float, pad_mm: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """(xs, ys, spacing_mm): the chart lattice of the free-form face ``surface`` for a map at ``cell_mm``, counted
+    before anything is allocated: BadInput past ``grid.MAX_CELLS`` vertices (checked before any planning)."""
     g = surface.grid
     s = _chart_spacing_mm(surface, cell_mm)
     xy = g.node_xy()[surface.material]
@@ -127,6 +127,14 @@ def mesh_map(surface, cell_mm: float, pad_mm: float) -> MeshMap:
     centre = 0.5 * (lo + hi)
     xs = centre[0] + (np.arange(n[0]) - 0.5 * (n[0] - 1)) * s
     ys = centre[1] + (np.arange(n[1]) - 0.5 * (n[1] - 1)) * s
+    return xs, ys, s
+
+
+def mesh_map(surface, cell_mm: float, pad_mm: float) -> MeshMap:
+    """The mesh of the free-form face ``surface`` for a map at ``cell_mm`` (see the module doc); BadInput when it
+    would have more than ``grid.MAX_CELLS`` vertices."""
+    g = surface.grid
+    xs, ys, s = lattice_axes(surface, cell_mm, pad_mm)
     X, Y = np.meshgrid(xs, ys)
     H = g.interp(surface.height, X, Y)          # extrapolated linearly past the face's grid: the surface continued
     e1, e2, e3 = surface.frame[:, 0], surface.frame[:, 1], surface.frame[:, 2]

@@ -13,7 +13,9 @@ interface, so none of them asks which kind a map is:
 - ``points_mm()``: the sites on the surface (world mm, the values' shape + (3,));
 - ``npz_arrays()``: the map's geometry as ``process_map.npz`` stores it, with ``layout`` naming the kind
   (``camtool.process.html`` draws a stored map by its layout);
-- ``draw(ax, values)``: the map on a matplotlib axis (the PNG).
+- ``draw(ax, values)``: the map on a matplotlib axis (the PNG);
+- ``per_face()``: the maps of the faces a map of several faces holds (``map_set.MapSet``), each with its own
+  files; none for one surface's map.
 """
 from __future__ import annotations
 
@@ -47,6 +49,10 @@ class SurfaceMap(ABC):
     @abstractmethod
     def draw(self, ax, values: np.ndarray):
         """Draw ``values`` over the material on the matplotlib axis ``ax``; returns the colour mappable."""
+
+    def per_face(self) -> tuple:
+        """((face index, ``integrate.ProcessMap``), ...) of the faces this map holds; () for one surface's map."""
+        return ()
 
     def uv_unit(self) -> str:
         return getattr(self.surface, "uv_unit", "mm")

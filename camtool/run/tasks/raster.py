@@ -321,7 +321,7 @@ def _run(r: RasterRun, helpers: _Helpers) -> RunResult:
     programs, simulated, html_figures = _posted(r, made, along, planned)
     report = _run_report(r, made, planned, simulated)
     process, process_files = process_outputs(r.job, r.settings, planned.trajectory, r.robot,
-                                             None if made.several else made.surface, r.outdir, dwell=planned.dwell,
+                                             made.surface, r.outdir, dwell=planned.dwell,
                                              extra=None if made.step_choice is None
                                              else {"step_over_auto": made.step_choice})
     if process is not None:
