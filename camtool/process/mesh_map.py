@@ -154,16 +154,18 @@ def lattice_pad_mm(settings: ProcessSettings) -> float:
     return 2.0 * REACH * 0.5 * settings.diameter_mm + 2.0 * settings.grid_mm
 
 
-def _pairs(mesh: MeshMap, tree, fp: Footprint, points_mm, normals):
-    """(contact, vertex, footprint shape) of the vertices within reach of each contact (tangent-plane distance)."""
+def _pairs(tree, coords, fp: Footprint, points_mm, normals):
+    """(contact, vertex, footprint shape) of the vertices within reach of each contact: the footprint at the
+    vertex's distance in the contact's tangent plane, ``sqrt(chord^2 - (chord . n)^2)`` (``coords``: the
+    vertices' x, y, z as three contiguous arrays; gathering those is faster than (N, 3) rows)."""
     from scipy.spatial import cKDTree
 
     pairs = cKDTree(points_mm).sparse_distance_matrix(tree, REACH * fp.radius_mm, output_type="ndarray")
-    ci, vj = pairs["i"], pairs["j"]
-    d = mesh.vertices_mm[vj] - points_mm[ci]
-    n = normals[ci]
-    d = d - np.sum(d * n, axis=1, keepdims=True) * n
-    return ci, vj, fp.shape(np.linalg.norm(d, axis=1))
+    ci, vj, chord = (np.ascontiguousarray(pairs[k]) for k in ("i", "j", "v"))
+    along = -np.einsum("ij,ij->i", points_mm, normals)[ci]            # (vertex - contact) . n
+    for k in range(3):
+        along += coords[k][vj] * np.ascontiguousarray(normals[:, k])[ci]
+    return ci, vj, fp.shape(np.sqrt(np.maximum(chord * chord - along * along, 0.0)))
 
 
 def mesh_values(settings: ProcessSettings, mesh: MeshMap, c: Contacts) -> np.ndarray:
@@ -172,11 +174,12 @@ def mesh_values(settings: ProcessSettings, mesh: MeshMap, c: Contacts) -> np.nda
 
     fp = Footprint.from_settings(settings)
     tree = cKDTree(mesh.vertices_mm)
+    coords = tuple(np.ascontiguousarray(mesh.vertices_mm[:, k]) for k in range(3))
     N = len(mesh.vertices_mm)
     acc, hits = np.zeros(N), []
     for s in range(0, len(c.amount), CHUNK):
         e = slice(s, s + CHUNK)
-        ci, vj, w = _pairs(mesh, tree, fp, c.point_mm[e], c.normal[e])
+        ci, vj, w = _pairs(tree, coords, fp, c.point_mm[e], c.normal[e])
         if settings.kind == "inspect":
             on = w > 0
             hits.append(np.unique(c.run[e][ci[on]].astype(np.int64) * N + vj[on]))
