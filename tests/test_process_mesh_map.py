@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from camtool.part.fit import fit_surface
-from camtool.part.surface import Boundary, PlaneSurface
+from camtool.part.surface import Boundary, Cylinder, PlaneSurface
 from camtool.path.raster import raster_path
 from camtool.process.figures import map_figures, plot_map_png, save_map_npz
+from camtool.process.footprint import Footprint
 from camtool.process.grid import MapGrid
 from camtool.process.html import process_heat_map_figure
 from camtool.process.integrate import contacts_from_tcp, process_map
@@ -139,8 +140,6 @@ def test_a_curved_mesh_matches_direct_sums_over_the_true_surface(saddle_face):
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     P = m.points_mm()
     near = m.material & (np.abs(P[:, 1]) < 30) & (np.abs(P[:, 0]) < 100)
-    from camtool.process.footprint import Footprint
-
     fp = Footprint.from_settings(POLISH)
     ref = dense_reference(P[near], mids, normals, weights, fp.radius_mm, fp.shape)
     got = pm.values[near]
@@ -194,3 +193,31 @@ def test_auto_step_over_meets_its_target_on_a_free_form_face():
     assert isinstance(pmap.grid, MeshMap) and len(path) > 0
     assert map_figures(pmap, POLISH.uniformity_band)["uniformity_within_band"] >= POLISH.uniformity_target
 
+
+
+def test_a_cylinder_gets_its_own_mesh_and_matches_the_closed_form():
+    """A pass along a cylinder's axis (R 40 mm, footprint 30 mm): the map at arc offset s is
+    ``A pass_profile(R sin(s / R)) / integral pass_profile(R sin(sigma / R)) d sigma`` (the footprint in the
+    contact's tangent plane, the cylinder's exact area element); a 1-D quadrature, independent of the module."""
+    R = 40.0
+    cyl = Cylinder(np.zeros(3), R, np.eye(3), Boundary(np.array([[-1.2, -100], [1.2, -100], [1.2, 100], [-1.2, 100]])))
+    v = np.arange(-150.0, 150.0 + 1e-9, 0.5)
+    tcp = cyl.point_mm(np.zeros_like(v), v)
+    pm = track_map(POLISH, cyl, np.arange(len(v)) * 0.005, tcp)
+    m = pm.grid
+    assert isinstance(m, MeshMap) and pm.method == "mesh-direct"
+    P = m.points_mm()
+    # the vertex areas are the cylinder's: R du dv
+    inner = m.material & (m.edge_distance_mm() > 3.0)
+    assert np.allclose(m.area_mm2[inner], POLISH.grid_mm ** 2, rtol=1e-3)
+    fp = Footprint.from_settings(POLISH)
+    sigma = np.linspace(-R * math.asin(min(1.0, fp.radius_mm / R)), R * math.asin(min(1.0, fp.radius_mm / R)), 20001)
+    Z = np.trapezoid(fp.pass_profile(R * np.sin(sigma / R)), sigma)
+    per_mm = POLISH.preston_coefficient_per_pa * POLISH.force_n * 1e-3 * 1e12
+    mid = m.material & (np.abs(P[:, 2]) < 50)
+    s = R * np.arctan2(P[mid, 1], P[mid, 0])
+    closed = per_mm * fp.pass_profile(R * np.sin(s / R)) / Z
+    assert np.abs(pm.values[mid] - closed).max() < 0.005 * closed.max()
+    # the tangent plane, not the arc: the arc's profile would be off by more than the tolerance at the sides
+    arc = per_mm * fp.pass_profile(s) / np.trapezoid(fp.pass_profile(sigma), sigma)
+    assert np.abs(arc - closed).max() > 0.01 * closed.max()

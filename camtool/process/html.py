@@ -2,10 +2,10 @@
 
 The file's ``layout`` (``surface_map.SurfaceMap``) says how it is drawn: a grid
 (``"grid"``, and files without a layout) as a plotly surface over the analytic
-surface's (u, v), a free-form face's mesh (``"mesh"``) as a plotly mesh3d of its
-own vertices with a colour per vertex; several faces in one program (``"faces"``)
-as each face's own map, from its own file, on one colour scale. Each is decimated to at most
-``MAX_SIDE`` sites a side for display and rounded (0.1 mm, 4 significant
+surface's (u, v); a map on a surface's own mesh (``"mesh"``: a free-form face, a
+cylinder) as a plotly mesh3d of its vertices with a colour per vertex; several
+faces in one program (``"faces"``) as each face's own map, from its own file, on
+one colour scale. Each is decimated to at most ``MAX_SIDE`` sites a side for display and rounded (0.1 mm, 4 significant
 digits), so the page stays small and the same map gives the same bytes; sites
 off material are left out (NaN cells, or the triangles not wholly on material).
 """
@@ -59,12 +59,12 @@ def _grid_trace(data: dict, surface, folder: Path):
 
 
 def _mesh_trace(data: dict, surface, folder: Path):
-    """[A plotly mesh3d of a free-form face's map]: its own vertices, a colour per vertex (no surface needed)."""
+    """[A plotly mesh3d of a map on a surface's own mesh]: its vertices, a colour per vertex (no surface needed)."""
     import plotly.graph_objects as go
 
     from ..part.freeform_grid import triangles
 
-    nx, ny = len(data["chart_x"]), len(data["chart_y"])
+    nx, ny = len(data["lattice_x"]), len(data["lattice_y"])
     sx, sy = max(1, int(np.ceil(nx / MAX_SIDE))), max(1, int(np.ceil(ny / MAX_SIDE)))
     keep = np.arange(nx * ny).reshape(ny, nx)[::sy, ::sx]
     P = np.round(data["vertices_mm"][keep.ravel()], 1)

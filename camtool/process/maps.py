@@ -1,7 +1,7 @@
 """Which map a surface gets, and the map of a TCP track or of a timed trajectory on it.
 
-An analytic surface (plane, sphere patch, cylinder) gets the (u, v) grid (``grid``,
-``integrate``); a free-form face gets its own mesh (``mesh_map``); several faces worked in
+A plane or a sphere patch gets the (u, v) grid (``grid``, ``integrate``); a free-form face
+and a cylinder get their own mesh (``mesh_map``); several faces worked in
 one program (a ``FaceSet``) get a map per face, together a ``map_set.MapSet``. Each is a
 ``surface_map.SurfaceMap``, and the maps made here are ``integrate.ProcessMap``\\ s the
 figures, files and report take alike. This is the one place that chooses.
@@ -13,16 +13,18 @@ import numpy as np
 from ..settings import ProcessSettings
 from .integrate import QUANTITY, ProcessMap, process_map, tcp_track
 from .map_set import MapSet
-from .mesh_map import lattice_axes, lattice_pad_mm, mesh_map, mesh_process_map
+from .mesh_map import (lattice_axes, lattice_pad_mm, mesh_map, mesh_process_map, parametric_axes,
+                       parametric_mesh_map)
 from .surface_map import SurfaceMap
 
-MESH_MODELS = frozenset({"freeform"})   # surfaces whose map lies on their own mesh
+# surfaces whose map lies on their own mesh: (its size check, its mesh), both (surface, cell_mm, pad_mm)
+MESHES = {"freeform": (lattice_axes, mesh_map), "cylinder": (parametric_axes, parametric_mesh_map)}
 SET_MODELS = frozenset({"faces"})       # several faces in one program (part.surface.FaceSet)
 
 
 def on_mesh(surface) -> bool:
-    """True when ``surface``'s map lies on its own mesh (a free-form face)."""
-    return getattr(surface, "model", None) in MESH_MODELS
+    """True when ``surface``'s map lies on its own mesh (a free-form face, a cylinder)."""
+    return getattr(surface, "model", None) in MESHES
 
 
 def _grid_pad_mm(settings: ProcessSettings) -> float:
@@ -40,7 +42,7 @@ def check_map_size(settings: ProcessSettings, surface) -> None:
 
     for face in faces_of(surface):
         if on_mesh(face):
-            lattice_axes(face, settings.grid_mm, lattice_pad_mm(settings))
+            MESHES[face.model][0](face, settings.grid_mm, lattice_pad_mm(settings))
         else:
             grid_shape(face, settings.grid_mm, _grid_pad_mm(settings))
 
@@ -50,7 +52,7 @@ def surface_map(settings: ProcessSettings, surface) -> SurfaceMap:
     from .grid import map_grid
 
     if on_mesh(surface):
-        return mesh_map(surface, settings.grid_mm, lattice_pad_mm(settings))
+        return MESHES[surface.model][1](surface, settings.grid_mm, lattice_pad_mm(settings))
     return map_grid(surface, settings.grid_mm, _grid_pad_mm(settings))
 
 
@@ -71,7 +73,8 @@ def track_map(settings: ProcessSettings, surface, t_s, tcp_mm, sites: SurfaceMap
     if getattr(surface, "model", None) in SET_MODELS:
         return _face_set_map(settings, surface, t_s, tcp_mm)
     if on_mesh(surface):
-        return mesh_process_map(settings, surface, t_s, tcp_mm, mesh=sites)
+        return mesh_process_map(settings, surface, t_s, tcp_mm, sites if sites is not None
+                                else surface_map(settings, surface))
     return process_map(settings, surface, t_s, tcp_mm, grid=sites)
 
 

@@ -1,8 +1,8 @@
-"""The process map on a free-form face's own mesh (issue #46): a value per vertex, areas on the surface.
+"""The process map on a surface's own mesh (issue #46): a value per vertex, areas on the surface.
 
 A free-form face (``camtool.part.freeform.FreeformSurface``) is a height field over its
 chart plane, exact on a CAD mesh's triangles and the smoothed surface of a scan. Its
-mesh for the map (``MeshMap``) is that height field on a lattice of the chart plane:
+mesh for the map (``MeshMap``, ``mesh_map``) is that height field on a lattice of the chart plane:
 
 - **vertices** ``spacing_mm`` apart on the chart: ``process.grid_mm`` times the cosine of the face's
   steep slopes (5th percentile, at least 0.5), so the vertices are about ``grid_mm`` apart on most of
@@ -10,10 +10,14 @@ mesh for the map (``MeshMap``) is that height field on a lattice of the chart pl
   footprint of every contact that reaches the material, on the surface continued), so no contact's
   normalisation is cut short by the lattice's edge;
 - **triangles** two per lattice cell, their diagonals alternating (``freeform_grid.triangles``);
-- **area_mm2**: each vertex's lattice cell on the surface, ``|dP/dx x dP/dy| s^2`` (central differences):
+- **area_mm2**: each vertex's lattice cell on the surface, ``|dP/dx x dP/dy| dx dy`` (central differences):
   the area element of the surface, not of its projection (a third of each vertex's triangles would weight
   the chequerboard's vertices of eight triangles twice those of four);
 - **material**: the vertices over the face's own nodes (holes and the margin are not worked).
+
+A cylinder's (u, v) grid would need cells of ``grid_mm / R`` rad (the grid map's are mm), so it gets the
+same kind of mesh (``parametric_mesh_map``): its (u, v) lattice ``grid_mm`` apart on the surface, the
+points, areas and boundary the cylinder's own.
 
 Each contact (``integrate.contacts_from_tcp``: the acting intervals of the TCP track) spreads
 its amount over the vertices within ``REACH`` footprint radii of it (a scipy KD-tree): the
@@ -26,6 +30,7 @@ distance to the nearest vertex off the material.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,8 +52,9 @@ MIN_SLOPE_COS = 0.5   # the chart spacing is at most halved for a steep face
 
 @dataclass(frozen=True)
 class MeshMap(SurfaceMap):
-    """A free-form face's mesh for the map: ``vertices_mm`` (N, 3) row-major over the chart lattice ``xs`` (nx,),
-    ``ys`` (ny,); ``faces`` (M, 3); ``material`` and ``area_mm2`` (N,)."""
+    """A surface's own mesh for the map: ``vertices_mm`` (N, 3) row-major over the lattice ``xs`` (nx,), ``ys``
+    (ny,) (a free-form face's chart mm; a cylinder's (u rad, v mm)); ``faces`` (M, 3); ``material`` and
+    ``area_mm2`` (N,)."""
 
     surface: object
     xs: np.ndarray
@@ -59,6 +65,8 @@ class MeshMap(SurfaceMap):
     area_mm2: np.ndarray
     cell_mm: float
     spacing_mm: float
+    labels: tuple[str, str] = ("chart x [mm]", "chart y [mm]")   # the lattice's axes as the PNG draws them
+    draw_scale: tuple[float, float] = (1.0, 1.0)                 # lattice units -> drawn units
 
     layout = "mesh"
 
@@ -83,27 +91,28 @@ class MeshMap(SurfaceMap):
         return out
 
     def npz_arrays(self) -> dict:
-        """vertices_mm, faces (int32), material, area_mm2, the chart lattice (chart_x, chart_y), cell_mm, layout."""
+        """vertices_mm, faces (int32), material, area_mm2, the lattice (lattice_x, lattice_y), cell_mm, layout."""
         return {"vertices_mm": self.vertices_mm, "faces": self.faces.astype(np.int32), "material": self.material,
-                "area_mm2": self.area_mm2, "chart_x": self.xs, "chart_y": self.ys, "uv_unit": self.uv_unit(),
+                "area_mm2": self.area_mm2, "lattice_x": self.xs, "lattice_y": self.ys, "uv_unit": self.uv_unit(),
                 "cell_mm": self.cell_mm, "surface_model": self.surface.model, "layout": self.layout}
 
     def draw(self, ax, values: np.ndarray):
-        """A heat map over the face's chart plane (mm); each vertex's value, not its projection's area."""
+        """A heat map over the lattice (a free-form face's chart plane, mm; a cylinder's (u, v), deg and mm)."""
         shown = np.ma.masked_where(~self.material, values).reshape(len(self.ys), len(self.xs))
-        mesh = ax.pcolormesh(self.xs, self.ys, shown, shading="nearest", cmap="viridis")
-        ax.set_xlabel("chart x [mm]")
-        ax.set_ylabel("chart y [mm]")
-        ax.set_aspect("equal")
+        mesh = ax.pcolormesh(self.xs * self.draw_scale[0], self.ys * self.draw_scale[1], shown, shading="nearest",
+                             cmap="viridis")
+        ax.set_xlabel(self.labels[0])
+        ax.set_ylabel(self.labels[1])
+        ax.set_aspect("equal" if self.draw_scale == (1.0, 1.0) else "auto")
         return mesh
 
 
-def vertex_areas_mm2(lattice_mm: np.ndarray, spacing_mm: float) -> np.ndarray:
-    """(ny * nx,) the area on the surface of each vertex's lattice cell: ``|dP/dx x dP/dy| s^2`` from the
+def vertex_areas_mm2(lattice_mm: np.ndarray, dx: float, dy: float) -> np.ndarray:
+    """(ny * nx,) the area on the surface of each vertex's lattice cell: ``|dP/dx x dP/dy| dx dy`` from the
     lattice's (ny, nx, 3) points by central differences (one-sided at its edge)."""
-    dx = np.gradient(lattice_mm, spacing_mm, axis=1)
-    dy = np.gradient(lattice_mm, spacing_mm, axis=0)
-    return (np.linalg.norm(np.cross(dx, dy), axis=-1) * spacing_mm ** 2).ravel()
+    px = np.gradient(lattice_mm, dx, axis=1)
+    py = np.gradient(lattice_mm, dy, axis=0)
+    return (np.linalg.norm(np.cross(px, py), axis=-1) * dx * dy).ravel()
 
 
 def _chart_spacing_mm(surface, cell_mm: float) -> float:
@@ -145,7 +154,36 @@ def mesh_map(surface, cell_mm: float, pad_mm: float) -> MeshMap:
     material = np.zeros(X.shape, bool)
     material[inside] = surface.material[fj[inside], fi[inside]]
     return MeshMap(surface, xs, ys, lattice.reshape(-1, 3), triangles(len(xs), len(ys)), material.ravel(),
-                   vertex_areas_mm2(lattice, s), float(cell_mm), float(s))
+                   vertex_areas_mm2(lattice, s, s), float(cell_mm), float(s))
+
+
+def parametric_axes(surface, cell_mm: float, pad_mm: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(us, vs, du, dv): the (u, v) lattice of a cylinder (u the angle about its axis, rad; v along it, mm) for a map
+    at ``cell_mm``, ``cell_mm`` apart on the surface and padded by ``pad_mm``, never round the axis onto itself;
+    BadInput past ``grid.MAX_CELLS`` vertices (checked before any planning)."""
+    R = float(surface.radius_mm)
+    lo, hi = surface.boundary.bounds()
+    du, dv = cell_mm / R, float(cell_mm)
+    span_u = min(hi[0] - lo[0] + 2 * pad_mm / R, 2 * math.pi - du)
+    n = np.ceil(np.array([span_u / du, (hi[1] - lo[1] + 2 * pad_mm) / dv])).astype(int) + 1
+    if float(n[0]) * float(n[1]) > MAX_CELLS:
+        raise BadInput(f"process.grid_mm = {cell_mm:g}: the process map would have {float(n[0]) * float(n[1]):.3g} "
+                       f"vertices (limit {MAX_CELLS:.0e}); use a coarser process.grid_mm")
+    us = 0.5 * (lo[0] + hi[0]) + (np.arange(n[0]) - 0.5 * (n[0] - 1)) * du
+    vs = 0.5 * (lo[1] + hi[1]) + (np.arange(n[1]) - 0.5 * (n[1] - 1)) * dv
+    return us, vs, du, dv
+
+
+def parametric_mesh_map(surface, cell_mm: float, pad_mm: float) -> MeshMap:
+    """The mesh of a cylinder for a map at ``cell_mm``: its (u, v) lattice (``parametric_axes``), the points and
+    areas (``|P_u x P_v| du dv``) from the surface itself, material inside its boundary."""
+    us, vs, du, dv = parametric_axes(surface, cell_mm, pad_mm)
+    U, V = np.meshgrid(us, vs)
+    lattice = surface.point_mm(U, V)
+    material = surface.boundary.contains(np.column_stack([U.ravel(), V.ravel()]))
+    return MeshMap(surface, us, vs, lattice.reshape(-1, 3), triangles(len(us), len(vs)), material,
+                   vertex_areas_mm2(lattice, du, dv), float(cell_mm), float(cell_mm), ("u [deg]", "v [mm]"),
+                   (180.0 / math.pi, 1.0))
 
 
 def lattice_pad_mm(settings: ProcessSettings) -> float:
@@ -192,10 +230,8 @@ def mesh_values(settings: ProcessSettings, mesh: MeshMap, c: Contacts) -> np.nda
     return acc
 
 
-def mesh_process_map(settings: ProcessSettings, surface, t_s, tcp_mm, mesh: MeshMap | None = None) -> ProcessMap:
-    """The map of a TCP track (``integrate.tcp_track``) on the free-form face's own mesh."""
-    if mesh is None:
-        mesh = mesh_map(surface, settings.grid_mm, lattice_pad_mm(settings))
+def mesh_process_map(settings: ProcessSettings, surface, t_s, tcp_mm, mesh: MeshMap) -> ProcessMap:
+    """The map of a TCP track (``integrate.tcp_track``) on the surface's own mesh ``mesh``."""
     c = contacts_from_tcp(settings, surface, t_s, tcp_mm, spacing_mm=0.5 * mesh.spacing_mm)
     quantity, units = QUANTITY[settings.kind]
     return ProcessMap(mesh, mesh_values(settings, mesh, c), settings.kind, quantity, units, "mesh-direct",
