@@ -39,3 +39,19 @@ def test_auto_needs_a_process_and_other_commands_need_a_number():
         raster_path(plate(), raster)
     with pytest.raises(BadInput, match="step_over_mm"):
         RasterSettings.make(step_over_mm="automatic")
+
+
+def test_auto_step_over_on_a_cylinder_predicts_on_its_own_mesh():
+    """A cylinder's map lies on its own (u, v) mesh (camtool.process.mesh_map): "auto" chooses there too."""
+    import numpy as np
+
+    from camtool.part.surface import Boundary, Cylinder
+
+    cyl = Cylinder(np.zeros(3), 150.0, np.eye(3), Boundary(np.array([[-1.0, -150], [1.0, -150], [1.0, 150],
+                                                                     [-1.0, 150]])))
+    process = ProcessSettings.make(kind="polish", profile="parabolic", diameter_mm=30, grid_mm=2.0)
+    chosen, record = choose_step_over(cyl, RasterSettings.make(step_over_mm="auto", pitch_mm=10, lead_mm=20),
+                                      process, 100.0)
+    assert record["surface"] == "cylinder" and record["met"] and chosen.step_over_mm == record["step_over_mm"]
+    _, pmap = predicted_map(cyl, chosen, process, 100.0)
+    assert pmap.method == "mesh-direct" and pmap.values.max() > 0

@@ -15,13 +15,14 @@ worked area within ``uniformity_band_pct`` of the mean) is taken:
    surface is evaluated until one meets the target.
 
 The record says what limits the choice: ``ripple`` (the first candidate met the
-target, the rows' overlap decides), ``curvature`` (on a sphere or a free-form face, the first
+target, the rows' overlap decides), ``curvature`` (on a curved surface, the first
 candidate already fails away from the edges: the rows' spacing and the
 footprint change over the patch) or ``edges`` (the roll-off at the material's
 edges needed a smaller step-over than the ripple alone); when no candidate
 met the target, the best one is taken and a note gives its share. On a
-sphere patch and on a free-form face (whose map lies on its own mesh, ``mesh_map``)
-the surface's curvature is part of the predicted map. Reach is not part of the choice: the chosen raster is planned like any other.
+sphere patch, a cylinder and a free-form face (the last two: the map on their own
+mesh, ``mesh_map``) the surface's curvature is part of the predicted map. Reach is
+not part of the choice: the chosen raster is planned like any other.
 """
 from __future__ import annotations
 
@@ -39,7 +40,7 @@ from .maps import track_map
 STEP_FRACTION = 0.06   # each further candidate is this share of the ripple bound smaller
 MIN_FRACTION = 0.05    # the smallest candidate, as a share of the footprint's diameter
 MAX_CANDIDATES = 12    # full-map evaluations at most
-CURVED_MODELS = ("sphere", "freeform")  # surfaces whose curvature the predicted map holds
+CURVED_MODELS = ("sphere", "cylinder", "freeform")  # surfaces whose curvature the predicted map holds
 
 
 def ripple_share(fp: Footprint, step_mm: float, band: float, samples: int = 400) -> float:
