@@ -156,6 +156,42 @@ class LinearChords:
         return np.maximum(pos, ang)
 
 
+HELD_JOINT_GUARD = 0.05  # rad (or 50 mm): how far a straight move may take the joints the controller solves
+                         # from the plan's, where the targets state joints it moves linearly (issue #48)
+
+
+class HeldJointChords:
+    """Straight moves of a robot whose Cartesian targets also state some joints (``held``: the SIA20D's
+    E axis on INFORM's ``Re``, the seed arm's track and 7th joint on RAPID's ``eax``). The controller
+    moves those joints linearly from target to target, by the move's share of its line, and solves
+    the others for the TCP pose; so a skipped waypoint where the plan has the held joints elsewhere is
+    reached with the other joints moved by ``-pinv(J_free) J_held dq_held`` (first order). Near a
+    wrist singularity a few degrees of the E axis turn the wrist by tens of degrees, or no solution
+    is left. The ratio is the largest such move over ``HELD_JOINT_GUARD`` (inf where the free joints'
+    Jacobian is singular)."""
+
+    def __init__(self, kin: Kinematics, q, P, held):
+        self.kin, self.q, self.P = kin, q, P
+        self.held = np.asarray(held, bool)
+        self.scale = np.where(kin.prismatic, 1e-3, 1.0)[~self.held]  # 1 rad ~ 1000 mm, as JointChords
+
+    def __call__(self, a, b, k):
+        d = self.P[b] - self.P[a]
+        dd = np.einsum("ki,ki->k", d, d)
+        s = np.clip(np.einsum("ki,ki->k", self.P[k] - self.P[a], d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+        h, q = self.held, self.q
+        dh = q[a][:, h] + s[:, None] * (q[b][:, h] - q[a][:, h]) - q[k][:, h]
+        J = self.kin.jacobian6(q[k])
+        J[:, 3:] *= 1000.0   # 1 rad of the tool's orientation weighs like 1000 mm
+        rhs = -np.einsum("kij,kj->ki", J[:, :, h], dh)
+        U, sv, Vt = np.linalg.svd(J[:, :, ~h], full_matrices=False)
+        ok = sv[:, -1] > 1e-9 * np.maximum(sv[:, 0], 1e-300)
+        inv = np.where(ok[:, None], 1.0 / np.where(sv > 0, sv, 1.0), 0.0)
+        dq = np.einsum("kji,kj->ki", Vt, inv * np.einsum("kji,kj->ki", U, rhs))
+        ratio = np.abs(dq * self.scale).max(axis=1) / HELD_JOINT_GUARD
+        return np.where(ok, ratio, np.inf)
+
+
 FEED_LAG_MM = 0.5  # on work, the program's TCP keeps within this distance (along the path) of the plan's
 
 
@@ -229,6 +265,22 @@ def _ratios(kin, st: dict, process, linear: bool):
     return chooser(joint.linear), chooser(joint.exact)
 
 
+def _held_ratio(st: dict, held_fn, geometric):
+    """``geometric`` with, on straight moves (both ends in ``st["in_proc"]``), the larger of it and
+    ``held_fn`` (``HeldJointChords``); ``geometric`` alone without held joints."""
+    if held_fn is None:
+        return geometric
+    in_proc = st["in_proc"]
+
+    def ratio(a, b, k):
+        r = geometric(a, b, k)
+        pm = in_proc[a] & in_proc[b]
+        if pm.any():
+            r[pm] = np.maximum(r[pm], held_fn(a[pm], b[pm], k[pm]))
+        return r
+    return ratio
+
+
 STATE_BLOCK_ROWS = 32768   # waypoints whose poses and Jacobians are made at a time (bounded temporaries)
 
 
@@ -247,10 +299,27 @@ def _state(kin, t, q, qd, qdd, zone, process, linear: bool) -> dict:
     free = np.isin(zone, FREE_ZONES)
     tol = np.where(free, FREE_TOL_FACTOR, 1.0) * float(process.path_tol_mm)
     # straight TCP moves between process waypoints away from singularities (where a straight TCP
-    # line can need unbounded joint speeds); joint moves elsewhere
-    in_proc = ~free & dexterous if linear else np.zeros(len(t), bool)
+    # line can need unbounded joint speeds) and outside the spans the post stage asks joint moves for;
+    # joint moves elsewhere
+    in_proc = ~free & dexterous & ~in_spans(t, getattr(process, "joint_moves_s", ())) if linear \
+        else np.zeros(len(t), bool)
     return dict(t=t, q=q, qd=qd, qdd=qdd, zone=zone, P=P, R=R, J=J, free=free, tol=tol,
                 merge_tol=MERGE_SHARE * tol, in_proc=in_proc)
+
+
+SPAN_SLACK_S = 0.005  # a span's ends take the waypoints this near (the program's clock against the plan's)
+
+
+def in_spans(t: np.ndarray, spans) -> np.ndarray:
+    """(len(t),) True for the times ``t`` (s; measured from ``t[0]``) inside any (start, end) span,
+    within ``SPAN_SLACK_S``."""
+    t = np.asarray(t, float)
+    out = np.zeros(len(t), bool)
+    if len(t):
+        tt = t - t[0]
+        for a, b in spans:
+            out |= (tt >= a - SPAN_SLACK_S) & (tt <= b + SPAN_SLACK_S)
+    return out
 
 
 def _with_samples(kin, st: dict, steps: np.ndarray, times: np.ndarray, process, linear: bool) -> tuple[dict, np.ndarray]:
@@ -323,20 +392,28 @@ class Candidates:
     keep: np.ndarray
     origin: np.ndarray
     ratio_exact: object = None
+    held: tuple = ()
 
     @classmethod
-    def from_trajectory(cls, trajectory, robot, process, linear: bool) -> "Candidates":
-        """Every waypoint of a timed trajectory, none picked yet."""
+    def from_trajectory(cls, trajectory, robot, process, linear: bool, held=()) -> "Candidates":
+        """Every waypoint of a timed trajectory, none picked yet (``held``: the joints a Cartesian
+        target states, by index, ``HeldJointChords``)."""
         kin = Kinematics(robot)
         t = np.asarray(trajectory.t_s, float)
         q = np.asarray(trajectory.q, float)
         qd = np.asarray(getattr(trajectory, "qd", np.zeros_like(q)), float)
         qdd = np.asarray(getattr(trajectory, "qdd", np.zeros_like(q)), float)
         st = _state(kin, t, q, qd, qdd, np.asarray(trajectory.zone), process, linear)
-        return cls(kin, process, bool(linear), st, np.zeros(len(t), bool), np.arange(len(t)))
+        return cls(kin, process, bool(linear), st, np.zeros(len(t), bool), np.arange(len(t)), held=tuple(held))
 
     def __len__(self) -> int:
         return len(self.st["t"])
+
+    def held_mask(self) -> np.ndarray:
+        """(dof,) True for the joints a Cartesian target states (``held``)."""
+        mask = np.zeros(self.kin.dof, bool)
+        mask[list(self.held)] = True
+        return mask
 
     def with_points(self, steps: np.ndarray, times: np.ndarray, picked: bool) -> "Candidates":
         """These candidates with points of the planned motion at ``times`` inside ``steps``
@@ -387,8 +464,9 @@ class MergeChords(CandidateStep):
         ratio, ratio_exact = _ratios(c.kin, st, c.process, c.linear)
         feed = FeedKeeper(st["P"], st["t"], st["q"], st["zone"] == WORK,
                           lambda a, b: st["in_proc"][a] & st["in_proc"][b])
-        keep = simplify(c.keep, feed.wrap(ratio))
-        keep = simplify(keep, feed.wrap(ratio_exact))
+        held = HeldJointChords(c.kin, st["q"], st["P"], c.held_mask()) if c.linear and c.held else None
+        keep = simplify(c.keep, feed.wrap(_held_ratio(st, held, ratio)))
+        keep = simplify(keep, feed.wrap(_held_ratio(st, held, ratio_exact)))
         return replace(c, keep=keep, ratio_exact=ratio_exact)
 
 
@@ -417,15 +495,17 @@ def forget_merged() -> None:
     _MERGED.clear()
 
 
-def merged_candidates(trajectory, robot, process, linear: bool) -> Candidates:
+def merged_candidates(trajectory, robot, process, linear: bool, held=()) -> Candidates:
     """``candidate_steps()`` on a trajectory's waypoints; the last result is reused (RAPID and
-    INFORM of one run merge the same way)."""
+    INFORM of one run merge the same way). ``held``: the joints (indices) a Cartesian target
+    states, which the controller moves linearly in a straight move (``HeldJointChords``)."""
+    held = tuple(int(i) for i in held)
     key = (id(trajectory), robot.name, np.asarray(robot.tool_T_mm, float).tobytes(),
            np.asarray(robot.base_T_mm, float).tobytes(), float(process.path_tol_mm), float(process.ori_tol_deg),
-           bool(linear))
+           bool(linear), held, tuple(getattr(process, "joint_moves_s", ())))
     if _MERGED.get("key") == key and _MERGED.get("trajectory") is trajectory:
         return _MERGED["value"]
-    value = candidate_steps().apply(Candidates.from_trajectory(trajectory, robot, process, linear))
+    value = candidate_steps().apply(Candidates.from_trajectory(trajectory, robot, process, linear, held))
     _MERGED.clear()
     _MERGED.update(key=key, trajectory=trajectory, value=value)
     return value

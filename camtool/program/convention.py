@@ -57,6 +57,16 @@ def model_joints(profile, robot, values: dict[str, np.ndarray]) -> np.ndarray:
     return q
 
 
+def stated_joints(profile, robot, arm_axes) -> tuple[int, ...]:
+    """Indices of the model joints a Cartesian target states beside its pose: those the profile puts
+    on an axis outside ``arm_axes`` (the six the controller solves for the pose; a 7th axis such as
+    the SIA20D's E on INFORM's ``Re``, a track on ``eax_a`` or ``BS1``). The controller moves them
+    linearly in a straight move (``camtool.program.candidates.HeldJointChords``)."""
+    arm = set(arm_axes)
+    return tuple(sorted(robot.joint_names.index(a.joint) for a in profile.axes
+                        if a.axis not in arm and a.joint in robot.joint_names))
+
+
 def tool_in_tool0(robot, tool_in_flange_mm: np.ndarray) -> np.ndarray:
     """The TCP in the controller's tool0 (what tooldata / the tool file state) from the TCP in the flange."""
     return robot.conventions.tool_in_tool0(tool_in_flange_mm)

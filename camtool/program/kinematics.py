@@ -134,6 +134,29 @@ class Kinematics:
         pb, Rb = self._to_base(tcp, tcp_R)
         return pb, Rb, J
 
+    def jacobian6(self, q: np.ndarray) -> np.ndarray:
+        """(S, 6, dof) TCP Jacobian in the base frame: rows 0-2 the TCP's velocity (mm per rad or
+        mm per mm), rows 3-5 its angular velocity (rad per rad; 0 for prismatic joints)."""
+        q = np.asarray(q, float)
+        if not self.uses_chain:  # no z-axis chain: by finite differences of the pose
+            from scipy.spatial.transform import Rotation
+
+            p, R = self.pose(q)
+            J = np.empty((len(q), 6, self.dof))
+            for i in range(self.dof):
+                h = 1e-3 if self.prismatic[i] else 1e-6
+                dq = q.copy()
+                dq[:, i] += h
+                p2, R2 = self.pose(dq)
+                J[:, :3, i] = (p2 - p) / h
+                J[:, 3:, i] = Rotation.from_matrix(R2 @ np.transpose(R, (0, 2, 1))).as_rotvec() / h
+            return J
+        tcp, _tR, origins, axes = self.chain(q)
+        lin = np.where(self.prismatic[None, :, None], axes, np.cross(axes, tcp[:, None, :] - origins))
+        ang = np.where(self.prismatic[None, :, None], 0.0, axes)
+        J = np.concatenate([np.transpose(lin, (0, 2, 1)), np.transpose(ang, (0, 2, 1))], axis=1)
+        return np.concatenate([self._inv_base_R @ J[:, :3], self._inv_base_R @ J[:, 3:]], axis=1)
+
     def dexterity(self, q: np.ndarray, lever_mm: float = 500.0) -> np.ndarray:
         """(S,) smallest over largest singular value of the 6 x n TCP Jacobian (angular rows
         times ``lever_mm``): near 0 at a singularity, where a straight TCP line can need

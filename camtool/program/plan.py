@@ -62,7 +62,7 @@ from .steps import ExactStops
 
 
 def plan_moves(trajectory, robot, process, *, linear: bool, levels_mm, min_level_on_surface: int = 0,
-               max_level: int | None = None) -> MovePlan:
+               max_level: int | None = None, held=()) -> MovePlan:
     """Pick the move targets of a program (see module doc): the merged candidates, their
     corners blended, the exact stops.
 
@@ -71,9 +71,12 @@ def plan_moves(trajectory, robot, process, *, linear: bool, levels_mm, min_level
     format's blend radii (ascending, all > 0); a corner on the surface never gets less than
     ``min_level_on_surface`` (never an exact stop there); ``max_level`` caps the level.
     ``wp`` of the plan indexes the trajectory's waypoints, with targets added on the planned
-    motion (between waypoints) where a corner needed shorter moves (-1 there).
+    motion (between waypoints) where a corner needed shorter moves (-1 there). ``held``: the joints
+    (indices) the format's Cartesian targets state (a 7th axis, a track), which the controller moves
+    linearly in a straight move: straight moves are merged only while the joints it solves stay near
+    the plan's (``candidates.HeldJointChords``).
     """
-    candidates = merged_candidates(trajectory, robot, process, linear)
+    candidates = merged_candidates(trajectory, robot, process, linear, held)
     plan = BlendCorners(tuple(np.asarray(levels_mm, float).tolist()), min_level_on_surface).plan(candidates)
     return ExactStops(min_level_on_surface, max_level).apply(plan)
 

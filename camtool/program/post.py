@@ -279,10 +279,11 @@ def _reference(profiles: dict, trajectory, robot, process):
 def _format_programs(fmt, post, trajectory, robot, folders: tuple[Path, Path], process, reference, world=None):
     """One format's programs, written into the private folder, checked and simulated (``_write_checked``);
     written again with its targets merged closer while the simulator finds them off the path and
-    merging closer can mend it (``MERGE_RETRY_SCALES``). Returns (files, findings, figures or None)."""
+    merging closer can mend it (``MERGE_RETRY_SCALES``), then with joint moves where it finds straight
+    moves the controller cannot follow (``_joint_move_rounds``). Returns (files, findings, figures or None)."""
     from dataclasses import replace
 
-    files, found, figures = [], [], None
+    files, found, figures, unfollowed = [], [], None, ()
     for scale in MERGE_RETRY_SCALES:
         for f in files:   # the previous attempt's files, inside the private folder
             f.unlink(missing_ok=True)
@@ -290,12 +291,55 @@ def _format_programs(fmt, post, trajectory, robot, folders: tuple[Path, Path], p
             log.info("%s: the simulated program leaves the planned path; written again with targets "
                      "merged within %.3g mm", fmt, process.path_tol_mm * scale)
         writing = replace(process, path_tol_mm=process.path_tol_mm * scale)
-        files, found, figures = _write_checked(fmt, post, trajectory, robot, folders, process, writing, reference,
-                                               world)
+        files, found, figures, unfollowed = _write_checked(fmt, post, trajectory, robot, folders, process, writing,
+                                                           reference, world)
         if not (found and all(DEVIATION_FINDING in x for x in found)):
             break   # written within the tolerance, or a finding merging closer cannot mend
+    if found and unfollowed:
+        files, found, figures = _joint_move_rounds(fmt, post, trajectory, robot, folders, process, reference, world,
+                                                   (writing, files, found, figures, unfollowed))
     post.plugin.forget()   # what a format kept of its own files (a dense job's: hundreds of MB)
     forget_solved()
+    return files, found, figures
+
+
+JOINT_MOVE_ROUNDS = 4  # rounds of writing straight moves the controller cannot follow as joint moves
+
+
+def joint_spans(spans: tuple, new: tuple) -> tuple:
+    """``spans`` with the (start, end) spans ``new`` added: a new span that meets one already there (the
+    joint moves did not suffice) takes their union widened by its length on either side; in time order."""
+    out = [tuple(x) for x in spans]
+    for a, b in new:
+        meets = [i for i, (c, d) in enumerate(out) if a <= d + 1e-9 and c <= b + 1e-9]
+        if meets:
+            lo = min([a] + [out[i][0] for i in meets])
+            hi = max([b] + [out[i][1] for i in meets])
+            out = [x for i, x in enumerate(out) if i not in meets]
+            a, b = max(lo - (hi - lo), 0.0), hi + (hi - lo)
+        out.append((a, b))
+    return tuple(sorted(out))
+
+
+def _joint_move_rounds(fmt, post, trajectory, robot, folders, process, reference, world, last):
+    """Written again, up to ``JOINT_MOVE_ROUNDS`` times, with joint moves over the straight moves the
+    simulator found the controller cannot follow (near a wrist singularity a straight line needs joint
+    speeds without bound, or has no solution; a joint move through there has neither, and it is merged
+    within the path tolerance like any other): (files, findings, figures) of the last round."""
+    from dataclasses import replace
+
+    writing, files, found, figures, unfollowed = last
+    for _ in range(JOINT_MOVE_ROUNDS):
+        if not (found and unfollowed):
+            break
+        spans = joint_spans(writing.joint_moves_s, unfollowed)
+        for f in files:
+            f.unlink(missing_ok=True)
+        log.info("%s: the controller cannot follow %d straight move(s) as written (first at t = %.3f s); "
+                 "written again with joint moves there", fmt, len(unfollowed), unfollowed[0][0])
+        writing = replace(writing, joint_moves_s=spans)
+        files, found, figures, unfollowed = _write_checked(fmt, post, trajectory, robot, folders, process, writing,
+                                                           reference, world)
     return files, found, figures
 
 
@@ -321,7 +365,7 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], pro
     for f in (files[:1] if plugin.check_covers_calls or not plugin.own_check else files):
         findings += [s.replace(str(tmp), str(outdir)) for s in check_file(plugin, f, tcp_robot, profile)]
     t_check = time.perf_counter() - t0
-    figures = None
+    figures, unfollowed = None, ()
     if plugin.simulated and files and not findings:
         t0 = time.perf_counter()
         sim = simulate_program(plugin, files[0], tcp_robot, profile, trajectory, process, reference, world)
@@ -332,4 +376,5 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], pro
                        simulate_s=round(time.perf_counter() - t0, 4),
                        bytes=sum(f.stat().st_size for f in files), path_tol_mm=process.path_tol_mm)
         log.info("%s: %s", fmt, "; ".join(summary_lines(sim)))
-    return files, findings, figures
+        unfollowed = sim.unfollowed_s
+    return files, findings, figures, unfollowed

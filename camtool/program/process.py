@@ -24,6 +24,9 @@ class ProcessInfo:
     - ``job_name``: the job file's name (for program comments), ``""`` when unknown.
     - ``job_time``: ``"yyyy/mm/dd hh:mm"`` (UTC) of the job file's modification, or None.
     - ``row_labels``: a label per work row, in order (e.g. the raster segment), or ().
+    - ``joint_moves_s``: (start, end) spans (s from the plan's start) written as joint moves, not
+      straight ones: the post stage sets them where the program's simulator found a straight move the
+      controller cannot follow (a wrist singularity: no joint solution, or a joint above its speed), or ().
     """
 
     path_tol_mm: float = DEFAULT_PATH_TOL_MM
@@ -32,6 +35,7 @@ class ProcessInfo:
     job_name: str = ""
     job_time: str | None = None
     row_labels: tuple = field(default_factory=tuple)
+    joint_moves_s: tuple = field(default_factory=tuple)
 
 
 def program_date(option: str, process: ProcessInfo | None = None) -> str:

@@ -49,7 +49,7 @@ from camtool.program.durations import move_durations
 from camtool.program.targets import _Chain, _robot_for, _target_poses, configuration_findings, target_joints
 
 from .interpolation import interpolate
-from .measures import SimReport, limit_findings, summary_lines, surface_of, work_figures
+from .measures import SimReport, limit_findings, summary_lines, surface_of, unfollowed_moves, work_figures
 from .reference import Reference, reference_from_path, reference_from_samples, reference_from_trajectory
 
 SIM_DT_S = 0.004
@@ -102,7 +102,8 @@ def simulate(prog, robot, reference: Reference | None = None, *, dt_s: float = S
                      if S > 1 else 0.0, moves_on_work=surf.moves_on_work, max_deviation_mm=max_dev,
                      p99_deviation_mm=p99, feed=feed, exact_stops=stops, exact_stops_on_surface=surf.stops_surface,
                      part_switches=int(surf.switch_after.sum()), part_switches_on_surface=surf.switches_surface,
-                     limit_violations=n_lim, speed_violations=n_speed, samples=S, findings=findings, cell=cell)
+                     limit_violations=n_lim, speed_violations=n_speed, samples=S, findings=findings, cell=cell,
+                     unfollowed_s=unfollowed_moves(robot, chain, s) if n_lim or n_speed or len(s.unsolved) else ())
 
 
 def _cell_pass(prog, world, s) -> tuple[dict, list[str]]:

@@ -3,7 +3,7 @@ straight-line and circular Cartesian moves (orientation by slerp, joints by batc
 and parabolic corner blends (see ``camtool.simulate``)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,6 +25,7 @@ class Samples:
     T: np.ndarray
     total: float
     findings: tuple
+    unsolved: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  # samples with no joint solution
 
 
 
@@ -44,8 +45,9 @@ def interpolate(prog, robot, chain, q_t, P_t, R_t, dur, dt_s: float) -> Samples:
     cs = targets.cart[grid.m] if M > 1 else np.zeros(len(grid.t), bool)
     Pc = _cartesian_points(prog, P_t, grid, cs)
     _blend_corners(corners, targets, chain, grid, q, cs, Pc)
-    findings = _cartesian_joints(prog, chain, (Pc, R_t), q, (grid.t, grid.m, grid.s, cs)) if cs.any() else []
-    return Samples(t=grid.t, q=q, m=grid.m, T=T, total=total, findings=tuple(findings))
+    findings, unsolved = _cartesian_joints(prog, chain, (Pc, R_t), q, (grid.t, grid.m, grid.s, cs)) if cs.any() \
+        else ([], np.zeros(0, int))
+    return Samples(t=grid.t, q=q, m=grid.m, T=T, total=total, findings=tuple(findings), unsolved=unsolved)
 
 
 @dataclass(frozen=True)
@@ -232,10 +234,10 @@ def _blocks(n: int):
     return [slice(a, min(a + SIM_BLOCK_SAMPLES, n)) for a in range(0, n, SIM_BLOCK_SAMPLES)]
 
 
-def _cartesian_joints(prog, chain, poses, q, grid) -> list[str]:
+def _cartesian_joints(prog, chain, poses, q, grid) -> tuple[list[str], np.ndarray]:
     """Solve the joints of the Cartesian samples in place in ``q`` (S, dof), by Newton from ``q``'s
     guesses, block by block (each sample is solved alone: blocks give the same joints); findings for
-    the first samples it cannot follow. ``poses``: (Pc, the TCP points of the Cartesian samples in
+    the first samples it cannot follow, and every such sample. ``poses``: (Pc, the TCP points of the Cartesian samples in
     order; R_t, the targets' rotations); ``grid``: (t, m, s, cs), the samples' times, moves,
     fractions of their moves and which are Cartesian."""
     Pc, R_t = poses
@@ -250,6 +252,7 @@ def _cartesian_joints(prog, chain, poses, q, grid) -> list[str]:
         k = ci[b]
         R = _slerp(R_t[m[k] - 1], R_t[m[k]], s[k])   # the slerp of the move the sample's time falls in
         q[k], ep, eo = _ik_batch(chain, Pc[sel[b]], R, q[k], free)
-        failed += list(k[(ep > 1e-2) | (eo > 1e-4)][:MAX_CARTESIAN_FINDINGS - len(failed)])
+        failed += list(k[(ep > 1e-2) | (eo > 1e-4)])
     return [f"{prog.where[m[i]]}: the controller cannot follow this Cartesian move "
-            f"(no joint solution within 0.01 mm at t = {t[i]:.3f} s)" for i in failed]
+            f"(no joint solution within 0.01 mm at t = {t[i]:.3f} s)"
+            for i in failed[:MAX_CARTESIAN_FINDINGS]], np.asarray(failed, int)

@@ -112,6 +112,26 @@ def _blocks(n: int):
     return [slice(a, min(a + BLOCK_SAMPLES, n)) for a in range(0, n, BLOCK_SAMPLES)]
 
 
+def unfollowed_moves(robot, chain, s) -> tuple:
+    """(start, end) times (s) of the moves where the simulated joints leave their limits, exceed their
+    speed or found no solution (``Samples.unsolved``), in order: what the post stage writes again
+    as joint moves (``camtool.program.post``)."""
+    t, q, m = s.t, s.q, s.m
+    Lm = robot.limits
+    tol = np.where(chain.prismatic, 5e-4, np.radians(5e-5)) + 1e-9
+    bad = ((q < Lm.lower - tol) | (q > Lm.upper + tol)).any(axis=1)
+    if len(t) > 1:
+        dts = np.diff(t)
+        good = dts > 1e-9
+        v = np.abs(np.diff(q, axis=0)) / np.where(good, dts, 1.0)[:, None]
+        fast = good & (v > Lm.velocity * (1 + SPEED_REL_TOL) + 2 * tol / np.where(good, dts, 1.0)[:, None]).any(axis=1)
+        bad[1:] |= fast
+    bad[np.asarray(s.unsolved, int)] = True
+    moves = np.unique(m[bad])
+    moves = moves[moves > 0]
+    return tuple((float(s.T[k - 1]), float(s.T[k])) for k in moves)
+
+
 def _speed_excess(q, t, speed, slack) -> tuple[int, tuple | None]:
     """(sample steps whose joint speed |dq| / dt exceeds ``speed`` + ``slack`` / dt, the first one as
     (step, joint, speed) or None), block by block over the steps of ``q`` (S, dof) at times ``t``."""
@@ -264,10 +284,14 @@ class SimReport:
     samples: int
     findings: list = field(default_factory=list)
     cell: dict | None = None      # the cell pass on the simulated motion (a world given): pairs, evaluations
+    unfollowed_s: tuple = ()      # (start, end) s of each move the controller cannot follow as written (no
+                                  # joint solution, a joint above its speed or outside its limits); not reported
 
     def as_dict(self) -> dict:
         from dataclasses import asdict
-        return asdict(self)
+        out = asdict(self)
+        out.pop("unfollowed_s")
+        return out
 
 
 def summary_lines(rep: SimReport) -> list[str]:

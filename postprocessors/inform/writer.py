@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from camtool import __version__
-from camtool.program.convention import controller_axes, controller_pose_base
+from camtool.program.convention import controller_axes, controller_pose_base, stated_joints
 from camtool.robots.confdata import yaskawa_rconf
 from camtool.program.kinematics import Kinematics
 from camtool.program.moves import JOINT
@@ -56,7 +56,8 @@ def _plan(trajectory, robot, profile, process: ProcessInfo):
     cart = o["motion"] == "cartesian"
     radii = [float(v) for v in o["pl_mm"]][:o["max_pl"]]
     lo = max(1, o["pl"]) - 1
-    plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=radii, min_level_on_surface=lo)
+    held = stated_joints(profile, robot, [f"RB1:{i}" for i in range(1, 7)])  # Re (7th axis), BS1, ST1
+    plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=radii, min_level_on_surface=lo, held=held)
     steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if cart and o["arcs"] else None, arc_start_linear=True)
     return steps.apply(plan, context_for(trajectory, robot, process, plan, radii, lo))
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from camtool import __version__
-from camtool.program.convention import controller_axes, controller_pose
+from camtool.program.convention import controller_axes, controller_pose, stated_joints
 from camtool.robots.confdata import abb_confdata
 from camtool.program.kinematics import Kinematics
 from camtool.program.plan import KIND_CIRCULAR, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
@@ -74,7 +74,8 @@ def _plan(trajectory, robot, profile, process: ProcessInfo):
     cart = o["motion"] == "cartesian"
     lo, hi = BLEND_ZONES.index(o["zone"]), BLEND_ZONES.index(o["max_zone"])
     levels = [ZONE_MM[z] for z in BLEND_ZONES[:hi + 1]]
-    plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=levels, min_level_on_surface=lo)
+    held = stated_joints(profile, robot, RAX)  # the joints on eax_a..eax_f (a 7th joint, a track)
+    plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=levels, min_level_on_surface=lo, held=held)
     steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if cart and o["arcs"] else None)
     return steps.apply(plan, context_for(trajectory, robot, process, plan, levels, lo))
 
