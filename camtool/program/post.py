@@ -377,4 +377,15 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], pro
                        bytes=sum(f.stat().st_size for f in files), path_tol_mm=process.path_tol_mm)
         log.info("%s: %s", fmt, "; ".join(summary_lines(sim)))
         unfollowed = sim.unfollowed_s
+    elif plugin.simulated and files and _motion_findings(findings):
+        # the check found joints too fast between targets: where the controller runs them so is named by
+        # its simulation (a target solved on the other wrist branch), for the joint-move rounds only
+        unfollowed = simulate_program(plugin, files[0], tcp_robot, profile, trajectory, process, reference).unfollowed_s
     return files, findings, figures, unfollowed
+
+
+def _motion_findings(findings: list[str]) -> bool:
+    """True when every finding of a program's check is a joint too fast between targets or outside its
+    limits (``camtool.program.check``): findings joint moves there may mend."""
+    return bool(findings) and all(("above the limit" in f) or ("outside the limits" in f) or ("more steps above" in f)
+                                  or ("more values outside" in f) for f in findings)

@@ -38,7 +38,8 @@ class StepContext:
     (``waypoint_P`` (W, 3), ``waypoint_R`` (W, 3, 3), base frame, mm), the tolerances, the
     format's blend radii (mm, ascending) and the smallest level on the surface;
     ``waypoint_mid_P`` (W - 1, 3), the planned motion's TCP halfway (in time) through each step
-    between waypoints (empty when not made: arcs are then held to the chords alone)."""
+    between waypoints (empty when not made: arcs are then held to the chords alone), and
+    ``waypoint_t`` (W,) the waypoints' times (s, the plan's clock, as ``MovePlan.t``)."""
 
     waypoint_P: np.ndarray
     waypoint_R: np.ndarray
@@ -47,6 +48,7 @@ class StepContext:
     levels_mm: tuple = ()
     min_level_on_surface: int = 0
     waypoint_mid_P: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    waypoint_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 class MoveStep(ABC):
@@ -149,6 +151,19 @@ def _on_circle(P0, Pv, P1, X, tol):
     return fits, sw, (c, n, r0, sw, ang)
 
 
+def _waypoints_between(plan: MovePlan, a: int, b: int, ctx: StepContext) -> np.ndarray:
+    """The trajectory waypoints from target a to target b, in order: by index, or where either is a point
+    of the planned motion between waypoints (``wp`` -1, a target added beside a tight corner), those whose
+    time lies between theirs (``ctx.waypoint_t``; none without it)."""
+    wp = plan.wp
+    if wp[a] >= 0 and wp[b] >= 0:
+        return np.arange(wp[a], wp[b] + 1)
+    if not len(ctx.waypoint_t):
+        return np.zeros(0, int)
+    t = ctx.waypoint_t
+    return np.flatnonzero((t >= plan.t[a] - 1e-9) & (t <= plan.t[b] + 1e-9))
+
+
 def _arc_follows_plan(P0, Pv, P1, w: np.ndarray, ctx: StepContext, tol: float) -> bool:
     """True when the arc from P0 through Pv to P1 holds the planned path between the waypoints ``w``
     (consecutive trajectory waypoints, in order): every waypoint within ``tol`` of the arc and in its
@@ -246,7 +261,7 @@ class FitArcs(MoveStep):
                 if not fits or sweep > max_sweep:
                     break
                 # the planned path between the targets (every waypoint) and its orientation
-                w = np.arange(wp[a], wp[b] + 1) if wp[a] >= 0 and wp[b] >= 0 else np.zeros(0, int)
+                w = _waypoints_between(plan, a, b, ctx)
                 if len(w) and not _arc_follows_plan(P[a], P[m], P[b], w, ctx, tol):
                     break
                 s = geo[4][1:-1] / sweep if sweep > 0 else np.zeros(0)
@@ -354,7 +369,8 @@ def context_for(trajectory, robot, process, plan: MovePlan, levels_mm, min_level
     return StepContext(waypoint_P=P, waypoint_R=R, path_tol_mm=float(process.path_tol_mm),
                        ori_tol_deg=float(process.ori_tol_deg), levels_mm=tuple(levels_mm),
                        min_level_on_surface=min_level_on_surface,
-                       waypoint_mid_P=_motion_midpoints(kin, trajectory) if linear else np.zeros((0, 3)))
+                       waypoint_mid_P=_motion_midpoints(kin, trajectory) if linear else np.zeros((0, 3)),
+                       waypoint_t=np.asarray(trajectory.t_s, float))
 
 
 def _motion_midpoints(kin, trajectory) -> np.ndarray:
