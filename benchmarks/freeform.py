@@ -342,8 +342,7 @@ def bench_speed(tree: Path, out: Path) -> None:
     status = "ok" if rc == 0 else f"refused (exit {rc}): {first_line(se or so)}"
     print(f"  surface + raster of a 1 M-point scan: {wall:6.2f} s whole process (target <= "
           f"{TARGETS['speed_1m_s']:g} s)  {status}")
-    jobs = ROOT / "benchmarks" / "parts" / "freeform" / "jobs"
-    samples = [s for s in ("freeform_hood.toml", "freeform_shell_scan.toml") if (jobs / s).exists()]
+    samples = [s for s in ("freeform_hood.toml", "freeform_shell_scan.toml") if (ROOT / "samples" / s).exists()]
     if not samples:
         print("  no free-form sample shipped yet")
         return

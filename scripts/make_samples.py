@@ -396,13 +396,14 @@ def shell_scan(rng, n: int = 60_000, sigma_mm: float = 1.0, outlier_ratio: float
 FREEFORM_OUT = OUT.parent / "benchmarks" / "parts" / "freeform" / "jobs"  # not shipped as samples until they run
 
 
-def make_freeform() -> list[str]:
-    """Write the free-form parts (issue 46) beside their jobs in benchmarks/parts/freeform/jobs; returns the
-    file names. They move to samples/ once `camtool run` passes on them (see that folder's README)."""
+def make_freeform() -> list[Path]:
+    """Write the free-form parts (issue 46): the hood into samples/ (its job runs: samples/freeform_hood.toml),
+    the shell scan beside its job in benchmarks/parts/freeform/jobs until `camtool run` passes on it (see that
+    folder's README); returns the paths written."""
     rng = np.random.default_rng(20260046)
-    hood_mesh().export(FREEFORM_OUT / "freeform_hood.stl")
+    hood_mesh().export(OUT / "freeform_hood.stl")
     write_ply_with_normals(FREEFORM_OUT / "freeform_shell_scan.ply", *shell_scan(rng))
-    return ["freeform_hood.stl", "freeform_shell_scan.ply"]
+    return [OUT / "freeform_hood.stl", FREEFORM_OUT / "freeform_shell_scan.ply"]
 
 
 def main() -> None:
@@ -412,8 +413,10 @@ def main() -> None:
     trimesh.PointCloud(sphere_scan(rng).astype(np.float32)).export(OUT / "sphere_scan.ply")
     trimesh.PointCloud(wall_cloud(rng).astype(np.float32)).export(OUT / "wall.ply")
     plate_hole_mesh().export(OUT / "plate_hole.stl")
-    for name in ("sphere_patch.stl", "sphere_scan.ply", "wall.ply", "plate_hole.stl", *make_parts(), *make_freeform()):
-        print(f"wrote {OUT / name} ({(OUT / name).stat().st_size / 1e6:.2f} MB)")
+    written = [OUT / name for name in ("sphere_patch.stl", "sphere_scan.ply", "wall.ply", "plate_hole.stl",
+                                       *make_parts())] + make_freeform()
+    for path in written:
+        print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
 
 
 if __name__ == "__main__":

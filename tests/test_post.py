@@ -300,3 +300,14 @@ def test_a_program_its_simulator_finds_off_the_path_is_written_again_closer(tmp_
     assert len(calls) == 2 and calls[1] >= calls[0]      # written twice, the second no shorter
     assert sorted(f.name for f in files) == ["CAMTOOL.mod", "CAMTOOL.pgf"]
     assert "within 0.06 mm" in files[0].read_text() or "within 0.06 mm" in files[1].read_text()
+
+
+def test_joint_spans_grow_where_the_controller_still_cannot_follow():
+    """The post stage's joint-move rounds: a new span is added as it is; one that meets a span already
+    there (the joint moves did not suffice) takes their union widened by its length on either side."""
+    from camtool.program.post import joint_spans
+
+    assert joint_spans((), ((2.0, 2.5), (1.0, 1.2))) == ((1.0, 1.2), (2.0, 2.5))
+    assert np.allclose(joint_spans(((1.0, 1.2),), ((1.1, 1.4),)), [(0.6, 1.8)])
+    assert np.allclose(joint_spans(((0.1, 0.3),), ((0.2, 0.4),)), [(0.0, 0.7)])   # never before the start
+    assert np.allclose(joint_spans(((1.0, 1.2), (2.0, 2.5)), ((1.2, 2.0),)), [(0.0, 4.0)])

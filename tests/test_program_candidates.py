@@ -80,3 +80,101 @@ def test_waypoint_arrays_made_in_blocks_are_each_waypoints_own(start, monkeypatc
     assert len(whole) > 20 and whole.st.keys() == blocks.st.keys()
     for k in whole.st:
         assert np.array_equal(whole.st[k], blocks.st[k]), k
+
+
+def _sia20():
+    r = get_robot("sia20")
+    return r.with_placement(tool_T_mm=profile_tool(load_profile(None, "sia20", "inform", r)))
+
+
+def test_jacobian6_is_the_pose_derivative():
+    """Kinematics.jacobian6 against central differences of Kinematics.pose (position and rotation vector)."""
+    from scipy.spatial.transform import Rotation
+
+    from camtool.program.kinematics import Kinematics
+
+    kin = Kinematics(_sia20())
+    q = np.array([[0.3, 0.5, -0.4, -1.1, 0.7, 0.9, -0.2]])
+    J = kin.jacobian6(q)[0]
+    h = 1e-6
+    for i in range(7):
+        dq = np.zeros((1, 7))
+        dq[0, i] = h
+        (p1, R1), (p0, R0) = kin.pose(q + dq), kin.pose(q - dq)
+        assert np.allclose(J[:3, i], (p1 - p0)[0] / (2 * h), atol=1e-4)
+        assert np.allclose(J[3:, i], Rotation.from_matrix(R1[0] @ R0[0].T).as_rotvec() / (2 * h), atol=1e-7)
+
+
+def _held_case(q_k, delta_rad):
+    """A straight move whose middle waypoint has the SIA20D's E axis ``delta_rad`` off the linear
+    interpolation of its ends' E (the ends' other joints do not matter to the measure)."""
+    from camtool.program.kinematics import Kinematics
+
+    kin = Kinematics(_sia20())
+    q = np.repeat(np.asarray(q_k, float)[None], 3, 0)
+    q[0, 2] += delta_rad + 0.1   # E at the ends: the middle's plus delta on average
+    q[2, 2] += delta_rad - 0.1
+    P = kin.pose(q[1:2])[0][0]
+    d = np.array([3.0, -4.0, 1.0])
+    return kin, q, np.stack([P - d, P, P + d])
+
+
+def test_held_joint_chords_predict_the_controllers_joint_solution():
+    """HeldJointChords' first-order move of the solved joints against an independent Newton solve (the
+    program simulator's ``_ik_batch``) of the same pose with E held at its interpolated value."""
+    from camtool.program.candidates import HELD_JOINT_GUARD, HeldJointChords
+    from camtool.program.targets import _Chain, _ik_batch
+
+    q_k = np.array([0.3, 0.5, -0.4, -1.1, 0.7, 0.9, -0.2])
+    held = np.zeros(7, bool)
+    held[2] = True
+    for delta in (np.radians(0.2), np.radians(1.0)):
+        kin, q, P = _held_case(q_k, delta)
+        ratio = HeldJointChords(kin, q, P, held)(np.array([0]), np.array([2]), np.array([1]))[0]
+        chain = _Chain(_sia20())
+        Pk, Rk = chain.fk(q_k[None])
+        guess = q_k.copy()
+        guess[2] += delta
+        solved, ep, _eo = _ik_batch(chain, Pk, Rk, guess[None], ~held)
+        assert ep[0] < 1e-4 and abs(solved[0, 2] - q_k[2] - delta) < 1e-12
+        moved = np.abs(solved[0] - q_k)[~held].max()
+        assert ratio * HELD_JOINT_GUARD == pytest.approx(moved, rel=0.05)
+
+
+def test_held_joint_chords_refuse_a_straight_move_past_the_wrist_singularity():
+    """With the wrist nearly straight (B = 0.05 deg) a tenth of a degree of E turns R and T by far more
+    than the guard; at a well-conditioned wrist the same E offset is well within it."""
+    from camtool.program.candidates import HeldJointChords
+
+    held = np.zeros(7, bool)
+    held[2] = True
+    near = np.array([0.3, 0.5, -0.4, -1.1, 0.7, np.radians(0.05), -0.2])
+    far = near.copy()
+    far[5] = 0.9
+    kin, q, P = _held_case(near, np.radians(0.1))
+    assert HeldJointChords(kin, q, P, held)(np.array([0]), np.array([2]), np.array([1]))[0] > 5
+    kin, q, P = _held_case(far, np.radians(0.1))
+    assert HeldJointChords(kin, q, P, held)(np.array([0]), np.array([2]), np.array([1]))[0] < 0.2
+
+
+def test_stated_joints_are_the_axes_beside_the_six_the_controller_solves():
+    from camtool.program.convention import stated_joints
+
+    r = get_robot("sia20")
+    assert stated_joints(load_profile(None, "sia20", "inform", r), r, [f"RB1:{i}" for i in range(1, 7)]) == (2,)
+    r = get_robot("irb2400")
+    assert stated_joints(load_profile(None, "irb2400", "rapid", r), r, [f"rax_{i}" for i in range(1, 7)]) == ()
+    r = get_robot("seed8")
+    names = r.joint_names
+    got = stated_joints(load_profile(None, "seed8", "rapid", r), r, [f"rax_{i}" for i in range(1, 7)])
+    assert [names[i] for i in got] == ["track", "j4"]
+
+
+def test_spans_the_post_stage_asks_joint_moves_for_are_no_straight_moves():
+    from camtool.program.candidates import SPAN_SLACK_S, in_spans
+
+    t = 10.0 + np.arange(0, 1.0, 0.05)   # the plan's clock need not start at 0: spans count from t[0]
+    inside = in_spans(t, ((0.2, 0.3),))
+    assert np.array_equal(np.flatnonzero(inside), [4, 5, 6])
+    assert not in_spans(t, ((0.2 + 2 * SPAN_SLACK_S, 0.25 - 2 * SPAN_SLACK_S),)).any()
+    assert not in_spans(t, ()).any()

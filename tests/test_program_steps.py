@@ -108,3 +108,62 @@ def test_exact_stops_only_where_one_is_meant(planned):
     assert np.all(out.level[(plan.row >= 0) & (out.level >= 0)] >= 1)
     capped = ExactStops(max_level=0).apply(replace(plan, level=np.full(len(plan), 3)), ctx)
     assert np.all(capped.level[1:-1] <= 0)
+
+
+def _ctx(P, mid=None, t=None):
+    from camtool.program.steps import StepContext
+
+    P = np.asarray(P, float)
+    return StepContext(waypoint_P=P, waypoint_R=np.repeat(np.eye(3)[None], len(P), 0), path_tol_mm=0.1,
+                       ori_tol_deg=1.0, waypoint_mid_P=np.zeros((0, 3)) if mid is None else np.asarray(mid, float),
+                       waypoint_t=np.zeros(0) if t is None else np.asarray(t, float))
+
+
+def test_an_arc_through_a_kink_leaves_the_chords_by_its_sagitta():
+    """Issue #46's hood: three waypoints 5 mm apart that kink by 1.3 mm lie exactly on a circle (R 9.5 mm),
+    whose arcs leave the chords between them by R (1 - cos(half the angle between them)): the arc is
+    refused at 0.04 mm, taken at the larger sagitta (closed form), and taken at 0.04 mm where the planned
+    motion itself bows along the circle between the waypoints."""
+    from camtool.program.arcs import arc_point, circle_through
+    from camtool.program.steps import _arc_follows_plan
+
+    P = np.array([[0.0, 0.0, 0.0], [4.72, -1.43, 0.0], [9.55, -0.34, 0.0]])
+    c, rad, n, r0, sweep, _ok = circle_through(P[:1], P[1:2], P[2:])
+    angle = np.array([np.arccos(np.dot(P[i] - c[0], P[i + 1] - c[0]) / rad[0] ** 2) for i in range(2)])
+    sag = rad[0] * (1 - np.cos(angle / 2))
+    assert 0.2 < sag.max() < 0.4
+    w = np.arange(3)
+    assert not _arc_follows_plan(P[0], P[1], P[2], w, _ctx(P), 0.04)
+    assert not _arc_follows_plan(P[0], P[1], P[2], w, _ctx(P), 0.98 * sag.max())
+    assert _arc_follows_plan(P[0], P[1], P[2], w, _ctx(P), 1.02 * sag.max())
+    s_mid = np.array([angle[0] / 2, angle[0] + angle[1] / 2]) / sweep[0]
+    on_arc = arc_point(np.repeat(c, 2, 0), np.repeat(n, 2, 0), np.repeat(r0, 2, 0), np.repeat(sweep, 2), s_mid)
+    assert _arc_follows_plan(P[0], P[1], P[2], w, _ctx(P, mid=on_arc), 0.04)
+
+
+def test_an_arc_on_a_fine_circle_is_kept():
+    """Waypoints 5 mm apart on a circle of R 200 mm: sagitta 25 / (8 R) = 0.016 mm, within 0.04 mm."""
+    from camtool.program.steps import _arc_follows_plan
+
+    R = 200.0
+    th = np.arange(9) * 5.0 / R
+    P = np.stack([R * np.sin(th), R * (1 - np.cos(th)), np.zeros_like(th)], axis=1)
+    assert _arc_follows_plan(P[0], P[4], P[8], np.arange(9), _ctx(P), 0.04)
+    assert not _arc_follows_plan(P[0], P[4], P[8], np.arange(9), _ctx(P), 0.5 * 25 / (8 * R))
+
+
+def test_an_arc_ending_between_waypoints_is_checked_by_their_times():
+    """A target added on the planned motion (wp -1) beside a corner: the waypoints between the arc's ends'
+    times are checked, so a circle bowing off a straight stretch is refused (the SIA20D plate at 40 mm)."""
+    from camtool.program.steps import _waypoints_between
+
+    t = np.arange(10) * 0.05
+    P = np.stack([np.arange(10) * 5.0, np.zeros(10), np.zeros(10)], axis=1)
+    ctx = _ctx(P, t=t)
+    plan = type("P", (), {})()
+    plan.wp, plan.t = np.array([2, -1]), np.array([0.1, 0.33])
+    assert np.array_equal(_waypoints_between(plan, 0, 1, ctx), [2, 3, 4, 5, 6])
+    plan.wp = np.array([2, 6])
+    assert np.array_equal(_waypoints_between(plan, 0, 1, ctx), [2, 3, 4, 5, 6])
+    plan.wp = np.array([2, -1])
+    assert len(_waypoints_between(plan, 0, 1, _ctx(P))) == 0   # no times: nothing to check by

@@ -7,8 +7,9 @@ sample is a whole run, minutes in all, so a plain ``pytest`` skips them.
 - A sample that fails for a known bug is listed in ``XFAIL`` (xfail(strict=True)), so its fix shows as an
   unexpected pass to remove the mark. The SIA20 walls (issue #48) run now: a scan outlier had tilted the
   motion check's local plane.
-- A job with ``fit.model = "freeform"`` skips where ``camtool fit`` refuses that key. The free-form jobs that
-  do not run yet wait in benchmarks/parts/freeform/jobs/ (issue #46), not here.
+- A job with ``fit.model = "freeform"`` skips where ``camtool fit`` refuses that key. The free-form hood
+  (samples/freeform_hood.toml) runs; the free-form jobs that do not run yet wait in
+  benchmarks/parts/freeform/jobs/ (issue #46), not here.
 """
 from __future__ import annotations
 
@@ -54,3 +55,20 @@ def test_sample_runs(name, tmp_path):
         pytest.skip(f'fit.model = "freeform" not accepted yet: {refused.splitlines()[-1][:120]}')
     r = run_camtool("run", job, "-o", tmp_path / "out")
     assert r.returncode == 0, f"{name}: exit {r.returncode}\n{r.stderr[-2000:]}"
+
+
+def test_the_sia20_plate_runs_where_its_reach_hint_puts_it(tmp_path):
+    """Issue #48: the plate job on the SIA20D (tests/jobs/sia20_plate.toml) is out of reach where the
+    IRB2400 has it; the placement its reach hint prints runs end to end, its INFORM job accepted by
+    the program simulator (the E axis held near the plan in straight moves, joint moves where the
+    controller cannot follow a straight one past the wrist singularity)."""
+    import re
+
+    job = Path(__file__).resolve().parent / "jobs" / "sia20_plate.toml"
+    r = run_camtool("run", job, "-o", tmp_path / "far")
+    assert r.returncode == 3
+    hint = re.search(r"(cell\.workpiece_xyz_mm = \[[^\]]+\])", r.stderr)
+    assert hint, r.stderr[-500:]
+    r = run_camtool("run", job, "--set", hint.group(1).replace(" ", ""), "-o", tmp_path / "out")
+    assert r.returncode == 0, f"exit {r.returncode}\n{r.stderr[-2000:]}"
+    assert (tmp_path / "out" / "PLATE.JBI").is_file()

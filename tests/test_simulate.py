@@ -206,3 +206,23 @@ def test_blocks_of_samples_give_the_same_simulation(fmt, robot_name, tmp_path, m
     assert whole["speed_violations"] > 0 or not (prog.kind == "J").all()  # a MoveL keeps its TCP speed
     assert blocks == whole
     assert np.array_equal(seen[0].q, seen[1].q) and np.array_equal(seen[0].m, seen[1].m)
+
+
+def test_the_moves_the_controller_cannot_follow_are_named_by_their_span():
+    """Three joint moves, the middle one too fast for axis 1 (60 deg in 0.2 s: 300 deg/s, limit 150):
+    exactly that move's (start, end) is named, and a program within the limits names none."""
+    r = get_robot("irb2400")
+    mid = (r.limits.lower + r.limits.upper) / 2
+    kw = empty_moves(4, r.dof)
+    kw["q"] = np.array([mid, mid + np.radians([10, 0, 0, 0, 0, 0]), mid + np.radians([70, 0, 0, 0, 0, 0]),
+                        mid + np.radians([80, 0, 0, 0, 0, 0])])
+    kw["duration_s"] = np.array([np.nan, 1.0, 0.2, 1.0])
+    kw["blend_mm"] = np.zeros(4)
+    prog = ProgramMoves(**kw, where=["x:1", "x:2", "x:3", "x:4"])
+    assert np.degrees(r.limits.velocity[0]) < 300.0
+    rep = simulate(prog, r)
+    assert rep.speed_violations > 0
+    assert np.allclose(rep.unfollowed_s, [(1.0, 1.2)])
+    assert "unfollowed_s" not in rep.as_dict()
+    kw["duration_s"] = np.array([np.nan, 1.0, 2.0, 1.0])
+    assert simulate(ProgramMoves(**kw, where=["x:1", "x:2", "x:3", "x:4"]), r).unfollowed_s == ()

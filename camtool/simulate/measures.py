@@ -125,7 +125,7 @@ def unfollowed_moves(robot, chain, s) -> tuple:
         good = dts > 1e-9
         v = np.abs(np.diff(q, axis=0)) / np.where(good, dts, 1.0)[:, None]
         fast = good & (v > Lm.velocity * (1 + SPEED_REL_TOL) + 2 * tol / np.where(good, dts, 1.0)[:, None]).any(axis=1)
-        bad[1:] |= fast
+        bad[:-1] |= fast   # a step belongs to the move its first sample is in
     bad[np.asarray(s.unsolved, int)] = True
     moves = np.unique(m[bad])
     moves = moves[moves > 0]
