@@ -311,3 +311,35 @@ def test_joint_spans_grow_where_the_controller_still_cannot_follow():
     assert np.allclose(joint_spans(((1.0, 1.2),), ((1.1, 1.4),)), [(0.6, 1.8)])
     assert np.allclose(joint_spans(((0.1, 0.3),), ((0.2, 0.4),)), [(0.0, 0.7)])   # never before the start
     assert np.allclose(joint_spans(((1.0, 1.2), (2.0, 2.5)), ((1.2, 2.0),)), [(0.0, 4.0)])
+
+
+def test_straight_moves_the_controller_cannot_follow_are_written_again_as_joint_moves(monkeypatch, tmp_path):
+    """The post stage's rounds (``_joint_move_rounds``): each rewrite asks joint moves over the spans the
+    last simulation named, a span named again grows, and the rounds stop once the program passes."""
+    import camtool.program.post as post_mod
+    from camtool.program.process import ProcessInfo
+
+    named = [((1.0, 1.2),), ((1.1, 1.3),), ()]
+    asked = []
+
+    def fake(fmt, post, trajectory, robot, folders, process, writing, reference, world=None):
+        asked.append(writing.joint_moves_s)
+        left = named[len(asked) - 1]
+        return [], (["x.JBI:9: r moves at 300 deg/s, above its limit 200 deg/s"] if left else []), None, left
+
+    monkeypatch.setattr(post_mod, "_write_checked", fake)
+
+    class Plugin:
+        def forget(self):
+            pass
+
+    post = type("Post", (), {"plugin": Plugin()})()
+    files, found, _fig = post_mod._format_programs("inform", post, None, None, (tmp_path, tmp_path),
+                                                   ProcessInfo(), None)
+    assert found == [] and len(asked) == 3
+    assert asked[0] == () and np.allclose(asked[1], [(1.0, 1.2)]) and np.allclose(asked[2], [(0.7, 1.6)])
+    named[:] = [((1.0, 1.2),)] * 10   # never mended: JOINT_MOVE_ROUNDS rewrites, then the findings stand
+    asked.clear()
+    _files, found, _fig = post_mod._format_programs("inform", post, None, None, (tmp_path, tmp_path),
+                                                    ProcessInfo(), None)
+    assert found and len(asked) == 1 + post_mod.JOINT_MOVE_ROUNDS
