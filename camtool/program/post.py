@@ -281,6 +281,31 @@ def _format_programs(fmt, post, trajectory, robot, folders: tuple[Path, Path], p
     written again with its targets merged closer while the simulator finds them off the path and
     merging closer can mend it (``MERGE_RETRY_SCALES``), then with joint moves where it finds straight
     moves the controller cannot follow (``_joint_move_rounds``). Returns (files, findings, figures or None)."""
+    once = _Once()   # a format written again says its warnings (a job name cut short) once
+    log.addFilter(once)
+    try:
+        return _rewritten_programs(fmt, post, trajectory, robot, folders, process, reference, world)
+    finally:
+        log.removeFilter(once)
+
+
+class _Once(logging.Filter):
+    """Passes each message once (level and text)."""
+
+    def __init__(self):
+        super().__init__()
+        self.seen: set = set()
+
+    def filter(self, record) -> bool:
+        key = (record.levelno, record.getMessage())
+        if key in self.seen:
+            return False
+        self.seen.add(key)
+        return True
+
+
+def _rewritten_programs(fmt, post, trajectory, robot, folders: tuple[Path, Path], process, reference, world=None):
+    """``_format_programs``' rounds: the merge retries, then the joint-move rounds."""
     from dataclasses import replace
 
     files, found, figures, unfollowed = [], [], None, ()
