@@ -11,7 +11,9 @@ in order (``camtool.program.plan`` module doc says why each exists):
    where the move kind changes are always targets.
 3. ``MergeChords``: Douglas-Peucker keeps the fewest waypoints such that the controller's
    interpolation stays within ``MERGE_SHARE`` of the tolerance of every waypoint it skips (by
-   each waypoint's Jacobian, then exactly), and, on work, the feed within ``FEED_LAG_MM``.
+   each waypoint's Jacobian, then exactly), and, on work, the feed within ``FEED_LAG_MM``; where the
+   targets state joints the controller moves linearly in a straight move (a 7th axis, a track), straight
+   moves also keep the joints it solves near the plan's (``HeldJointChords``).
 
 ``merged_candidates`` runs the three for a trajectory and keeps the last result: the RAPID
 and INFORM programs of one run are merged once.

@@ -24,7 +24,12 @@ that become move targets:
   the straight line, and the tool orientation's deviation from the slerp
   (``ProcessInfo.ori_tol_deg``). On work a waypoint is also kept where the
   move's single pace would lead or lag the plan by more than ``FEED_LAG_MM``
-  (``FeedKeeper``).
+  (``FeedKeeper``). Where a format's Cartesian targets also state joints (``held``: the
+  SIA20D's E axis, a track), which the controller moves linearly in a straight move, a
+  straight move skips a waypoint only while the joints it solves stay within
+  ``HELD_JOINT_GUARD`` of the plan's there (``HeldJointChords``); the post stage writes
+  joint moves over spans its simulator finds the controller cannot follow
+  (``ProcessInfo.joint_moves_s``).
 - **Blending.** Every target but the first, the last and the top of each
   retract gets the largest blend level (zone radius in mm) whose corner
   rounding stays within ``BLEND_SHARE`` of the tolerance (a chord deviates
