@@ -2,10 +2,15 @@
 
 All figures are taken over the worked area (the map's sites on material: grid
 cells, or a free-form face's mesh vertices; ``surface_map.SurfaceMap``), weighted
-by their area on the surface:
+by their area on the surface; on a grid the value figures (mean, PV, RMS,
+uniformity) are taken on the map's refined grid (``ProcessMap.fine``, samples
+``RIPPLE_SAMPLES`` per ripple period across the rows) when it has one:
 
 - ``mean``, ``pv`` (max - min), ``rms`` (RMS deviation from the mean) and ``rms_pct`` of the mean;
-- ``uniformity_within_5pct`` / ``_10pct``: the share of the worked area within +-5 % / +-10 % of the mean;
+- ``uniformity_within_5pct`` / ``_10pct``: the share of the worked area within +-5 % / +-10 % of the mean,
+  i.e. the area of {x on material : |h(x) - mean| <= 0.05 mean} over the material's area, h the map taken
+  linear between neighbouring samples across the rows (``share_within``: each sample's cell is split at its
+  centre and each half holds the segment to the midpoint with its neighbour; constant up to an edge);
 - ``edge_rolloff_width_mm``: how far in from the material's edge the map stays short of the mean by more
   than the band (``process.uniformity_band_pct``): the cells are binned by their distance from the edge
   (one cell per bin) and the width is where the first bin from the edge whose mean is within the band
@@ -39,6 +44,53 @@ def edge_distance_mm(pmap: ProcessMap) -> np.ndarray:
     return pmap.grid.edge_distance_mm()
 
 
+def _linear_share(a: np.ndarray, b: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Share of a segment where a function linear from ``a`` to ``b`` lies within [lo, hi] (elementwise)."""
+    d = b - a
+    flat = d == 0
+    step = np.where(flat, 1.0, d)
+    t0, t1 = (lo - a) / step, (hi - a) / step
+    part = np.clip(np.minimum(np.maximum(t0, t1), 1.0) - np.maximum(np.minimum(t0, t1), 0.0), 0.0, 1.0)
+    return np.where(flat, ((a >= lo) & (a <= hi)).astype(float), part)
+
+
+def share_within(values: np.ndarray, material: np.ndarray, area: np.ndarray, lo: float, hi: float,
+                 axis: int = 0) -> float:
+    """Area share of the material where the map lies within [lo, hi], the map taken linear between neighbouring
+    cell centres along ``axis`` (0 = v, across the rows) and constant up to the material's edge."""
+    f, on = np.moveaxis(values, axis, 0), np.moveaxis(material, axis, 0)
+    frac = np.zeros(f.shape)
+    for shift in (1, -1):  # the half-cell towards the next and the previous neighbour
+        nb = np.roll(f, -shift, axis=0)
+        nb_on = np.roll(on, -shift, axis=0)
+        nb_on[-1 if shift == 1 else 0] = False
+        frac += 0.5 * _linear_share(f, np.where(nb_on, 0.5 * (f + nb), f), lo, hi)
+    w = np.moveaxis(area, axis, 0)[on]
+    return float(np.sum(w * frac[on]) / np.sum(w))
+
+
+def _value_figures(pmap: ProcessMap) -> dict:
+    """mean, rms, min, max and the uniformity shares (a function of the band) over the finest map there is."""
+    m = pmap.fine if pmap.fine is not None else pmap
+    g = m.grid
+    v, w = m.values[g.material], g.area_mm2[g.material]
+    mean = _weighted(v, w)
+    scale = abs(mean) if mean else 1.0
+    sub = getattr(g, "sub", None)  # a (u, v) grid; a mesh's sites have no neighbours along an axis
+    axis = 0 if sub is None or sub[1] >= sub[0] else 1
+
+    def within(b):
+        if mean <= 0:
+            return 0.0  # nothing was done: no share is uniform
+        lo, hi = mean - b * scale, mean + b * scale
+        if sub is None or m.values.ndim != 2:
+            return round(_weighted(((v >= lo) & (v <= hi)).astype(float), w), 5)
+        return round(share_within(m.values, g.material, g.area_mm2, lo, hi, axis), 5)
+
+    return {"mean": mean, "rms": math.sqrt(_weighted((v - mean) ** 2, w)), "min": float(v.min()),
+            "max": float(v.max()), "within": within, "scale": scale}
+
+
 def map_figures(pmap: ProcessMap, band: float = 0.05) -> dict:
     """The figures of ``pmap`` (see the module doc); values rounded for report.json."""
     g = pmap.grid
@@ -50,16 +102,8 @@ def map_figures(pmap: ProcessMap, band: float = 0.05) -> dict:
     if not worked.any():
         return {**out, "mean": None}
     v, w = pmap.values[worked], g.area_mm2[worked]
-    mean = _weighted(v, w)
-    dev = v - mean
-    rms = math.sqrt(_weighted(dev ** 2, w))
-    scale = abs(mean) if mean else 1.0
-
-    def within(b):
-        if mean <= 0:
-            return 0.0  # nothing was done: no share is uniform
-        return round(_weighted((np.abs(dev) <= b * scale).astype(float), w), 5)
-
+    vf = _value_figures(pmap)
+    mean, rms, scale, within = vf["mean"], vf["rms"], vf["scale"], vf["within"]
     uncovered = (v <= 0.0) if pmap.kind == "inspect" else (v <= UNCOVERED_SHARE_OF_MEAN * scale)
     dist = edge_distance_mm(pmap)[worked]
     width = 0.0
@@ -75,14 +119,20 @@ def map_figures(pmap: ProcessMap, band: float = 0.05) -> dict:
         else:
             width = float(dist.max())
     sig = 6
-    return {**out, "mean": round(mean, sig), "pv": round(float(v.max() - v.min()), sig), "rms": round(rms, sig),
-            "rms_pct": round(100.0 * rms / scale, 3), "min": round(float(v.min()), sig),
-            "max": round(float(v.max()), sig),
+    return {**out, "mean": round(mean, sig), "pv": round(vf["max"] - vf["min"], sig), "rms": round(rms, sig),
+            "rms_pct": round(100.0 * rms / scale, 3), "min": round(vf["min"], sig), "max": round(vf["max"], sig),
+            "samples_across_rows_mm": round(_across_mm(pmap), 4),
             "uniformity_within_5pct": within(0.05), "uniformity_within_10pct": within(0.10),
             "uniformity_within_band": within(band),
             "edge_rolloff_width_mm": round(width, 2),
             "uncovered_area_mm2": round(float(w[uncovered].sum()), 1),
             "uncovered_share": round(float(w[uncovered].sum() / w.sum()), 5)}
+
+
+def _across_mm(pmap: ProcessMap) -> float:
+    """The spacing of the samples the value figures are taken on, along the axis of the most sub-samples (mm)."""
+    g = (pmap.fine if pmap.fine is not None else pmap).grid
+    return g.cell_mm / max(getattr(g, "sub", (1, 1)))
 
 
 def _atomic(file: Path, write) -> Path:

@@ -77,6 +77,18 @@ class Footprint:
         w = self.shape(r).reshape(2 * n + 1, m, 2 * n + 1, m).mean(axis=(1, 3))
         return w / w.sum()
 
+    def cell_kernel(self, du_mm: float, dv_mm: float, sub_mm: float) -> np.ndarray:
+        """(2nv+1, 2nu+1) weights on a grid of ``du_mm`` x ``dv_mm`` cells (rows along v): the density averaged over
+        each cell with sub-samples at most ``sub_mm`` apart on each axis, rescaled to sum to exactly 1.
+        For the refined grids of ``grid.refined`` (cells long along the rows, short across them)."""
+        a = self.radius_mm
+        nu, nv = int(math.ceil(a / du_mm)) + 1, int(math.ceil(a / dv_mm)) + 1
+        mu, mv = max(int(math.ceil(du_mm / sub_mm)), 1), max(int(math.ceil(dv_mm / sub_mm)), 1)
+        x = (np.arange(-nu, nu + 1)[:, None] + ((np.arange(mu) + 0.5) / mu - 0.5)[None, :]).ravel() * du_mm
+        y = (np.arange(-nv, nv + 1)[:, None] + ((np.arange(mv) + 0.5) / mv - 0.5)[None, :]).ravel() * dv_mm
+        w = self.shape(np.hypot(x[None, :], y[:, None])).reshape(2 * nv + 1, mv, 2 * nu + 1, mu).mean(axis=(1, 3))
+        return w / w.sum()
+
     def pass_profile(self, y_mm) -> np.ndarray:
         """Integral of ``density`` along a straight line at lateral offset ``y_mm`` (1/mm): a straight pass at
         unit speed leaves this times the rate. Closed form for flat and parabolic, quadrature otherwise."""

@@ -8,6 +8,13 @@ covers the material boundary's bounds plus ``pad_mm`` on every side (the
 footprint of a tool at the edge); ``material`` marks the cells whose centre
 lies on material (inside the outer polygon, outside the holes): the worked
 area every figure is taken over. ``area_mm2`` is each cell's area on the surface.
+
+``refined`` splits every cell into ``m_u`` x ``m_v`` sub-cells (the same
+domain, finer samples): the map is integrated there and its figures taken
+there, so the ripple between passes is resolved (``refinement`` chooses the
+factors from the rows' spacing and direction: ``RIPPLE_SAMPLES`` samples per
+period across the rows, within ``MAX_CELLS``); the saved map is the
+sub-cells' average over each cell.
 """
 from __future__ import annotations
 
@@ -21,6 +28,7 @@ from ..path.toolpath import freeze_arrays
 from .surface_map import SurfaceMap
 
 MAX_CELLS = 4_000_000  # a finer grid is refused: coarsen process.grid_mm
+RIPPLE_SAMPLES = 96     # samples per period of the ripple across the rows (figures within 0.5 pp: docs/process.md)
 
 
 @dataclass(frozen=True)
@@ -35,6 +43,7 @@ class MapGrid(SurfaceMap):
     cell_mm: float
     material: np.ndarray   # (nv, nu) bool
     area_mm2: np.ndarray   # (nv, nu)
+    sub: tuple[int, int] = (1, 1)  # (m_u, m_v): a refinement of a grid of m_u x m_v larger cells (``refined``)
 
     def __post_init__(self):
         freeze_arrays(self)
@@ -129,3 +138,36 @@ def map_grid(surface, cell_mm: float, pad_mm: float) -> MapGrid:
     else:
         area = np.full(U.shape, du * dv)
     return MapGrid(surface, u, v, float(cell_mm), material, area)
+
+
+def refinement(grid: MapGrid, spacing_mm: float, across_mm: np.ndarray) -> tuple[int, int]:
+    """(m_u, m_v) sub-cells per cell so that neighbouring samples are at most ``spacing_mm`` apart along the unit
+    direction ``across_mm`` (across the rows, in mm along u and v), as far as ``MAX_CELLS`` allows."""
+    n = np.abs(np.asarray(across_mm, float))
+    m = np.maximum(np.ceil(grid.cell_mm * n / spacing_mm - 1e-9), 1.0)
+    cells = float(grid.u.size * grid.v.size)
+    if cells * m[0] * m[1] > MAX_CELLS:  # the same share of the bound on each refined axis
+        shrink = math.sqrt(MAX_CELLS / (cells * m[0] * m[1])) if m.min() > 1 else MAX_CELLS / (cells * m.prod())
+        m = np.maximum(np.floor(m * shrink), 1.0)
+    return int(m[0]), int(m[1])
+
+
+def refined(grid: MapGrid, m_u: int, m_v: int) -> MapGrid:
+    """``grid`` with every cell split into ``m_u`` x ``m_v`` sub-cells (centres, material and areas of their own)."""
+    surface = grid.surface
+    du, dv = grid.du / m_u, grid.dv / m_v
+    u = (grid.u[:, None] + ((np.arange(m_u) + 0.5) / m_u - 0.5)[None, :] * grid.du).ravel()
+    v = (grid.v[:, None] + ((np.arange(m_v) + 0.5) / m_v - 0.5)[None, :] * grid.dv).ravel()
+    U, V = np.meshgrid(u, v)
+    material = surface.boundary.contains(np.column_stack([U.ravel(), V.ravel()])).reshape(U.shape)
+    if surface.model == "sphere":
+        area = (surface.radius_mm ** 2) * np.cos(V) * du * dv
+    else:
+        area = np.full(U.shape, du * dv)
+    return MapGrid(surface, u, v, grid.cell_mm, material, area, (m_u, m_v))
+
+
+def block_mean(fine: np.ndarray, m_u: int, m_v: int) -> np.ndarray:
+    """(nv, nu) average of each cell's m_v x m_u sub-cells of a ``refined`` grid's (nv m_v, nu m_u) array."""
+    nv, nu = fine.shape[0] // m_v, fine.shape[1] // m_u
+    return fine.reshape(nv, m_v, nu, m_u).mean(axis=(1, 3))

@@ -27,6 +27,13 @@ the binned amounts of the row are convolved with it along u
 its window of cells in its own tangent plane (any surface, no binning; the
 reference the tests and the benchmark compare with), normalised per contact
 so each one puts exactly its amount on the surface.
+
+Except for inspect, the map is integrated on the grid refined across the rows
+(``grid.refinement``: ``RIPPLE_SAMPLES`` samples per period of the ripple
+between passes), each contact spread along its stretch of path first
+(``_along_path``); ``ProcessMap.values`` are the sub-cells' averages over each
+cell of ``process.grid_mm`` and ``ProcessMap.fine`` the refined map the figures
+are taken on (docs/process.md, "What uniformity_within_5pct is, exactly").
 """
 from __future__ import annotations
 
@@ -39,7 +46,7 @@ from ..motion.fk_batch import BatchFK
 from ..settings import ProcessSettings
 from ..trajectory import sample_trajectory
 from .footprint import Footprint
-from .grid import MapGrid, map_grid
+from .grid import RIPPLE_SAMPLES, MapGrid, block_mean, map_grid, refined, refinement
 
 
 def _fftconvolve(*args, **kwargs):
@@ -80,6 +87,7 @@ class ProcessMap:
     contact_time_s: float
     contact_length_mm: float
     samples: int
+    fine: "ProcessMap | None" = None  # the map on the refined grid the figures are taken on (``grid.refined``)
 
 
 def amounts(settings: ProcessSettings, dt_s: np.ndarray, travel_mm: np.ndarray) -> np.ndarray:
@@ -155,19 +163,73 @@ def _bin_bilinear(grid: MapGrid, uv: np.ndarray, weights: np.ndarray) -> np.ndar
     return acc.reshape(nv, nu)
 
 
+ALONG_PATH_SUBSTEPS = 8  # points per cell that a contact's stretch of path is spread over before binning
+
+
+def _along_path(grid: MapGrid, c: Contacts) -> tuple[np.ndarray, np.ndarray]:
+    """(uv, amounts): each contact's amount spread evenly over the stretch of path it stands for (half-way to its
+    neighbours in its run), at points ``ALONG_PATH_SUBSTEPS`` per cell apart. Binning the contacts as points
+    aliases their spacing against the cells' (a few % per cell, 0.2 % on the ripple's peaks); the stretches
+    tile the path, so each cell gets the length of path it holds."""
+    n = len(c.uv)
+    if n < 2:
+        return c.uv, c.amount
+    same = c.run[1:] == c.run[:-1]
+    step = np.where(same[:, None], np.diff(c.uv, axis=0), 0.0)              # to the next contact, in its run
+    fwd = np.vstack([step, np.zeros((1, 2))])
+    back = np.vstack([np.zeros((1, 2)), step])
+    lo, hi = -0.5 * back, 0.5 * fwd                                          # the stretch round each contact
+    cells = np.max(np.abs(hi - lo) / np.array([grid.du, grid.dv]), axis=1)
+    k = np.clip(np.ceil(ALONG_PATH_SUBSTEPS * cells), 1, 64).astype(np.int64)
+    owner = np.repeat(np.arange(n), k)
+    first = np.repeat(np.cumsum(k) - k, k)
+    f = (np.arange(len(owner)) - first + 0.5) / k[owner]
+    uv = c.uv[owner] + lo[owner] + f[:, None] * (hi - lo)[owner]
+    return uv, c.amount[owner] / k[owner]
+
+
 def _convolved(grid: MapGrid, fp: Footprint, uv, weights, binary: bool = False) -> np.ndarray:
     """Per unit area: binned weights convolved with the footprint's kernel (plane grids)."""
-    kernel = fp.kernel(grid.cell_mm)
+    kernel = fp.kernel(grid.cell_mm) if grid.sub == (1, 1) else fp.cell_kernel(grid.du, grid.dv, KERNEL_SUB_MM)
     if binary:
         kernel = (kernel > 0).astype(float)
     out = _fftconvolve(_bin_bilinear(grid, uv, weights), kernel, mode="same")
     return out if binary else out / grid.area_mm2
 
 
-ROW_SUPERSAMPLE = 3  # sub-samples per cell side of a sphere row's kernel
+ROW_SUPERSAMPLE = 3  # sub-samples per cell side of a sphere row's kernel (at least; KERNEL_SUB_MM apart at most)
+KERNEL_SUB_MM = 0.05  # sub-sample spacing of the plane kernels of refined grids: a flat footprint's chords to ~0.03 mm
+CLOSED_FORM = ("flat", "parabolic")  # footprints whose sphere row kernels are integrated in closed form
+ROW_SUB_MM = 0.25     # the same for the sphere's row kernels (one per cell row: 40x the work of a plane's one)
 
 
-def _row_kernel(grid: MapGrid, fp: Footprint, iv0: int, binary: bool) -> tuple[np.ndarray, int, int]:
+def _row_kernel_closed(grid: MapGrid, fp: Footprint, v0: float, hu: int, hv: int) -> np.ndarray:
+    """(2hv+1, 2hu+1) the flat or parabolic footprint of a contact at (u = 0, v0) on a sphere, at each cell row's
+    elevation and averaged over each cell in u, in closed form: in the tangent plane at the contact a point
+    (U, V) is r = R sqrt(1 - q^2) away, q = A cos U + B with A = cos V cos v0, B = sin V sin v0, so r <= a is
+    |U| <= U* (cos U* = (sqrt(1 - a^2/R^2) - B) / A) and 1 - r^2/a^2 integrates over U as a trigonometric
+    polynomial. Written here: scipy has no footprint integrals, and supersampling to the same accuracy costs
+    a hundred times more (a flat footprint's chords must be right to ~0.03 mm for the ripple's peaks)."""
+    R, a = float(grid.surface.radius_mm), fp.radius_mm
+    V = v0 + np.arange(-hv, hv + 1) * grid.dv
+    A = (np.cos(V) * math.cos(v0))[:, None]
+    B = (np.sin(V) * math.sin(v0))[:, None]
+    cos_star = (math.sqrt(max(1.0 - (a / R) ** 2, 0.0)) - B) / A
+    u_star = np.where(cos_star >= 1.0, 0.0, np.arccos(np.clip(cos_star, -1.0, 1.0)))
+    edges = (np.arange(-hu, hu + 2) - 0.5) * grid.du
+    lo = np.clip(edges[None, :-1], -u_star, u_star)
+    hi = np.clip(edges[None, 1:], -u_star, u_star)
+    if fp.profile == "flat":
+        return (hi - lo) / grid.du
+
+    def q2(U):  # integral of (A cos U + B)^2 dU
+        return A * A * (0.5 * U + 0.25 * np.sin(2.0 * U)) + 2.0 * A * B * np.sin(U) + B * B * U
+
+    k = (R / a) ** 2
+    return np.maximum((1.0 - k) * (hi - lo) + k * (q2(hi) - q2(lo)), 0.0) / grid.du
+
+
+def _row_kernel(grid: MapGrid, fp: Footprint, iv0: float, binary: bool) -> tuple[np.ndarray, int, int]:
     """(kernel, hu, hv) of a contact on grid row ``iv0`` of a sphere patch, in cell offsets: the footprint in the
     tangent plane at (u = 0, v_iv0), averaged over each cell, weighted so that sum(kernel * area) = 1."""
     surface = grid.surface
@@ -176,17 +238,24 @@ def _row_kernel(grid: MapGrid, fp: Footprint, iv0: int, binary: bool) -> tuple[n
     v_far = min(abs(v0) + (a + grid.cell_mm) / R, 0.5 * math.pi)
     hu = int(math.ceil(a / (R * max(math.cos(v_far), 0.05) * grid.du))) + 1
     hv = int(math.ceil(a / (R * grid.dv))) + 1
-    m = ROW_SUPERSAMPLE
-    sub = (np.arange(m) + 0.5) / m - 0.5
-    du = (np.arange(-hu, hu + 1)[:, None] + sub[None, :]).ravel() * grid.du
-    dv = (np.arange(-hv, hv + 1)[:, None] + sub[None, :]).ravel() * grid.dv
+    mu = mv = ROW_SUPERSAMPLE
+    if grid.sub != (1, 1) and not binary:
+        if fp.profile in CLOSED_FORM:
+            w = _row_kernel_closed(grid, fp, v0, hu, hv)
+            rows = np.arange(-hv, hv + 1) + iv0
+            area = R * R * np.cos(grid.v[0] + rows * grid.dv) * grid.du * grid.dv
+            return w / max(float(np.sum(w * area[:, None])), 1e-300), hu, hv
+        mu = max(mu, int(math.ceil(R * math.cos(v0) * grid.du / ROW_SUB_MM)))  # sub-samples ROW_SUB_MM apart
+        mv = max(1, int(math.ceil(R * grid.dv / ROW_SUB_MM)))
+    du = (np.arange(-hu, hu + 1)[:, None] + ((np.arange(mu) + 0.5) / mu - 0.5)[None, :]).ravel() * grid.du
+    dv = (np.arange(-hv, hv + 1)[:, None] + ((np.arange(mv) + 0.5) / mv - 0.5)[None, :]).ravel() * grid.dv
     U, V = np.meshgrid(du, v0 + dv)
     # in the patch frame: the contact at azimuth 0 (azimuth shifts are isometries of the sphere)
     p = R * np.stack([np.cos(V) * np.cos(U), np.cos(V) * np.sin(U), np.sin(V)], axis=-1)
     n = np.array([math.cos(v0), 0.0, math.sin(v0)])
     d = p - R * n
     d = d - (d @ n)[..., None] * n
-    w = fp.shape(np.linalg.norm(d, axis=-1)).reshape(2 * hv + 1, m, 2 * hu + 1, m).mean(axis=(1, 3))
+    w = fp.shape(np.linalg.norm(d, axis=-1)).reshape(2 * hv + 1, mv, 2 * hu + 1, mu).mean(axis=(1, 3))
     if binary:
         return (w > 0).astype(float), hu, hv
     rows = np.arange(-hv, hv + 1) + iv0
@@ -196,14 +265,20 @@ def _row_kernel(grid: MapGrid, fp: Footprint, iv0: int, binary: bool) -> tuple[n
 
 def _row_convolved(grid: MapGrid, fp: Footprint, uv, weights, binary: bool = False) -> np.ndarray:
     """Per unit area on a sphere patch: the binned weights of each grid row convolved along u with that row's
-    kernel (``_row_kernel``; exact geometry per elevation, shift-invariant in azimuth)."""
+    kernel (``_row_kernel``; exact geometry per elevation, shift-invariant in azimuth). On a refined grid, with a
+    footprint of no closed form, the m_v sub-rows of one cell share the kernel of the cell's centre."""
     nv, nu = grid.shape
     binned = _bin_bilinear(grid, uv, weights)
     out = np.zeros((nv, nu))
-    for iv0 in np.flatnonzero(np.any(binned != 0, axis=1)):
-        kernel, hu, hv = _row_kernel(grid, fp, int(iv0), binary)
-        rows = _fftconvolve(binned[iv0][None, :], kernel, mode="full")[:, hu:hu + nu]  # (2hv+1, nu)
-        lo, hi = iv0 - hv, iv0 + hv + 1
+    band = 1 if binary or fp.profile in CLOSED_FORM else grid.sub[1]  # closed-form kernels are cheap: one per row
+    active = np.any(binned != 0, axis=1)
+    for b0 in range(0, nv, band):
+        b1 = min(b0 + band, nv)
+        if not active[b0:b1].any():
+            continue
+        kernel, hu, hv = _row_kernel(grid, fp, 0.5 * (b0 + b1 - 1), binary)
+        rows = _fftconvolve(binned[b0:b1], kernel, mode="full")[:, hu:hu + nu]  # (b1 - b0 + 2hv, nu)
+        lo, hi = b0 - hv, b1 + hv
         a, b = max(lo, 0), min(hi, nv)
         out[a:b] += rows[a - lo:rows.shape[0] - (hi - b)]
     return out
@@ -263,7 +338,7 @@ def map_from_contacts(settings: ProcessSettings, grid: MapGrid, c: Contacts, met
     spread = None if conv is None else (lambda uv, w, **kw: conv(grid, fp, uv, w, **kw))
     if settings.kind != "inspect":
         if spread is not None:
-            return spread(c.uv, c.amount), method
+            return spread(*(_along_path(grid, c) if grid.sub != (1, 1) else (c.uv, c.amount))), method
         return _direct(grid, fp, c, c.amount), method
     count = np.zeros(grid.shape)
     for r in np.unique(c.run):
@@ -278,20 +353,53 @@ def map_from_contacts(settings: ProcessSettings, grid: MapGrid, c: Contacts, met
     return count, method
 
 
+def across_rows_mm(surface, c: Contacts) -> np.ndarray:
+    """Unit (u, v) direction, in mm along u and v, across the contacts' travel: the normal to the principal axis
+    of their steps (travel-weighted); (0, 1) when the tool never moves."""
+    if len(c.uv) < 2:
+        return np.array([0.0, 1.0])
+    same = np.diff(c.run) == 0
+    d = np.diff(c.uv, axis=0)[same]
+    if surface.model == "sphere":  # rad to mm on the surface
+        R = float(surface.radius_mm)
+        d = d * np.column_stack([R * np.cos(c.uv[1:, 1]), np.full(len(c.uv) - 1, R)])[same]
+    length = np.linalg.norm(d, axis=1)
+    keep = length > 0
+    if not keep.any():
+        return np.array([0.0, 1.0])
+    e = d[keep] / length[keep, None]
+    along = np.linalg.eigh(np.einsum("k,ki,kj->ij", length[keep], e, e))[1][:, -1]
+    return np.array([-along[1], along[0]])
+
+
 def process_map(settings: ProcessSettings, surface, t_s, tcp_mm, method: str = "auto",
-                grid: MapGrid | None = None) -> ProcessMap:
-    """The map of a TCP track (``tcp_track``) over ``surface``'s worked area."""
+                grid: MapGrid | None = None, rows_mm: float = 0.0) -> ProcessMap:
+    """The map of a TCP track (``tcp_track``) over ``surface``'s worked area.
+
+    ``rows_mm``: the rows' spacing (the ripple's period; 0 = not a raster: the footprint's radius). Except
+    for inspect, the map is integrated on the grid refined across the rows to ``RIPPLE_SAMPLES`` samples per
+    period (``grid.refinement``); ``values`` are its cell averages and ``fine`` the refined map."""
     if grid is None:
         grid = map_grid(surface, settings.grid_mm, 0.5 * settings.diameter_mm + 2 * settings.grid_mm)
     c = contacts_from_tcp(settings, surface, t_s, tcp_mm, spacing_mm=0.5 * grid.cell_mm)
-    values, used = map_from_contacts(settings, grid, c, method)
     quantity, units = QUANTITY[settings.kind]
-    return ProcessMap(grid, values, settings.kind, quantity, units, used, float(c.dt_s.sum()),
-                      float(c.travel_mm.sum()), int(len(t_s)))
+    m_u = m_v = 1
+    if settings.kind != "inspect":  # coverage counts have no ripple to resolve
+        period = rows_mm if rows_mm > 0 else 0.5 * settings.diameter_mm
+        m_u, m_v = refinement(grid, period / RIPPLE_SAMPLES, across_rows_mm(surface, c))
+    made = (settings.kind, quantity, units)
+    run = (float(c.dt_s.sum()), float(c.travel_mm.sum()), int(len(t_s)))
+    if (m_u, m_v) == (1, 1):
+        values, used = map_from_contacts(settings, grid, c, method)
+        return ProcessMap(grid, values, *made, used, *run)
+    fine_grid = refined(grid, m_u, m_v)
+    values, used = map_from_contacts(settings, fine_grid, c, method)
+    fine = ProcessMap(fine_grid, values, *made, used, *run)
+    return ProcessMap(grid, block_mean(values, m_u, m_v), *made, used, *run, fine=fine)
 
 
 def trajectory_map(settings: ProcessSettings, surface, trajectory, robot, dt_s: float,
-                   method: str = "auto", grid: MapGrid | None = None) -> ProcessMap:
+                   method: str = "auto", grid: MapGrid | None = None, rows_mm: float = 0.0) -> ProcessMap:
     """The map of a timed trajectory as the controller runs it (resampled at ``dt_s``)."""
     t_s, tcp = tcp_track(trajectory, robot, dt_s)
-    return process_map(settings, surface, t_s, tcp, method, grid=grid)
+    return process_map(settings, surface, t_s, tcp, method, grid=grid, rows_mm=rows_mm)

@@ -56,10 +56,10 @@ def surface_map(settings: ProcessSettings, surface) -> SurfaceMap:
     return map_grid(surface, settings.grid_mm, _grid_pad_mm(settings))
 
 
-def _face_set_map(settings: ProcessSettings, face_set, t_s, tcp_mm) -> ProcessMap:
+def _face_set_map(settings: ProcessSettings, face_set, t_s, tcp_mm, rows_mm: float = 0.0) -> ProcessMap:
     """A map per face of ``face_set`` (each from the contacts on its own surface) and all of them as one."""
-    maps = tuple((int(i), track_map(settings, face, t_s, tcp_mm)) for i, face in zip(face_set.indices,
-                                                                                   face_set.surfaces))
+    maps = tuple((int(i), track_map(settings, face, t_s, tcp_mm, rows_mm=rows_mm))
+                 for i, face in zip(face_set.indices, face_set.surfaces))
     sites = MapSet(face_set, maps)
     quantity, units = QUANTITY[settings.kind]
     method = ", ".join(sorted({m.method for _, m in maps}))
@@ -68,18 +68,20 @@ def _face_set_map(settings: ProcessSettings, face_set, t_s, tcp_mm) -> ProcessMa
                       float(np.sum([m.contact_length_mm for _, m in maps])), int(len(t_s)))
 
 
-def track_map(settings: ProcessSettings, surface, t_s, tcp_mm, sites: SurfaceMap | None = None) -> ProcessMap:
-    """The map of a TCP track sampled at ``t_s`` over ``surface`` (on ``sites`` when given)."""
+def track_map(settings: ProcessSettings, surface, t_s, tcp_mm, sites: SurfaceMap | None = None,
+              rows_mm: float = 0.0) -> ProcessMap:
+    """The map of a TCP track sampled at ``t_s`` over ``surface`` (on ``sites`` when given). ``rows_mm``: the
+    rows' spacing, which a grid map is refined to resolve (``integrate.process_map``)."""
     if getattr(surface, "model", None) in SET_MODELS:
-        return _face_set_map(settings, surface, t_s, tcp_mm)
+        return _face_set_map(settings, surface, t_s, tcp_mm, rows_mm)
     if on_mesh(surface):
         return mesh_process_map(settings, surface, t_s, tcp_mm, sites if sites is not None
                                 else surface_map(settings, surface))
-    return process_map(settings, surface, t_s, tcp_mm, grid=sites)
+    return process_map(settings, surface, t_s, tcp_mm, grid=sites, rows_mm=rows_mm)
 
 
 def trajectory_surface_map(settings: ProcessSettings, surface, trajectory, robot, dt_s: float,
-                           sites: SurfaceMap | None = None) -> ProcessMap:
+                           sites: SurfaceMap | None = None, rows_mm: float = 0.0) -> ProcessMap:
     """The map of a timed trajectory as the controller runs it (resampled at ``dt_s``) over ``surface``."""
     t_s, tcp = tcp_track(trajectory, robot, dt_s)
-    return track_map(settings, surface, t_s, tcp, sites)
+    return track_map(settings, surface, t_s, tcp, sites, rows_mm)

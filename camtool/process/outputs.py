@@ -48,7 +48,8 @@ def process_outputs(job, settings, trajectory, robot, surface, outdir, extra: di
         return None, []
     start, cpu = time.perf_counter(), time.process_time()
     grid = None if dwell is None else dwell.before.grid
-    pmap = trajectory_surface_map(process, surface, trajectory, robot, settings.check.dt_s, sites=grid)
+    pmap = trajectory_surface_map(process, surface, trajectory, robot, settings.check.dt_s, sites=grid,
+                                  rows_mm=float(settings.raster.step_over_mm))
     figures = map_figures(pmap, process.uniformity_band)
     outdir = Path(outdir)
     files = [save_map_npz(pmap, outdir / MAP_FILE),

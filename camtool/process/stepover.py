@@ -3,7 +3,8 @@
 The prediction is the map of the raster itself, run at constant feed: the
 rows' surface poses (work and the leads that stay within the contact
 tolerance), densified to half a map cell, each row a separate pass
-(``predicted_map``). A larger step-over means fewer rows and a shorter cycle,
+(``predicted_map``, refined across the rows at the candidate's step-over, so
+its share agrees with the exact reference: docs/process.md). A larger step-over means fewer rows and a shorter cycle,
 so the largest one that meets ``process.uniformity_target`` (the share of the
 worked area within ``uniformity_band_pct`` of the mean) is taken:
 
@@ -95,7 +96,7 @@ def predicted_map(surface, raster: RasterSettings, process: ProcessSettings, fee
 
     path = raster_path(surface, raster)
     t, tcp = _track(path, feed_mm_s, 0.5 * process.grid_mm, 10.0 * process.contact_tol_mm + 1.0)
-    return path, track_map(process, surface, t, tcp)
+    return path, track_map(process, surface, t, tcp, rows_mm=raster.step_over_mm)
 
 
 def _interior_share(pmap, fp: Footprint, band: float, kind: str) -> float:
