@@ -69,26 +69,43 @@ def share_within(values: np.ndarray, material: np.ndarray, area: np.ndarray, lo:
     return float(np.sum(w * frac[on]) / np.sum(w))
 
 
-def _value_figures(pmap: ProcessMap) -> dict:
-    """mean, rms, min, max and the uniformity shares (a function of the band) over the finest map there is."""
-    m = pmap.fine if pmap.fine is not None else pmap
+def _finest(pmap: ProcessMap) -> list:
+    """The maps the value figures are taken on: each face's (several faces) or the map's own, refined if it is."""
+    faces = pmap.grid.per_face()
+    maps = [m for _, m in faces] if faces else [pmap]
+    return [m.fine if m.fine is not None else m for m in maps]
+
+
+def _share(m: ProcessMap, lo: float, hi: float) -> tuple[float, float]:
+    """(area within [lo, hi], worked area) of one map: linear across the rows on a grid (``share_within``), the
+    sites' areas on a mesh (its sites have no neighbours along an axis)."""
     g = m.grid
-    v, w = m.values[g.material], g.area_mm2[g.material]
+    w = g.area_mm2[g.material]
+    sub = getattr(g, "sub", None)
+    if sub is None or m.values.ndim != 2:
+        v = m.values[g.material]
+        return float(np.sum(w * ((v >= lo) & (v <= hi)))), float(np.sum(w))
+    return share_within(m.values, g.material, g.area_mm2, lo, hi, 0 if sub[1] >= sub[0] else 1) * float(w.sum()), \
+        float(w.sum())
+
+
+def _value_figures(pmap: ProcessMap) -> dict:
+    """mean, rms, min, max, the worked area and the uniformity shares (a function of the band) over the finest
+    samples there are (``_finest``)."""
+    maps = _finest(pmap)
+    v = np.concatenate([m.values[m.grid.material] for m in maps])
+    w = np.concatenate([m.grid.area_mm2[m.grid.material] for m in maps])
     mean = _weighted(v, w)
     scale = abs(mean) if mean else 1.0
-    sub = getattr(g, "sub", None)  # a (u, v) grid; a mesh's sites have no neighbours along an axis
-    axis = 0 if sub is None or sub[1] >= sub[0] else 1
 
     def within(b):
         if mean <= 0:
             return 0.0  # nothing was done: no share is uniform
-        lo, hi = mean - b * scale, mean + b * scale
-        if sub is None or m.values.ndim != 2:
-            return round(_weighted(((v >= lo) & (v <= hi)).astype(float), w), 5)
-        return round(share_within(m.values, g.material, g.area_mm2, lo, hi, axis), 5)
+        parts = np.array([_share(m, mean - b * scale, mean + b * scale) for m in maps])
+        return round(float(parts[:, 0].sum() / parts[:, 1].sum()), 5)
 
     return {"mean": mean, "rms": math.sqrt(_weighted((v - mean) ** 2, w)), "min": float(v.min()),
-            "max": float(v.max()), "within": within, "scale": scale}
+            "max": float(v.max()), "within": within, "scale": scale, "area_mm2": float(w.sum())}
 
 
 def map_figures(pmap: ProcessMap, band: float = 0.05) -> dict:
@@ -121,7 +138,7 @@ def map_figures(pmap: ProcessMap, band: float = 0.05) -> dict:
     sig = 6
     return {**out, "mean": round(mean, sig), "pv": round(vf["max"] - vf["min"], sig), "rms": round(rms, sig),
             "rms_pct": round(100.0 * rms / scale, 3), "min": round(vf["min"], sig), "max": round(vf["max"], sig),
-            "samples_across_rows_mm": round(_across_mm(pmap), 4),
+            "samples_across_rows_mm": round(_across_mm(pmap), 4), "worked_area_mm2": round(vf["area_mm2"], 1),
             "uniformity_within_5pct": within(0.05), "uniformity_within_10pct": within(0.10),
             "uniformity_within_band": within(band),
             "edge_rolloff_width_mm": round(width, 2),
@@ -131,8 +148,7 @@ def map_figures(pmap: ProcessMap, band: float = 0.05) -> dict:
 
 def _across_mm(pmap: ProcessMap) -> float:
     """The spacing of the samples the value figures are taken on, along the axis of the most sub-samples (mm)."""
-    g = (pmap.fine if pmap.fine is not None else pmap).grid
-    return g.cell_mm / max(getattr(g, "sub", (1, 1)))
+    return min(m.grid.cell_mm / max(getattr(m.grid, "sub", (1, 1))) for m in _finest(pmap))
 
 
 def _atomic(file: Path, write) -> Path:

@@ -373,18 +373,19 @@ def across_rows_mm(surface, c: Contacts) -> np.ndarray:
 
 
 def process_map(settings: ProcessSettings, surface, t_s, tcp_mm, method: str = "auto",
-                grid: MapGrid | None = None, rows_mm: float = 0.0) -> ProcessMap:
+                grid: MapGrid | None = None, rows_mm: float = 0.0, refine: bool = True) -> ProcessMap:
     """The map of a TCP track (``tcp_track``) over ``surface``'s worked area.
 
     ``rows_mm``: the rows' spacing (the ripple's period; 0 = not a raster: the footprint's radius). Except
     for inspect, the map is integrated on the grid refined across the rows to ``RIPPLE_SAMPLES`` samples per
-    period (``grid.refinement``); ``values`` are its cell averages and ``fine`` the refined map."""
+    period (``grid.refinement``); ``values`` are its cell averages and ``fine`` the refined map.
+    ``refine = False``: the values at the grid's own cell centres (no figures of the ripple)."""
     if grid is None:
         grid = map_grid(surface, settings.grid_mm, 0.5 * settings.diameter_mm + 2 * settings.grid_mm)
     c = contacts_from_tcp(settings, surface, t_s, tcp_mm, spacing_mm=0.5 * grid.cell_mm)
     quantity, units = QUANTITY[settings.kind]
     m_u = m_v = 1
-    if settings.kind != "inspect":  # coverage counts have no ripple to resolve
+    if refine and settings.kind != "inspect":  # coverage counts have no ripple to resolve
         period = rows_mm if rows_mm > 0 else 0.5 * settings.diameter_mm
         m_u, m_v = refinement(grid, period / RIPPLE_SAMPLES, across_rows_mm(surface, c))
     made = (settings.kind, quantity, units)
