@@ -99,3 +99,31 @@ def test_sphere_row_convolution_matches_direct_sums():
     b = process_map(s, sph, t, tcp, method="direct").values
     on = b > 0.05 * b.max()
     assert np.sqrt(np.mean((a[on] - b[on]) ** 2)) / b[on].mean() < 0.02
+
+
+def test_across_rows_is_normal_to_the_travel():
+    from camtool.process.integrate import across_rows_mm, contacts_from_tcp
+
+    s = ProcessSettings.make(kind="polish", diameter_mm=40)
+    d = np.array([math.cos(math.radians(30)), math.sin(math.radians(30)), 0.0])
+    t = np.arange(0, 3.0, 0.004)
+    c = contacts_from_tcp(s, plate(), t, (t * 100.0)[:, None] * d[None, :] - 100 * d)
+    n = across_rows_mm(plate(), c)
+    assert abs(n @ d[:2]) < 1e-9 and np.linalg.norm(n) == pytest.approx(1.0)
+
+
+def test_contacts_spread_along_their_path_do_not_alias_against_the_cells():
+    from camtool.process.grid import map_grid, refined
+    from camtool.process.integrate import Contacts, _along_path, _bin_bilinear
+
+    g = refined(map_grid(plate(100, 20), 1.3, 0.0), 1, 10)
+    u = np.arange(-40.0, 40.0, 1.0) + 0.5          # a contact per mm, 1.3 mm cells: the spacings beat
+    n = len(u)
+    c = Contacts(np.column_stack([u, np.full(n, 0.01)]), np.zeros((n, 3)), np.tile([0, 0, 1.0], (n, 1)),
+                 np.ones(n), np.zeros(n, int), np.full(n, 0.01), np.ones(n))
+    per_cell = lambda uv, w: _bin_bilinear(g, uv, w).sum(axis=0)  # noqa: E731  (amount per column of cells)
+    inner = np.abs(g.u) < 30
+    as_points = per_cell(c.uv, c.amount)[inner] / g.du
+    spread = per_cell(*_along_path(g, c))[inner] / g.du
+    assert np.ptp(as_points) > 0.1                                # points: the columns get 1 or 2 contacts
+    assert np.abs(spread - 1.0).max() < 0.01                      # the stretches: 1 per mm in every column

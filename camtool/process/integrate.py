@@ -190,15 +190,17 @@ def _along_path(grid: MapGrid, c: Contacts) -> tuple[np.ndarray, np.ndarray]:
 
 def _convolved(grid: MapGrid, fp: Footprint, uv, weights, binary: bool = False) -> np.ndarray:
     """Per unit area: binned weights convolved with the footprint's kernel (plane grids)."""
-    kernel = fp.kernel(grid.cell_mm) if grid.sub == (1, 1) else fp.cell_kernel(grid.du, grid.dv, KERNEL_SUB_MM)
+    kernel = (fp.kernel(grid.cell_mm) if grid.sub == (1, 1)
+              else fp.cell_kernel(grid.du, grid.dv, max(KERNEL_SUB_MM, fp.radius_mm / SUB_PER_RADIUS)))
     if binary:
         kernel = (kernel > 0).astype(float)
     out = _fftconvolve(_bin_bilinear(grid, uv, weights), kernel, mode="same")
     return out if binary else out / grid.area_mm2
 
 
-ROW_SUPERSAMPLE = 3  # sub-samples per cell side of a sphere row's kernel (at least; KERNEL_SUB_MM apart at most)
+ROW_SUPERSAMPLE = 3  # sub-samples per cell side of a sphere row's kernel (at least; ROW_SUB_MM apart at most)
 KERNEL_SUB_MM = 0.05  # sub-sample spacing of the plane kernels of refined grids: a flat footprint's chords to ~0.03 mm
+SUB_PER_RADIUS = 500  # ... or the footprint's radius over this, if coarser (a 1 m spray: 1 mm, not 10^4 sub-samples)
 CLOSED_FORM = ("flat", "parabolic")  # footprints whose sphere row kernels are integrated in closed form
 ROW_SUB_MM = 0.25     # the same for the sphere's row kernels (one per cell row: 40x the work of a plane's one)
 
@@ -245,8 +247,9 @@ def _row_kernel(grid: MapGrid, fp: Footprint, iv0: float, binary: bool) -> tuple
             rows = np.arange(-hv, hv + 1) + iv0
             area = R * R * np.cos(grid.v[0] + rows * grid.dv) * grid.du * grid.dv
             return w / max(float(np.sum(w * area[:, None])), 1e-300), hu, hv
-        mu = max(mu, int(math.ceil(R * math.cos(v0) * grid.du / ROW_SUB_MM)))  # sub-samples ROW_SUB_MM apart
-        mv = max(1, int(math.ceil(R * grid.dv / ROW_SUB_MM)))
+        sub_mm = max(ROW_SUB_MM, 5 * a / SUB_PER_RADIUS)  # sub-samples ROW_SUB_MM apart (or a / 100)
+        mu = max(mu, int(math.ceil(R * math.cos(v0) * grid.du / sub_mm)))
+        mv = max(1, int(math.ceil(R * grid.dv / sub_mm)))
     du = (np.arange(-hu, hu + 1)[:, None] + ((np.arange(mu) + 0.5) / mu - 0.5)[None, :]).ravel() * grid.du
     dv = (np.arange(-hv, hv + 1)[:, None] + ((np.arange(mv) + 0.5) / mv - 0.5)[None, :]).ravel() * grid.dv
     U, V = np.meshgrid(du, v0 + dv)
