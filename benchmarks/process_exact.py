@@ -12,7 +12,7 @@ timed trajectory resampled at the motion check's step and put through batched FK
 
 Printed: both shares, the difference in percentage points, the means and the map's seconds.
 
-    PYTHONPATH=$PWD .venv/bin/python benchmarks/process_exact.py [--auto] [--points 400000]
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/process_exact.py [--auto] [--points 400000] [--profile parabolic]
 """
 from __future__ import annotations
 
@@ -54,10 +54,13 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--auto", action="store_true", help='also raster.step_over_mm = "auto"')
     ap.add_argument("--points", type=int, default=400_000, help="reference points over the surface")
+    ap.add_argument("--profile", choices=("flat", "parabolic"), default="flat",
+                    help="the footprint (the sample's default: flat)")
     args = ap.parse_args()
-    cases = [("sphere.toml, polish, 10 mm rows", [])]
+    profile = [f"process.profile={args.profile}"]
+    cases = [("sphere.toml, polish, 10 mm rows", profile)]
     if args.auto:
-        cases.append(('sphere.toml, polish, step_over_mm = "auto"', ["raster.step_over_mm=auto"]))
+        cases.append(('sphere.toml, polish, step_over_mm = "auto"', ["raster.step_over_mm=auto", *profile]))
     worst = 0.0
     for name, overrides in cases:
         r = measure(overrides, args.points)

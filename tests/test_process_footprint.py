@@ -44,3 +44,18 @@ def test_settings_defaults_from_the_tool_and_bad_table():
                              profile_value=[1.0, 0.5])
     with pytest.raises(BadInput, match="process.kind"):
         ProcessSettings.make(kind="buff")
+
+
+@pytest.mark.parametrize("profile", ["flat", "parabolic"])
+def test_cell_kernel_rows_integrate_to_the_pass_profile(profile):
+    # cells 2 mm along u, 0.1 mm across: each row of the kernel summed along u is the chord integral of the
+    # density over that row (Footprint.pass_profile, closed form, averaged over the row's height)
+    fp = Footprint(profile, 25.0)
+    du, dv = 2.0, 0.1
+    k = fp.cell_kernel(du, dv, 0.02)
+    assert k.sum() == pytest.approx(1.0)
+    nv = (k.shape[0] - 1) // 2
+    y = np.arange(-nv, nv + 1) * dv
+    rows = k.sum(axis=1) / dv
+    closed = fp.pass_profile(y[:, None] + (np.arange(50) + 0.5 - 25) / 50 * dv).mean(axis=1)  # over each row
+    assert np.abs(rows - closed).max() < 0.01 * closed.max()
