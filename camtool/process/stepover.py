@@ -34,7 +34,7 @@ import numpy as np
 
 from ..settings import ProcessSettings, RasterSettings
 from ..path.toolpath import SURFACE_CODES
-from .figures import edge_distance_mm, map_figures
+from .figures import edge_distance_mm, map_figures, share_within
 from .footprint import Footprint
 from .maps import track_map
 
@@ -100,16 +100,27 @@ def predicted_map(surface, raster: RasterSettings, process: ProcessSettings, fee
 
 
 def _interior_share(pmap, fp: Footprint, band: float, kind: str) -> float:
-    """Share within the band of the mean, over the cells at least a footprint radius from the material's edge."""
-    g = pmap.grid
-    inner = g.material & (edge_distance_mm(pmap) >= fp.radius_mm)
+    """Share within the band of the mean, over the sites at least a footprint radius from the material's edge
+    (on a grid map's refined samples when it has them, as ``map_figures`` takes its share)."""
+    inner = pmap.grid.material & (edge_distance_mm(pmap) >= fp.radius_mm)
+    fine = getattr(pmap, "fine", None)
+    if fine is not None and kind != "inspect":
+        m_u, m_v = fine.grid.sub
+        inner = np.repeat(np.repeat(inner, m_v, axis=0), m_u, axis=1) & fine.grid.material
+        pmap = fine
     if not inner.any():
         return 0.0
+    g = pmap.grid
     v, w = pmap.values[inner], g.area_mm2[inner]
     if kind == "inspect":
         return float(np.sum(w[v > 0]) / np.sum(w))
     mean = float(np.sum(v * w) / np.sum(w))
-    return 0.0 if mean <= 0 else round(float(np.sum(w[np.abs(v - mean) <= band * mean]) / np.sum(w)), 5)
+    if mean <= 0:
+        return 0.0
+    if fine is None:
+        return round(float(np.sum(w[np.abs(v - mean) <= band * mean]) / np.sum(w)), 5)
+    axis = 0 if g.sub[1] >= g.sub[0] else 1
+    return round(share_within(pmap.values, inner, g.area_mm2, (1 - band) * mean, (1 + band) * mean, axis), 5)
 
 
 def choose_step_over(surface, raster: RasterSettings, process: ProcessSettings, feed_mm_s: float
