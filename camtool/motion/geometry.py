@@ -61,6 +61,9 @@ MLS_NEIGHBOURS = 8           # cloud: a point this near the surface is measured 
 MLS_OUTLIER_SIGMAS = 6.0     # cloud: a neighbour this many RMS offsets off the plane of the others is a stray
 MLS_OUTLIER_FLOOR_MM = 0.05  # ... and farther than this off it (a noise-free cloud keeps its curvature)
 MLS_MIN_SPREAD = 0.01        # ... and only where the others span a plane (not points along one scan line)
+MLS_PLANE_AGREE_COS = 0.866  # cloud: the plane's normal counts where within 30 deg of the points' mean normal ...
+MLS_PLANE_DEFINED = 0.25    # ... and its points scatter off it at most this share (variance) of their spread across it
+NORMAL_AGREE_DEG = 25.0     # cloud: a point's normal farther than this from its neighbours' plane's is re-estimated
 MLS_REACH_SPACINGS = 1.0     # ... when within this many lateral tolerances of its nearest point
 LATERAL_SPACINGS = 3.0       # cloud: in-plane offsets up to this many spacings (p90) are sampling holes
 HINT_NEAR_FACTOR = 3.0       # mesh orientation vote: faces within this many hint spacings vote
@@ -229,6 +232,7 @@ class PartGeometry:
         N = np.where(length[:, None] > 1e-9, N / np.maximum(length, 1e-12)[:, None], 0.0) \
             if N.shape == P.shape else np.zeros_like(P)
         self._tree = cKDTree(P)
+        h = None
         if hint_p is not None:
             _, idx = cKDTree(hint_p).query(P, workers=-1)
             h = hint_d[idx]
@@ -240,7 +244,6 @@ class PartGeometry:
             raise BadInput(f"workpiece: {int(missing.sum())} cloud points have no normal; "
                            "give an outward hint (the path) to orient them")
         self.points_mm = P
-        self.normals = N
         k = min(CLOUD_NEIGHBOURS, len(P) - 1)
         dist, nb = self._tree.query(P, k=k + 1, workers=-1)
         nn1 = dist[:, 1]
@@ -249,25 +252,11 @@ class PartGeometry:
         # Random sampling leaves holes of a few spacings: up to this in-plane offset from the
         # nearest point is sampling, not shape.
         self.lateral_tol_mm = LATERAL_SPACINGS * s90
-        # angular-gap edge test in each point's tangent plane
-        off = P[nb[:, 1:]] - P[:, None, :]
-        e1 = np.cross(N, np.where(np.abs(N[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
-        e1 /= np.linalg.norm(e1, axis=1)[:, None]
-        e2 = np.cross(N, e1)
-        x, y = np.einsum("ikj,ij->ik", off, e1), np.einsum("ikj,ij->ik", off, e2)
-        ang = np.sort(np.arctan2(y, x), axis=1)
-        gaps = np.diff(np.concatenate([ang, ang[:, :1] + 2 * np.pi], axis=1), axis=1)
-        self.is_edge = gaps.max(axis=1) > EDGE_GAP_RAD
-        # outward in the tangent plane: away from the neighbours' centroid
-        out = -(x.mean(axis=1)[:, None] * e1 + y.mean(axis=1)[:, None] * e2)
-        self.out_dir = out / np.maximum(np.linalg.norm(out, axis=1), 1e-12)[:, None]
-        # The test misses some outermost points (random sampling): the edge band is every point
-        # within EDGE_BAND spacings of a flagged one, facing out like its nearest flagged neighbour.
-        band = self.is_edge[nb[:, 1:]] & (dist[:, 1:] <= EDGE_BAND * s90)
-        first = np.argmax(band, axis=1)
-        grow = ~self.is_edge & band.any(axis=1)
-        self.out_dir[grow] = self.out_dir[nb[grow, 1 + first[grow]]]
-        self.near_edge = self.is_edge | grow
+        N = _checked_normals(P, N, nb, np.zeros(len(P), bool), h)
+        self.is_edge, self.near_edge, _ = _cloud_edges(P, N, nb, dist, s90)
+        # the edge's normals from its points' own neighbours' plane, and its outward directions in that plane
+        self.normals = N = _checked_normals(P, N, nb, self.near_edge, h)
+        _, _, self.out_dir = _cloud_edges(P, N, nb, dist, s90, self.is_edge)
         self.boundary_edges = int(self.is_edge.sum())
         self._slack = self.lateral_tol_mm
         self._sheet = self.lateral_tol_mm  # a ball this far from every point does not pass the sheet
@@ -362,8 +351,16 @@ class PartGeometry:
         k = min(MLS_NEIGHBOURS, len(self.points_mm))
         _, nb = self._tree.query(p, k=k, workers=-1)
         Q = self.points_mm[nb]
-        mid, n, _ = _plane(Q, _stray_free(Q, nb, self._isolated))
-        n = np.where((np.einsum("ij,ij->i", n, self.normals[nb].sum(axis=1)) < 0)[:, None], -n, n)
+        mid, n, _, lam = _plane(Q, _stray_free(Q, nb, self._isolated), eigenvalues=True)
+        mean = _unit(self.normals[nb].sum(axis=1))
+        along = np.einsum("ij,ij->i", n, mean)
+        n = np.where((along < 0)[:, None], -n, n)
+        # along a cloud's edge the nearest points are a strip one or two points wide, and on a noisy scan a few
+        # points scatter off their plane as far as across it: that plane turns freely (the shell scan's rim read a
+        # lead 3 mm beyond it as 3.5 mm behind it, its plane 57 deg off the points' normals); there the points'
+        # own normals (estimated over a wider neighbourhood) decide
+        free = (lam[:, 0] > MLS_PLANE_DEFINED * lam[:, 1]) | (np.abs(along) < MLS_PLANE_AGREE_COS)
+        n = np.where(free[:, None], mean, n)
         return np.einsum("ij,ij->i", p - mid, n)
 
     def _isolated(self, idx: np.ndarray) -> np.ndarray:
@@ -620,13 +617,63 @@ def import_part_libraries() -> None:
     load_compiled()
 
 
-def _plane(Q: np.ndarray, w: np.ndarray):
-    """(centroid, unit normal, spread) of the weighted least-squares plane of each row of points ``Q``
-    (..., k, 3); spread: the middle over the largest eigenvalue (near 0: the points lie on a line)."""
+def _cloud_edges(P: np.ndarray, N: np.ndarray, nb: np.ndarray, dist: np.ndarray, s90: float, is_edge=None):
+    """(on the edge, in the edge band, outward direction) of each cloud point: the angular-gap test in its tangent
+    plane (neighbours ``nb`` at ``dist``, ``s90`` the spacing's 90th percentile); ``is_edge`` given: kept, only
+    the outward directions made in the tangent planes of ``N``."""
+    off = P[nb[:, 1:]] - P[:, None, :]
+    e1 = np.cross(N, np.where(np.abs(N[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+    e1 /= np.linalg.norm(e1, axis=1)[:, None]
+    e2 = np.cross(N, e1)
+    x, y = np.einsum("ikj,ij->ik", off, e1), np.einsum("ikj,ij->ik", off, e2)
+    if is_edge is None:
+        ang = np.sort(np.arctan2(y, x), axis=1)
+        gaps = np.diff(np.concatenate([ang, ang[:, :1] + 2 * np.pi], axis=1), axis=1)
+        is_edge = gaps.max(axis=1) > EDGE_GAP_RAD
+    # outward in the tangent plane: away from the neighbours' centroid
+    out = -(x.mean(axis=1)[:, None] * e1 + y.mean(axis=1)[:, None] * e2)
+    out_dir = out / np.maximum(np.linalg.norm(out, axis=1), 1e-12)[:, None]
+    # The test misses some outermost points (random sampling): the edge band is every point
+    # within EDGE_BAND spacings of a flagged one, facing out like its nearest flagged neighbour.
+    band = is_edge[nb[:, 1:]] & (dist[:, 1:] <= EDGE_BAND * s90)
+    first = np.argmax(band, axis=1)
+    grow = ~is_edge & band.any(axis=1)
+    out_dir[grow] = out_dir[nb[grow, 1 + first[grow]]]
+    return is_edge, is_edge | grow, out_dir
+
+
+def _checked_normals(P: np.ndarray, N: np.ndarray, nb: np.ndarray, edge: np.ndarray, hint=None) -> np.ndarray:
+    """The cloud's normals, each replaced by the normal of the plane of its neighbours ``nb`` (turned to agree with
+    it) on the cloud's ``edge`` and where the two lie more than NORMAL_AGREE_DEG apart. A file's normals were
+    estimated on the whole scan, its outliers and its noise's tails among them, and at the edge of a noisy scan
+    (its rim, a hole's) those tilt a one-sided neighbourhood: the shell scan's hole rims carry normals 35 deg off
+    its surface, which read a lead over the hole, 6 mm beside the rim, as 5 mm behind the part, and flipped a
+    lead's value from +4.7 to -4.0 mm within 0.5 mm of its way. The plane of the checked points' own neighbours
+    is the surface's within a few degrees there; inside the edge, normals that agree with it (a clean scan's, a
+    plane's, a chamfer's blended ones) are kept as they are. A replaced normal takes the side of the outward
+    ``hint`` (per point) where given, else of the normal it replaces (a normal across the surface has none)."""
+    if nb.shape[1] < 4:
+        return N
+    _, n, _ = _plane(P[nb], np.ones(nb.shape))
+    along = np.einsum("ij,ij->i", n, N)
+    off = edge | (np.abs(along) < np.cos(np.radians(NORMAL_AGREE_DEG)))
+    if not off.any():
+        return N
+    side = along if hint is None else np.einsum("ij,ij->i", n, hint)
+    out = N.copy()
+    out[off] = n[off] * np.where(side[off] < 0, -1.0, 1.0)[:, None]
+    return out
+
+
+def _plane(Q: np.ndarray, w: np.ndarray, eigenvalues: bool = False):
+    """(centroid, unit normal, spread[, eigenvalues ascending]) of the weighted least-squares plane of each row
+    of points ``Q`` (..., k, 3); spread: the middle over the largest eigenvalue (near 0: the points lie on a
+    line)."""
     mid = np.einsum("...k,...ki->...i", w, Q) / w.sum(axis=-1)[..., None]
     D = Q - mid[..., None, :]
     lam, vec = np.linalg.eigh(np.einsum("...k,...ki,...kj->...ij", w, D, D))
-    return mid, vec[..., :, 0], lam[..., 1] / np.maximum(lam[..., 2], 1e-300)
+    out = mid, vec[..., :, 0], lam[..., 1] / np.maximum(lam[..., 2], 1e-300)
+    return out + (lam,) if eigenvalues else out
 
 
 def _stray_free(Q: np.ndarray, nb: np.ndarray, isolated) -> np.ndarray:

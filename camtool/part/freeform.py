@@ -34,6 +34,7 @@ MAX_NODES = 300_000         # the grid's nodes at most (the spacing grows for a 
 MIN_CELL_MM = 1.0           # ... and at least this spacing
 MAX_SLOPE_DEG = 80.0        # a node steeper than this from the chart plane is no material (a wall of a closed part)
 KNOWN_WEIGHT_SHARE = 0.2    # a scan's node has a height where its window holds this share of the typical weight
+NOISE_BAND_SIGMAS = 3.0     # a scan's noise band in RMS residuals (the motion check's scan tolerance, run/stages.py)
 MARGIN_CELLS = 4            # nodes of margin round the face's box (the leads start on the surface continued)
 
 
@@ -99,10 +100,19 @@ class FreeformSurface:
         return self.origin_mm + x[..., None] * e1 + y[..., None] * e2 + h[..., None] * e3
 
     def normal_at(self, u, v) -> np.ndarray:
-        """Unit normals (..., 3) at u, v: the smoothed normals, towards the tool side."""
+        """Unit normals (..., 3) at u, v: the smoothed normals, towards the tool side. Past the grid the edge's
+        normal (the heights there continue the edge cells' tangent plane, whose normal does not turn)."""
         x, y = self.chart_xy(u, v)
-        n = self.grid.interp(self.normals, x, y)
+        n = self.grid.interp(self.normals, x, y, extrapolate=False)
         return n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+
+    @property
+    def lead_band_mm(self) -> float:
+        """How far a scan's points scatter off the face (``NOISE_BAND_SIGMAS`` x the fit's RMS; 0 for a mesh): the
+        leads rise by it past the face's edge, so they do not run into the noise of the scan beyond it."""
+        if self.source_kind != "scan" or self.stats is None:
+            return 0.0
+        return NOISE_BAND_SIGMAS * float(self.stats.rms_mm)
 
     def uv_from_points(self, points_mm: np.ndarray) -> np.ndarray:
         """(N, 2) parameters of points (projected along e3 onto the surface)."""

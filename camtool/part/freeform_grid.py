@@ -9,7 +9,8 @@ only the skin on the tool side is taken (noether #95).
 
 ``interp`` evaluates a grid bilinearly and extrapolates it linearly past its edges
 (the cell's fraction is not clamped): a lead run past the grid continues the edge
-cells' tangent plane. ``fill`` gives nodes without data a height: holes by a
+cells' tangent plane. Normals are not extrapolated (a linear extrapolation of a
+turning normal field turns on, ever faster): past the grid they keep the edge's. ``fill`` gives nodes without data a height: holes by a
 membrane (Laplace) fill, so rows cross a hole straight and are split at its edge;
 the margin round the face by its nearest edge node's tangent plane, so leads run on
 the surface continued.
@@ -20,6 +21,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+
+SLOPE_SIGMA_MM = 4.0   # the margin continues its nearest node's tangent plane with the slope averaged over this
 
 
 @dataclass(frozen=True)
@@ -45,11 +49,15 @@ class Grid:
         X, Y = np.meshgrid(self.xs, self.ys)
         return np.stack([X, Y], axis=-1)
 
-    def interp(self, arr: np.ndarray, x, y) -> np.ndarray:
+    def interp(self, arr: np.ndarray, x, y, extrapolate: bool = True) -> np.ndarray:
         """Bilinear value of ``arr`` ((ny, nx) or (ny, nx, k)) at chart (x, y) (any matching shapes),
-        extrapolated linearly from the edge cells outside the grid."""
+        extrapolated linearly from the edge cells outside the grid (``extrapolate=False``: the value at the
+        grid's nearest edge point, constant outside)."""
         x = np.asarray(x, dtype=float)
         y = np.asarray(y, dtype=float)
+        if not extrapolate:
+            x = np.clip(x, self.x0, self.x0 + self.g * (self.nx - 1))
+            y = np.clip(y, self.y0, self.y0 + self.g * (self.ny - 1))
         fx = (x - self.x0) / self.g
         fy = (y - self.y0) / self.g
         fx = np.where(np.isfinite(fx), fx, 0.0)
@@ -102,10 +110,12 @@ def gaussian(arr: np.ndarray, sigma_cells: float) -> np.ndarray:
     return gaussian_filter(arr, sig, mode="nearest", truncate=3.0)
 
 
-def fill(h: np.ndarray, known: np.ndarray, g: float) -> np.ndarray:
+def fill(h: np.ndarray, known: np.ndarray, g: float, slope_sigma_mm: float = SLOPE_SIGMA_MM) -> np.ndarray:
     """Heights for the nodes without data: holes (regions not touching the grid's edge) by a Laplace
     (membrane) fill from their rim; the rest (the margin round the face) by the tangent plane of the nearest
-    node with data, smoothed over a few nodes. Returns a finite copy of ``h``."""
+    node with data, its slope averaged over ``slope_sigma_mm`` of the nodes with data (a scan's edge node alone
+    has a one-sided, noisy slope: the shell scan's margin rose 11 mm over 20 mm past a rim that falls), smoothed
+    over a few nodes. Returns a finite copy of ``h``."""
     from scipy import ndimage
 
     out = np.where(known, h, 0.0)
@@ -120,7 +130,7 @@ def fill(h: np.ndarray, known: np.ndarray, g: float) -> np.ndarray:
         out = _laplace_fill(out, holes)
     if outside.any():
         have = known | holes
-        gx, gy = gradient_on(out, have, g, axis=1), gradient_on(out, have, g, axis=0)
+        gx, gy = _smoothed_slope(out, have, g, slope_sigma_mm)
         _, (jj, ii) = ndimage.distance_transform_edt(~have, return_indices=True)
         gx0, gy0 = gx[jj, ii], gy[jj, ii]
         # no steeper than the face itself (99th percentile): a noisy edge node's slope is not carried far out
@@ -135,6 +145,29 @@ def fill(h: np.ndarray, known: np.ndarray, g: float) -> np.ndarray:
         blurred = gaussian(out, 2.0)
         out = np.where(outside, blurred, out)
     return out
+
+
+def _smoothed_slope(h: np.ndarray, have: np.ndarray, g: float, sigma_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """(dh/dx, dh/dy) at the nodes with data, each averaged by a Gaussian of ``sigma_mm`` over the nodes where it
+    is defined (a normalised convolution: the margin's zeros do not pull it towards level)."""
+    out = []
+    for axis in (1, 0):
+        d = gradient_on(h, have, g, axis=axis)
+        ok = _defined(have, axis).astype(float)
+        num, den = gaussian(d * ok, sigma_mm / g), gaussian(ok, sigma_mm / g)
+        out.append(np.where(den > 1e-6, num / np.maximum(den, 1e-6), d))
+    return out[0], out[1]
+
+
+def _defined(have: np.ndarray, axis: int) -> np.ndarray:
+    """Where ``gradient_on`` has a difference along ``axis``: a node with data beside another."""
+    ok = np.zeros(have.shape, bool)
+    a, b = [slice(None)] * 2, [slice(None)] * 2
+    a[axis], b[axis] = slice(0, -1), slice(1, None)
+    pair = have[tuple(a)] & have[tuple(b)]
+    ok[tuple(a)] |= pair
+    ok[tuple(b)] |= pair
+    return ok
 
 
 def gradient_on(h: np.ndarray, have: np.ndarray, g: float, axis: int) -> np.ndarray:

@@ -470,7 +470,9 @@ def _block_poses(surface, blocks: _Blocks, settings: RasterSettings, tool_x_worl
     """(the blocks' tool poses, the surface normal at each, its lift along the normal): geometry and
     orientation of the on-surface samples, the leads lifted."""
     b = blocks
-    lift = np.zeros(len(b.seg)) if b.away is None else settings.clearance_mm * b.away ** 3
+    # a free-form scan's leads rise by its noise band too: past the smoothed face the scan's points scatter by it
+    band = float(getattr(surface, "lead_band_mm", 0.0))
+    lift = np.zeros(len(b.seg)) if b.away is None else (settings.clearance_mm + band) * b.away ** 3
     p = surface.point_mm(b.uv[:, 0], b.uv[:, 1])
     normal = _unit(surface.normal_at(b.uv[:, 0], b.uv[:, 1]))
     travel = surface.point_mm(b.uv[:, 0] + b.duv[:, 0], b.uv[:, 1] + b.duv[:, 1]) - p

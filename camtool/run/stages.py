@@ -56,6 +56,7 @@ from ..transforms import matrix_from_xyz_rpy
 
 FREE_MOVE_RADIUS_MM = 60.0   # link capsule radius of the approach / depart collision check
 CONTACT_ALLOWANCE_MM = 20.0  # the exempt ball round the first / last tool contact: capsule radius + this
+ALONE_SPACINGS = 3.0         # a free-form scan's point with no other within this many spacings is no surface
 SCAN_NOISE_FACTOR = 3.0      # a cloud's tolerances grow by this many times the fit's RMS residual
 CONNECTOR_RADIUS_MM = 20.0   # default link capsule radius of the planner's reconfiguration check (raster jobs
                              # use check.link_radius_mm, the size the independent motion check measures)
@@ -349,7 +350,21 @@ def part_for_checks(settings: JobSettings, workpiece, surface):
         return workpiece  # a face of a segmented scan: the other faces' points stay obstacles
     P = np.asarray(workpiece.points_mm, float)
     on = np.linalg.norm(surface.point_mm(*surface.uv_from_points(P).T) - P, axis=1) <= 3.0 * settings.fit.threshold_mm
+    if getattr(surface, "model", "") == "freeform":
+        on[on] = _not_alone(P[on])
     return replace(workpiece, points_mm=P[on], normals=np.asarray(workpiece.normals)[on])
+
+
+def _not_alone(P: np.ndarray) -> np.ndarray:
+    """Which points of a scan have another within ALONE_SPACINGS median spacings. A free-form face's band reaches
+    over its holes' fill and past its edge, and a scan's outliers that fall in it there stand alone: no surface,
+    yet the motion check would read the tool beside one as behind it (the shell scan's hole)."""
+    from scipy.spatial import cKDTree
+
+    if len(P) < 3:
+        return np.ones(len(P), bool)
+    d = cKDTree(P).query(P, k=2)[0][:, 1]
+    return d <= ALONE_SPACINGS * float(np.median(d))
 
 
 def _fit_rms_mm(surface) -> float:
