@@ -173,6 +173,9 @@ def work_rows(points_csv: Path, fk: Fk, T_wp: np.ndarray):
     q = np.array([[float(r[k]) for k in jcols] for r in rows])
     xyz = np.array([[float(r[k]) for k in ("x_mm", "y_mm", "z_mm")] for r in rows])
     seg = np.array([int(r["segment"]) for r in rows])
+    for i in range(1, len(seg)):   # a pose the planner added on work (sag, densify: segment -1) is its row's
+        if seg[i] < 0:
+            seg[i] = seg[i - 1]
     T = fk.tcp(q)
     gap = float(np.max(np.linalg.norm(T[:, :3, 3] - xyz, axis=1)))
     inv = np.linalg.inv(T_wp)

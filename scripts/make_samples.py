@@ -393,17 +393,13 @@ def shell_scan(rng, n: int = 60_000, sigma_mm: float = 1.0, outlier_ratio: float
     return pts, normals
 
 
-FREEFORM_OUT = OUT.parent / "benchmarks" / "parts" / "freeform" / "jobs"  # not shipped as samples until they run
-
-
 def make_freeform() -> list[Path]:
-    """Write the free-form parts (issue 46): the hood into samples/ (its job runs: samples/freeform_hood.toml),
-    the shell scan beside its job in benchmarks/parts/freeform/jobs until `camtool run` passes on it (see that
-    folder's README); returns the paths written."""
+    """Write the free-form parts (issue 46) into samples/ (their jobs run: samples/freeform_hood.toml,
+    samples/freeform_shell_scan.toml); returns the paths written."""
     rng = np.random.default_rng(20260046)
     hood_mesh().export(OUT / "freeform_hood.stl")
-    write_ply_with_normals(FREEFORM_OUT / "freeform_shell_scan.ply", *shell_scan(rng))
-    return [OUT / "freeform_hood.stl", FREEFORM_OUT / "freeform_shell_scan.ply"]
+    write_ply_with_normals(OUT / "freeform_shell_scan.ply", *shell_scan(rng))
+    return [OUT / "freeform_hood.stl", OUT / "freeform_shell_scan.ply"]
 
 
 def main() -> None:

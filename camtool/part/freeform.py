@@ -27,7 +27,7 @@ from .freeform_rows import row_distance, row_table, seed_row
 from .freeform_sample import chart_frame, cloud_heights, mesh_heights, to_chart
 from .domain import Boundary, FitStats
 
-NORMAL_SMOOTHING_MM = 4.0   # Gaussian sigma of the normals (a tool's footprint of 10-15 mm averages about this)
+NORMAL_SMOOTHING_MM = 6.0   # Gaussian sigma of the normals (a tool's footprint of 10-15 mm averages about this)
 SCAN_SMOOTHING_SPACINGS = 2.5  # a scan's positions are smoothed over this many point spacings (at least 2 mm)
 SCAN_SMOOTHING_MIN_MM = 2.0
 MAX_NODES = 300_000         # the grid's nodes at most (the spacing grows for a large face)
