@@ -524,3 +524,23 @@ def test_a_face_beside_an_edge_is_not_a_stray_point():
                                        grid_nodes=GRID)
     assert not part._isolated(np.arange(len(flat), len(pts))).any()
     assert not part._isolated(np.arange(len(flat))).any()
+
+
+def test_noisy_cloud_edge_reads_beside_it_in_front_and_below_it_behind():
+    """Issue #46: at the edge of a noisy scan (1 mm) whose file normals there are 60 deg off (estimated over a
+    one-sided neighbourhood), a point 4 mm beyond the edge and 1 mm above the plane is not read behind the part by
+    more than the noise band (the
+    normals of the edge come from the checked points' own plane), while points 4 mm under the plane inside it
+    still are (independent reference: the plane z = 0)."""
+    rng = np.random.default_rng(46)
+    xy = rng.uniform(0.0, 80.0, (8000, 2))
+    P = np.column_stack([xy, rng.normal(0.0, 1.0, len(xy))])
+    N = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+    rim = xy[:, 0] > 77.0                                     # the file's normals at the x = 80 edge: 60 deg off
+    N[rim] = [np.sin(np.radians(-60.0)), 0.0, np.cos(np.radians(60.0))]
+    part = PartGeometry.from_workpiece(Workpiece(P, N, source="scan.ply"), np.array([[40.0, 40.0, 0.0]]),
+                                       np.array([[0.0, 0.0, 1.0]]))
+    beside = np.column_stack([np.full(20, 84.0), np.linspace(10.0, 70.0, 20), np.full(20, 1.0)])
+    assert part.signed_distance(beside).min() > -3.0   # within the noise band (3 sigma), the check's scan tolerance
+    under = np.column_stack([rng.uniform(10.0, 70.0, (50, 2)), np.full(50, -4.0)])
+    assert part.signed_distance(under).max() < -1.0
