@@ -206,3 +206,55 @@ def test_fit_summary_lists_the_face(saddle_part):
     assert d["rms_mm"] < 0.01 and d["inlier_ratio"] > 0.99  # the mesh's own points lie on it
     lo, hi = d["curvature_range"]
     assert lo < 0 < hi                                       # a saddle curves both ways
+
+
+def test_leads_run_straight_on_with_the_work_ends_orientation(saddle_part):
+    """Issue #46: past a free-form face's edge a lead runs straight along the row's tangent at the work's end (the
+    tool's orientation kept), rising along that end's normal by the lead lift (smootherstep, 0 at the work)."""
+    from camtool.part.freeform import LEAD_LIFT_MIN_MM
+    from camtool.path.toolpath import ZONE_CODE
+
+    _, _, s = saddle_part
+    path = raster_path(s, RasterSettings.make(step_over_mm=20.0, pitch_mm=5.0, lead_mm=20.0))
+    assert s.lead_band_mm == LEAD_LIFT_MIN_MM   # a mesh: no noise, the least lift
+    P = path.poses_mm
+    for seg in np.unique(path.segment)[:6]:
+        k = np.flatnonzero(path.segment == seg)
+        out = k[path.zone[k] == ZONE_CODE["lead_out"]]
+        end = k[path.zone[k] == ZONE_CODE["work"]][-1]
+        n = -P[end][:3, 2]                                          # the work end's normal
+        assert np.abs(P[out][:, :3, :3] - P[end][:3, :3]).max() < 1e-12
+        off = P[out][:, :3, 3] - P[end][:3, 3]
+        lift = off @ n
+        flat = off - lift[:, None] * n                             # in the tangent plane: one straight line
+        d = flat / np.linalg.norm(flat, axis=1, keepdims=True)
+        assert np.abs(d - d[0]).max() < 1e-9
+        assert lift[0] > 0 and np.all(np.diff(lift) > -1e-9) and lift[-1] == pytest.approx(LEAD_LIFT_MIN_MM, abs=1e-9)
+
+
+def test_a_scans_leads_rise_by_its_noise_band():
+    """The noisy cap (1 mm): past the face's edge the leads' last quarter is at least the noise band (3 RMS
+    residuals) off the true sphere, on its tool side; the work poses stay on it."""
+    rng = np.random.default_rng(5)
+    R, n = 200.0, 40000
+    xy = rng.uniform(-60, 60, (n, 2))
+    P = np.column_stack([xy, np.sqrt(R ** 2 - (xy ** 2).sum(1)) - R])
+    c = np.array([0.0, 0.0, -R])
+    N = (P - c) / R
+    P = P + N * rng.normal(0, 1.0, n)[:, None]
+    s = freeform_surface(Workpiece(P, N, source="scan.xyz"), FIT)
+    band = s.lead_band_mm
+    assert band == pytest.approx(3.0 * s.stats.rms_mm) and 2.4 < band < 4.0
+    path = raster_path(s, RasterSettings.make(step_over_mm=15.0, pitch_mm=5.0, lead_mm=20.0))
+    from camtool.path.toolpath import ZONE_CODE
+
+    pos = path.poses_mm[:, :3, 3]
+    above = np.linalg.norm(pos - c, axis=1) - R
+    lead = np.isin(path.zone, [ZONE_CODE["lead_in"], ZONE_CODE["lead_out"]])
+    far = np.zeros(len(pos), bool)
+    for seg in np.unique(path.segment):               # each lead's pose farthest from the work
+        k = np.flatnonzero((path.segment == seg) & lead)
+        if len(k):
+            far[[k[0], k[-1]]] = True
+    assert above[far].min() > band - 0.3
+    assert np.percentile(np.abs(above[path.is_work]), 50) < 0.5

@@ -35,6 +35,7 @@ MIN_CELL_MM = 1.0           # ... and at least this spacing
 MAX_SLOPE_DEG = 80.0        # a node steeper than this from the chart plane is no material (a wall of a closed part)
 KNOWN_WEIGHT_SHARE = 0.2    # a scan's node has a height where its window holds this share of the typical weight
 NOISE_BAND_SIGMAS = 3.0     # a scan's noise band in RMS residuals (the motion check's scan tolerance, run/stages.py)
+LEAD_LIFT_MIN_MM = 1.0      # a free-form face's leads rise at least this far (a scanned mesh's roughness)
 MARGIN_CELLS = 4            # nodes of margin round the face's box (the leads start on the surface continued)
 
 
@@ -108,11 +109,12 @@ class FreeformSurface:
 
     @property
     def lead_band_mm(self) -> float:
-        """How far a scan's points scatter off the face (``NOISE_BAND_SIGMAS`` x the fit's RMS; 0 for a mesh): the
-        leads rise by it past the face's edge, so they do not run into the noise of the scan beyond it."""
+        """How far a scan's points scatter off the face (``NOISE_BAND_SIGMAS`` x the fit's RMS), at least
+        ``LEAD_LIFT_MIN_MM`` (a scanned mesh's triangles are as rough, with no RMS to show it): the leads rise by it
+        past the face's edge, so they do not run into the part's roughness beyond it."""
         if self.source_kind != "scan" or self.stats is None:
-            return 0.0
-        return NOISE_BAND_SIGMAS * float(self.stats.rms_mm)
+            return LEAD_LIFT_MIN_MM
+        return max(NOISE_BAND_SIGMAS * float(self.stats.rms_mm), LEAD_LIFT_MIN_MM)
 
     def uv_from_points(self, points_mm: np.ndarray) -> np.ndarray:
         """(N, 2) parameters of points (projected along e3 onto the surface)."""
