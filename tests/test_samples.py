@@ -8,8 +8,8 @@ sample is a whole run, minutes in all, so a plain ``pytest`` skips them.
   unexpected pass to remove the mark. The SIA20 walls (issue #48) run now: a scan outlier had tilted the
   motion check's local plane.
 - A job with ``fit.model = "freeform"`` skips where ``camtool fit`` refuses that key. The free-form hood
-  (samples/freeform_hood.toml) runs; the free-form jobs that do not run yet wait in
-  benchmarks/parts/freeform/jobs/ (issue #46), not here.
+  (samples/freeform_hood.toml) and the noisy shell scan (samples/freeform_shell_scan.toml) run; a free-form
+  job that does not run yet waits in benchmarks/parts/freeform/jobs/ (issue #46), not here.
 """
 from __future__ import annotations
 
@@ -42,8 +42,8 @@ def _freeform_refused(job: Path) -> str:
 
 
 def test_every_sample_is_tested():
-    assert {"sphere.toml", "sia20_wall.toml",
-            "sia20_paper_wall.toml", *XFAIL} <= set(JOBS)
+    assert {"sphere.toml", "sia20_wall.toml", "sia20_paper_wall.toml", "freeform_hood.toml",
+            "freeform_shell_scan.toml", *XFAIL} <= set(JOBS)
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=XFAIL[n]))
