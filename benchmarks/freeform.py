@@ -307,12 +307,17 @@ def placed_elsewhere(name: str, job: Path, refusal: str, tree: Path, out: Path, 
         moved.write_text(re.sub(r"workpiece_rpy_deg = \[[^\]]*\]", f"workpiece_rpy_deg = {rpy}", text))
         how = "by the reach hint (planned and timed)"
     else:
-        wall, rc, so, se = camtool(["place", str(job), "-o", str(out / f"{name}_place"), "--max-checks", "3", *extra],
-                                   tree, timeout=1800.0)
-        moved = out / f"{name}_place" / "placed_job.toml"
+        # camtool place's default bounds, then wider ones with a turn about world z (a part longer than the
+        # arm's reach along y may fit turned)
+        for wide in ([], [f"--vary={v}" for v in ("x=-500:500", "y=-500:500", "z=-500:500", "yaw=-90:90")]):
+            wall, rc, so, se = camtool(["place", str(job), "-o", str(out / f"{name}_place"), "--max-checks", "3",
+                                        *wide, *extra], tree, timeout=1800.0)
+            moved = out / f"{name}_place" / "placed_job.toml"
+            if rc == 0 and moved.exists():
+                break
         if rc != 0 or not moved.exists():
             return None, None, f"camtool place found none (exit {rc}, {wall:.1f} s): {first_line(se or so)}"
-        how = f"by camtool place ({wall:.0f} s)"
+        how = f"by camtool place ({wall:.0f} s{', wider bounds' if wide else ''})"
     xyz, rpy = job_placement(moved)
     T = np.eye(4)
     T[:3, :3] = Rotation.from_euler("xyz", rpy, degrees=True).as_matrix()
