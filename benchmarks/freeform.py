@@ -23,6 +23,10 @@ For each part:
 First a control: the same chain on samples/irb2400_plate.toml, a plane camtool works today (its
 figures must be near perfect: the FK, the frames and the metrics read camtool right).
 
+Then the free-form samples (samples/freeform_hood.toml, samples/freeform_shell_scan.toml) run as shipped, their
+work poses measured the same way against the true part (the hood's STL; the shell's generating surface from
+scripts/make_samples.py, not its noisy scan).
+
 Then the speed figures: the surface and raster of a one-million-point scan (``camtool raster``
 on the noether panel resampled to 10^6 points with 1 mm of noise, whole process), and a free-form
 sample end to end against ``samples/sphere.toml`` in the same run (the ratio; issue #46: <= 10 s
@@ -31,7 +35,7 @@ and <= 2x).
 Targets (issue #46): coverage >= 99 %; CAD p99 <= 0.1 mm; scans p50 <= 0.5 mm and p99 <= 3 mm;
 axis p95 <= 3 deg; turns <= 5 deg; step p5-p95 within 90-110 %.
 
-    .venv/bin/python benchmarks/freeform.py [--parts a,b] [--no-camtool] [--no-speed]
+    .venv/bin/python benchmarks/freeform.py [--parts a,b] [--no-camtool] [--no-speed] [--no-samples]
                                             [--camtool-tree DIR] [--set KEY=VALUE ...]
 
 ``--camtool-tree`` runs another checkout's camtool (e.g. a branch not merged yet). Where camtool
@@ -376,6 +380,53 @@ def bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out
           f"not planned)")
 
 
+def sample_truth(name: str):
+    """(the true part's mesh in its own frame (mm), kind, step_over_mm) of a free-form sample: the hood's own STL;
+    the shell scan's true shell (scripts/make_samples.py's elliptic dome with its bump, cut at z = 55 mm, holes
+    out), not the noisy scan."""
+    import tomllib
+
+    import trimesh
+
+    step = float(tomllib.loads((ROOT / "samples" / f"{name}.toml").read_text())["raster"]["step_over_mm"])
+    if name == "freeform_hood":
+        return fm.load_mesh(ROOT / "samples" / "freeform_hood.stl", 1.0), "cad", step
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from make_samples import SHELL_HOLES, shell_point
+
+    xs, ys = np.meshgrid(np.linspace(-250, 250, 501), np.linspace(-180, 180, 361), indexing="ij")
+    P = np.stack([xs, ys, shell_point(xs, ys)], -1).reshape(-1, 3)
+    ny = xs.shape[1]
+    i = (np.arange(xs.shape[0] - 1)[:, None] * ny + np.arange(ny - 1)[None, :]).ravel()
+    f = np.vstack([np.stack([i, i + ny, i + 1], 1), np.stack([i + 1, i + ny, i + ny + 1], 1)])
+    c = P[f].mean(axis=1)
+    keep = c[:, 2] >= 55.0
+    for hx, hy in SHELL_HOLES:
+        keep &= np.hypot(c[:, 0] - hx, c[:, 1] - hy) > 25.0
+    return trimesh.Trimesh(P, f[keep], process=True), "scan", step
+
+
+def bench_samples(tree: Path, fk: Fk, out: Path) -> None:
+    """The free-form samples run as shipped, their work poses measured against the true part."""
+    print("\n== free-form samples (against the true part)")
+    for name in ("freeform_hood", "freeform_shell_scan"):
+        job = ROOT / "samples" / f"{name}.toml"
+        wall, rc, so, se = camtool(["run", str(job), "-o", str(out / name)], tree)
+        if rc != 0:
+            print(f"  {name}: refused (exit {rc}, {wall:.1f} s): {first_line(se or so)}")
+            continue
+        mesh, kind, step = sample_truth(name)
+        xyz, rpy = job_placement(job)
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_euler("xyz", rpy, degrees=True).as_matrix()
+        T[:3, 3] = xyz
+        rows, gap = work_rows(out / name / "points.csv", fk, T)
+        region = np.ones(len(mesh.faces), bool)
+        contour = contour_rows(rows, mesh, region, step)
+        fig = fm.measure(mesh, region, rows, step, step_rows=[p for (p, _), c in zip(rows, contour) if not c])
+        print(f"  {name:20s} {fig.row(step)}  {wall:6.2f} s  [{verdict(fig, kind, step)}]  (FK gap {gap:.1e} mm)")
+
+
 def million_point_scan(path: Path, n: int = 1_000_000, sigma_mm: float = 1.0) -> None:
     """The noether panel resampled to n points, 1 mm of noise along the normal, as a PLY cloud (mm)."""
     mesh = fm.load_mesh(PARTS_DIR / PARTS["noether_panel_scan"][0], 1000.0)
@@ -429,6 +480,7 @@ def main(argv=None) -> int:
     ap.add_argument("--parts", default=",".join(PARTS), help="comma-separated part names")
     ap.add_argument("--no-camtool", action="store_true", help="the noether baseline only")
     ap.add_argument("--no-speed", action="store_true", help="skip the speed figures")
+    ap.add_argument("--no-samples", action="store_true", help="skip the free-form samples' figures")
     ap.add_argument("--camtool-tree", type=Path, default=ROOT, help="the camtool checkout to run")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="passed to each part's camtool run (e.g. fit.model=auto: camtool before free-form faces)")
@@ -444,6 +496,8 @@ def main(argv=None) -> int:
             bench_control(tree, out)
         for name in [s for s in a.parts.split(",") if s]:
             bench_part(name, tree, fk, out, a.set)
+        if tree is not None and not a.no_samples:
+            bench_samples(tree, fk, out)
         if tree is not None and not a.no_speed:
             bench_speed(tree, out)
     return 0
