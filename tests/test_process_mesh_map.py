@@ -17,9 +17,10 @@ from camtool.process.grid import MapGrid
 from camtool.process.html import process_heat_map_figure
 from camtool.process.integrate import contacts_from_tcp, process_map
 from camtool.process.maps import surface_map, track_map
-from camtool.process.mesh_map import MeshMap
+from camtool.process.mesh_map import MeshMap, mesh_process_map
 from camtool.process.stepover import _track, choose_step_over, predicted_map
 from camtool.settings import ProcessSettings, RasterSettings
+from tests.process_reference import contacts, removal_at
 from tests.test_freeform import FIT, grid_mesh, mesh_workpiece
 
 POLISH = ProcessSettings.make(kind="polish", profile="parabolic", diameter_mm=30, grid_mm=2.0)
@@ -60,37 +61,116 @@ def plane_track(plane, step_mm=10.0):
     return _track(path, 100.0, 1.0, 11.0)
 
 
+def face_chart_points(face, n_points: int, seed: int = 0) -> np.ndarray:
+    """(N, 2) stratified random chart points, uniform over the face's worked area (its material nodes' cells):
+    the region the face defines, sampled without camtool.process."""
+    g = face.grid
+    xy = g.node_xy()[face.material]
+    lo, hi = xy.min(axis=0) - 0.5 * g.g, xy.max(axis=0) + 0.5 * g.g
+    n_box = n_points * float(np.prod(hi - lo)) / (face.material.sum() * g.g ** 2)
+    nx = int(round(math.sqrt(n_box * (hi[0] - lo[0]) / (hi[1] - lo[1]))))
+    ny = int(round(n_box / nx))
+    rng = np.random.default_rng(seed)
+    ix, iy = np.meshgrid(np.arange(nx), np.arange(ny))
+    x = lo[0] + (ix.ravel() + rng.random(ix.size)) / nx * (hi[0] - lo[0])
+    y = lo[1] + (iy.ravel() + rng.random(iy.size)) / ny * (hi[1] - lo[1])
+    i, j = np.rint((x - g.x0) / g.g).astype(int), np.rint((y - g.y0) / g.g).astype(int)
+    keep = face.material[np.clip(j, 0, g.ny - 1), np.clip(i, 0, g.nx - 1)]
+    return np.column_stack([x[keep], y[keep]])
+
+
+def share_of(h, weights, band=0.05):
+    mean = np.sum(h * weights) / np.sum(weights)
+    return float(np.sum(weights * (np.abs(h - mean) <= band * mean)) / np.sum(weights))
+
+
 def test_a_flat_mesh_gives_the_analytic_planes_figures(flat_pair):
     plane, free = flat_pair
     t, tcp = plane_track(plane)
-    grid_map, mesh_map = track_map(POLISH, plane, t, tcp), track_map(POLISH, free, t, tcp)
+    grid_map, mesh_map = track_map(POLISH, plane, t, tcp, rows_mm=10.0), track_map(POLISH, free, t, tcp, rows_mm=10.0)
     assert isinstance(mesh_map.grid, MeshMap) and mesh_map.method == "mesh-direct"
     assert grid_map.method == "convolution"
     a, b = map_figures(grid_map), map_figures(mesh_map)
     # the face's material is its 1 mm nodes' (camtool.part.freeform): its edge may lie half a node off the plate's
     assert b["worked_area_mm2"] == pytest.approx(a["worked_area_mm2"], rel=0.01)
-    assert b["mean"] == pytest.approx(a["mean"], rel=0.002)
+    assert b["mean"] == pytest.approx(a["mean"], rel=0.003)
     for key in ("uniformity_within_10pct", "uncovered_share"):
         assert b[key] == pytest.approx(a[key], abs=0.015), key
-    # within 5 %: the plane's map resolves the ripple between its 10 mm rows (issue 48: 0.673 here, the exact
-    # reference of tests/process_reference.py 0.672); the mesh map's 2 mm vertices do not yet (0.741): the
-    # mesh map is still to be refined across the rows, so only the sense of the difference is checked
-    assert b["uniformity_within_5pct"] >= a["uniformity_within_5pct"] - 0.015
-    assert b["rms_pct"] == pytest.approx(a["rms_pct"], abs=0.2)
     assert b["edge_rolloff_width_mm"] == pytest.approx(a["edge_rolloff_width_mm"], abs=POLISH.grid_mm)
-    # at the same sites the mesh map is the plane's direct sums (process.integrate, method "direct")
-    m = mesh_map.grid
-    uv = plane.uv_from_points(m.points_mm()).reshape(len(m.ys), len(m.xs), 2)
-    us, vs = uv[0, :, 0], uv[:, 0, 1]
-    U, V = np.meshgrid(us, vs)
-    on_plane = plane.boundary.contains(np.column_stack([U.ravel(), V.ravel()]))
-    same_sites = MapGrid(plane, us, vs, POLISH.grid_mm, on_plane.reshape(U.shape), np.full(U.shape, 4.0))
-    direct = process_map(POLISH, plane, t, tcp, method="direct", grid=same_sites, refine=False).values.ravel()
-    both = m.material & on_plane
-    assert np.abs(mesh_map.values[both] - direct[both]).max() < 1e-4 * direct.max()
-    # every contact puts exactly its amount on the surface
-    c = contacts_from_tcp(POLISH, free, t, tcp, spacing_mm=0.5 * m.spacing_mm)
-    assert np.sum(mesh_map.values * m.area_mm2) == pytest.approx(c.amount.sum(), rel=1e-9)
+    assert b["samples_across_rows_mm"] <= 10.0 / 96 + 1e-9
+    # within 5 % against the exact reference (tests/process_reference.py: direct sums of the TCP track's segments)
+    # over the face's own worked area. The ripple's peaks lie at the band's edge here, so the share moves ~4 pp
+    # per 0.5 mm of the worked area's edge: the plate's (the grid map's, 0.673) is not the face's (0.709).
+    k = POLISH.preston_coefficient_per_pa * POLISH.force_n * 1e-3 * 1e12
+    segments = contacts(plane, t, tcp, POLISH.contact_tol_mm, k)
+    xy = face_chart_points(free, 40_000)
+    P = free.origin_mm + xy[:, :1] * free.frame[:, 0] + xy[:, 1:] * free.frame[:, 1]
+    P -= np.outer((P - plane.origin_mm) @ plane.normal, plane.normal)      # onto the true plate
+    h = removal_at(P, segments, "parabolic", 15.0)
+    exact = share_of(h, np.ones(len(P)))
+    assert b["uniformity_within_5pct"] == pytest.approx(exact, abs=0.005)
+    assert b["rms_pct"] == pytest.approx(100 * h.std() / h.mean(), abs=0.1)   # the region's too (the plate's 9.08)
+    unrefined = map_figures(mesh_process_map(POLISH, free, t, tcp, mesh_map.grid, 10.0, refine=False))
+    assert abs(unrefined["uniformity_within_5pct"] - exact) > 0.02          # the vertices alone overstate it
+    # the refined map's samples are the exact direct sums there
+    fine = mesh_map.fine
+    some = np.flatnonzero(fine.grid.material)[::50]
+    Q = fine.grid.points_mm()[some]
+    Q -= np.outer((Q - plane.origin_mm) @ plane.normal, plane.normal)
+    assert np.abs(fine.values[some] - removal_at(Q, segments, "parabolic", 15.0)).max() < 1e-4 * fine.values.max()
+    # every contact puts exactly its amount on the surface (the saved map: the samples' averages over each cell)
+    c = contacts_from_tcp(POLISH, free, t, tcp, spacing_mm=0.5 * mesh_map.grid.spacing_mm)
+    assert np.sum(fine.values * fine.grid.spread_area_mm2()) == pytest.approx(c.amount.sum(), rel=1e-9)
+    assert np.sum(mesh_map.values * mesh_map.grid.area_mm2) == pytest.approx(c.amount.sum(), rel=1e-3)
+
+
+def saddle_point(face, xy):
+    """Points of the true saddle over chart points (along the chart normal e3, Newton)."""
+    e1, e2, e3 = face.frame[:, 0], face.frame[:, 1], face.frame[:, 2]
+    base = face.origin_mm + xy[:, :1] * e1 + xy[:, 1:] * e2
+    s = np.zeros(len(xy))
+    for _ in range(6):
+        P = base + s[:, None] * e3
+        f = saddle(P[:, 0], P[:, 1]) - P[:, 2]
+        df = (2 * P[:, 0] * e3[0] - 2 * P[:, 1] * e3[1]) / 400.0 - e3[2]
+        s -= f / df
+    return base + s[:, None] * e3
+
+
+def saddle_normal(P):
+    n = np.column_stack([-P[:, 0] / 200.0, P[:, 1] / 200.0, np.ones(len(P))])
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def test_a_raster_on_a_curved_mesh_matches_the_exact_reference():
+    """Passes 13 mm apart across a saddle CAD mesh (140 x 110 mm), on the true surface and past the face's edges:
+    the share within +-5 % against direct sums of the TCP track's segments over random points of the true saddle
+    (the true normals; uniform in area over the face's worked area), within 0.5 pp; the map on the vertices alone
+    is farther off. The segments in contact are those whose ends lie within the contact tolerance of the face
+    (continued past its edge, as camtool.part makes it), the only part of the reference taken from camtool."""
+    V, F = grid_mesh(np.linspace(-70, 70, 57), np.linspace(-55, 55, 45), saddle)
+    face = fit_surface(mesh_workpiece(V, F)[0], FIT)
+    rows = []
+    for k, y0 in enumerate(np.arange(-70.0, 70.1, 13.0) + 0.3):
+        x = np.arange(-85.0, 85.0 + 1e-9, 0.4) * (1 if k % 2 == 0 else -1)
+        rows += [np.column_stack([x, np.full_like(x, y0), saddle(x, y0)]), np.array([[x[-1], y0, saddle(x[-1], y0) + 20]])]
+    tcp = np.vstack(rows)
+    t = np.arange(len(tcp)) * 0.004          # 100 mm/s
+    pm = track_map(POLISH, face, t, tcp, rows_mm=13.0)
+    uv = face.uv_from_points(tcp)
+    off = np.einsum("ij,ij->i", tcp - face.point_mm(uv[:, 0], uv[:, 1]), face.normal_at(uv[:, 0], uv[:, 1]))
+    on = np.abs(off) <= POLISH.contact_tol_mm
+    kk = np.flatnonzero(on[:-1] & on[1:])
+    mid = 0.5 * (tcp[kk] + tcp[kk + 1])
+    per_mm = POLISH.preston_coefficient_per_pa * POLISH.force_n * 1e-3 * 1e12
+    segments = (tcp[kk], tcp[kk + 1], mid, saddle_normal(mid), per_mm * np.linalg.norm(tcp[kk + 1] - tcp[kk], axis=1))
+    P = saddle_point(face, face_chart_points(face, 40_000))
+    area = 1.0 / np.abs(saddle_normal(P) @ face.frame[:, 2])      # chart-uniform points: the area element
+    exact = share_of(removal_at(P, segments, "parabolic", 15.0), area)
+    assert 0.2 < exact < 0.8                # the ripple crosses the band: the share is a real measurement (0.356)
+    assert map_figures(pm)["uniformity_within_5pct"] == pytest.approx(exact, abs=0.005)
+    unrefined = map_figures(mesh_process_map(POLISH, face, t, tcp, pm.grid, 13.0, refine=False))
+    assert abs(unrefined["uniformity_within_5pct"] - exact) > 0.01   # 0.332
 
 
 def test_vertex_areas_are_on_the_surface_not_the_projection(saddle_face):

@@ -77,16 +77,18 @@ def _finest(pmap: ProcessMap) -> list:
 
 
 def _share(m: ProcessMap, lo: float, hi: float) -> tuple[float, float]:
-    """(area within [lo, hi], worked area) of one map: linear across the rows on a grid (``share_within``), the
-    sites' areas on a mesh (its sites have no neighbours along an axis)."""
+    """(area within [lo, hi], worked area) of one map: linear across the rows on a grid or a refined mesh's lattice
+    (``share_within``), the sites' areas on an unrefined mesh."""
     g = m.grid
     w = g.area_mm2[g.material]
     sub = getattr(g, "sub", None)
-    if sub is None or m.values.ndim != 2:
+    lattice = g.as_lattice(m.values)
+    if sub is None or lattice.ndim != 2:
         v = m.values[g.material]
         return float(np.sum(w * ((v >= lo) & (v <= hi)))), float(np.sum(w))
-    return share_within(m.values, g.material, g.area_mm2, lo, hi, 0 if sub[1] >= sub[0] else 1) * float(w.sum()), \
-        float(w.sum())
+    share = share_within(lattice, g.as_lattice(g.material), g.as_lattice(g.area_mm2), lo, hi,
+                         0 if sub[1] >= sub[0] else 1)
+    return share * float(w.sum()), float(w.sum())
 
 
 def _value_figures(pmap: ProcessMap) -> dict:
@@ -148,7 +150,8 @@ def map_figures(pmap: ProcessMap, band: float = 0.05) -> dict:
 
 def _across_mm(pmap: ProcessMap) -> float:
     """The spacing of the samples the value figures are taken on, along the axis of the most sub-samples (mm)."""
-    return min(m.grid.cell_mm / max(getattr(m.grid, "sub", (1, 1))) for m in _finest(pmap))
+    return min(getattr(m.grid, "spacing_mm", m.grid.cell_mm) / max(getattr(m.grid, "sub", None) or (1, 1))
+               for m in _finest(pmap))
 
 
 def _atomic(file: Path, write) -> Path:

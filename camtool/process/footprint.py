@@ -18,6 +18,7 @@ import numpy as np
 from ..settings import ProcessSettings
 
 RADIAL_QUADRATURE = 4000  # radial nodes of the unit-volume integral (gaussian, table)
+SEGMENT_QUADRATURE = 8    # Gauss-Legendre nodes of a footprint of no closed form along a segment
 KERNEL_SUPERSAMPLE = 5    # sub-samples per cell side when a footprint is put on a grid
 
 
@@ -49,6 +50,34 @@ class Footprint:
             rt, vt = np.array(self.table, float).T
             v = np.interp(r, rt, vt, left=vt[0], right=0.0)
         return np.where(inside, np.maximum(v, 0.0), 0.0)
+
+    def segment_shape(self, alpha, beta, gamma) -> np.ndarray:
+        """The mean of ``shape`` along a straight segment, t in [0, 1] with r(t)^2 = alpha t^2 + 2 beta t + gamma:
+        what a contact that stands for a stretch of path run at constant speed puts at a point. Flat and parabolic
+        in closed form (the part of the segment within the radius is the root interval of a quadratic); others by
+        ``SEGMENT_QUADRATURE``-point Gauss-Legendre (the grid map spreads its contacts along the path instead,
+        ``integrate._along_path``; no library integrates a footprint along a chord)."""
+        alpha, beta, gamma = (np.asarray(x, float) for x in (alpha, beta, gamma))
+        a = self.radius_mm
+        if self.profile not in ("flat", "parabolic"):
+            t, w = np.polynomial.legendre.leggauss(SEGMENT_QUADRATURE)
+            t = 0.5 * (t + 1.0)
+            r2 = alpha[..., None] * t * t + 2.0 * beta[..., None] * t + gamma[..., None]
+            return np.sum(self.shape(np.sqrt(np.maximum(r2, 0.0))) * (0.5 * w), axis=-1)
+        moving = alpha > 1e-18
+        disc = beta * beta - alpha * (gamma - a * a)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        safe = np.where(moving, alpha, 1.0)
+        t1 = np.where(moving, np.clip((-beta - root) / safe, 0.0, 1.0), 0.0)
+        t2 = np.where(moving, np.clip((-beta + root) / safe, 0.0, 1.0), np.where(gamma <= a * a, 1.0, 0.0))
+        t2 = np.where(moving & (disc <= 0), t1, t2)
+        if self.profile == "flat":
+            return t2 - t1
+
+        def F(t):  # integral of 1 - (alpha t^2 + 2 beta t + gamma) / a^2
+            return t - (alpha * t ** 3 / 3.0 + beta * t * t + gamma * t) / (a * a)
+
+        return np.maximum(F(t2) - F(t1), 0.0)
 
     @property
     def volume(self) -> float:

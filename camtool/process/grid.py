@@ -60,6 +60,10 @@ class MapGrid(SurfaceMap):
     def shape(self) -> tuple[int, int]:
         return len(self.v), len(self.u)
 
+    def expand(self, mask: np.ndarray) -> np.ndarray:
+        """A mask of the grid this one refines (``refined``), repeated onto this grid's sub-cells."""
+        return np.repeat(np.repeat(mask, self.sub[1], axis=0), self.sub[0], axis=1)
+
     def points_mm(self) -> np.ndarray:
         """(nv, nu, 3) cell centres on the surface (world frame)."""
         U, V = np.meshgrid(self.u, self.v)
@@ -145,9 +149,14 @@ def refinement(grid: MapGrid, spacing_mm: float, across_mm: np.ndarray) -> tuple
     direction ``across_mm`` (across the rows, in mm along u and v), as far as ``MAX_CELLS`` allows."""
     n = np.abs(np.asarray(across_mm, float))
     m = np.maximum(np.ceil(grid.cell_mm * n / spacing_mm - 1e-9), 1.0)
-    cells = float(grid.u.size * grid.v.size)
-    if cells * m[0] * m[1] > MAX_CELLS:  # the same share of the bound on each refined axis
-        shrink = math.sqrt(MAX_CELLS / (cells * m[0] * m[1])) if m.min() > 1 else MAX_CELLS / (cells * m.prod())
+    return capped(m, float(grid.u.size * grid.v.size), MAX_CELLS)
+
+
+def capped(m: np.ndarray, sites: float, limit: float) -> tuple[int, int]:
+    """Sub-samples per axis ``m`` (2,) reduced so that ``sites * m_0 * m_1`` stays within ``limit``: the same share
+    of the bound on each refined axis."""
+    if sites * m[0] * m[1] > limit:
+        shrink = math.sqrt(limit / (sites * m[0] * m[1])) if m.min() > 1 else limit / (sites * m.prod())
         m = np.maximum(np.floor(m * shrink), 1.0)
     return int(m[0]), int(m[1])
 

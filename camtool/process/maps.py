@@ -71,12 +71,12 @@ def _face_set_map(settings: ProcessSettings, face_set, t_s, tcp_mm, rows_mm: flo
 def track_map(settings: ProcessSettings, surface, t_s, tcp_mm, sites: SurfaceMap | None = None,
               rows_mm: float = 0.0) -> ProcessMap:
     """The map of a TCP track sampled at ``t_s`` over ``surface`` (on ``sites`` when given). ``rows_mm``: the
-    rows' spacing, which a grid map is refined to resolve (``integrate.process_map``)."""
+    rows' spacing, which the map is refined to resolve (``integrate.process_map``, ``mesh_map.mesh_process_map``)."""
     if getattr(surface, "model", None) in SET_MODELS:
         return _face_set_map(settings, surface, t_s, tcp_mm, rows_mm)
     if on_mesh(surface):
         return mesh_process_map(settings, surface, t_s, tcp_mm, sites if sites is not None
-                                else surface_map(settings, surface))
+                                else surface_map(settings, surface), rows_mm)
     return process_map(settings, surface, t_s, tcp_mm, grid=sites, rows_mm=rows_mm)
 
 

@@ -105,8 +105,7 @@ def _interior_share(pmap, fp: Footprint, band: float, kind: str) -> float:
     inner = pmap.grid.material & (edge_distance_mm(pmap) >= fp.radius_mm)
     fine = getattr(pmap, "fine", None)
     if fine is not None and kind != "inspect":
-        m_u, m_v = fine.grid.sub
-        inner = np.repeat(np.repeat(inner, m_v, axis=0), m_u, axis=1) & fine.grid.material
+        inner = fine.grid.expand(inner) & fine.grid.material
         pmap = fine
     if not inner.any():
         return 0.0
@@ -120,7 +119,8 @@ def _interior_share(pmap, fp: Footprint, band: float, kind: str) -> float:
     if fine is None:
         return round(float(np.sum(w[np.abs(v - mean) <= band * mean]) / np.sum(w)), 5)
     axis = 0 if g.sub[1] >= g.sub[0] else 1
-    return round(share_within(pmap.values, inner, g.area_mm2, (1 - band) * mean, (1 + band) * mean, axis), 5)
+    return round(share_within(g.as_lattice(pmap.values), g.as_lattice(inner), g.as_lattice(g.area_mm2),
+                              (1 - band) * mean, (1 + band) * mean, axis), 5)
 
 
 def choose_step_over(surface, raster: RasterSettings, process: ProcessSettings, feed_mm_s: float

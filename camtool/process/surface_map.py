@@ -14,6 +14,8 @@ interface, so none of them asks which kind a map is:
 - ``npz_arrays()``: the map's geometry as ``process_map.npz`` stores it, with ``layout`` naming the kind
   (``camtool.process.html`` draws a stored map by its layout);
 - ``draw(ax, values)``: the map on a matplotlib axis (the PNG);
+- ``as_lattice(a)``: the sites' array on their 2-D lattice (a mesh's vertices row by row), where the figures
+  take the map linear between neighbouring samples;
 - ``per_face()``: the maps of the faces a map of several faces holds (``map_set.MapSet``), each with its own
   files; none for one surface's map.
 """
@@ -53,6 +55,10 @@ class SurfaceMap(ABC):
     def per_face(self) -> tuple:
         """((face index, ``integrate.ProcessMap``), ...) of the faces this map holds; () for one surface's map."""
         return ()
+
+    def as_lattice(self, a: np.ndarray) -> np.ndarray:
+        """The sites' array ``a`` laid out on the map's 2-D lattice (rows across v): a grid's own shape."""
+        return a
 
     def uv_unit(self) -> str:
         return getattr(self.surface, "uv_unit", "mm")
