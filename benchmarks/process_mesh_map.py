@@ -2,16 +2,21 @@
 
 1. **Flat**: a plate 300 x 200 mm (tilted 30 deg) given as a mesh and taken as a free-form face, and the same
    plate as an analytic plane; the plane's raster (step-over 10 mm, parabolic 30 mm footprint, grid 2 mm)
-   run at 100 mm/s is mapped on both. Printed: the figures side by side, and the largest difference between
-   the mesh map and the plane's direct sums on the same sites (share of the peak).
+   run at 100 mm/s is mapped on both. Printed: the figures side by side (and the mesh map on its vertices
+   alone), the exact share within 5 % (tests/process_reference.py, 200k points) over the plate and over the
+   face's worked area (its 1 mm material nodes' cells), and the largest difference between the refined
+   samples and the exact direct sums there (share of the peak).
 2. **Curved**: a saddle CAD mesh z = (x^2 - y^2) / 400 (240 x 180 mm); three passes along x on the true
    surface. Printed: the largest difference between the mesh map and direct sums of the footprint over a
    0.5 mm sampling of the true surface (each sample with its exact area element, the true normals), as a
    share of the peak; and the vertex areas against the true area element (p99 of the relative error).
+2b. **Saddle raster**: passes 10, 13 and 16 mm apart across a saddle CAD mesh 140 x 110 mm, past its edges:
+   the share within 5 % of the exact reference (true normals, 200k points uniform in area over the worked
+   area), of the mesh map and of the map on its vertices alone.
 3. **Auto**: ``raster.step_over_mm = "auto"`` on saddles z = (x^2 - y^2) / 1000 of 300 x 210 and
    200 x 150 mm: the chosen step-over, its predicted share within +-5 %, what limits it, and the seconds.
 4. **Cost**: a panel 1.3 x 0.8 m (z = (x^2 - y^2) / 4000, a 50 mm parabolic footprint, grid 2 mm), its raster
-   at 20 mm run at 100 mm/s: the map's seconds, vertices and track samples.
+   at 20 mm run at 100 mm/s: the map's seconds, vertices, refined samples and their spacing across the rows.
 
     .venv/bin/python benchmarks/process_mesh_map.py
 """
@@ -29,17 +34,21 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 from camtool.part.fit import fit_surface  # noqa: E402
 from camtool.process.figures import map_figures  # noqa: E402
 from camtool.process.footprint import Footprint  # noqa: E402
-from camtool.process.grid import MapGrid  # noqa: E402
-from camtool.process.integrate import process_map  # noqa: E402
 from camtool.process.maps import track_map  # noqa: E402
+from camtool.process.mesh_map import mesh_process_map  # noqa: E402
 from camtool.process.stepover import choose_step_over  # noqa: E402
 from camtool.settings import RasterSettings  # noqa: E402
 from test_freeform import grid_mesh, mesh_workpiece  # noqa: E402
-from test_process_mesh_map import (FIT, POLISH, dense_reference, plane_track, saddle,  # noqa: E402
-                                   tilted)
+from process_reference import contacts, removal_at, sample_points  # noqa: E402
+from test_process_mesh_map import (FIT, POLISH, dense_reference, face_chart_points, plane_track, saddle,  # noqa: E402
+                                   saddle_normal, saddle_point, share_of, tilted)
 
 KEYS = ("worked_area_mm2", "mean", "rms_pct", "uniformity_within_5pct", "uniformity_within_10pct",
         "edge_rolloff_width_mm", "uncovered_share")
+
+
+def exact_share(h, weights=None, band=0.05) -> float:
+    return share_of(h, np.ones(len(h)) if weights is None else weights, band)
 
 
 def flat() -> None:
@@ -52,24 +61,65 @@ def flat() -> None:
                          Boundary(np.array([[-150, -100], [150, -100], [150, 100], [-150, 100]], float)))
     t, tcp = plane_track(plane)
     t0 = time.perf_counter()
-    grid_map = track_map(POLISH, plane, t, tcp)
+    grid_map = track_map(POLISH, plane, t, tcp, rows_mm=10.0)
     t1 = time.perf_counter()
-    mesh_map = track_map(POLISH, free, t, tcp)
+    mesh_map = track_map(POLISH, free, t, tcp, rows_mm=10.0)
     t2 = time.perf_counter()
-    a, b = map_figures(grid_map), map_figures(mesh_map)
-    print("== 1. flat: the analytic plane's grid map | the same plate as a free-form face, its mesh map")
-    for k in KEYS:
-        print(f"  {k:26s} {a[k]:>12} | {b[k]:>12}")
-    print(f"  seconds                    {t1 - t0:12.2f} | {t2 - t1:12.2f}  ({len(mesh_map.values)} vertices)")
-    m = mesh_map.grid
-    uv = plane.uv_from_points(m.points_mm()).reshape(len(m.ys), len(m.xs), 2)
-    U, V2 = np.meshgrid(uv[0, :, 0], uv[:, 0, 1])
-    on = plane.boundary.contains(np.column_stack([U.ravel(), V2.ravel()]))
-    same = MapGrid(plane, uv[0, :, 0], uv[:, 0, 1], POLISH.grid_mm, on.reshape(U.shape), np.full(U.shape, 4.0))
-    direct = process_map(POLISH, plane, t, tcp, method="direct", grid=same).values.ravel()
-    both = m.material & on
-    print(f"  mesh map vs the plane's direct sums on the same sites: max |diff| "
-          f"{np.abs(mesh_map.values[both] - direct[both]).max() / direct.max():.2e} of the peak")
+    unrefined = mesh_process_map(POLISH, free, t, tcp, mesh_map.grid, 10.0, refine=False)
+    a, b, u = map_figures(grid_map), map_figures(mesh_map), map_figures(unrefined)
+    k = POLISH.preston_coefficient_per_pa * POLISH.force_n * 1e-3 * 1e12
+    segments = contacts(plane, t, tcp, POLISH.contact_tol_mm, k)
+    xy = face_chart_points(free, 200_000)
+    P = free.origin_mm + xy[:, :1] * free.frame[:, 0] + xy[:, 1:] * free.frame[:, 1]
+    P -= np.outer((P - plane.origin_mm) @ plane.normal, plane.normal)
+    on_face = exact_share(removal_at(P, segments, "parabolic", 15.0))
+    on_plate = exact_share(removal_at(sample_points(plane, 200_000), segments, "parabolic", 15.0))
+    print("== 1. flat: the analytic plane's grid map | the same plate as a free-form face, its mesh map | the mesh "
+          "map on its vertices alone (unrefined)")
+    for key in KEYS:
+        print(f"  {key:26s} {a[key]:>12} | {b[key]:>12} | {u[key]:>12}")
+    print(f"  seconds                    {t1 - t0:12.2f} | {t2 - t1:12.2f}  ({len(mesh_map.values)} vertices, "
+          f"{len(mesh_map.fine.values)} samples {b['samples_across_rows_mm']} mm apart across the rows)")
+    print(f"  exact share within 5 % (200k points): over the plate {on_plate:.4f} (grid map {a['uniformity_within_5pct']}),"
+          f" over the face's worked area {on_face:.4f} (mesh map {b['uniformity_within_5pct']}, unrefined "
+          f"{u['uniformity_within_5pct']})")
+    fine = mesh_map.fine
+    some = np.flatnonzero(fine.grid.material)[::20]
+    Q = fine.grid.points_mm()[some]
+    Q -= np.outer((Q - plane.origin_mm) @ plane.normal, plane.normal)
+    print(f"  refined samples vs the exact direct sums there: max |diff| "
+          f"{np.abs(fine.values[some] - removal_at(Q, segments, 'parabolic', 15.0)).max() / fine.values.max():.2e} "
+          "of the peak")
+
+
+def saddle_raster() -> None:
+    V, F = grid_mesh(np.linspace(-70, 70, 57), np.linspace(-55, 55, 45), saddle)
+    face = fit_surface(mesh_workpiece(V, F)[0], FIT)
+    print("== 2b. a saddle CAD mesh 140 x 110 mm, passes along x past its edges; share within 5 %: the exact reference"
+          " over the face's worked area | the mesh map | unrefined")
+    for step in (10.0, 13.0, 16.0):
+        rows = []
+        for k, y0 in enumerate(np.arange(-70.0, 70.1, step) + 0.3):
+            x = np.arange(-85.0, 85.0 + 1e-9, 0.4) * (1 if k % 2 == 0 else -1)
+            rows += [np.column_stack([x, np.full_like(x, y0), saddle(x, y0)]),
+                     np.array([[x[-1], y0, saddle(x[-1], y0) + 20]])]
+        tcp = np.vstack(rows)
+        t = np.arange(len(tcp)) * 0.004
+        t0 = time.perf_counter()
+        pm = track_map(POLISH, face, t, tcp, rows_mm=step)
+        seconds = time.perf_counter() - t0
+        un = mesh_process_map(POLISH, face, t, tcp, pm.grid, step, refine=False)
+        uv = face.uv_from_points(tcp)
+        off = np.einsum("ij,ij->i", tcp - face.point_mm(uv[:, 0], uv[:, 1]), face.normal_at(uv[:, 0], uv[:, 1]))
+        on = np.abs(off) <= POLISH.contact_tol_mm
+        kk = np.flatnonzero(on[:-1] & on[1:])
+        mid = 0.5 * (tcp[kk] + tcp[kk + 1])
+        per_mm = POLISH.preston_coefficient_per_pa * POLISH.force_n * 1e-3 * 1e12
+        seg = (tcp[kk], tcp[kk + 1], mid, saddle_normal(mid), per_mm * np.linalg.norm(tcp[kk + 1] - tcp[kk], axis=1))
+        P = saddle_point(face, face_chart_points(face, 200_000))
+        exact = exact_share(removal_at(P, seg, "parabolic", 15.0), 1.0 / np.abs(saddle_normal(P) @ face.frame[:, 2]))
+        print(f"  step {step:4.1f} mm: {exact:.4f} | {map_figures(pm)['uniformity_within_5pct']:.4f} | "
+              f"{map_figures(un)['uniformity_within_5pct']:.4f}   ({seconds:.1f} s, {len(pm.fine.values)} samples)")
 
 
 def curved() -> None:
@@ -130,16 +180,21 @@ def cost() -> None:
     path = raster_path(face, RasterSettings.make(step_over_mm=20, pitch_mm=10, lead_mm=20))
     t, tcp = _track(path, 100.0, 0.5 * process.grid_mm, 11.0)
     t0 = time.perf_counter()
-    pm = track_map(process, face, t, tcp)
-    print(f"== 4. cost: a panel 1.3 x 0.8 m, grid {process.grid_mm:g} mm: the map {time.perf_counter() - t0:.1f} s for "
-          f"{len(pm.values)} vertices and {len(t)} track samples")
+    pm = track_map(process, face, t, tcp, rows_mm=20.0)
+    f = map_figures(pm)
+    samples = len(pm.fine.values) if pm.fine is not None else len(pm.values)
+    print(f"== 4. cost: a panel 1.3 x 0.8 m, grid {process.grid_mm:g} mm, rows 20 mm: the map {time.perf_counter() - t0:.1f}"
+          f" s for {len(pm.values)} vertices ({samples} samples, {f['samples_across_rows_mm']} mm apart "
+          f"across the rows) and {len(t)} track samples")
 
 
 def main() -> int:
     flat()
     curved()
+    saddle_raster()
     auto()
     cost()
+
     return 0
 
 

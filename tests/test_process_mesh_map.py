@@ -17,7 +17,7 @@ from camtool.process.grid import MapGrid
 from camtool.process.html import process_heat_map_figure
 from camtool.process.integrate import contacts_from_tcp, process_map
 from camtool.process.maps import surface_map, track_map
-from camtool.process.mesh_map import MeshMap, mesh_process_map
+from camtool.process.mesh_map import RIPPLE_SAMPLES, MeshMap, mesh_process_map
 from camtool.process.stepover import _track, choose_step_over, predicted_map
 from camtool.settings import ProcessSettings, RasterSettings
 from tests.process_reference import contacts, removal_at
@@ -97,7 +97,7 @@ def test_a_flat_mesh_gives_the_analytic_planes_figures(flat_pair):
     for key in ("uniformity_within_10pct", "uncovered_share"):
         assert b[key] == pytest.approx(a[key], abs=0.015), key
     assert b["edge_rolloff_width_mm"] == pytest.approx(a["edge_rolloff_width_mm"], abs=POLISH.grid_mm)
-    assert b["samples_across_rows_mm"] <= 10.0 / 96 + 1e-9
+    assert b["samples_across_rows_mm"] <= 10.0 / RIPPLE_SAMPLES + 1e-9
     # within 5 % against the exact reference (tests/process_reference.py: direct sums of the TCP track's segments)
     # over the face's own worked area. The ripple's peaks lie at the band's edge here, so the share moves ~4 pp
     # per 0.5 mm of the worked area's edge: the plate's (the grid map's, 0.673) is not the face's (0.709).
@@ -171,6 +171,49 @@ def test_a_raster_on_a_curved_mesh_matches_the_exact_reference():
     assert map_figures(pm)["uniformity_within_5pct"] == pytest.approx(exact, abs=0.005)
     unrefined = map_figures(mesh_process_map(POLISH, face, t, tcp, pm.grid, 13.0, refine=False))
     assert abs(unrefined["uniformity_within_5pct"] - exact) > 0.01   # 0.332
+
+
+def test_refined_samples_hold_the_materials_area_and_the_cells_average(saddle_face):
+    """Each refined sample's area is its cell's share on the material (against a brute-force count of 0.02 mm
+    points by their nearest node); a vertex's saved value is its samples' area-weighted average."""
+    x = np.arange(-80.0, 80.0, 0.5)
+    tcp = np.column_stack([x, np.zeros_like(x), saddle(x, 0.0)])
+    pm = track_map(POLISH, saddle_face, np.arange(len(tcp)) * 0.005, tcp, rows_mm=10.0)
+    fine = pm.fine.grid
+    m_x, m_y = fine.sub
+    assert m_y >= 48 * pm.grid.spacing_mm / 10.0 - 1 and fine.vertices_mm.shape[0] == m_x * m_y * len(pm.values)
+    g = saddle_face.grid
+    dx, dy = fine.xs[1] - fine.xs[0], fine.ys[1] - fine.ys[0]
+    share = fine.area_mm2 / fine.spread_area_mm2()
+    edge = np.flatnonzero((share > 0.01) & (share < 0.99))
+    assert len(edge) > 100
+    k = np.random.default_rng(0).choice(edge, 40, replace=False)
+    X, Y = np.meshgrid(fine.xs, fine.ys)
+    ox, oy = np.meshgrid((np.arange(50) + 0.5) / 50 - 0.5, (np.arange(50) + 0.5) / 50 - 0.5)
+    px, py = X.ravel()[k, None] + ox.ravel() * dx, Y.ravel()[k, None] + oy.ravel() * dy
+    i, j = np.rint((px - g.x0) / g.g).astype(int), np.rint((py - g.y0) / g.g).astype(int)
+    brute = saddle_face.material[j, i].mean(axis=1)
+    assert np.abs(share[k] - brute).max() < 0.03
+    a = fine.as_lattice(fine.spread_area_mm2()).reshape(len(pm.grid.ys), m_y, len(pm.grid.xs), m_x)
+    v = fine.as_lattice(pm.fine.values).reshape(a.shape)
+    assert np.allclose(pm.values, ((a * v).sum(axis=(1, 3)) / a.sum(axis=(1, 3))).ravel())
+
+
+def test_the_refinement_is_bounded_and_reported(saddle_face, monkeypatch):
+    import camtool.process.mesh_map as mm
+
+    x = np.arange(-80.0, 80.0, 0.5)
+    tcp = np.column_stack([x, np.zeros_like(x), saddle(x, 0.0)])
+    t = np.arange(len(tcp)) * 0.005
+    full = track_map(POLISH, saddle_face, t, tcp, rows_mm=10.0)
+    monkeypatch.setattr(mm, "MAX_PAIRS", 60_000)
+    bounded = track_map(POLISH, saddle_face, t, tcp, rows_mm=10.0)
+    assert 1 < bounded.fine.grid.sub[1] < full.fine.grid.sub[1]
+    c = contacts_from_tcp(POLISH, saddle_face, t, tcp, spacing_mm=mm.CONTACT_SPACINGS * full.grid.spacing_mm)
+    assert len(c.amount) * mm.pairs_per_contact(bounded.fine.grid, 15.0) <= 60_000 * 1.01
+    assert map_figures(bounded)["samples_across_rows_mm"] == pytest.approx(
+        full.grid.spacing_mm / bounded.fine.grid.sub[1], abs=1e-4)
+    assert map_figures(full)["samples_across_rows_mm"] <= 10.0 / mm.RIPPLE_SAMPLES + 1e-4
 
 
 def test_vertex_areas_are_on_the_surface_not_the_projection(saddle_face):

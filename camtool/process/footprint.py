@@ -55,15 +55,10 @@ class Footprint:
         """The mean of ``shape`` along a straight segment, t in [0, 1] with r(t)^2 = alpha t^2 + 2 beta t + gamma:
         what a contact that stands for a stretch of path run at constant speed puts at a point. Flat and parabolic
         in closed form (the part of the segment within the radius is the root interval of a quadratic); others by
-        ``SEGMENT_QUADRATURE``-point Gauss-Legendre (the grid map spreads its contacts along the path instead,
-        ``integrate._along_path``; no library integrates a footprint along a chord)."""
+        ``SEGMENT_QUADRATURE``-point Gauss-Legendre over that part (the grid map spreads its contacts along the
+        path instead, ``integrate._along_path``; no library integrates a footprint along a chord)."""
         alpha, beta, gamma = (np.asarray(x, float) for x in (alpha, beta, gamma))
         a = self.radius_mm
-        if self.profile not in ("flat", "parabolic"):
-            t, w = np.polynomial.legendre.leggauss(SEGMENT_QUADRATURE)
-            t = 0.5 * (t + 1.0)
-            r2 = alpha[..., None] * t * t + 2.0 * beta[..., None] * t + gamma[..., None]
-            return np.sum(self.shape(np.sqrt(np.maximum(r2, 0.0))) * (0.5 * w), axis=-1)
         moving = alpha > 1e-18
         disc = beta * beta - alpha * (gamma - a * a)
         root = np.sqrt(np.maximum(disc, 0.0))
@@ -73,11 +68,14 @@ class Footprint:
         t2 = np.where(moving & (disc <= 0), t1, t2)
         if self.profile == "flat":
             return t2 - t1
-
-        def F(t):  # integral of 1 - (alpha t^2 + 2 beta t + gamma) / a^2
-            return t - (alpha * t ** 3 / 3.0 + beta * t * t + gamma * t) / (a * a)
-
-        return np.maximum(F(t2) - F(t1), 0.0)
+        if self.profile != "parabolic":  # Gauss-Legendre over the part within the radius (smooth there)
+            x, w = np.polynomial.legendre.leggauss(SEGMENT_QUADRATURE)
+            t = t1[..., None] + (t2 - t1)[..., None] * 0.5 * (x + 1.0)
+            r2 = alpha[..., None] * t * t + 2.0 * beta[..., None] * t + gamma[..., None]
+            return (t2 - t1) * np.sum(self.shape(np.sqrt(np.maximum(r2, 0.0))) * (0.5 * w), axis=-1)
+        # the integral of 1 - (alpha t^2 + 2 beta t + gamma) / a^2 from t1 to t2
+        mean_r2 = alpha * (t2 * t2 + t1 * t2 + t1 * t1) / 3.0 + beta * (t1 + t2) + gamma
+        return np.maximum((t2 - t1) * (1.0 - mean_r2 / (a * a)), 0.0)
 
     @property
     def volume(self) -> float:

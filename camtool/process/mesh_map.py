@@ -40,11 +40,16 @@ from ..part.freeform_grid import triangles
 from ..path.toolpath import freeze_arrays
 from ..settings import ProcessSettings
 from .footprint import Footprint
-from .grid import MAX_CELLS, RIPPLE_SAMPLES, capped
+from .grid import MAX_CELLS, capped
 from .integrate import QUANTITY, Contacts, ProcessMap, across_rows_mm, contacts_from_tcp
 from .surface_map import SurfaceMap
 
-MAX_PAIRS = 60_000_000       # (contact, sample) pairs of a refined map at most (a 1.3 m panel: a few seconds)
+RIPPLE_SAMPLES = 48         # samples per period across the rows: the samples are exact sums along the path, so half the
+                            # grid map's 96 (grid.RIPPLE_SAMPLES) already puts the share within 0.05 pp of 96's
+                            # (benchmarks/process_mesh_map.py) at half the cost
+CONTACT_SPACINGS = 2.0      # a contact per this many lattice spacings of travel: each is summed along its stretch of
+                            # path exactly (``_pairs``), so merging costs nothing on a smooth path and saves pairs
+MAX_PAIRS = 30_000_000       # (contact, sample) pairs of a refined map at most, ~0.1 us each (a 1.3 m panel: ~3 s)
 PAIRS_PER_BLOCK = 2_000_000  # (contact, vertex) pairs per vectorised block at most (memory)
 REACH = 1.25          # vertices within this many footprint radii (3-D) of a contact are candidates: a point of
                       # the tangent disc lies a little farther in 3-D on a curved surface (R >= 1.6 radii)
@@ -293,25 +298,26 @@ def _pairs(tree, coords, fp: Footprint, points_mm, normals, stretch):
 
     half = 0.5 * float(np.max(np.linalg.norm(stretch, axis=1), initial=0.0))
     pairs = cKDTree(points_mm).sparse_distance_matrix(tree, REACH * fp.radius_mm + half, output_type="ndarray")
-    ci, vj = (np.ascontiguousarray(pairs[k]) for k in ("i", "j"))
+    ci, vj, chord = (np.ascontiguousarray(pairs[k]) for k in ("i", "j", "v"))
     tangent = stretch - np.einsum("ij,ij->i", stretch, normals)[:, None] * normals
-    start = points_mm - 0.5 * stretch
-    dn = np.zeros(len(ci))
-    beta = np.zeros(len(ci))
-    gamma = np.zeros(len(ci))
-    for k in range(3):   # d = segment start - vertex; its tangent part by d.d - (d.n)^2, (d.tangent) (tangent . n = 0)
-        d = start[:, k][ci] - coords[k][vj]
-        dn += d * normals[:, k][ci]
-        beta += d * tangent[:, k][ci]
-        gamma += d * d
-    gamma -= dn * dn
+    # d = vertex - contact: (d.n) and (d.tangent) from the contacts' own products (tangent . n = 0), |d| the chord
+    dn = -np.einsum("ij,ij->i", points_mm, normals)[ci]
+    dt = -np.einsum("ij,ij->i", points_mm, tangent)[ci]
+    for k in range(3):
+        v = coords[k][vj]
+        dn += v * np.ascontiguousarray(normals[:, k])[ci]
+        dt += v * np.ascontiguousarray(tangent[:, k])[ci]
     alpha = np.einsum("ij,ij->i", tangent, tangent)[ci]
-    return ci, vj, fp.segment_shape(alpha, beta, np.maximum(gamma, 0.0))
+    # the segment from contact - tangent / 2 to contact + tangent / 2; r(t)^2 from its start, t in [0, 1]
+    beta = -dt - 0.5 * alpha
+    gamma = np.maximum(chord * chord - dn * dn + dt + 0.25 * alpha, 0.0)
+    return ci, vj, fp.segment_shape(alpha, beta, gamma)
 
 
 def pairs_per_contact(mesh: MeshMap, radius_mm: float) -> float:
     """About how many vertices of ``mesh`` lie within reach of one contact: the reach's disc over a vertex's area."""
-    return math.pi * (REACH * radius_mm) ** 2 / max(float(np.median(mesh.spread_area_mm2())), 1e-12)
+    reach_mm = REACH * radius_mm + 0.5 * CONTACT_SPACINGS * mesh.spacing_mm   # a contact's stretch reaches farther
+    return math.pi * reach_mm ** 2 / max(float(np.median(mesh.spread_area_mm2())), 1e-12)
 
 
 def mesh_values(settings: ProcessSettings, mesh: MeshMap, c: Contacts) -> np.ndarray:
@@ -380,7 +386,7 @@ def mesh_process_map(settings: ProcessSettings, surface, t_s, tcp_mm, mesh: Mesh
     summed on the lattice refined across the rows to ``RIPPLE_SAMPLES`` samples per period (``mesh_refinement``,
     ``refined_mesh``); ``values`` are the sub-samples' averages over each vertex's cell and ``fine`` the refined
     map the figures are taken on. ``refine = False``: the values at the vertices themselves."""
-    c = contacts_from_tcp(settings, surface, t_s, tcp_mm, spacing_mm=0.5 * mesh.spacing_mm)
+    c = contacts_from_tcp(settings, surface, t_s, tcp_mm, spacing_mm=CONTACT_SPACINGS * mesh.spacing_mm)
     quantity, units = QUANTITY[settings.kind]
     made = (settings.kind, quantity, units, "mesh-direct", float(c.dt_s.sum()), float(c.travel_mm.sum()),
             int(len(t_s)))
