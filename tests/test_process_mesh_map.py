@@ -153,7 +153,8 @@ def test_a_raster_on_a_curved_mesh_matches_the_exact_reference():
     rows = []
     for k, y0 in enumerate(np.arange(-70.0, 70.1, 13.0) + 0.3):
         x = np.arange(-85.0, 85.0 + 1e-9, 0.4) * (1 if k % 2 == 0 else -1)
-        rows += [np.column_stack([x, np.full_like(x, y0), saddle(x, y0)]), np.array([[x[-1], y0, saddle(x[-1], y0) + 20]])]
+        rows += [np.column_stack([x, np.full_like(x, y0), saddle(x, y0)]),
+                 np.array([[x[-1], y0, saddle(x[-1], y0) + 20]])]
     tcp = np.vstack(rows)
     t = np.arange(len(tcp)) * 0.004          # 100 mm/s
     pm = track_map(POLISH, face, t, tcp, rows_mm=13.0)
