@@ -339,8 +339,7 @@ def mesh_values(settings: ProcessSettings, mesh: MeshMap, c: Contacts) -> np.nda
             hits.append(np.unique(c.run[e][ci[on]].astype(np.int64) * N + vj[on]))
             continue
         per_contact = np.bincount(ci, weights=w * spread[vj], minlength=len(c.amount[e]))
-        w = w / np.maximum(per_contact[ci], 1e-300) * c.amount[e][ci]
-        acc += np.bincount(vj, weights=w, minlength=N)
+        acc += np.bincount(vj, weights=w * (c.amount[e] / np.maximum(per_contact, 1e-300))[ci], minlength=N)
     if settings.kind == "inspect" and hits:
         acc = np.bincount(np.unique(np.concatenate(hits)) % N, minlength=N).astype(float)
     return acc
