@@ -168,10 +168,10 @@ def test_a_raster_on_a_curved_mesh_matches_the_exact_reference():
     P = saddle_point(face, face_chart_points(face, 40_000))
     area = 1.0 / np.abs(saddle_normal(P) @ face.frame[:, 2])      # chart-uniform points: the area element
     exact = share_of(removal_at(P, segments, "parabolic", 15.0), area)
-    assert 0.2 < exact < 0.8                # the ripple crosses the band: the share is a real measurement (0.356)
+    assert 0.2 < exact < 0.8                # the ripple crosses the band: the share is a real measurement (0.361)
     assert map_figures(pm)["uniformity_within_5pct"] == pytest.approx(exact, abs=0.005)
     unrefined = map_figures(mesh_process_map(POLISH, face, t, tcp, pm.grid, 13.0, refine=False))
-    assert abs(unrefined["uniformity_within_5pct"] - exact) > 0.01   # 0.332
+    assert abs(unrefined["uniformity_within_5pct"] - exact) > 0.01   # 0.398
 
 
 def test_refined_samples_hold_the_materials_area_and_the_cells_average(saddle_face):
