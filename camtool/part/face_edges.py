@@ -380,24 +380,31 @@ def _kept_on_sphere(surface, uv: np.ndarray, tol_mm: float) -> np.ndarray:
     far = int(np.argmax(np.linalg.norm(X - X[0], axis=1)))
     keep = np.zeros(n, bool)
     keep[[0, far]] = True
-    stack = [(0, far), (far, n)]
+    spans = np.array([(0, far), (far, n)], np.int64)
     s = np.linspace(0.0, 1.0, 33)
-    while stack:
-        i, j = stack.pop()
-        if j - i < 2:
-            continue
+    while len(spans):   # every span of a round at once (each span splits on its own: the order is free)
+        spans = spans[spans[:, 1] - spans[:, 0] >= 2]
+        if not len(spans):
+            break
+        i, j = spans[:, 0], spans[:, 1]
         jj = j % n
-        inner = np.arange(i + 1, j)
-        curve = surface.point_mm(*(uv[i] + s[:, None] * (uv[jj] - uv[i])).T)
-        p, q = curve[:-1], curve[1:]
-        d = q - p
-        w = np.clip(np.einsum("kij,ij->ki", X[inner][:, None] - p[None], d) / np.maximum(np.einsum("ij,ij->i", d, d),
-                                                                                      1e-24), 0.0, 1.0)
-        dev = np.linalg.norm(X[inner][:, None] - (p[None] + w[..., None] * d[None]), axis=2).min(axis=1)
-        k = int(np.argmax(dev))
-        if dev[k] > tol_mm:
-            keep[inner[k]] = True
-            stack += [(i, inner[k]), (inner[k], j)]
+        line_uv = uv[i][:, None, :] + s[None, :, None] * (uv[jj] - uv[i])[:, None, :]
+        curve = surface.point_mm(line_uv[..., 0].ravel(), line_uv[..., 1].ravel()).reshape(len(spans), len(s), 3)
+        p, d = curve[:, :-1], curve[:, 1:] - curve[:, :-1]
+        count = j - i - 1
+        span = np.repeat(np.arange(len(spans)), count)
+        inner = np.repeat(i + 1, count) + np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+        Xi = X[inner][:, None]
+        w = np.clip(np.einsum("kij,kij->ki", Xi - p[span], d[span])
+                    / np.maximum(np.einsum("sij,sij->si", d, d), 1e-24)[span], 0.0, 1.0)
+        dev = np.linalg.norm(Xi - (p[span] + w[..., None] * d[span]), axis=2).min(axis=1)
+        top = np.maximum.reduceat(dev, np.cumsum(count) - count)
+        at_top = np.flatnonzero(dev == top[span])
+        first = at_top[np.unique(span[at_top], return_index=True)[1]]   # each span's first vertex at its top
+        split = top > tol_mm
+        k = inner[first[split]]
+        keep[k] = True
+        spans = np.concatenate([np.stack([i[split], k], axis=1), np.stack([k, j[split]], axis=1)])
     return np.flatnonzero(keep)
 
 
@@ -847,6 +854,20 @@ def _meeting(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray)
     """Per vertex, the distance t (mm) along its normal where the ray meets ``other``: the crossing nearest
     to the vertex where the surfaces cross, the touching point where they meet tangentially; inf if none."""
     f = level(other, ray)  # (m, K)
+    best = np.full(len(f), np.inf)
+    # only rays the surface crosses or comes within TANGENT_GAP_MM of can meet it: the rest stay inf (a part's
+    # faces are mostly far from each other's surfaces, so this skips most rays before the work below)
+    with np.errstate(invalid="ignore"):
+        maybe = np.flatnonzero(((f[:, :-1] * f[:, 1:] <= 0) & (f[:, :-1] != f[:, 1:])).any(axis=1)
+                               | (np.abs(f[:, 1:-1]) < TANGENT_GAP_MM).any(axis=1))
+    if len(maybe) < len(f):
+        best[maybe] = _meeting_rows(surface, other, ray[maybe], t, ray_uv[maybe], f[maybe])
+        return best
+    return _meeting_rows(surface, other, ray, t, ray_uv, f)
+
+
+def _meeting_rows(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """``_meeting`` given the neighbour's level along the rays, ``f`` (m, K)."""
     m = len(f)
     best = np.full(m, np.inf)
     # crossings: sign changes between samples, interpolated
