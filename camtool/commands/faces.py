@@ -28,7 +28,7 @@ def command(job_file: Path, overrides: tuple[str, ...], outdir: Path | None, as_
     """
     from ..part.faces import faces_png, segment_faces, select_faces   # heavy: only when the command runs
     from ..run.part_stages import faces_settings
-    from ..run.stages import workpiece_for_job
+    from ..run.part_stages import workpiece_for_job
 
     job = load_job(job_file, list(overrides))
     wp = workpiece_for_job(job)

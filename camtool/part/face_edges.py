@@ -41,12 +41,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cached_property, partial
 
 import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..alongside import Alongside
 from .surface import Boundary, Cylinder, PlaneSurface
 
 SNAP_REACH_MM = 15.0    # a vertex moves at most this far out of the material along its normal, and the neighbour's
@@ -80,6 +81,7 @@ NEIGHBOUR_POINTS = 50000  # a neighbour's points (strided) its nearness is measu
 EXTENT_POINTS = 200000  # a face's points (strided) its extent is read from
 PASSES = 2              # the pass is run this many times
 SIMPLIFY_MM = 0.05      # the moved polygon is simplified (Douglas-Peucker) to this tolerance
+ALONGSIDE_FACES = 16    # from this many faces on, half of them are moved in a forked child (``on_edges``)
 
 
 # ----------------------------------------------------------------------------- flat charts
@@ -197,19 +199,35 @@ def on_edges(surfaces: list, points_mm: list[np.ndarray], cloud_mm: np.ndarray, 
     the face ends."""
     trees = [cKDTree(_strided(p, NEIGHBOUR_POINTS)) for p in points_mm]
     boxes = _Boxes.of(trees)
-    out = []
-    for k, s in enumerate(surfaces):
-        others = _Neighbours(surfaces, trees, boxes, k)
-        b = s.boundary
-        mine = np.flatnonzero((owner == k) | (owner < 0))   # (the level only of these: a part has many faces)
-        own = _FacePoints(_strided(cloud_mm[mine[np.abs(level(s, cloud_mm[mine])) < threshold_mm]], EXTENT_POINTS))
-        moved = [_moved_again(s, poly, others, free_edges, own) for poly in (b.outer_uv, *b.holes_uv)]
-        if all(m is None for m in moved):
-            out.append(s)
-            continue
-        polys = [np.asarray(p, float) if m is None else m for p, m in zip((b.outer_uv, *b.holes_uv), moved)]
-        out.append(replace(s, boundary=Boundary(polys[0], tuple(polys[1:]))))
+
+    def moved(faces: list[int]) -> list:
+        return [_face_on_edges(k, surfaces, trees, boxes, cloud_mm, owner, threshold_mm, free_edges) for k in faces]
+
+    every = list(range(len(surfaces)))
+    if len(every) < ALONGSIDE_FACES:
+        return moved(every)
+    # each face's boundary moves on its own (its neighbours as given, not as moved): the odd faces in a forked
+    # child (``alongside``: where the machine gives this process a second CPU), the even ones here
+    with Alongside(partial(moved, every[1::2])) as child:
+        out = [None] * len(every)
+        out[0::2] = moved(every[0::2])
+        out[1::2] = child.result()
     return out
+
+
+def _face_on_edges(k: int, surfaces: list, trees: list, boxes: "_Boxes", cloud_mm: np.ndarray, owner: np.ndarray,
+                   threshold_mm: float, free_edges: FreeEdges | None):
+    """Face k's surface with its boundary on the edges (``on_edges``), or as it was when no vertex moves."""
+    s = surfaces[k]
+    others = _Neighbours(surfaces, trees, boxes, k)
+    b = s.boundary
+    mine = np.flatnonzero((owner == k) | (owner < 0))   # (the level only of these: a part has many faces)
+    own = _FacePoints(_strided(cloud_mm[mine[np.abs(level(s, cloud_mm[mine])) < threshold_mm]], EXTENT_POINTS))
+    moved = [_moved_again(s, poly, others, free_edges, own) for poly in (b.outer_uv, *b.holes_uv)]
+    if all(m is None for m in moved):
+        return s
+    polys = [np.asarray(p, float) if m is None else m for p, m in zip((b.outer_uv, *b.holes_uv), moved)]
+    return replace(s, boundary=Boundary(polys[0], tuple(polys[1:])))
 
 
 def _strided(points: np.ndarray, most: int) -> np.ndarray:
