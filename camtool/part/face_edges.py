@@ -81,7 +81,7 @@ NEIGHBOUR_POINTS = 50000  # a neighbour's points (strided) its nearness is measu
 EXTENT_POINTS = 200000  # a face's points (strided) its extent is read from
 PASSES = 2              # the pass is run this many times
 SIMPLIFY_MM = 0.05      # the moved polygon is simplified (Douglas-Peucker) to this tolerance
-ALONGSIDE_FACES = 16    # from this many faces on, half of them are moved in a forked child (``on_edges``)
+ALONGSIDE_FACES = 8     # from this many faces on, half of them are moved in a forked child (``on_edges``)
 
 
 # ----------------------------------------------------------------------------- flat charts

@@ -128,8 +128,10 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
         idx_rest = np.concatenate(rest)
         if len(idx_rest) >= 4 * MIN_FACE_SAMPLES:
             # the B-rep's other faces by RANSAC, as planes, spheres and cylinders only (their free-form charts
-            # do not take the B-rep edges' boundary pass)
-            sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)), replace(settings, freeform_faces=False))
+            # do not take the B-rep edges' boundary pass), their boundaries moved onto the edges below, once, with
+            # every face as a neighbour (not first among themselves only: a pass that saw none of the exact faces)
+            sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)), replace(settings, freeform_faces=False),
+                          edges=False)
             built += [(f.surface, idx_rest[f.inliers]) for f in sub.faces]
             dropped += sub.dropped_faces
     kept = [(s, idx) for s, idx in built if area_mm2(s) >= settings.min_area_mm2]
@@ -155,9 +157,9 @@ def nearest_triangle(mesh, P: np.ndarray) -> np.ndarray:
     The workpiece's points are sampled from this very mesh, so each lies on a triangle: its candidates are the
     triangles whose box holds the point (within ``ON_MESH_MM``; found by ``box_grid.BoxGrid``), a handful,
     where trimesh's search takes every triangle within the distance to the nearest vertex (on a part of large
-    flat triangles, thousands per point: gigabytes). The nearest candidate is the nearest triangle; a point on no candidate (not on the mesh) takes
-    the nearest triangle within a reach grown tenfold until one is met, farther than a grid cell by trimesh
-    itself. Block by block (``CHUNK_POINTS``)."""
+    flat triangles, thousands per point: gigabytes). The nearest candidate is the nearest triangle; a point on
+    no candidate (not on the mesh) takes the nearest triangle within a reach grown tenfold until one is met,
+    farther than a grid cell by trimesh itself. Block by block (``CHUNK_POINTS``)."""
     import trimesh
 
     from .box_grid import BoxGrid
