@@ -478,13 +478,19 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     best_t = np.full(len(rays.xy), np.inf)
     best_score = np.full(len(rays.xy), np.inf)
     with np.errstate(invalid="ignore"):   # (a ray off its surface is NaN: its box meets nothing)
-        lo, hi = rays.X.min(axis=1) - SNAP_REACH_MM, rays.X.max(axis=1) + SNAP_REACH_MM   # each ray's box
+        ray_lo, ray_hi = rays.X.min(axis=1), rays.X.max(axis=1)
+        lo, hi = ray_lo - SNAP_REACH_MM, ray_hi + SNAP_REACH_MM   # each ray's box
+    # each ray within the ball about its box's middle: a surface whose level there is farther from zero than the
+    # ball's radius plus TANGENT_GAP_MM is neither crossed nor touched by it (the level changes by at most the
+    # distance moved: a plane's, a sphere's and a cylinder's alike), so it is not asked (``_meeting``: inf)
+    mid, radius = 0.5 * (ray_lo + ray_hi), 0.5 * np.linalg.norm(ray_hi - ray_lo, axis=1) + TANGENT_GAP_MM + 1e-6
     for j in _near_rays(rays, others):
         other, tree = others[j]
         # only the rays the neighbour's points can come near (``_near_rays``, ray by ray): the others meet
         # nothing of it (``_meeting`` takes each ray on its own)
         near_lo, near_hi = others.box(j)
         sub = np.flatnonzero(np.all(hi >= near_lo, axis=1) & np.all(lo <= near_hi, axis=1))
+        sub = sub[np.abs(level(other, mid[sub])) <= radius[sub]]
         if len(sub) == 0:
             continue
         tk = np.full(len(rays.xy), np.inf)
