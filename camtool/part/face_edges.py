@@ -484,7 +484,7 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     # ball's radius plus TANGENT_GAP_MM is neither crossed nor touched by it (the level changes by at most the
     # distance moved: a plane's, a sphere's and a cylinder's alike), so it is not asked (``_meeting``: inf)
     mid, radius = 0.5 * (ray_lo + ray_hi), 0.5 * np.linalg.norm(ray_hi - ray_lo, axis=1) + TANGENT_GAP_MM + 1e-6
-    for j in _near_rays(rays, others):
+    for j in _near_rays(ray_lo, ray_hi, others):
         other, tree = others[j]
         # only the rays the neighbour's points can come near (``_near_rays``, ray by ray): the others meet
         # nothing of it (``_meeting`` takes each ray on its own)
@@ -507,15 +507,15 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     new_xy[on] = rays.xy[on] + best_t[on, None] * rays.outward[on]
 
 
-def _near_rays(rays: _Rays, others: "_Neighbours") -> np.ndarray:
-    """The neighbours (indices into ``others``) whose points can be within ``SNAP_REACH_MM`` of the rays: their
-    points' box meets the rays' box grown by that reach. A neighbour counts only where its points come that near
-    a meeting point on a ray, so the others are skipped with the same result (on a part of many faces, most
-    faces are far from each other: this keeps the pass from growing as the square of the faces)."""
-    X = rays.X.reshape(-1, 3)
-    if len(X) == 0 or not np.isfinite(X).all():
+def _near_rays(ray_lo: np.ndarray, ray_hi: np.ndarray, others: "_Neighbours") -> np.ndarray:
+    """The neighbours (indices into ``others``) whose points can be within ``SNAP_REACH_MM`` of the rays (their
+    boxes ``ray_lo``, ``ray_hi``): their points' box meets the rays' box grown by that reach. A neighbour counts
+    only where its points come that near a meeting point on a ray, so the others are skipped with the same
+    result (on a part of many faces, most faces are far from each other: this keeps the pass from growing as the
+    square of the faces)."""
+    if len(ray_lo) == 0 or not (np.isfinite(ray_lo).all() and np.isfinite(ray_hi).all()):
         return np.arange(len(others))
-    return others.within(X.min(axis=0) - SNAP_REACH_MM, X.max(axis=0) + SNAP_REACH_MM)
+    return others.within(ray_lo.min(axis=0) - SNAP_REACH_MM, ray_hi.max(axis=0) + SNAP_REACH_MM)
 
 
 @dataclass(frozen=True)
@@ -881,9 +881,8 @@ def _meeting(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray)
     best = np.full(len(f), np.inf)
     # only rays the surface crosses or comes within TANGENT_GAP_MM of can meet it: the rest stay inf (a part's
     # faces are mostly far from each other's surfaces, so this skips most rays before the work below)
-    with np.errstate(invalid="ignore"):
-        maybe = np.flatnonzero(((f[:, :-1] * f[:, 1:] <= 0) & (f[:, :-1] != f[:, 1:])).any(axis=1)
-                               | (np.abs(f[:, 1:-1]) < TANGENT_GAP_MM).any(axis=1))
+    with np.errstate(invalid="ignore"):   # (a crossing or a touch: the level passes within the gap of zero)
+        maybe = np.flatnonzero((f.min(axis=1) < TANGENT_GAP_MM) & (f.max(axis=1) > -TANGENT_GAP_MM))
     if len(maybe) < len(f):
         best[maybe] = _meeting_rows(surface, other, ray[maybe], t, ray_uv[maybe], f[maybe])
         return best
