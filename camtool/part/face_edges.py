@@ -890,38 +890,39 @@ def _meeting(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray)
 
 
 def _meeting_rows(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """``_meeting`` given the neighbour's level along the rays, ``f`` (m, K)."""
+    """``_meeting`` given the neighbour's level along the rays, ``f`` (m, K). The crossings and touching points
+    are few (a ray crosses a surface once or twice in K samples): each is taken where it is, (row, column)."""
     m = len(f)
     best = np.full(m, np.inf)
     # crossings: sign changes between samples, interpolated
-    f0, f1 = f[:, :-1], f[:, 1:]
-    cross = (f0 * f1 <= 0) & (f0 != f1)
-    frac = np.where(cross, f0 / np.where(f0 != f1, f0 - f1, 1.0), 0.0)
-    tc = np.where(cross, t[:-1] + frac * (t[1:] - t[:-1]), np.inf)
-    tc[tc < -INWARD_MM] = np.inf  # a crossing inside the material is another part of the neighbour's surface
+    r, c = np.nonzero((f[:, :-1] * f[:, 1:] <= 0) & (f[:, :-1] != f[:, 1:]))
+    f0, f1 = f[r, c], f[r, c + 1]
+    tc = t[c] + f0 / (f0 - f1) * (t[c + 1] - t[c])
+    inside = tc < -INWARD_MM  # a crossing inside the material is another part of the neighbour's surface
+    crossings = (r[~inside], c[~inside], tc[~inside], None)
     # touching: an extremum of f within TANGENT_GAP_MM of zero (parabola through three samples)
-    d0, d1 = f[:, 1:-1] - f[:, :-2], f[:, 2:] - f[:, 1:-1]
+    r, c = np.nonzero(np.abs(f[:, 1:-1]) < TANGENT_GAP_MM)
+    d0, d1 = f[r, c + 1] - f[r, c], f[r, c + 2] - f[r, c + 1]
     curv = d1 - d0  # a touching point is a true extremum: curved at least as a cylinder of TANGENT_RADIUS_MM
-    ext = (d0 * d1 < 0) & (np.abs(f[:, 1:-1]) < TANGENT_GAP_MM) & \
-        (np.abs(curv) > (t[1] - t[0]) ** 2 / TANGENT_RADIUS_MM)
-    shift = np.where(ext, -0.5 * (d0 + d1) / np.where(curv != 0, curv, 1.0), 0.0)
-    te = np.where(ext, t[1:-1] + np.clip(shift, -1, 1) * (t[1] - t[0]), np.inf)
+    ext = (d0 * d1 < 0) & (np.abs(curv) > (t[1] - t[0]) ** 2 / TANGENT_RADIUS_MM)
+    r, c, d0, d1, curv = r[ext], c[ext], d0[ext], d1[ext], curv[ext]
+    shift = -0.5 * (d0 + d1) / np.where(curv != 0, curv, 1.0)
+    touches = (r, c, t[1:-1][c] + np.clip(shift, -1, 1) * (t[1] - t[0]), curv)
     # which of the two applies depends on the angle between the surfaces there
     cos_tangent = math.cos(math.radians(TANGENT_DEG))
-    for tk, touching in ((tc, False), (te, True)):
-        k = np.argmin(np.abs(tk), axis=1)
-        cand = tk[np.arange(m), k]
-        fin = np.isfinite(cand)
-        if not fin.any():
+    for (r, c, tk, curv), touching in ((crossings, False), (touches, True)):
+        if not len(r):
             continue
-        rows = np.flatnonzero(fin)
-        X = _ray_at(ray, t, cand[rows], rows)
-        uv = ray_uv[rows, np.clip(np.searchsorted(t, cand[rows]), 0, len(t) - 1)]
+        order = np.lexsort((c, np.abs(tk), r))   # per ray, the nearest to the vertex (the first of equals)
+        first = order[np.r_[True, r[order][1:] != r[order][:-1]]]
+        rows, cand = r[first], tk[first]
+        X = _ray_at(ray, t, cand, rows)
+        uv = ray_uv[rows, np.clip(np.searchsorted(t, cand), 0, len(t) - 1)]
         nA, nB = surface.normal_at(uv[:, 0], uv[:, 1]), level_normal(other, X)
         cos = np.abs(np.einsum("ij,ij->i", nA, nB))
         keep = (cos > cos_tangent) == touching
         # the ray must meet the edge head on, not run along it past a corner
-        i = np.clip(np.searchsorted(t, cand[rows]), 1, len(t) - 1)
+        i = np.clip(np.searchsorted(t, cand), 1, len(t) - 1)
         along = ray[rows, i] - ray[rows, i - 1]
         along /= np.maximum(np.linalg.norm(along, axis=1), 1e-12)[:, None]
         if not touching:  # the edge's normal in the face: the neighbour's normal, less the face's
@@ -933,11 +934,11 @@ def _meeting_rows(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.nda
             side = np.cross(nA, along)
             f_side = (level(other, _projected(surface, X + h * side)) + level(other, _projected(surface, X - h * side))
                       - 2 * level(other, X)) / h ** 2
-            f_ray = np.abs(curv[rows, np.clip(k[rows] , 0, curv.shape[1] - 1)]) / (t[1] - t[0]) ** 2
+            f_ray = np.abs(curv[first]) / (t[1] - t[0]) ** 2
             head_on = np.abs(f_side) <= math.tan(math.radians(HEAD_ON_DEG)) ** 2 * f_ray
         keep &= head_on
-        take = rows[keep & (np.abs(cand[rows]) < np.abs(best[rows]))]
-        best[take] = cand[take]
+        take = keep & (np.abs(cand) < np.abs(best[rows]))
+        best[rows[take]] = cand[take]
     return best
 
 
