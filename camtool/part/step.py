@@ -129,13 +129,13 @@ def read_ahead(path: Path) -> None:
     """Start reading and tessellating the STEP file ``path`` in a forked child (``alongside.Alongside``, where
     this process has a second CPU), while this process imports what comes after; ``read_step_faces`` of the
     same file (path, inode, size, modification time) takes the child's faces. OpenCASCADE is then imported in
-    the child only."""
+    the child only; where this process has imported it already, the file is read here, when asked."""
     from ..alongside import Alongside
     from ..safe_io import held_input
 
     key = _file_key(path)
-    if key is None or _LAST.get("key") == key:
-        return
+    if key is None or _LAST.get("key") == key or "OCP" in sys.modules:
+        return   # (a child forked after OpenCASCADE meshed here would wait forever on its thread pool's threads)
     _drop_ahead()
 
     def read() -> list[StepFace]:
