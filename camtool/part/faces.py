@@ -128,10 +128,8 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
         idx_rest = np.concatenate(rest)
         if len(idx_rest) >= 4 * MIN_FACE_SAMPLES:
             # the B-rep's other faces by RANSAC, as planes, spheres and cylinders only (their free-form charts
-            # do not take the B-rep edges' boundary pass), their boundaries moved onto the edges below, once, with
-            # every face as a neighbour (not first among themselves only: a pass that saw none of the exact faces)
-            sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)), replace(settings, freeform_faces=False),
-                          edges=False)
+            # do not take the B-rep edges' boundary pass)
+            sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)), replace(settings, freeform_faces=False))
             built += [(f.surface, idx_rest[f.inliers]) for f in sub.faces]
             dropped += sub.dropped_faces
     kept = [(s, idx) for s, idx in built if area_mm2(s) >= settings.min_area_mm2]

@@ -341,10 +341,8 @@ class _Chart:
 # ----------------------------------------------------------------------------- entry
 
 
-def segment(workpiece, settings: SegmentSettings = SegmentSettings(), edges: bool = True) -> Segmentation:
-    """Split a workpiece (world mm) into plane, sphere and cylinder faces, largest first; with ``edges`` False,
-    their boundaries as traced from their points (not moved onto the part's edges: the caller does that, with
-    more faces as their neighbours).
+def segment(workpiece, settings: SegmentSettings = SegmentSettings()) -> Segmentation:
+    """Split a workpiece (world mm) into plane, sphere and cylinder faces, largest first.
 
     BadInput when no face is found (too few points, or nothing fits within
     ``threshold_mm``).
@@ -407,7 +405,7 @@ def segment(workpiece, settings: SegmentSettings = SegmentSettings(), edges: boo
         cand = cand[_Chart(model.kind, model.params, S[piece], cell).contains(P[cand])]
         label[cand] = k
         best_res[cand] = res[cand]
-    faces, dropped = _faces(P_world, N_all, centroid, models, label, settings, workpiece, source, edges)
+    faces, dropped = _faces(P_world, N_all, centroid, models, label, settings, workpiece, source)
     assigned = sum(len(f.inliers) for f in faces)
     if not settings.freeform_faces:
         return Segmentation(tuple(faces), len(P), len(P) - assigned, dropped)
@@ -493,7 +491,7 @@ def area_mm2(surface) -> float:
     return max(area(b.outer_uv) - sum(area(h) for h in b.holes_uv), 0.0)
 
 
-def _faces(P_world, N_all, centroid, models, label, settings, workpiece, source, edges=True):
+def _faces(P_world, N_all, centroid, models, label, settings, workpiece, source):
     """Refined faces with boundaries; small faces dropped or merged (``settings.small_faces``)."""
     thr, cos_tol = settings.threshold_mm, math.cos(settings.normal_tol_rad)
     P = P_world - centroid
@@ -528,8 +526,7 @@ def _faces(P_world, N_all, centroid, models, label, settings, workpiece, source,
         surfaces = [(_surface(m, P_world, N_all, P, idx, centroid, bkw), m, idx) for m, idx in merged]
     else:
         surfaces = [t for t, b in zip(surfaces, big) if b]
-    if edges:
-        surfaces = _on_edges(surfaces, P_world, workpiece, thr)
+    surfaces = _on_edges(surfaces, P_world, workpiece, thr)
     areas = [area_mm2(s) for s, _, _ in surfaces]
     order = sorted(range(len(surfaces)), key=lambda k: (-round(areas[k], 6), k))  # largest first
     faces = [Face(i, surfaces[k][0], surfaces[k][2], areas[k]) for i, k in enumerate(order)]
