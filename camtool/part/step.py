@@ -13,7 +13,8 @@ Each face is tessellated by ``BRepMesh_IncrementalMesh`` (chordal deflection
 material (the face's orientation says which way). A node coordinate below
 ``sampling.TINY_COORDINATE`` in magnitude (9.86e-31 from a cosine of 90
 degrees) is zero. The last file's faces are kept: the loader and the
-segmentation read the part once. A part of more than ``MAX_TRIANGLES``
+segmentation read the part once; ``camtool faces`` starts that read in a forked
+child (``read_ahead``) while it imports the segmentation. A part of more than ``MAX_TRIANGLES``
 triangles is refused in one line (issue 48: bounded memory).
 """
 from __future__ import annotations
