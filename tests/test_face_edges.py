@@ -209,3 +209,24 @@ def test_a_hemisphere_rim_through_the_charts_poles_is_followed_in_u_v():
     assert off_mm(uv) < 2 * fe.SIMPLIFY_MM and len(uv) < 100
     flat_simplified = fe.cv2.approxPolyDP(xy.reshape(-1, 1, 2).astype(np.float32), fe.SIMPLIFY_MM, True)
     assert off_mm(fe._sphere_uv(s, flat_simplified.reshape(-1, 2).astype(float))) > 0.3   # what it was
+
+
+def test_the_faces_moved_in_a_forked_child_are_the_faces_moved_here(monkeypatch):
+    """From ALONGSIDE_FACES faces on, half of them move in a forked child: each face moves on its own, so the
+    boundaries are those of one process, vertex for vertex."""
+    from camtool.part.segment import boundaries_on_edges
+
+    wp = load_workpiece(SAMPLES / "box_open.stl", sample_points=30000)
+    seg = segment(wp)
+    surfaces, inliers = [f.surface for f in seg.faces], [f.inliers for f in seg.faces]
+    monkeypatch.setattr(fe, "ALONGSIDE_FACES", 2)
+    forked = boundaries_on_edges(surfaces, inliers, wp, 0.5)
+    monkeypatch.setattr(fe, "ALONGSIDE_FACES", 10 ** 9)
+    here = boundaries_on_edges(surfaces, inliers, wp, 0.5)
+    assert len(seg.faces) >= 4 and len(forked) == len(here)
+    moved = 0
+    for a, b in zip(forked, here):
+        assert np.array_equal(a.boundary.outer_uv, b.boundary.outer_uv)
+        assert all(np.array_equal(x, y) for x, y in zip(a.boundary.holes_uv, b.boundary.holes_uv))
+        moved += a is not b
+    assert moved >= 1

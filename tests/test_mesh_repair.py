@@ -110,3 +110,32 @@ def test_a_mesh_of_degenerate_triangles_only_is_refused_in_one_line(tmp_path):
     with pytest.raises(BadInput) as e:
         load_workpiece(write_obj(tmp_path / "line.obj", V, F), sample_points=100)
     assert "degenerate (no area)" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_pair_keys_unique_as_rows():
+    """The int64 keys give np.unique(axis=0)'s order, inverse and counts."""
+    from camtool.part.mesh_repair import _pair_keys
+
+    rng = np.random.default_rng(3)
+    pairs = rng.integers(0, 50, (4000, 2))
+    rows, inv_r, cnt_r = np.unique(pairs, axis=0, return_inverse=True, return_counts=True)
+    keys, inv_k, cnt_k = np.unique(_pair_keys(pairs), return_inverse=True, return_counts=True)
+    assert np.array_equal(inv_r.ravel(), inv_k.ravel()) and np.array_equal(cnt_r, cnt_k)
+    assert np.array_equal(rows, pairs[np.unique(_pair_keys(pairs), return_index=True)[1]])
+
+
+def test_tree_signs_are_products_along_the_path():
+    """Pointer jumping gives each node the product of the steps to the root, as a walk from the node does."""
+    from camtool.part.mesh_repair import _tree_signs
+
+    rng = np.random.default_rng(4)
+    n = 3000
+    parent = np.r_[0, [rng.integers(0, i) for i in range(1, n)]]   # node 0 is the root, parents come first
+    step = np.r_[1, rng.choice([-1, 1], n - 1)]
+    expected = np.empty(n, int)
+    for v in range(n):
+        s, u = 1, v
+        while u != 0:
+            s, u = s * step[u], parent[u]
+        expected[v] = s
+    assert np.array_equal(_tree_signs(parent, step), expected)

@@ -108,3 +108,61 @@ def test_a_boss_all_round_keeps_its_outline_within_one_turn(tmp_path):
     z = s.point_mm(np.zeros(2), np.array([lo[1], hi[1]]))[:, 2]
     assert np.allclose(z, [40.0, 70.0], atol=0.05)
     assert cyl[0].area_mm2 == pytest.approx(2 * math.pi * 20 * 30, rel=0.005)
+
+
+READ_AHEAD = """
+import sys
+import numpy as np
+from pathlib import Path
+from camtool.part import step
+path = Path(sys.argv[1])
+step.read_ahead(path)
+forked = "child" in step._AHEAD and "OCP" not in sys.modules
+ahead = step.read_step_faces(path)
+here = step._read_step_faces(path)
+same = len(ahead) == len(here) and all(
+    a.model == b.model and np.array_equal(a.vertices_mm, b.vertices_mm) and np.array_equal(a.triangles, b.triangles)
+    and all(np.array_equal(np.asarray(x), np.asarray(y)) for x, y in zip(a.params, b.params))
+    for a, b in zip(ahead, here))
+print(forked, same, len(ahead))
+"""
+
+
+def test_a_part_read_ahead_gives_the_faces_read_here():
+    """``read_ahead`` reads and tessellates in a forked child (a fresh process: OpenCASCADE not imported yet);
+    ``read_step_faces`` takes the very same faces as a read in the process itself gives."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", READ_AHEAD, str(STEP)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.split() == ["True", "True", "6"], out.stderr[-2000:]
+
+
+def test_no_read_ahead_once_opencascade_meshed_here(tmp_path):
+    """A child forked after OpenCASCADE's thread pool ran would wait forever: once OCP is imported, the file is
+    read in this process."""
+    import shutil
+
+    from camtool.part import step as step_module
+
+    read_step_faces(STEP)   # (OpenCASCADE imported and used here)
+    copy = shutil.copy(STEP, tmp_path / "pipe.step")
+    step_module.read_ahead(copy)
+    assert "child" not in step_module._AHEAD
+    assert len(read_step_faces(copy)) == 6
+
+
+def test_a_bad_part_read_ahead_is_one_line(tmp_path):
+    """What the child raises is raised here: the same BadInput line, exit 2, no traceback."""
+    import subprocess
+    import sys
+
+    (tmp_path / "bad.step").write_text("ISO-10303-21;\nHEADER;\nENDSEC;\nDATA;\nENDSEC;\nEND-ISO-10303-21;\n")
+    job = (SAMPLES / "pipe_half_step.toml").read_text().replace('file = "pipe_half.step"', 'file = "bad.step"')
+    (tmp_path / "job.toml").write_text(job)
+    out = subprocess.run([sys.executable, "-c", "from camtool.cli import main; main()", "faces",
+                          str(tmp_path / "job.toml")], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and out.stdout == ""
+    assert out.stderr.strip().splitlines() == [
+        f"camtool: error: {tmp_path / 'bad.step'}: not a readable STEP file (OpenCASCADE could not transfer it); "
+        "export it again"]

@@ -26,11 +26,16 @@ def command(job_file: Path, overrides: tuple[str, ...], outdir: Path | None, as_
     selection takes. Settings: [faces] and fit.threshold_mm, fit.seed
     (docs/faces.md).
     """
-    from ..part.faces import faces_png, segment_faces, select_faces   # heavy: only when the command runs
-    from ..run.part_stages import faces_settings
-    from ..run.stages import workpiece_for_job
+    from ..part.step import read_ahead
 
     job = load_job(job_file, list(overrides))
+    step = job.resolve(job.workpiece.file)
+    if step.suffix.lower() in (".step", ".stp"):
+        read_ahead(step)   # OpenCASCADE reads and tessellates it in a child while the segmentation is imported
+    from ..part.faces import faces_png, segment_faces, select_faces   # heavy: only when the command runs
+    from ..run.part_stages import faces_settings
+    from ..run.part_stages import workpiece_for_job
+
     wp = workpiece_for_job(job)
     for w in wp.warnings:
         click.echo(f"camtool: warning: {w}", err=True)

@@ -41,12 +41,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cached_property, partial
 
 import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..alongside import Alongside
 from .surface import Boundary, Cylinder, PlaneSurface
 
 SNAP_REACH_MM = 15.0    # a vertex moves at most this far out of the material along its normal, and the neighbour's
@@ -80,6 +81,7 @@ NEIGHBOUR_POINTS = 50000  # a neighbour's points (strided) its nearness is measu
 EXTENT_POINTS = 200000  # a face's points (strided) its extent is read from
 PASSES = 2              # the pass is run this many times
 SIMPLIFY_MM = 0.05      # the moved polygon is simplified (Douglas-Peucker) to this tolerance
+ALONGSIDE_FACES = 8     # from this many faces on, half of them are moved in a forked child (``on_edges``)
 
 
 # ----------------------------------------------------------------------------- flat charts
@@ -197,19 +199,35 @@ def on_edges(surfaces: list, points_mm: list[np.ndarray], cloud_mm: np.ndarray, 
     the face ends."""
     trees = [cKDTree(_strided(p, NEIGHBOUR_POINTS)) for p in points_mm]
     boxes = _Boxes.of(trees)
-    out = []
-    for k, s in enumerate(surfaces):
-        others = _Neighbours(surfaces, trees, boxes, k)
-        b = s.boundary
-        mine = np.flatnonzero((owner == k) | (owner < 0))   # (the level only of these: a part has many faces)
-        own = _FacePoints(_strided(cloud_mm[mine[np.abs(level(s, cloud_mm[mine])) < threshold_mm]], EXTENT_POINTS))
-        moved = [_moved_again(s, poly, others, free_edges, own) for poly in (b.outer_uv, *b.holes_uv)]
-        if all(m is None for m in moved):
-            out.append(s)
-            continue
-        polys = [np.asarray(p, float) if m is None else m for p, m in zip((b.outer_uv, *b.holes_uv), moved)]
-        out.append(replace(s, boundary=Boundary(polys[0], tuple(polys[1:]))))
+
+    def moved(faces: list[int]) -> list:
+        return [_face_on_edges(k, surfaces, trees, boxes, cloud_mm, owner, threshold_mm, free_edges) for k in faces]
+
+    every = list(range(len(surfaces)))
+    if len(every) < ALONGSIDE_FACES:
+        return moved(every)
+    # each face's boundary moves on its own (its neighbours as given, not as moved): the odd faces in a forked
+    # child (``alongside``: where the machine gives this process a second CPU), the even ones here
+    with Alongside(partial(moved, every[1::2])) as child:
+        out = [None] * len(every)
+        out[0::2] = moved(every[0::2])
+        out[1::2] = child.result()
     return out
+
+
+def _face_on_edges(k: int, surfaces: list, trees: list, boxes: "_Boxes", cloud_mm: np.ndarray, owner: np.ndarray,
+                   threshold_mm: float, free_edges: FreeEdges | None):
+    """Face k's surface with its boundary on the edges (``on_edges``), or as it was when no vertex moves."""
+    s = surfaces[k]
+    others = _Neighbours(surfaces, trees, boxes, k)
+    b = s.boundary
+    mine = np.flatnonzero((owner == k) | (owner < 0))   # (the level only of these: a part has many faces)
+    own = _FacePoints(_strided(cloud_mm[mine[np.abs(level(s, cloud_mm[mine])) < threshold_mm]], EXTENT_POINTS))
+    moved = [_moved_again(s, poly, others, free_edges, own) for poly in (b.outer_uv, *b.holes_uv)]
+    if all(m is None for m in moved):
+        return s
+    polys = [np.asarray(p, float) if m is None else m for p, m in zip((b.outer_uv, *b.holes_uv), moved)]
+    return replace(s, boundary=Boundary(polys[0], tuple(polys[1:])))
 
 
 def _strided(points: np.ndarray, most: int) -> np.ndarray:
@@ -380,24 +398,31 @@ def _kept_on_sphere(surface, uv: np.ndarray, tol_mm: float) -> np.ndarray:
     far = int(np.argmax(np.linalg.norm(X - X[0], axis=1)))
     keep = np.zeros(n, bool)
     keep[[0, far]] = True
-    stack = [(0, far), (far, n)]
+    spans = np.array([(0, far), (far, n)], np.int64)
     s = np.linspace(0.0, 1.0, 33)
-    while stack:
-        i, j = stack.pop()
-        if j - i < 2:
-            continue
+    while len(spans):   # every span of a round at once (each span splits on its own: the order is free)
+        spans = spans[spans[:, 1] - spans[:, 0] >= 2]
+        if not len(spans):
+            break
+        i, j = spans[:, 0], spans[:, 1]
         jj = j % n
-        inner = np.arange(i + 1, j)
-        curve = surface.point_mm(*(uv[i] + s[:, None] * (uv[jj] - uv[i])).T)
-        p, q = curve[:-1], curve[1:]
-        d = q - p
-        w = np.clip(np.einsum("kij,ij->ki", X[inner][:, None] - p[None], d) / np.maximum(np.einsum("ij,ij->i", d, d),
-                                                                                      1e-24), 0.0, 1.0)
-        dev = np.linalg.norm(X[inner][:, None] - (p[None] + w[..., None] * d[None]), axis=2).min(axis=1)
-        k = int(np.argmax(dev))
-        if dev[k] > tol_mm:
-            keep[inner[k]] = True
-            stack += [(i, inner[k]), (inner[k], j)]
+        line_uv = uv[i][:, None, :] + s[None, :, None] * (uv[jj] - uv[i])[:, None, :]
+        curve = surface.point_mm(line_uv[..., 0].ravel(), line_uv[..., 1].ravel()).reshape(len(spans), len(s), 3)
+        p, d = curve[:, :-1], curve[:, 1:] - curve[:, :-1]
+        count = j - i - 1
+        span = np.repeat(np.arange(len(spans)), count)
+        inner = np.repeat(i + 1, count) + np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+        Xi = X[inner][:, None]
+        w = np.clip(np.einsum("kij,kij->ki", Xi - p[span], d[span])
+                    / np.maximum(np.einsum("sij,sij->si", d, d), 1e-24)[span], 0.0, 1.0)
+        dev = np.linalg.norm(Xi - (p[span] + w[..., None] * d[span]), axis=2).min(axis=1)
+        top = np.maximum.reduceat(dev, np.cumsum(count) - count)
+        at_top = np.flatnonzero(dev == top[span])
+        first = at_top[np.unique(span[at_top], return_index=True)[1]]   # each span's first vertex at its top
+        split = top > tol_mm
+        k = inner[first[split]]
+        keep[k] = True
+        spans = np.concatenate([np.stack([i[split], k], axis=1), np.stack([k, j[split]], axis=1)])
     return np.flatnonzero(keep)
 
 
@@ -453,13 +478,19 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     best_t = np.full(len(rays.xy), np.inf)
     best_score = np.full(len(rays.xy), np.inf)
     with np.errstate(invalid="ignore"):   # (a ray off its surface is NaN: its box meets nothing)
-        lo, hi = rays.X.min(axis=1) - SNAP_REACH_MM, rays.X.max(axis=1) + SNAP_REACH_MM   # each ray's box
-    for j in _near_rays(rays, others):
+        ray_lo, ray_hi = rays.X.min(axis=1), rays.X.max(axis=1)
+        lo, hi = ray_lo - SNAP_REACH_MM, ray_hi + SNAP_REACH_MM   # each ray's box
+    # each ray within the ball about its box's middle: a surface whose level there is farther from zero than the
+    # ball's radius plus TANGENT_GAP_MM is neither crossed nor touched by it (the level changes by at most the
+    # distance moved: a plane's, a sphere's and a cylinder's alike), so it is not asked (``_meeting``: inf)
+    mid, radius = 0.5 * (ray_lo + ray_hi), 0.5 * np.linalg.norm(ray_hi - ray_lo, axis=1) + TANGENT_GAP_MM + 1e-6
+    for j in _near_rays(ray_lo, ray_hi, others):
         other, tree = others[j]
         # only the rays the neighbour's points can come near (``_near_rays``, ray by ray): the others meet
         # nothing of it (``_meeting`` takes each ray on its own)
         near_lo, near_hi = others.box(j)
         sub = np.flatnonzero(np.all(hi >= near_lo, axis=1) & np.all(lo <= near_hi, axis=1))
+        sub = sub[np.abs(level(other, mid[sub])) <= radius[sub]]
         if len(sub) == 0:
             continue
         tk = np.full(len(rays.xy), np.inf)
@@ -476,15 +507,15 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     new_xy[on] = rays.xy[on] + best_t[on, None] * rays.outward[on]
 
 
-def _near_rays(rays: _Rays, others: "_Neighbours") -> np.ndarray:
-    """The neighbours (indices into ``others``) whose points can be within ``SNAP_REACH_MM`` of the rays: their
-    points' box meets the rays' box grown by that reach. A neighbour counts only where its points come that near
-    a meeting point on a ray, so the others are skipped with the same result (on a part of many faces, most
-    faces are far from each other: this keeps the pass from growing as the square of the faces)."""
-    X = rays.X.reshape(-1, 3)
-    if len(X) == 0 or not np.isfinite(X).all():
+def _near_rays(ray_lo: np.ndarray, ray_hi: np.ndarray, others: "_Neighbours") -> np.ndarray:
+    """The neighbours (indices into ``others``) whose points can be within ``SNAP_REACH_MM`` of the rays (their
+    boxes ``ray_lo``, ``ray_hi``): their points' box meets the rays' box grown by that reach. A neighbour counts
+    only where its points come that near a meeting point on a ray, so the others are skipped with the same
+    result (on a part of many faces, most faces are far from each other: this keeps the pass from growing as the
+    square of the faces)."""
+    if len(ray_lo) == 0 or not (np.isfinite(ray_lo).all() and np.isfinite(ray_hi).all()):
         return np.arange(len(others))
-    return others.within(X.min(axis=0) - SNAP_REACH_MM, X.max(axis=0) + SNAP_REACH_MM)
+    return others.within(ray_lo.min(axis=0) - SNAP_REACH_MM, ray_hi.max(axis=0) + SNAP_REACH_MM)
 
 
 @dataclass(frozen=True)
@@ -847,37 +878,51 @@ def _meeting(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray)
     """Per vertex, the distance t (mm) along its normal where the ray meets ``other``: the crossing nearest
     to the vertex where the surfaces cross, the touching point where they meet tangentially; inf if none."""
     f = level(other, ray)  # (m, K)
+    best = np.full(len(f), np.inf)
+    # only rays the surface crosses or comes within TANGENT_GAP_MM of can meet it: the rest stay inf (a part's
+    # faces are mostly far from each other's surfaces, so this skips most rays before the work below)
+    with np.errstate(invalid="ignore"):   # (a crossing or a touch: the level passes within the gap of zero)
+        maybe = np.flatnonzero((f.min(axis=1) < TANGENT_GAP_MM) & (f.max(axis=1) > -TANGENT_GAP_MM))
+    if len(maybe) < len(f):
+        best[maybe] = _meeting_rows(surface, other, ray[maybe], t, ray_uv[maybe], f[maybe])
+        return best
+    return _meeting_rows(surface, other, ray, t, ray_uv, f)
+
+
+def _meeting_rows(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """``_meeting`` given the neighbour's level along the rays, ``f`` (m, K). The crossings and touching points
+    are few (a ray crosses a surface once or twice in K samples): each is taken where it is, (row, column)."""
     m = len(f)
     best = np.full(m, np.inf)
     # crossings: sign changes between samples, interpolated
-    f0, f1 = f[:, :-1], f[:, 1:]
-    cross = (f0 * f1 <= 0) & (f0 != f1)
-    frac = np.where(cross, f0 / np.where(f0 != f1, f0 - f1, 1.0), 0.0)
-    tc = np.where(cross, t[:-1] + frac * (t[1:] - t[:-1]), np.inf)
-    tc[tc < -INWARD_MM] = np.inf  # a crossing inside the material is another part of the neighbour's surface
+    r, c = np.nonzero((f[:, :-1] * f[:, 1:] <= 0) & (f[:, :-1] != f[:, 1:]))
+    f0, f1 = f[r, c], f[r, c + 1]
+    tc = t[c] + f0 / (f0 - f1) * (t[c + 1] - t[c])
+    inside = tc < -INWARD_MM  # a crossing inside the material is another part of the neighbour's surface
+    crossings = (r[~inside], c[~inside], tc[~inside], None)
     # touching: an extremum of f within TANGENT_GAP_MM of zero (parabola through three samples)
-    d0, d1 = f[:, 1:-1] - f[:, :-2], f[:, 2:] - f[:, 1:-1]
+    r, c = np.nonzero(np.abs(f[:, 1:-1]) < TANGENT_GAP_MM)
+    d0, d1 = f[r, c + 1] - f[r, c], f[r, c + 2] - f[r, c + 1]
     curv = d1 - d0  # a touching point is a true extremum: curved at least as a cylinder of TANGENT_RADIUS_MM
-    ext = (d0 * d1 < 0) & (np.abs(f[:, 1:-1]) < TANGENT_GAP_MM) & \
-        (np.abs(curv) > (t[1] - t[0]) ** 2 / TANGENT_RADIUS_MM)
-    shift = np.where(ext, -0.5 * (d0 + d1) / np.where(curv != 0, curv, 1.0), 0.0)
-    te = np.where(ext, t[1:-1] + np.clip(shift, -1, 1) * (t[1] - t[0]), np.inf)
+    ext = (d0 * d1 < 0) & (np.abs(curv) > (t[1] - t[0]) ** 2 / TANGENT_RADIUS_MM)
+    r, c, d0, d1, curv = r[ext], c[ext], d0[ext], d1[ext], curv[ext]
+    shift = -0.5 * (d0 + d1) / np.where(curv != 0, curv, 1.0)
+    touches = (r, c, t[1:-1][c] + np.clip(shift, -1, 1) * (t[1] - t[0]), curv)
     # which of the two applies depends on the angle between the surfaces there
     cos_tangent = math.cos(math.radians(TANGENT_DEG))
-    for tk, touching in ((tc, False), (te, True)):
-        k = np.argmin(np.abs(tk), axis=1)
-        cand = tk[np.arange(m), k]
-        fin = np.isfinite(cand)
-        if not fin.any():
+    for (r, c, tk, curv), touching in ((crossings, False), (touches, True)):
+        if not len(r):
             continue
-        rows = np.flatnonzero(fin)
-        X = _ray_at(ray, t, cand[rows], rows)
-        uv = ray_uv[rows, np.clip(np.searchsorted(t, cand[rows]), 0, len(t) - 1)]
+        order = np.lexsort((c, np.abs(tk), r))   # per ray, the nearest to the vertex (the first of equals)
+        first = order[np.r_[True, r[order][1:] != r[order][:-1]]]
+        rows, cand = r[first], tk[first]
+        X = _ray_at(ray, t, cand, rows)
+        uv = ray_uv[rows, np.clip(np.searchsorted(t, cand), 0, len(t) - 1)]
         nA, nB = surface.normal_at(uv[:, 0], uv[:, 1]), level_normal(other, X)
         cos = np.abs(np.einsum("ij,ij->i", nA, nB))
         keep = (cos > cos_tangent) == touching
         # the ray must meet the edge head on, not run along it past a corner
-        i = np.clip(np.searchsorted(t, cand[rows]), 1, len(t) - 1)
+        i = np.clip(np.searchsorted(t, cand), 1, len(t) - 1)
         along = ray[rows, i] - ray[rows, i - 1]
         along /= np.maximum(np.linalg.norm(along, axis=1), 1e-12)[:, None]
         if not touching:  # the edge's normal in the face: the neighbour's normal, less the face's
@@ -889,11 +934,11 @@ def _meeting(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray)
             side = np.cross(nA, along)
             f_side = (level(other, _projected(surface, X + h * side)) + level(other, _projected(surface, X - h * side))
                       - 2 * level(other, X)) / h ** 2
-            f_ray = np.abs(curv[rows, np.clip(k[rows] , 0, curv.shape[1] - 1)]) / (t[1] - t[0]) ** 2
+            f_ray = np.abs(curv[first]) / (t[1] - t[0]) ** 2
             head_on = np.abs(f_side) <= math.tan(math.radians(HEAD_ON_DEG)) ** 2 * f_ray
         keep &= head_on
-        take = rows[keep & (np.abs(cand[rows]) < np.abs(best[rows]))]
-        best[take] = cand[take]
+        take = keep & (np.abs(cand) < np.abs(best[rows]))
+        best[rows[take]] = cand[take]
     return best
 
 

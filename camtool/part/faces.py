@@ -153,21 +153,22 @@ def nearest_triangle(mesh, P: np.ndarray) -> np.ndarray:
     assembly, the lowest-numbered triangle).
 
     The workpiece's points are sampled from this very mesh, so each lies on a triangle: its candidates are the
-    triangles whose box holds the point (within ``ON_MESH_MM``), a handful, where trimesh's search takes every
-    triangle within the distance to the nearest vertex (on a part of large flat triangles, thousands per point:
-    gigabytes). The nearest candidate is the nearest triangle; a point on no candidate (not on the mesh) is
-    looked up by trimesh itself. Both go block by block (``CHUNK_POINTS``)."""
+    triangles whose box holds the point (within ``ON_MESH_MM``; found by ``box_grid.BoxGrid``), a handful,
+    where trimesh's search takes every triangle within the distance to the nearest vertex (on a part of large
+    flat triangles, thousands per point: gigabytes). The nearest candidate is the nearest triangle; a point on
+    no candidate (not on the mesh) takes the nearest triangle within a reach grown tenfold until one is met,
+    farther than a grid cell by trimesh itself. Block by block (``CHUNK_POINTS``)."""
     import trimesh
+
+    from .box_grid import BoxGrid
 
     P = np.asarray(P, float)
     tri_id = np.full(len(P), -1, np.int64)
-    tree = mesh.triangles_tree
     triangles = mesh.triangles.view(np.ndarray)
+    grid = BoxGrid(triangles.min(axis=1) - ON_MESH_MM, triangles.max(axis=1) + ON_MESH_MM, P)
     for a in range(0, len(P), CHUNK_POINTS):
         Q = P[a:a + CHUNK_POINTS]
-        hit, count = tree.intersection_v(Q - ON_MESH_MM, Q + ON_MESH_MM)
-        hit = np.asarray(hit, np.int64)
-        row = np.repeat(np.arange(len(Q)), np.asarray(count, np.int64))
+        row, hit = grid.holding(Q)
         if len(hit):
             close = trimesh.triangles.closest_point(triangles[hit], Q[row])
             d2 = np.einsum("ij,ij->i", Q[row] - close, Q[row] - close)
@@ -176,7 +177,18 @@ def nearest_triangle(mesh, P: np.ndarray) -> np.ndarray:
             on = d2[first] <= ON_MESH_MM ** 2
             tri_id[a + row[first[on]]] = hit[first[on]]
     rest = np.flatnonzero(tri_id < 0)
-    for a in range(0, len(rest), CHUNK_POINTS // 10):
+    reach = 10 * ON_MESH_MM
+    while len(rest) and reach <= grid.cell:   # points off the mesh (the loader merged vertices within 1e-8 of
+        Q = P[rest]                           # each other): the nearest triangle within ``reach`` is the nearest
+        row, hit = grid.holding(Q, reach)     # of all (every triangle that near is among those met)
+        close = trimesh.triangles.closest_point(triangles[hit], Q[row])
+        d2 = np.einsum("ij,ij->i", Q[row] - close, Q[row] - close)
+        order = np.lexsort((hit, d2, row))
+        first = order[np.r_[True, row[order][1:] != row[order][:-1]]] if len(order) else order
+        found = d2[first] <= reach ** 2
+        tri_id[rest[row[first[found]]]] = hit[first[found]]
+        rest, reach = np.flatnonzero(tri_id < 0), reach * 10.0
+    for a in range(0, len(rest), CHUNK_POINTS // 10):   # farther off: trimesh's own search
         idx = rest[a:a + CHUNK_POINTS // 10]
         tri_id[idx] = trimesh.proximity.closest_point(mesh, P[idx])[2]
     return tri_id
