@@ -40,6 +40,29 @@ from abc import ABC, abstractmethod
 from functools import partial
 from typing import Any, Callable
 
+
+PR_SET_PDEATHSIG = 1   # linux/prctl.h
+
+
+def _load_prctl():
+    """libc's prctl, looked up once in the parent (a child between fork and exec only calls it)."""
+    try:
+        import ctypes
+
+        return ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+
+
+_PRCTL = _load_prctl() if sys.platform.startswith("linux") else None
+
+
+def die_with_parent() -> None:
+    """In a child process: SIGKILL when the thread that forked it dies, even by SIGKILL (``PR_SET_PDEATHSIG``),
+    so no child camtool started outlives it (a batch's job, a helper computing alongside a run)."""
+    if _PRCTL is not None:
+        _PRCTL(PR_SET_PDEATHSIG, signal.SIGKILL)
+
 _OK, _RAISED = "ok", "raised"
 
 
@@ -98,11 +121,15 @@ class _Child(ABC):
         sys.stdout.flush()
         sys.stderr.flush()  # nothing buffered is written twice
         gc.freeze()   # what exists now is shared with the child: its collector leaves it alone
+        parent = os.getpid()
         pid = os.fork()
         if pid == 0:
             os.close(read_fd)
             code = 0
             try:
+                die_with_parent()             # a parent that ends early (an error, a signal) takes the child along
+                if os.getppid() != parent:    # ... also one that ended before the line above
+                    os._exit(1)
                 signal.signal(signal.SIGINT, signal.SIG_DFL)   # Ctrl-C stops the child at once
                 child(write_fd)
             except BaseException:

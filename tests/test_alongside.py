@@ -233,3 +233,31 @@ def test_a_standby_forked_later_does_not_keep_an_earlier_one_waiting():
     finally:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
+
+
+def test_a_child_dies_with_a_parent_that_ends_early():
+    """A parent that ends without waiting (an error, a signal) takes its child along (PR_SET_PDEATHSIG): no
+    helper computes on after camtool has exited."""
+    import subprocess
+    import sys
+    import time
+
+    code = ("import os, sys, time\n"
+            "from camtool.alongside import Alongside\n"
+            "child = Alongside(lambda: time.sleep(60), forked=True)\n"
+            "print(child._pid, flush=True)\n"
+            "os._exit(3)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 3, out.stderr
+    pid = int(out.stdout.split()[0])
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                if f.read().rsplit(")", 1)[1].split()[0] == "Z":
+                    return          # killed, not yet reaped by whoever adopted it
+        except FileNotFoundError:
+            return
+        time.sleep(0.1)
+    os.kill(pid, 9)
+    raise AssertionError("the child outlived its parent")

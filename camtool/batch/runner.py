@@ -23,6 +23,7 @@ from pathlib import Path
 
 from .. import __version__
 from .. import safe_io
+from ..alongside import die_with_parent
 from ..errors import BadInput
 from . import cache
 
@@ -33,27 +34,13 @@ JOB_CWD = "/"  # a job runs from a folder only root can write to, never from the
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 RESULT_FD_ENV = "CAMTOOL_RESULT_FD"  # the job's JSON result goes to this pipe, never to its stdout
 MAX_RESULT_BYTES = 64 << 20
-PR_SET_PDEATHSIG = 1
-
-
-def _load_prctl():
-    """libc's prctl, looked up once in the parent (the child between fork and exec only calls it)."""
-    try:
-        import ctypes
-
-        return ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
-        return None
-
-
-_PRCTL = _load_prctl() if sys.platform.startswith("linux") else None
 
 
 def _die_with_parent() -> None:
     """In the job process, before exec: SIGKILL when the batch (the thread that started it) dies, even by
-    SIGKILL, so no job outlives its batch (``PR_SET_PDEATHSIG``)."""
-    if _PRCTL is not None:
-        _PRCTL(PR_SET_PDEATHSIG, signal.SIGKILL)
+    SIGKILL, so no job outlives its batch (``alongside.die_with_parent``)."""
+    die_with_parent()
+
 
 _live: set[subprocess.Popen] = set()
 _live_lock = threading.Lock()
