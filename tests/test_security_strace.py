@@ -16,7 +16,10 @@ from pathlib import Path
 
 import pytest
 
+import camtool
+
 ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = Path(camtool.__file__).resolve().parent   # the camtool the subprocesses import (an editable install's)
 STRACE = shutil.which("strace")
 
 pytestmark = pytest.mark.skipif(STRACE is None, reason="strace is not installed")
@@ -69,7 +72,7 @@ def _allowed(path: str, outdir: Path, out_fds: set[str]) -> bool:
     m = re.match(r"/proc/(?:\d+|self)/fd/(\d+)(?:/|$)", path)
     if m:  # through a held descriptor: only the output folder's
         return m.group(1) in out_fds
-    return path.startswith(str(ROOT / "camtool") + "/") and "/__pycache__" in path
+    return path.startswith(str(PACKAGE) + "/") and "/__pycache__" in path
 
 
 def _output_fds(trace: str, outdir: Path) -> set[str]:
