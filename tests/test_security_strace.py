@@ -8,6 +8,7 @@ The output folder is held by its descriptor, so most writes name it as ``/proc/P
 checked through the descriptor's own path (``-y`` prints it where the folder is opened)."""
 from __future__ import annotations
 
+import functools
 import re
 import shutil
 import subprocess
@@ -16,10 +17,7 @@ from pathlib import Path
 
 import pytest
 
-import camtool
-
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGE = Path(camtool.__file__).resolve().parent   # the camtool the subprocesses import (an editable install's)
 STRACE = shutil.which("strace")
 
 pytestmark = pytest.mark.skipif(STRACE is None, reason="strace is not installed")
@@ -72,7 +70,15 @@ def _allowed(path: str, outdir: Path, out_fds: set[str]) -> bool:
     m = re.match(r"/proc/(?:\d+|self)/fd/(\d+)(?:/|$)", path)
     if m:  # through a held descriptor: only the output folder's
         return m.group(1) in out_fds
-    return path.startswith(str(PACKAGE) + "/") and "/__pycache__" in path
+    return "/__pycache__" in path and any(path.startswith(str(p) + "/") for p in _packages())
+
+
+@functools.cache
+def _packages() -> tuple[Path, ...]:
+    """This checkout's camtool and the one a subprocess imports (an editable install may point elsewhere)."""
+    out = subprocess.run([sys.executable, "-c", "import camtool; print(camtool.__file__)"], cwd="/",
+                         capture_output=True, text=True, timeout=120).stdout.strip()
+    return (ROOT / "camtool", *([Path(out).resolve().parent] if out else []))
 
 
 def _output_fds(trace: str, outdir: Path) -> set[str]:
