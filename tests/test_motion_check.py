@@ -544,3 +544,59 @@ def test_noisy_cloud_edge_reads_beside_it_in_front_and_below_it_behind():
     assert part.signed_distance(beside).min() > -3.0   # within the noise band (3 sigma), the check's scan tolerance
     under = np.column_stack([rng.uniform(10.0, 70.0, (50, 2)), np.full(50, -4.0)])
     assert part.signed_distance(under).max() < -1.0
+
+
+# --------------------------------------------------------------------------- scanned meshes (issue #46)
+
+def _sheet_mesh(arm, heights_mm, spacing_mm=2.0, half=(130.0, 30.0)):
+    """A triangulated sheet through the TCP, square to o, rows along the track: vertex k at height
+    heights_mm(u, v) along o (u along the track, v along the side)."""
+    u = np.arange(-half[0], half[0] + 1e-9, spacing_mm)
+    v = np.arange(-half[1], half[1] + 1e-9, spacing_mm)
+    U, W = np.meshgrid(u, v)
+    H = heights_mm(U, W)
+    V = arm.tcp + U.ravel()[:, None] * arm.track + W.ravel()[:, None] * arm.side + H.ravel()[:, None] * arm.o
+    nu = len(u)
+    i, j = np.meshgrid(np.arange(nu - 1), np.arange(len(v) - 1))
+    a = (j * nu + i).ravel()
+    F = np.r_[np.c_[a, a + 1, a + nu + 1], np.c_[a, a + nu + 1, a + nu]]
+    return mesh_workpiece(V, F)
+
+
+def _work_check(arm, wp, band_mm):
+    part = PartGeometry.from_workpiece(wp, arm.tcp[None], arm.o[None], grid_nodes=GRID)
+    t, q = track_motion(np.arange(-100.0, 100.0 + 1e-9, 5.0), 4.0)   # work poses 5 mm apart on the mean plane
+    return check_motion(t, q, np.full(len(t), WORK), arm.robot, part, MotionCheckSettings(scan_band_mm=band_mm))
+
+
+def test_a_scanned_meshs_bumps_pass_within_its_noise_band_and_fail_without(arm):
+    from camtool.run.stages import scanned_mesh_band_mm
+
+    rng = np.random.default_rng(46)
+    wp = _sheet_mesh(arm, lambda U, W: rng.normal(0.0, 0.06, U.shape))     # a scan's roughness, 0.06 mm RMS
+    band = scanned_mesh_band_mm(wp)
+    assert 0.15 < band < 0.3
+    strict = _work_check(arm, wp, 0.0)
+    assert not strict.ok and strict.max_penetration_mm > 0.1              # the bumps rise over the moves
+    banded = _work_check(arm, wp, band)
+    assert banded.ok, banded.findings
+    assert banded.max_penetration_mm == pytest.approx(strict.max_penetration_mm)   # the same figure, judged by the band
+
+
+def test_a_cad_meshs_real_step_still_fails(arm):
+    from camtool.run.stages import scanned_mesh_band_mm
+
+    wp = _sheet_mesh(arm, lambda U, W: np.where(U > 40.0, 0.15, 0.0))    # a real 0.15 mm step, flat elsewhere
+    assert scanned_mesh_band_mm(wp) == 0.0                               # smooth vertices: CAD, strict
+    rep = _work_check(arm, wp, scanned_mesh_band_mm(wp))
+    assert not rep.ok
+    assert rep.max_penetration_mm == pytest.approx(0.15, abs=0.01)
+    assert any("part penetrated by 0.15" in f and "noise band" not in f for f in rep.findings)
+
+
+def test_a_finding_beyond_the_noise_band_names_it(arm):
+    rng = np.random.default_rng(46)
+    wp = _sheet_mesh(arm, lambda U, W: rng.normal(0.0, 0.06, U.shape) + np.where(U > 40.0, 0.6, 0.0))
+    rep = _work_check(arm, wp, 0.2)
+    assert not rep.ok
+    assert any("beyond the scan's noise band: 0.1 + 0.200 mm" in f for f in rep.findings)

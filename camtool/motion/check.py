@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import BadInput
-from ..path.toolpath import WORK, ZONE_CODE, ZONES
+from ..path.toolpath import SURFACE_CODES, WORK, ZONE_CODE, ZONES
 from .fk_batch import BatchFK
 from .geometry import PartGeometry
 
@@ -39,6 +39,18 @@ class MotionCheckSettings:
     on_surface_tol_mm: float = 0.5       # a waypoint whose TCP is this close to the surface touches it
     chunk_samples: int = 50_000          # samples processed at a time (bounded memory)
     max_findings_per_kind: int = 10      # lines per body and kind before a summary line
+    scan_band_mm: float = 0.0            # a scanned mesh's noise band: the TCP's tolerances on the part grow by it
+
+    @property
+    def tcp_surface_tol_mm(self) -> float:
+        """How deep the TCP may go behind the part on work, leads and within the contact allowance of a waypoint
+        touching it (a scan's noise band on top)."""
+        return self.penetration_tol_mm + self.scan_band_mm
+
+    @property
+    def work_path_tol_mm(self) -> float:
+        """How far the TCP may be off the part on work (a scan's noise band on top)."""
+        return self.path_tol_mm + self.scan_band_mm
 
     def __post_init__(self):
         positive = ("dt_s", "chunk_samples")
@@ -328,7 +340,7 @@ class _Tally:
         work = zc == WORK
         nonwork = np.isin(zc, np.array(NON_WORK))
         gidx = np.arange(sl.start, sl.stop)
-        self._tcp(gidx, fkb.tcp, work, nonwork)
+        self._tcp(gidx, fkb.tcp, work, nonwork, np.isin(zc, np.array(SURFACE_CODES)))
         self._capsules(gidx, fkb, dof, work, nonwork)
 
     def _near_contact(self, tcp: np.ndarray, work: np.ndarray) -> np.ndarray:
@@ -361,14 +373,16 @@ class _Tally:
             self.best_edge.offer(-lateral, gidx[out], "tcp")
         return tv, dv
 
-    def _tcp(self, gidx, tcp, work, nonwork) -> None:
-        """The TCP's samples: penetration, clearance off work away from contacts, deviation on work."""
+    def _tcp(self, gidx, tcp, work, nonwork, on_surface) -> None:
+        """The TCP's samples: penetration (within a scan's noise band on work, leads and at contacts), clearance
+        off work away from contacts, deviation on work."""
         s = self.s
-        eligible = nonwork & ~self._near_contact(tcp, work)
+        contact = self._near_contact(tcp, work)
+        eligible = nonwork & ~contact
         tv, dv = self._tcp_values(gidx, tcp, work, eligible)
         self.best_pen.offer(tv, gidx, "tcp")
         self.body_pen["tcp"].offer(tv, gidx, "tcp")
-        pen = tv < -s.penetration_tol_mm
+        pen = tv < -np.where(on_surface | contact, s.tcp_surface_tol_mm, s.penetration_tol_mm)
         self.fails["penetration"].append((gidx[pen], np.full(pen.sum(), "tcp"), -tv[pen]))
         el = np.nonzero(eligible & np.isfinite(tv))[0]
         self.best_tcp.offer(tv[el], gidx[el], "tcp")
@@ -377,7 +391,7 @@ class _Tally:
         wk = np.nonzero(work)[0]
         self.best_dev.offer(-np.abs(dv[wk]), gidx[wk], "tcp")
         self.per_index.offer(gidx, work, nonwork, tv, np.abs(dv))
-        dev = work & (np.abs(dv) > s.path_tol_mm)
+        dev = work & (np.abs(dv) > s.work_path_tol_mm)
         self.fails["deviation"].append((gidx[dev], np.full(dev.sum(), "tcp"), dv[dev]))
 
     def _capsules(self, gidx, fkb, dof, work, nonwork) -> None:
@@ -691,13 +705,17 @@ def _finding_lines(parts, place: _Placer, s: MotionCheckSettings, kind: str) -> 
             if kind == "penetration":
                 j = run[np.argmax(v[run])]
                 what = f"part penetrated by {v[j]:.3f} mm"
+                if name == "tcp" and s.scan_band_mm > 0 and v[j] > s.tcp_surface_tol_mm:
+                    what += (f" (beyond the scan's noise band: {s.penetration_tol_mm:g} + "
+                             f"{s.scan_band_mm:.3f} mm on work and leads)")
             elif kind == "clearance":
                 j = run[np.argmin(v[run])]
                 what = f"clearance {v[j]:.3f} mm < {s.clearance_mm:g} mm"
             else:
                 j = run[np.argmax(np.abs(v[run]))]
                 side = "in front of" if v[j] > 0 else "behind"
-                what = f"TCP {abs(v[j]):.3f} mm {side} the surface on work (> {s.path_tol_mm:g} mm)"
+                band = f", the scan's noise band {s.scan_band_mm:.3f} mm included" if s.scan_band_mm > 0 else ""
+                what = f"TCP {abs(v[j]):.3f} mm {side} the surface on work (> {s.work_path_tol_mm:g} mm{band})"
             p = place(int(k[j]), name)
             t0, t1 = place.samples.t[k[run[0]]], place.samples.t[k[run[-1]]]
             span = f"; from t = {t0:.3f} to {t1:.3f} s" if len(run) > 1 else ""

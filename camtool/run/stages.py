@@ -49,6 +49,7 @@ from ..report.html import write_run_html
 from ..robots import get_robot
 from ..settings import PlannerSettings, RasterSettings, TimingSettings
 from .job_settings import JobSettings
+from ..part.roughness import mesh_roughness
 from ..part.surface import FaceSet
 from ..timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
 from ..path.toolpath import row_segments
@@ -373,6 +374,16 @@ def _fit_rms_mm(surface) -> float:
     return max((f.stats.rms_mm for f in faces if getattr(f, "stats", None) is not None), default=0.0)
 
 
+def scanned_mesh_band_mm(workpiece) -> float:
+    """A mesh's noise band (mm) when its vertices are rough (``part.roughness``: a scan's mesh), else 0 (a CAD
+    mesh keeps the strict check). The TCP's tolerances on work and leads grow by it, as a cloud's do by its
+    noise; the links' and the tool's capsules keep the strict penetration and clearance rules."""
+    if workpiece.faces is None or workpiece.vertices_mm is None:
+        return 0.0
+    rough = mesh_roughness(workpiece.vertices_mm)
+    return rough.band_mm if rough.is_scan else 0.0
+
+
 def motion_check_part(settings: JobSettings, workpiece, path, surface=None):
     """The part the independent motion check measures against (``motion.PartGeometry``): ``part_for_checks``,
     oriented by the path's work poses. Made as soon as the raster is (a process on standby builds it while the
@@ -396,6 +407,7 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
     if workpiece.faces is None and surface is not None:
         noise = SCAN_NOISE_FACTOR * _fit_rms_mm(surface)  # a scan is only as exact as its noise
     path_tol, penetration_tol = c.path_tol_mm + noise, c.penetration_tol_mm + noise
+    band = scanned_mesh_band_mm(workpiece)
     if part is None:
         part = motion_check_part(settings, workpiece, path, surface)
     program = thin_waypoints(trajectory, settings.post.min_move_s)
@@ -403,10 +415,13 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
                           MotionCheckSettings(dt_s=c.dt_s, penetration_tol_mm=penetration_tol,
                                               clearance_mm=c.clearance_mm, path_tol_mm=path_tol,
                                               tool_radius_mm=c.tool_radius_mm, link_radius_mm=c.link_radius_mm,
-                                              tool_contact_exempt_mm=c.tool_contact_exempt_mm),
+                                              tool_contact_exempt_mm=c.tool_contact_exempt_mm,
+                                              scan_band_mm=band),
                           WaypointIndex(row_segments(program.path_index, program.zone, path.segment), "segment"),
                           world=collision_world(settings, robot))
     figures = report.to_dict()
+    if noise > 0 or band > 0:
+        figures["scan_noise_band_mm"] = round(noise or band, 4)
     if not report.ok:
         raise PlanInfeasible(f"the motion check failed ({len(report.findings)} finding(s)); first: "
                              f"{report.findings[0]}; no program written{_lead_hint(settings, report.findings)}",

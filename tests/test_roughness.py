@@ -1,0 +1,47 @@
+"""part/roughness.py: a CAD mesh's vertices lie on its smooth surface, a scan's carry noise (independent
+reference: the noise drawn, and the closed-form surface the vertices were put on)."""
+import numpy as np
+import pytest
+
+from camtool.part.roughness import BAND_MAX_MM, SCAN_ROUGHNESS_MM, mesh_roughness, vertex_residuals
+
+
+def sheet(noise_mm=0.0, n=60, spacing_mm=2.0, seed=0):
+    """Vertices of a curved sheet z = x^2 / 400 - y^2 / 600 (a saddle, R 200-300 mm) on a 2 mm grid."""
+    x, y = np.meshgrid(np.arange(n) * spacing_mm, np.arange(n) * spacing_mm)
+    x, y = x.ravel() - x.mean(), y.ravel() - y.mean()
+    z = x**2 / 400.0 - y**2 / 600.0 + np.random.default_rng(seed).normal(0.0, noise_mm, x.size)
+    return np.c_[x, y, z]
+
+
+def test_cad_vertices_on_a_curved_surface_are_smooth():
+    r = mesh_roughness(sheet())
+    assert not r.is_scan
+    assert r.median_mm < 1e-5      # a quadric in the neighbours' frame holds the saddle to third order
+    assert np.abs(vertex_residuals(sheet())).max() < 1e-3
+
+
+def test_noisy_vertices_are_a_scan_with_the_noise_band():
+    sigma = 0.05
+    r = mesh_roughness(sheet(sigma))
+    assert r.is_scan and r.median_mm > SCAN_ROUGHNESS_MM
+    # the residual is the vertex's noise less its neighbours' fit: |N(0, s)| has p99.9 3.29 s; the fit's own
+    # error over 12 neighbours adds about a third in quadrature
+    assert 3.0 * sigma < r.band_mm < 4.5 * sigma
+
+
+def test_the_band_is_capped():
+    r = mesh_roughness(sheet(1.0))
+    assert r.is_scan and r.band_mm == BAND_MAX_MM
+
+
+def test_coincident_corners_count_once():
+    """An STL or a triangle soup stores each corner once per triangle; a copy must not pin the quadric."""
+    V = sheet(0.05)
+    soup = np.repeat(V, 6, axis=0)
+    assert mesh_roughness(soup) == mesh_roughness(V)
+
+
+@pytest.mark.parametrize("n", [0, 3, 6])
+def test_too_few_vertices_are_not_judged(n):
+    assert not mesh_roughness(sheet(0.1)[:n]).is_scan
