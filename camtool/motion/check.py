@@ -714,8 +714,9 @@ def _finding_lines(parts, place: _Placer, s: MotionCheckSettings, kind: str) -> 
             else:
                 j = run[np.argmax(np.abs(v[run]))]
                 side = "in front of" if v[j] > 0 else "behind"
-                band = f", the scan's noise band {s.scan_band_mm:.3f} mm included" if s.scan_band_mm > 0 else ""
-                what = f"TCP {abs(v[j]):.3f} mm {side} the surface on work (> {s.work_path_tol_mm:g} mm{band})"
+                tol = f"{s.work_path_tol_mm:.3f} mm, the scan's noise band {s.scan_band_mm:.3f} mm included" \
+                    if s.scan_band_mm > 0 else f"{s.path_tol_mm:g} mm"
+                what = f"TCP {abs(v[j]):.3f} mm {side} the surface on work (> {tol})"
             p = place(int(k[j]), name)
             t0, t1 = place.samples.t[k[run[0]]], place.samples.t[k[run[-1]]]
             span = f"; from t = {t0:.3f} to {t1:.3f} s" if len(run) > 1 else ""

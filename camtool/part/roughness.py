@@ -9,8 +9,16 @@ mesh is rough -- judged as a scan -- when the median |residual| exceeds ``SCAN_R
 tessellation too coarse for its curvature (noether's wavy sheet, 9 mm facets on a wave: 0.2 mm) counts
 as rough too: its facets' creases are the bumps the tool meets between poses, as a scan's noise is.
 
-The noise band is the ``BAND_QUANTILE`` quantile of |residual|, capped at ``BAND_MAX_MM``: the motion
-check's tolerance of the TCP's contact on work and leads (run/stages.py), never below the CAD one.
+The noise band is measured at the scale the tool meets the scan: each vertex's residual from the quadric
+through its neighbours within two smoothing sigmas (``fit.smoothing_mm``; 0: the free-form surface's own
+default, ``SCAN_SMOOTHING_SPACINGS`` point spacings, at least ``SCAN_SMOOTHING_MIN_MM``), the surface a
+scan's rows follow. A laser scan's roughness is correlated over a few mm (the dac scan's p99.9 grows from
+0.07 mm over 12 neighbours to 0.27 mm over 2 sigmas, and its bumps between poses 5 mm apart reach
+0.23 mm). The band is the ``BAND_QUANTILE`` quantile of those |residual|s, capped at ``BAND_MAX_MM``; the
+motion check's TCP tolerances on the part grow by it (run/stages.py), so they are never below the CAD one.
+The quantile is that high because the rows pass over the whole face and so meet its worst bumps: p99.9
+leaves 34 of the dac scan's 33 600 vertices above the band (0.26 mm), and its rows met one 0.38 mm deep;
+p99.99 (0.35 mm) leaves 3.
 
 Written by hand: neither trimesh nor open3d gives a per-vertex quadric residual (open3d's normals fit a
 plane, which reads curvature as noise; trimesh's curvature measures are ball integrals, not residuals).
@@ -22,11 +30,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .freeform import SCAN_SMOOTHING_MIN_MM, SCAN_SMOOTHING_SPACINGS
+
 ROUGH_NEIGHBOURS = 12       # a vertex's quadric is fitted to this many nearest other vertices
 SCAN_ROUGHNESS_MM = 0.003   # a mesh whose median |residual| exceeds this is rough: judged as a scan
-BAND_QUANTILE = 99.9        # a scan's noise band: this percentile of |residual| ...
+BAND_QUANTILE = 99.99       # a scan's noise band: this percentile of |residual| (the rows pass over all of them) ...
 BAND_MAX_MM = 0.5           # ... at most this (a few wild vertices, or a coarse mesh's facets, loosen no more)
-MAX_QUERIES = 200_000       # residuals of at most this many vertices (every k-th) on a large mesh
+MAX_BAND_NEIGHBOURS = 128   # the band's neighbourhood (two smoothing sigmas) holds at most this many vertices
+MAX_QUERIES = 100_000       # residuals of at most this many vertices (every k-th) on a large mesh
+CHUNK = 10_000              # vertices fitted at a time (bounded memory)
 
 
 @dataclass(frozen=True)
@@ -38,14 +50,21 @@ class Roughness:
     is_scan: bool
 
 
-def vertex_residuals(vertices_mm: np.ndarray, queries: np.ndarray | None = None) -> np.ndarray:
-    """Each queried vertex's offset (mm, signed) from the quadric through its nearest other vertices."""
+def vertex_residuals(vertices_mm: np.ndarray, queries: np.ndarray | None = None,
+                     neighbours: int = ROUGH_NEIGHBOURS, tree: cKDTree | None = None) -> np.ndarray:
+    """Each queried vertex's offset (mm, signed) from the quadric through its ``neighbours`` nearest others."""
     V = np.asarray(vertices_mm, float)
     q = np.arange(len(V)) if queries is None else np.asarray(queries)
-    k = min(ROUGH_NEIGHBOURS, len(V) - 1)
+    k = min(int(neighbours), len(V) - 1)
     if k < 6:   # a quadric has six coefficients
         return np.zeros(len(q))
-    _, nb = cKDTree(V).query(V[q], k=k + 1, workers=-1)
+    tree = cKDTree(V) if tree is None else tree
+    return np.concatenate([_residuals(V, q[i:i + CHUNK], k, tree) for i in range(0, len(q), CHUNK)]) \
+        if len(q) else np.zeros(0)
+
+
+def _residuals(V, q, k, tree):
+    _, nb = tree.query(V[q], k=k + 1, workers=-1)
     R = V[nb[:, 1:]]
     mid = R.mean(axis=1)
     R = R - mid[:, None, :]
@@ -63,17 +82,21 @@ def vertex_residuals(vertices_mm: np.ndarray, queries: np.ndarray | None = None)
     return p[:, 2] - np.einsum("ni,ni->n", design(p[:, 0], p[:, 1]), coef)
 
 
-def mesh_roughness(vertices_mm: np.ndarray) -> Roughness:
-    """The roughness of a mesh's vertices (every k-th of a large mesh, deterministic). Coincident vertices
-    (an STL's or a triangle soup's corners) count once: a vertex's copy would pin its quadric."""
+def mesh_roughness(vertices_mm: np.ndarray, smoothing_mm: float = 0.0) -> Roughness:
+    """The roughness of a mesh's vertices (every k-th of a large mesh, deterministic), its noise band measured
+    over two ``smoothing_mm`` sigmas (0: the free-form default). Coincident vertices (an STL's or a triangle
+    soup's corners) count once: a vertex's copy would pin its quadric."""
     V = np.unique(np.round(np.asarray(vertices_mm, float), 6), axis=0)
     if len(V) < 7:
         return Roughness(0.0, 0.0, False)
-    stride = max(1, -(-len(V) // MAX_QUERIES))
-    r = np.abs(vertex_residuals(V, np.arange(0, len(V), stride)))
-    r = r[np.isfinite(r)]
-    if not len(r):
-        return Roughness(0.0, 0.0, False)
+    tree = cKDTree(V)
+    q = np.arange(0, len(V), max(1, -(-len(V) // MAX_QUERIES)))
+    r = np.abs(vertex_residuals(V, q, ROUGH_NEIGHBOURS, tree))
     median = float(np.median(r))
-    band = min(float(np.percentile(r, BAND_QUANTILE)), BAND_MAX_MM)
-    return Roughness(median, band, median > SCAN_ROUGHNESS_MM)
+    if median <= SCAN_ROUGHNESS_MM:
+        return Roughness(median, 0.0, False)
+    spacing = float(np.median(tree.query(V[q], k=2, workers=-1)[0][:, 1]))
+    sigma = smoothing_mm if smoothing_mm > 0 else max(SCAN_SMOOTHING_SPACINGS * spacing, SCAN_SMOOTHING_MIN_MM)
+    k = int(np.clip(np.ceil(np.pi * (2.0 * sigma / max(spacing, 1e-9)) ** 2), ROUGH_NEIGHBOURS, MAX_BAND_NEIGHBOURS))
+    wide = np.abs(vertex_residuals(V, q, k, tree))
+    return Roughness(median, min(float(np.percentile(wide, BAND_QUANTILE)), BAND_MAX_MM), True)
