@@ -56,11 +56,12 @@ class WorkpieceSettings(_FromSection):
     sample_points: int
     normal_neighbours: int
     drop_nonfinite: bool
+    scan: str = "auto"     # a mesh judged as a scan: "auto" (by its roughness), "yes" or "no"
 
     @classmethod
     def from_section(cls, sec):
         return cls(sec["file"], sec["units"], int(sec["sample_points"]), int(sec["normal_neighbours"]),
-                   bool(sec["drop_nonfinite"]))
+                   bool(sec["drop_nonfinite"]), str(sec.get("scan", "auto")))
 
 
 @dataclass(frozen=True)

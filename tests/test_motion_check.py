@@ -581,6 +581,7 @@ def test_a_scanned_meshs_bumps_pass_within_its_noise_band_and_fail_without(arm):
     banded = _work_check(arm, wp, band)
     assert banded.ok, banded.findings
     assert banded.max_penetration_mm == pytest.approx(strict.max_penetration_mm)   # the same figure, judged by the band
+    assert scanned_mesh_band_mm(wp, scan="no") == 0.0     # workpiece.scan = "no": a CAD mesh, strict
 
 
 def test_a_cad_meshs_real_step_still_fails(arm):

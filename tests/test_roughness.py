@@ -47,3 +47,21 @@ def test_coincident_corners_count_once():
 @pytest.mark.parametrize("n", [0, 3, 6])
 def test_too_few_vertices_are_not_judged(n):
     assert not mesh_roughness(sheet(0.1)[:n]).is_scan
+
+
+def test_the_workpiece_says_whether_a_mesh_is_a_scan():
+    noisy, smooth = sheet(0.05), sheet()
+    assert mesh_roughness(noisy, scan="no") == mesh_roughness(noisy, scan="no")
+    assert not mesh_roughness(noisy, scan="no").is_scan and mesh_roughness(noisy, scan="no").band_mm == 0.0
+    forced = mesh_roughness(smooth, scan="yes")
+    assert forced.is_scan and forced.band_mm < 0.01      # a scan as smooth as CAD: its band a tenth of the CAD tolerance
+
+
+def test_the_band_is_measured_over_two_smoothing_sigmas():
+    """Roughness correlated over a few mm (a laser scan's waviness) is in the band only when the neighbourhood
+    spans it: a 12 mm ripple of 0.1 mm over white noise of 0.01 mm (p99.99 of |noise| 0.039 mm)."""
+    V = sheet(0.01)
+    V[:, 2] += 0.1 * np.sin(2 * np.pi * V[:, 0] / 12.0)
+    narrow = mesh_roughness(V, smoothing_mm=1.0).band_mm     # 12 neighbours (+-4 mm): the quadric follows the ripple
+    wide = mesh_roughness(V, smoothing_mm=5.0).band_mm       # 79 neighbours (+-10 mm): the ripple is roughness
+    assert narrow < 0.06 and wide > 0.1

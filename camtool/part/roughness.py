@@ -82,18 +82,19 @@ def _residuals(V, q, k, tree):
     return p[:, 2] - np.einsum("ni,ni->n", design(p[:, 0], p[:, 1]), coef)
 
 
-def mesh_roughness(vertices_mm: np.ndarray, smoothing_mm: float = 0.0) -> Roughness:
+def mesh_roughness(vertices_mm: np.ndarray, smoothing_mm: float = 0.0, scan: str = "auto") -> Roughness:
     """The roughness of a mesh's vertices (every k-th of a large mesh, deterministic), its noise band measured
     over two ``smoothing_mm`` sigmas (0: the free-form default). Coincident vertices (an STL's or a triangle
-    soup's corners) count once: a vertex's copy would pin its quadric."""
+    soup's corners) count once: a vertex's copy would pin its quadric. ``scan``: "auto" judges by the
+    roughness, "yes" / "no" as the workpiece says (``workpiece.scan``); the band is 0 unless a scan."""
     V = np.unique(np.round(np.asarray(vertices_mm, float), 6), axis=0)
-    if len(V) < 7:
+    if len(V) < 7 or scan == "no":
         return Roughness(0.0, 0.0, False)
     tree = cKDTree(V)
     q = np.arange(0, len(V), max(1, -(-len(V) // MAX_QUERIES)))
     r = np.abs(vertex_residuals(V, q, ROUGH_NEIGHBOURS, tree))
     median = float(np.median(r))
-    if median <= SCAN_ROUGHNESS_MM:
+    if scan == "no" or (scan == "auto" and median <= SCAN_ROUGHNESS_MM):
         return Roughness(median, 0.0, False)
     spacing = float(np.median(tree.query(V[q], k=2, workers=-1)[0][:, 1]))
     sigma = smoothing_mm if smoothing_mm > 0 else max(SCAN_SMOOTHING_SPACINGS * spacing, SCAN_SMOOTHING_MIN_MM)

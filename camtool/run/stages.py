@@ -374,14 +374,14 @@ def _fit_rms_mm(surface) -> float:
     return max((f.stats.rms_mm for f in faces if getattr(f, "stats", None) is not None), default=0.0)
 
 
-def scanned_mesh_band_mm(workpiece, smoothing_mm: float = 0.0) -> float:
-    """A mesh's noise band (mm, over two ``smoothing_mm`` sigmas) when its vertices are rough (``part.roughness``:
-    a scan's mesh), else 0 (a CAD mesh keeps the strict check). The TCP's tolerances on work, leads and contacts
+def scanned_mesh_band_mm(workpiece, smoothing_mm: float = 0.0, scan: str = "auto") -> float:
+    """A mesh's noise band (mm, over two ``smoothing_mm`` sigmas) when it is a scan (``workpiece.scan``: "yes", or
+    "auto" and its vertices are rough, ``part.roughness``), else 0 (a CAD mesh keeps the strict check). The TCP's tolerances on work, leads and contacts
     grow by it, as a cloud's do by its noise; the tool's and the links' capsules keep the strict penetration and
     clearance rules."""
     if workpiece.faces is None or workpiece.vertices_mm is None:
         return 0.0
-    rough = mesh_roughness(workpiece.vertices_mm, smoothing_mm)
+    rough = mesh_roughness(workpiece.vertices_mm, smoothing_mm, scan)
     return rough.band_mm if rough.is_scan else 0.0
 
 
@@ -408,7 +408,7 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
     if workpiece.faces is None and surface is not None:
         noise = SCAN_NOISE_FACTOR * _fit_rms_mm(surface)  # a scan is only as exact as its noise
     path_tol, penetration_tol = c.path_tol_mm + noise, c.penetration_tol_mm + noise
-    band = scanned_mesh_band_mm(workpiece, settings.fit.smoothing_mm)
+    band = scanned_mesh_band_mm(workpiece, settings.fit.smoothing_mm, settings.workpiece.scan)
     if part is None:
         part = motion_check_part(settings, workpiece, path, surface)
     program = thin_waypoints(trajectory, settings.post.min_move_s)
