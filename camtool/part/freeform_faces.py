@@ -233,8 +233,10 @@ def _on_material(surface, P: np.ndarray, threshold_mm: float) -> np.ndarray:
     return on & (np.abs(c[:, 2] - h) <= OFF_SURFACE_THRESHOLDS * threshold_mm + 3.0 * surface.smoothing_mm)
 
 
-def _region_workpiece(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int):
-    """The workpiece's points ``idx`` as a workpiece; a mesh keeps the triangles whose middle lies in region r."""
+def _region_workpiece(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int,
+                      triangle_label: np.ndarray | None = None):
+    """The workpiece's points ``idx`` as a workpiece; a mesh keeps the triangles whose middle lies in region r
+    (``triangle_label``: each triangle's label instead, r the kept ones)."""
     from .workpiece import Workpiece
 
     P = np.asarray(workpiece.points_mm, float)
@@ -243,13 +245,115 @@ def _region_workpiece(workpiece, idx: np.ndarray, point_region: np.ndarray, r: i
     if F is not None and V is not None and len(F):
         V = np.asarray(V, float)
         F = np.asarray(F)
-        middle = V[F].mean(axis=1)
-        _, near = cKDTree(P).query(middle)
-        tris = F[point_region[near] == r]
+        if triangle_label is None:
+            _, near = cKDTree(P).query(V[F].mean(axis=1))
+            triangle_label = point_region[near]
+        tris = F[triangle_label == r]
         if len(tris) == 0:
             tris, V = None, None
     return Workpiece(P[idx], np.asarray(workpiece.normals, float)[idx], tris, workpiece.source, workpiece.units,
                      (), V if tris is not None else None)
+
+
+def _holding_chart(tree: cKDTree, label: np.ndarray, axes: np.ndarray, Q: np.ndarray, NQ: np.ndarray,
+                   signed: bool) -> np.ndarray:
+    """Each query point's chart (normal NQ): of the charts ``label`` of its ``SOLID_NEIGHBOURS`` nearest tree
+    points, the one whose plane normal (``axes``) its normal leans least from; -1 where even that one leans past
+    ``freeform.MAX_SLOPE_DEG`` (no chart holds it). Where a pocket's walls meet in a narrow groove, the nearest
+    point may lie on the wall across it, in a chart that cannot hold this one."""
+    from .freeform import MAX_SLOPE_DEG
+
+    _, nb = tree.query(Q, k=min(SOLID_NEIGHBOURS, tree.n))
+    cand = label[nb.reshape(len(Q), -1)]
+    cos = np.einsum("ij,ikj->ik", _unit(NQ), axes[cand])
+    cos = cos if signed else np.abs(cos)
+    best = np.argmax(cos, axis=1)
+    rows = np.arange(len(Q))
+    return np.where(cos[rows, best] >= math.cos(math.radians(MAX_SLOPE_DEG)), cand[rows, best], -1)
+
+
+@dataclass(frozen=True)
+class _RegionSample:
+    """The strided sample the regions were found on: points, exact normals (a mesh's; None: a scan), KD-tree,
+    region labels, and each workpiece point's nearest sample point."""
+
+    points: np.ndarray
+    normals: np.ndarray | None
+    tree: cKDTree
+    region: np.ndarray
+    near: np.ndarray
+    exact: bool
+
+
+def _built_face(workpiece, idx: np.ndarray, labels: np.ndarray, r: int, keys: _FitKeys,
+                triangle_label: np.ndarray | None = None):
+    """(free-form surface, the points of ``idx`` on its material, area mm^2) of the workpiece's points ``idx``
+    (triangles where ``labels`` is r, or ``triangle_label``), or None when they hold no surface."""
+    from .freeform import freeform_surface
+
+    try:
+        surface = freeform_surface(_region_workpiece(workpiece, idx, labels, r, triangle_label), keys)
+    except BadInput:
+        return None
+    P = np.asarray(workpiece.points_mm, float)[idx]
+    return surface, idx[_on_material(surface, P, keys.threshold_mm)], surface.area_mm2()
+
+
+def _chart_faces(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int, keys: _FitKeys,
+                 sample: _RegionSample) -> list:
+    """The faces (``_built_face``) of region r's charts (``freeform_charts``), cut on its sample points; [] when
+    the region is one chart. The workpiece's points and triangles go to the chart of the nearby sample point
+    whose normal agrees best (``_agreeing``)."""
+    from .freeform_charts import height_field_charts, oriented_normals
+
+    s = np.flatnonzero(sample.region == r)
+    S = sample.points[s]
+    if sample.normals is not None:
+        NS = sample.normals[s]
+    else:
+        _, nb = sample.tree.query(S, k=min(EDGE_NEIGHBOURS + 1, len(sample.points)))
+        NS = _pca_normals(sample.points, nb)
+    NS = oriented_normals(S, NS, sample.exact)
+    chart = height_field_charts(S, NS)
+    if chart.max() == 0:
+        return []
+    from .freeform_sample import chart_frame
+
+    axes = np.array([chart_frame(S[chart == c], NS[chart == c])[1][:, 2] for c in range(int(chart.max()) + 1)])
+    P = np.asarray(workpiece.points_mm, float)
+    NP = np.asarray(workpiece.normals, float)
+    labels = np.full(len(P), -1, np.int64)
+    labels[idx] = _holding_chart(cKDTree(S), chart, axes, P[idx], NP[idx], sample.exact)
+    triangle_label = None
+    F, V = getattr(workpiece, "faces", None), getattr(workpiece, "vertices_mm", None)
+    if F is not None and V is not None and len(F):
+        T = np.asarray(V, float)[np.asarray(F)]
+        _, near = cKDTree(P).query(T.mean(axis=1))
+        triangle_label = np.full(len(T), -1, np.int64)
+        mine = np.flatnonzero(point_region[near] == r)
+        tn = np.cross(T[mine, 1] - T[mine, 0], T[mine, 2] - T[mine, 0])
+        held = labels[idx] >= 0
+        triangle_label[mine] = _holding_chart(cKDTree(P[idx[held]]), labels[idx[held]], axes, T[mine].mean(axis=1),
+                                              tn, True)
+    return [_built_face(workpiece, idx[labels[idx] == c], labels, c, keys, triangle_label)
+            for c in range(int(chart.max()) + 1)]
+
+
+def _region_faces(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int, keys: _FitKeys,
+                  sample: _RegionSample) -> list:
+    """Region r's free-form faces (``_built_face``; None where none was built): one height field when it holds all
+    but ``UNHELD_SHARE`` of the region's points, else the region's charts when they hold more of it
+    (``freeform_charts``)."""
+    from .freeform_charts import UNHELD_SHARE
+
+    whole = _built_face(workpiece, idx, point_region, r, keys)
+    held = 0 if whole is None else len(whole[1])
+    if held >= (1.0 - UNHELD_SHARE) * len(idx):
+        return [whole]
+    charts = _chart_faces(workpiece, idx, point_region, r, keys, sample)
+    if sum(len(c[1]) for c in charts if c is not None) > held:
+        return charts
+    return [whole]
 
 
 def with_freeform_faces(seg, workpiece, settings, make_face):
@@ -257,8 +361,6 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
 
     ``make_face(index, surface, inliers, area)``: the segmentation's ``Face``. Faces numbered by area, largest
     first. ``seg`` itself when no region is free-form."""
-    from .freeform import freeform_surface
-
     P = np.asarray(workpiece.points_mm, float)
     n = len(P)
     pick = _sample(n)
@@ -313,17 +415,12 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
         idx = np.flatnonzero((point_region == r) & ~taken & np.isfinite(P).all(axis=1))
         if len(idx) < max(MIN_FACE_SAMPLES, 100):
             continue
-        try:
-            surface = freeform_surface(_region_workpiece(workpiece, idx, point_region, r), keys)
-        except BadInput:
-            dropped += 1
-            continue
-        idx = idx[_on_material(surface, P[idx], keys.threshold_mm)]
-        area = surface.area_mm2()
-        if area < settings.min_area_mm2 or len(idx) < MIN_FACE_SAMPLES:
-            dropped += 1
-            continue
-        built.append((surface, idx, area))
+        sample = _RegionSample(P[pick], N, tree, region, near, mesh)
+        for face in _region_faces(workpiece, idx, point_region, r, keys, sample):
+            if face is None or face[2] < settings.min_area_mm2 or len(face[1]) < MIN_FACE_SAMPLES:
+                dropped += 1
+                continue
+            built.append(face)
     if len(built) == len(kept):   # no free-form face after all: the analytic segmentation as it was
         return seg
     order = sorted(range(len(built)), key=lambda k: (-round(built[k][2], 6), k))
