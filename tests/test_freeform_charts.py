@@ -1,0 +1,130 @@
+"""Free-form regions one height field does not hold, cut into height-field charts (camtool.part.freeform_charts,
+freeform_faces._region_faces): a deep trough whose walls turn to 86 deg, a sheet bent 150 deg through a fillet;
+regions a height field holds (a 120 deg bend, a shallower trough) stay one face, not cut. Generated parts; the
+references are the parts' own meshes (closest points, surface samples)."""
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial import cKDTree
+
+from camtool.part import freeform_charts
+from camtool.part.freeform_charts import CHART_HOLD_DEG, height_field_charts
+from camtool.part.segment import SegmentSettings, segment
+from camtool.path.raster import raster_path
+from camtool.settings import RasterSettings
+
+from test_freeform import grid_mesh, mesh_workpiece
+
+STEP_MM = 10.0
+
+
+def trough(depth_mm):
+    """A block's top 300 x 200 mm with a trough 240 x 120 mm, depth_mm deep: a parabola across, a quartic along
+    with a wave, so its walls steepen to atan(depth / 30) at the rim (86 deg at 400 mm)."""
+    x, y = np.arange(-150, 150.01, 2.0), np.arange(-100, 100.01, 1.0)
+    inside = lambda X, Y: (np.abs(X) < 120) & (np.abs(Y) < 60)  # noqa: E731
+    return grid_mesh(x, y, lambda X, Y: np.where(
+        inside(X, Y), -depth_mm * (1 - (X / 120) ** 4) * (1 - (Y / 60) ** 2) * (1 + 0.15 * np.sin(X / 40)), 0.0))
+
+
+def bent_sheet(bend_deg, base_mm=200.0, flange_mm=150.0, radius_mm=25.0):
+    """A sheet 300 mm wide: a base, a fillet of radius_mm bending it by bend_deg, a flange; a wave of 4 mm across
+    it (a free-form cross-section). Normals on the inside of the bend. Returns (V, F, arc length of each vertex,
+    the fillet's arc-length range)."""
+    fillet = radius_mm * np.radians(bend_deg)
+    length = base_mm + fillet + flange_mm
+    s = np.linspace(0, length, 301)
+    theta = np.radians(bend_deg) * np.clip((s - base_mm) / fillet, 0, 1)
+    step = np.stack([np.cos(theta), np.sin(theta)], 1)[:-1] * (s[1] - s[0])
+    yz = np.concatenate([[[0.0, 0.0]], np.cumsum(step, axis=0)])
+    inward = np.stack([-np.sin(theta), np.cos(theta)], 1)
+    x = np.linspace(-150, 150, 121)
+    X, k = np.meshgrid(x, np.arange(len(s)))
+    w = 4 * np.sin(X / 60) * np.sin(np.pi * s[k] / length)
+    V = np.stack([X, yz[k, 0] + w * inward[k, 0], yz[k, 1] + w * inward[k, 1]], -1).reshape(-1, 3)
+    _, F = grid_mesh(x, np.arange(len(s)), lambda A, B: 0 * A)
+    return V, F, s[k].ravel(), (base_mm, base_mm + fillet)
+
+
+def raster_figures(seg, mesh, region_of_triangles):
+    """(coverage: the share of the region's surface samples within 0.6 step of a work TCP of any free-form face,
+    p99 of the work TCPs' distance to the mesh (mm))."""
+    tcps = []
+    for f in seg.faces:
+        if f.model == "freeform":
+            path = raster_path(f.surface, RasterSettings.make(step_over_mm=STEP_MM, pitch_mm=5.0))
+            tcps.append(path.poses_mm[path.is_work, :3, 3])
+    tcps = np.vstack(tcps)
+    sub = mesh.submesh([np.flatnonzero(region_of_triangles)], append=True)
+    samples, _ = trimesh.sample.sample_surface_even(sub, 20000, seed=1)
+    covered = cKDTree(tcps).query(samples)[0] <= 0.6 * STEP_MM
+    _, dist, _ = trimesh.proximity.closest_point(mesh, tcps)
+    return float(covered.mean()), float(np.percentile(dist, 99))
+
+
+def test_a_deep_troughs_walls_become_charts_that_cover_it_on_the_surface():
+    """400 mm deep (walls to 86 deg): one height field leaves 44 % of it off its material; its charts (the long
+    walls, the ends) cover >= 99 % of it, their work TCPs on the mesh within 0.1 mm (p99)."""
+    V, F = trough(400.0)
+    wp, mesh = mesh_workpiece(V, F, n=40000)    # a loaded part's density (20 000 points leave gaps in its steep walls)
+    seg = segment(wp, SegmentSettings())
+    free = [f for f in seg.faces if f.model == "freeform"]
+    assert 2 <= len(free) <= 6
+    for f in free:                                    # each chart holds its points within the slope it can carry
+        n = wp.normals[f.inliers]
+        assert np.quantile(n @ f.surface.frame[:, 2], 0.01) >= np.cos(np.radians(80.0))
+    c = mesh.triangles_center
+    region = (np.abs(c[:, 0]) < 118) & (np.abs(c[:, 1]) < 58)
+    coverage, p99 = raster_figures(seg, mesh, region)
+    assert coverage >= 0.99 and p99 <= 0.1, (coverage, p99)
+    Q = wp.points_mm
+    in_trough = np.flatnonzero((np.abs(Q[:, 0]) < 119) & (np.abs(Q[:, 1]) < 59))
+    assert np.isin(in_trough, np.concatenate([f.inliers for f in free])).mean() > 0.98
+
+
+def test_a_sheet_bent_past_a_height_field_is_its_base_and_its_flange():
+    """Bent 150 deg: one height field is garbage (13.9 mm p99 off the mesh, 82 % covered, before the charts); the
+    charts are the base and the flange, cut in the fillet, each >= 97 % of its own side's points."""
+    V, F, s, (f0, f1) = bent_sheet(150.0)
+    wp, mesh = mesh_workpiece(V, F, n=30000)
+    seg = segment(wp, SegmentSettings())
+    assert [f.model for f in seg.faces] == ["freeform", "freeform"]
+    s_pt = s[mesh.faces[cKDTree(mesh.triangles_center).query(wp.points_mm)[1]]].mean(axis=1)
+    base, flange = np.flatnonzero(s_pt < f0), np.flatnonzero(s_pt > f1)
+    a, b = seg.faces[0].inliers, seg.faces[1].inliers
+    assert np.isin(base, a).mean() > 0.97 and np.isin(flange, b).mean() > 0.97
+    coverage, p99 = raster_figures(seg, mesh, np.ones(len(mesh.faces), bool))
+    assert coverage >= 0.99 and p99 <= 0.1, (coverage, p99)
+
+
+@pytest.mark.parametrize("part", ["bend120", "trough150"])
+def test_a_region_one_height_field_holds_is_not_cut(part, monkeypatch):
+    """A 120 deg bend (its chart plane halfway, each leg 60 deg from it) and a 150 mm trough (walls to 79 deg) are
+    held whole: the charts are never computed, the region is one free-form face."""
+    def refuse(*a):
+        raise AssertionError("a region the height field holds was cut")
+
+    monkeypatch.setattr(freeform_charts, "height_field_charts", refuse)
+    V, F = bent_sheet(120.0)[:2] if part == "bend120" else trough(150.0)
+    wp, _ = mesh_workpiece(V, F, n=20000)
+    seg = segment(wp, SegmentSettings())
+    assert [f.model for f in seg.faces].count("freeform") == 1
+
+
+def test_charts_of_a_half_tube_each_hold_their_normals():
+    """Points of a half tube (normals turning 180 deg): no plane holds them; the charts do, each within
+    CHART_HOLD_DEG of its own mean (the chart plane), in a few connected pieces; a 60 deg cap is one chart."""
+    a = np.linspace(0, np.pi, 181)
+    x = np.linspace(0, 200, 141)                     # spaced as along the arcs (1.4 mm)
+    A, X = np.meshgrid(a, x)
+    N = np.stack([0 * A, np.cos(A), np.sin(A)], -1).reshape(-1, 3)
+    P = np.stack([X, 80 * np.cos(A), 80 * np.sin(A)], -1).reshape(-1, 3)
+    label = height_field_charts(P, -N)                 # worked from inside
+    assert 2 <= label.max() + 1 <= 4
+    for c in range(label.max() + 1):
+        n = -N[label == c]
+        m = n.mean(axis=0) / np.linalg.norm(n.mean(axis=0))
+        assert np.quantile(n @ m, 0.01) >= np.cos(np.radians(CHART_HOLD_DEG)) - 1e-9
+    cap = (A.ravel() > np.radians(60)) & (A.ravel() < np.radians(120))
+    assert height_field_charts(P[cap], -N[cap]).max() == 0
+    assert (height_field_charts(P, -N) == label).all()            # deterministic
