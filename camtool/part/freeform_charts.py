@@ -1,23 +1,27 @@
-"""A smooth free-form region the height field does not hold, cut into charts that are each a height field.
+"""A smooth free-form region one height field does not hold, cut into charts that are each a height field.
 
 A free-form face is stored as heights over its chart plane (``freeform.py``), so it holds material only where
 the surface leans less than ``freeform.MAX_SLOPE_DEG`` from that plane, and near that slope its heights are
 poorly conditioned (a 1 mm grid step moves them by several mm). A smooth region that turns further (a deep
-pocket whose walls run into its floor through fillets, a flange bent past 90 deg, a tube's outside) has no such
-plane. ``freeform_faces`` builds the region's face as one height field first and keeps it whenever it holds
-all but ``UNHELD_SHARE`` of the region's points (``freeform_faces._on_material``): a region that works whole
-stays exactly as it was. Only otherwise is the region cut here, on its normals:
+pocket whose walls steepen past 80 deg, a sheet bent 150 deg, a tube's outside) has no such plane.
+``freeform_faces`` builds the region's face as one height field first and keeps it whenever it holds all but
+``UNHELD_SHARE`` of the region's points (``freeform_faces._on_material``): a region that works whole stays
+exactly as it was, whatever its normals (a 120 deg bend whose legs lean 60 deg from a plane halfway is held).
+Only otherwise is the region cut here, on its sample points' normals:
 
-* A set of points is **one chart** when ``CHART_QUANTILE`` of its normals lie within ``CHART_HOLD_DEG`` of
-  their mean (the chart plane's normal): well inside the 80 deg where the height field stops.
-* Otherwise two cuts are tried and the one giving fewer charts in the end is kept (the core cut on a tie):
-  the **core cut** keeps the points within ``CHART_HOLD_DEG`` of the mean normal as one piece and the rest as
-  others (a deep pocket's floor, fillets and lower walls stay one chart; the steep wall bands are charts of
-  their own); the **two-means cut** splits the normals into two clusters on the sphere (spherical k-means,
-  deterministic start at the two normals farthest apart: a U-bend's two legs, each with half the fillet).
-  Each cut's pieces are the connected pieces of its labels over the neighbour graph; a piece holding less
-  than ``MIN_CHART_SHARE`` of its set joins the piece it touches most. Each piece is cut again, at most
-  ``MAX_DEPTH`` times deep.
+* A set of points is **held** by a chart when ``CHART_QUANTILE`` of its normals lie within ``CHART_HOLD_DEG`` of
+  the normal of the plane its face would take (``freeform_sample.chart_frame``): well inside the 80 deg where
+  the height field stops, so the walls' heights stay well conditioned.
+* The normals are clustered on the sphere by spherical k-means (deterministic farthest-point seeding), k = 2, 3,
+  ... ``MAX_CHARTS``; each cluster's connected pieces over the neighbour graph are the charts, a piece holding
+  less than ``MIN_CHART_SHARE`` of the region joining the large piece it touches whose mean normal is nearest
+  its own. The first k whose charts are all held is taken (a bent sheet: k = 2, its base and its flange cut in
+  the fillet; a deep trough: its two long walls and its two ends), else the k whose charts hold the most points.
+
+``freeform_faces`` then gives each workpiece point (and triangle) the chart, among those of its nearest sample
+points, whose plane its normal leans least from (none past 80 deg): the nearest point alone may lie across a
+narrow groove, on a wall whose chart cannot hold it. The charts' faces replace the region's one face only when
+they hold more of its points.
 
 The normals are oriented over the region first: a mesh's are its triangles' (``mesh_repair`` turned them one
 way); a scan's unsigned estimates are turned along a spanning tree of the neighbour graph (open3d's
@@ -39,7 +43,7 @@ CHART_HOLD_DEG = 70.0     # a chart's normals lie within this of their mean ...
 CHART_QUANTILE = 0.99     # ... this share of them (a scan's estimated normals scatter)
 CHART_NEIGHBOURS = 8      # the neighbour graph pieces are connected on ...
 CHART_LINK_SPACINGS = 3.0 # ... linking points closer than this many median spacings
-MIN_CHART_SHARE = 0.05    # a piece holding less than this share of its set joins a neighbouring piece
+MIN_CHART_SHARE = 0.05    # a piece holding less than this share of the region joins a neighbouring piece
 MAX_CHARTS = 8            # clusters of normals a region is cut into at most
 KMEANS_ROUNDS = 20
 
@@ -53,9 +57,12 @@ def oriented_normals(P: np.ndarray, N: np.ndarray, exact: bool) -> np.ndarray:
         return N
     import open3d as o3d
 
+    from .workpiece import _open3d_quiet
+
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(P, float)))
     cloud.normals = o3d.utility.Vector3dVector(N)
-    cloud.orient_normals_consistent_tangent_plane(CHART_NEIGHBOURS)
+    with _open3d_quiet():
+        cloud.orient_normals_consistent_tangent_plane(CHART_NEIGHBOURS)
     out = np.asarray(cloud.normals, float)
     return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
 

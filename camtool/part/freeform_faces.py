@@ -35,6 +35,10 @@ where the analytic faces really hold it:
    ``FreeformSurface`` (``freeform.freeform_surface``, a mesh's own triangles of the
    region sampled exactly, a scan smoothed); its points are those over its material
    nodes (a scan's rim within two smoothing sigmas) and near it (``_on_material``).
+3. **Charts.** A region whose one face leaves more than ``freeform_charts.UNHELD_SHARE`` of its points off its
+   material (it turns further than a height field holds: a deep pocket, a sheet bent 150 deg) is cut into
+   height-field charts (``freeform_charts``), each a free-form face of its own, when they hold more of it
+   (``_region_faces``). A region its one face holds is never cut.
 
 When no region is free-form (or none gives a free-form face of ``min_area_mm2``) the
 segmentation is returned unchanged: the faces of a
