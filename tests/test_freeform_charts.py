@@ -128,3 +128,21 @@ def test_charts_of_a_half_tube_each_hold_their_normals():
     cap = (A.ravel() > np.radians(60)) & (A.ravel() < np.radians(120))
     assert height_field_charts(P[cap], -N[cap]).max() == 0
     assert (height_field_charts(P, -N) == label).all()            # deterministic
+
+
+def test_a_scanned_bent_sheet_is_cut_the_same_way_quietly(capfd):
+    """The 150 deg sheet as a scan (0.5 mm noise, normals of mixed sign: open3d orients them over the region):
+    base and flange, nothing on stderr."""
+    from camtool.part.workpiece import Workpiece
+
+    V, F, s, (f0, f1) = bent_sheet(150.0)
+    mesh = trimesh.Trimesh(V, F, process=False)
+    P, fi = trimesh.sample.sample_surface(mesh, 15000, seed=3)
+    rng = np.random.default_rng(2)
+    N = mesh.face_normals[fi] * np.where(rng.random(len(P)) < 0.5, -1, 1)[:, None]
+    seg = segment(Workpiece(np.asarray(P) + rng.normal(0, 0.5, P.shape), N, None, "bend.ply"), SegmentSettings())
+    assert [f.model for f in seg.faces] == ["freeform", "freeform"]
+    s_pt = s[mesh.faces[fi]].mean(axis=1)
+    base, flange = np.flatnonzero(s_pt < f0), np.flatnonzero(s_pt > f1)
+    assert np.isin(base, seg.faces[0].inliers).mean() > 0.95 and np.isin(flange, seg.faces[1].inliers).mean() > 0.95
+    assert capfd.readouterr().err == ""

@@ -24,7 +24,7 @@ narrow groove, on a wall whose chart cannot hold it. The charts' faces replace t
 they hold more of its points.
 
 The normals are oriented over the region first: a mesh's are its triangles' (``mesh_repair`` turned them one
-way); a scan's unsigned estimates are turned along a spanning tree of the neighbour graph (open3d's
+way); a scan's unsigned estimates are turned along a minimum spanning tree of the neighbour graph (as open3d's
 ``orient_normals_consistent_tangent_plane``). Deterministic (no random draws).
 """
 from __future__ import annotations
@@ -50,21 +50,31 @@ KMEANS_ROUNDS = 20
 
 def oriented_normals(P: np.ndarray, N: np.ndarray, exact: bool) -> np.ndarray:
     """Unit normals of a region's points, turned to one consistent side (module docstring). ``exact``: a mesh's
-    triangle normals, kept as they are."""
+    triangle normals, kept as they are. A scan's: turned along the minimum spanning tree of the neighbour graph
+    weighted by 1 - |n_i . n_j| (Hoppe et al. 1992, as open3d's ``orient_normals_consistent_tangent_plane``; by
+    hand over scipy's tree and search, because importing open3d takes seconds where it is not loaded yet), each
+    connected piece then to the side most of the given normals face."""
+    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+
     N = np.asarray(N, float)
     N = N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-12)
-    if exact or len(P) < CHART_NEIGHBOURS + 2:
+    n = len(P)
+    if exact or n < CHART_NEIGHBOURS + 2:
         return N
-    import open3d as o3d
-
-    from .workpiece import _open3d_quiet
-
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(P, float)))
-    cloud.normals = o3d.utility.Vector3dVector(N)
-    with _open3d_quiet():
-        cloud.orient_normals_consistent_tangent_plane(CHART_NEIGHBOURS)
-    out = np.asarray(cloud.normals, float)
-    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
+    given = N.copy()
+    _, nb = cKDTree(P).query(P, k=CHART_NEIGHBOURS + 1)
+    rows, cols = np.repeat(np.arange(n), CHART_NEIGHBOURS), nb[:, 1:].ravel()
+    weight = 1.0 - np.abs(np.einsum("ij,ij->i", N[rows], N[cols])) + 1e-6
+    tree = minimum_spanning_tree(coo_matrix((weight, (rows, cols)), shape=(n, n)).tocsr())
+    count, piece = connected_components(tree, directed=False)
+    for c in range(count):
+        order, parent = breadth_first_order(tree, int(np.flatnonzero(piece == c)[0]), directed=False)
+        for i in order[1:]:                  # each normal to its parent's side, from the root outwards
+            if N[i] @ N[parent[i]] < 0:
+                N[i] = -N[i]
+        if np.einsum("ij,ij->", N[order], given[order]) < 0:
+            N[order] = -N[order]
+    return N
 
 
 def _direction(P: np.ndarray, N: np.ndarray) -> np.ndarray | None:
