@@ -135,13 +135,19 @@ def map_grid(surface, cell_mm: float, pad_mm: float) -> MapGrid:
     cu, cv = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
     u = cu + (np.arange(nu) - 0.5 * (nu - 1)) * du
     v = cv + (np.arange(nv) - 0.5 * (nv - 1)) * dv
+    material, area = _material_and_area(surface, u, v, du, dv)
+    return MapGrid(surface, u, v, float(cell_mm), material, area)
+
+
+def _material_and_area(surface, u: np.ndarray, v: np.ndarray, du: float, dv: float) -> tuple[np.ndarray, np.ndarray]:
+    """(nv, nu) material mask (centres inside the boundary) and cell areas on the surface (mm^2)."""
     U, V = np.meshgrid(u, v)
     material = surface.boundary.contains(np.column_stack([U.ravel(), V.ravel()])).reshape(U.shape)
     if surface.model == "sphere":
         area = (surface.radius_mm ** 2) * np.cos(V) * du * dv
     else:
         area = np.full(U.shape, du * dv)
-    return MapGrid(surface, u, v, float(cell_mm), material, area)
+    return material, area
 
 
 def refinement(grid: MapGrid, spacing_mm: float, across_mm: np.ndarray) -> tuple[int, int]:
@@ -167,12 +173,7 @@ def refined(grid: MapGrid, m_u: int, m_v: int) -> MapGrid:
     du, dv = grid.du / m_u, grid.dv / m_v
     u = (grid.u[:, None] + ((np.arange(m_u) + 0.5) / m_u - 0.5)[None, :] * grid.du).ravel()
     v = (grid.v[:, None] + ((np.arange(m_v) + 0.5) / m_v - 0.5)[None, :] * grid.dv).ravel()
-    U, V = np.meshgrid(u, v)
-    material = surface.boundary.contains(np.column_stack([U.ravel(), V.ravel()])).reshape(U.shape)
-    if surface.model == "sphere":
-        area = (surface.radius_mm ** 2) * np.cos(V) * du * dv
-    else:
-        area = np.full(U.shape, du * dv)
+    material, area = _material_and_area(surface, u, v, du, dv)
     return MapGrid(surface, u, v, grid.cell_mm, material, area, (m_u, m_v))
 
 
