@@ -484,33 +484,46 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     """Vertices onto the neighbour they meet (crossing or seam) whose points come nearest the meeting point,
     a nearer meeting breaking ties (in place)."""
     best_t = np.full(len(rays.xy), np.inf)
-    best_score = np.full(len(rays.xy), np.inf)
     with np.errstate(invalid="ignore"):   # (a ray off its surface is NaN: its box meets nothing)
         ray_lo, ray_hi = rays.X.min(axis=1), rays.X.max(axis=1)
         lo, hi = ray_lo - SNAP_REACH_MM, ray_hi + SNAP_REACH_MM   # each ray's box
     # each ray within the ball about its box's middle: a surface whose level there is farther from zero than the
     # ball's radius plus TANGENT_GAP_MM is neither crossed nor touched by it (the level changes by at most the
-    # distance moved: a plane's, a sphere's and a cylinder's alike), so it is not asked (``_meeting``: inf)
+    # distance moved: a plane's, a sphere's and a cylinder's alike), so it is not asked (it meets nothing)
     mid, radius = 0.5 * (ray_lo + ray_hi), 0.5 * _norm(ray_hi - ray_lo) + TANGENT_GAP_MM + 1e-6
+    nb, row, f = [], [], []   # the (neighbour, ray) pairs that may meet, with the neighbour's level along the ray
     for j in _near_rays(ray_lo, ray_hi, others):
-        other, tree = others[j]
+        other, _ = others[j]
         # only the rays the neighbour's points can come near (``_near_rays``, ray by ray): the others meet
-        # nothing of it (``_meeting`` takes each ray on its own)
+        # nothing of it (``_meeting_rows`` takes each ray on its own)
         near_lo, near_hi = others.box(j)
         sub = np.flatnonzero(np.all(hi >= near_lo, axis=1) & np.all(lo <= near_hi, axis=1))
         sub = sub[np.abs(level(other, mid[sub])) <= radius[sub]]
         if len(sub) == 0:
             continue
-        tk = np.full(len(rays.xy), np.inf)
-        tk[sub] = _meeting(surface, other, rays.X[sub], rays.t, rays.uv[sub])
-        rows = np.flatnonzero(np.isfinite(tk))
-        if len(rows) == 0:
-            continue
-        gap = tree.query(_ray_at(rays.X, rays.t, tk[rows], rows), distance_upper_bound=SNAP_REACH_MM)[0]
-        score = gap + DISTANCE_WEIGHT * np.abs(tk[rows])
-        better = np.isfinite(gap) & (score < best_score[rows])
-        idx = rows[better]
-        best_t[idx], best_score[idx], source[idx] = tk[idx], score[better], j
+        level_j = level(other, rays.X[sub])
+        # only rays the surface crosses or comes within TANGENT_GAP_MM of can meet it: the rest meet nothing (a
+        # part's faces are mostly far from each other's surfaces, so this skips most rays before the work below)
+        with np.errstate(invalid="ignore"):   # (a crossing or a touch: the level passes within the gap of zero)
+            maybe = (level_j.min(axis=1) < TANGENT_GAP_MM) & (level_j.max(axis=1) > -TANGENT_GAP_MM)
+        if maybe.any():
+            nb.append(np.full(int(maybe.sum()), j))
+            row.append(sub[maybe])
+            f.append(level_j[maybe])
+    if nb:   # all neighbours' pairs at once, in the neighbours' order (each pair is taken on its own)
+        nb, row = np.concatenate(nb), np.concatenate(row)
+        tk = _meeting_rows(surface, others, nb, rays.X[row], rays.t, rays.uv[row], np.concatenate(f))
+        hit = np.flatnonzero(np.isfinite(tk))
+        nb, row, tk = nb[hit], row[hit], tk[hit]
+    if len(nb):
+        X = _ray_at(rays.X, rays.t, tk, row)
+        gap = _per_neighbour(nb, lambda j, X: others[j][1].query(X, distance_upper_bound=SNAP_REACH_MM)[0], X)
+        score = gap + DISTANCE_WEIGHT * np.abs(tk)
+        ok = np.flatnonzero(np.isfinite(gap))
+        # per vertex the least score, the first neighbour of equals (as a strict ``<`` over the neighbours in turn)
+        order = ok[np.lexsort((nb[ok], score[ok], row[ok]))]
+        win = order[np.r_[True, row[order][1:] != row[order][:-1]]] if len(order) else order
+        best_t[row[win]], source[row[win]] = tk[win], nb[win]
     on = source >= 0
     new_xy[on] = rays.xy[on] + best_t[on, None] * rays.outward[on]
 
@@ -907,24 +920,13 @@ def _corner(xy: np.ndarray, source: np.ndarray, left: int, right: int) -> np.nda
     return None
 
 
-def _meeting(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray) -> np.ndarray:
-    """Per vertex, the distance t (mm) along its normal where the ray meets ``other``: the crossing nearest
-    to the vertex where the surfaces cross, the touching point where they meet tangentially; inf if none."""
-    f = level(other, ray)  # (m, K)
-    best = np.full(len(f), np.inf)
-    # only rays the surface crosses or comes within TANGENT_GAP_MM of can meet it: the rest stay inf (a part's
-    # faces are mostly far from each other's surfaces, so this skips most rays before the work below)
-    with np.errstate(invalid="ignore"):   # (a crossing or a touch: the level passes within the gap of zero)
-        maybe = np.flatnonzero((f.min(axis=1) < TANGENT_GAP_MM) & (f.max(axis=1) > -TANGENT_GAP_MM))
-    if len(maybe) < len(f):
-        best[maybe] = _meeting_rows(surface, other, ray[maybe], t, ray_uv[maybe], f[maybe])
-        return best
-    return _meeting_rows(surface, other, ray, t, ray_uv, f)
-
-
-def _meeting_rows(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """``_meeting`` given the neighbour's level along the rays, ``f`` (m, K). The crossings and touching points
-    are few (a ray crosses a surface once or twice in K samples): each is taken where it is, (row, column)."""
+def _meeting_rows(surface, others, nb: np.ndarray, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray,
+                  f: np.ndarray) -> np.ndarray:
+    """Per row, a ray and the neighbour ``nb`` (sorted; into ``others``) with its level ``f`` (m, K) along it: the
+    distance t (mm) along the ray where it meets that neighbour, the crossing nearest to the vertex where the
+    surfaces cross, the touching point where they meet tangentially; inf if none. The crossings and touching
+    points are few (a ray crosses a surface once or twice in K samples): each is taken where it is, (row, column);
+    what depends on the neighbour is asked neighbour by neighbour (``_per_neighbour``), the rest all at once."""
     m = len(f)
     best = np.full(m, np.inf)
     # crossings: sign changes between samples, interpolated
@@ -951,7 +953,9 @@ def _meeting_rows(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.nda
         rows, cand = r[first], tk[first]
         X = _ray_at(ray, t, cand, rows)
         uv = ray_uv[rows, np.clip(np.searchsorted(t, cand), 0, len(t) - 1)]
-        nA, nB = surface.normal_at(uv[:, 0], uv[:, 1]), level_normal(other, X)
+        group = nb[rows]
+        nA = _per_neighbour(group, lambda j, uv: surface.normal_at(uv[:, 0], uv[:, 1]), uv)
+        nB = _per_neighbour(group, lambda j, X: level_normal(others[j][0], X), X)
         cos = np.abs(np.einsum("ij,ij->i", nA, nB))
         keep = (cos > cos_tangent) == touching
         # the ray must meet the edge head on, not run along it past a corner
@@ -965,14 +969,28 @@ def _meeting_rows(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.nda
         else:  # a seam: the neighbour's distance curves across it, not along it
             h = 1.0
             side = np.cross(nA, along)
-            f_side = (level(other, _projected(surface, X + h * side)) + level(other, _projected(surface, X - h * side))
-                      - 2 * level(other, X)) / h ** 2
+            f_side = _per_neighbour(group, lambda j, X, side: _side_curvature(surface, others[j][0], X, side, h), X, side)
             f_ray = np.abs(curv[first]) / (t[1] - t[0]) ** 2
             head_on = np.abs(f_side) <= math.tan(math.radians(HEAD_ON_DEG)) ** 2 * f_ray
         keep &= head_on
         take = keep & (np.abs(cand) < np.abs(best[rows]))
         best[rows[take]] = cand[take]
     return best
+
+
+def _side_curvature(surface, other, X: np.ndarray, side: np.ndarray, h: float) -> np.ndarray:
+    """The second difference (per mm^2) of the neighbour's level across the rays, over +-h mm of the surface."""
+    return (level(other, _projected(surface, X + h * side)) + level(other, _projected(surface, X - h * side))
+            - 2 * level(other, X)) / h ** 2
+
+
+def _per_neighbour(nb: np.ndarray, fn, *arrays: np.ndarray) -> np.ndarray:
+    """``fn(j, *rows)`` for each neighbour j's run of rows (``nb`` sorted), stacked: the products a neighbour (or
+    the face) takes are made on the same rows as when each neighbour is taken in turn (a matrix product of one
+    row rounds differently from one of many)."""
+    cut = np.flatnonzero(np.diff(nb)) + 1
+    bounds = zip(np.r_[0, cut], np.r_[cut, len(nb)])
+    return np.concatenate([fn(int(nb[lo]), *(a[lo:hi] for a in arrays)) for lo, hi in bounds])
 
 
 def _ray_at(ray: np.ndarray, t: np.ndarray, tk: np.ndarray, rows: np.ndarray) -> np.ndarray:
