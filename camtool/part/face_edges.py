@@ -485,7 +485,8 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     a nearer meeting breaking ties (in place)."""
     best_t = np.full(len(rays.xy), np.inf)
     with np.errstate(invalid="ignore"):   # (a ray off its surface is NaN: its box meets nothing)
-        ray_lo, ray_hi = rays.X.min(axis=1), rays.X.max(axis=1)
+        across_k = np.ascontiguousarray(rays.X.transpose(0, 2, 1))   # (m, 3, K): the least and most along each
+        ray_lo, ray_hi = across_k.min(axis=2), across_k.max(axis=2)      # ray in one pass each (exact either way)
         lo, hi = ray_lo - SNAP_REACH_MM, ray_hi + SNAP_REACH_MM   # each ray's box
     # each ray within the ball about its box's middle: a surface whose level there is farther from zero than the
     # ball's radius plus TANGENT_GAP_MM is neither crossed nor touched by it (the level changes by at most the
@@ -512,7 +513,7 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
             f.append(level_j[maybe])
     if nb:   # all neighbours' pairs at once, in the neighbours' order (each pair is taken on its own)
         nb, row = np.concatenate(nb), np.concatenate(row)
-        tk = _meeting_rows(surface, others, nb, rays.X[row], rays.t, rays.uv[row], np.concatenate(f))
+        tk = _meeting_rows(surface, others, nb, rays, row, np.concatenate(f))
         hit = np.flatnonzero(np.isfinite(tk))
         nb, row, tk = nb[hit], row[hit], tk[hit]
     if len(nb):
@@ -920,14 +921,14 @@ def _corner(xy: np.ndarray, source: np.ndarray, left: int, right: int) -> np.nda
     return None
 
 
-def _meeting_rows(surface, others, nb: np.ndarray, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray,
-                  f: np.ndarray) -> np.ndarray:
-    """Per row, a ray and the neighbour ``nb`` (sorted; into ``others``) with its level ``f`` (m, K) along it: the
+def _meeting_rows(surface, others, nb: np.ndarray, rays: _Rays, ray_of: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Per row, a ray (``ray_of``: into ``rays``) and the neighbour ``nb`` (sorted; into ``others``) with its level
+    ``f`` (m, K) along the ray: the
     distance t (mm) along the ray where it meets that neighbour, the crossing nearest to the vertex where the
     surfaces cross, the touching point where they meet tangentially; inf if none. The crossings and touching
     points are few (a ray crosses a surface once or twice in K samples): each is taken where it is, (row, column);
     what depends on the neighbour is asked neighbour by neighbour (``_per_neighbour``), the rest all at once."""
-    m = len(f)
+    m, t = len(f), rays.t
     best = np.full(m, np.inf)
     # crossings: sign changes between samples, interpolated
     r, c = np.nonzero((f[:, :-1] * f[:, 1:] <= 0) & (f[:, :-1] != f[:, 1:]))
@@ -951,8 +952,9 @@ def _meeting_rows(surface, others, nb: np.ndarray, ray: np.ndarray, t: np.ndarra
         order = np.lexsort((c, np.abs(tk), r))   # per ray, the nearest to the vertex (the first of equals)
         first = order[np.r_[True, r[order][1:] != r[order][:-1]]]
         rows, cand = r[first], tk[first]
-        X = _ray_at(ray, t, cand, rows)
-        uv = ray_uv[rows, np.clip(np.searchsorted(t, cand), 0, len(t) - 1)]
+        ray = ray_of[rows]
+        X = _ray_at(rays.X, t, cand, ray)
+        uv = rays.uv[ray, np.clip(np.searchsorted(t, cand), 0, len(t) - 1)]
         group = nb[rows]
         nA = _per_neighbour(group, lambda j, uv: surface.normal_at(uv[:, 0], uv[:, 1]), uv)
         nB = _per_neighbour(group, lambda j, X: level_normal(others[j][0], X), X)
@@ -960,7 +962,7 @@ def _meeting_rows(surface, others, nb: np.ndarray, ray: np.ndarray, t: np.ndarra
         keep = (cos > cos_tangent) == touching
         # the ray must meet the edge head on, not run along it past a corner
         i = np.clip(np.searchsorted(t, cand), 1, len(t) - 1)
-        along = ray[rows, i] - ray[rows, i - 1]
+        along = rays.X[ray, i] - rays.X[ray, i - 1]
         along /= np.maximum(_norm(along), 1e-12)[:, None]
         if not touching:  # the edge's normal in the face: the neighbour's normal, less the face's
             across = nB - np.einsum("ij,ij->i", nB, nA)[:, None] * nA
@@ -969,7 +971,7 @@ def _meeting_rows(surface, others, nb: np.ndarray, ray: np.ndarray, t: np.ndarra
         else:  # a seam: the neighbour's distance curves across it, not along it
             h = 1.0
             side = np.cross(nA, along)
-            f_side = _per_neighbour(group, lambda j, X, side: _side_curvature(surface, others[j][0], X, side, h), X, side)
+            f_side = _per_neighbour(group, lambda j, X, s: _side_curvature(surface, others[j][0], X, s, h), X, side)
             f_ray = np.abs(curv[first]) / (t[1] - t[0]) ** 2
             head_on = np.abs(f_side) <= math.tan(math.radians(HEAD_ON_DEG)) ** 2 * f_ray
         keep &= head_on
