@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from functools import cached_property, partial
+from itertools import chain
 
 import cv2
 import numpy as np
@@ -726,7 +727,7 @@ def _second_farthest(own: "_FacePoints", X: np.ndarray, direction: np.ndarray, r
         block = rows[lo:lo + step]
         slot = np.arange(width)[None, :] < count[block][:, None]
         idx = np.zeros((len(block), width), np.intp)
-        idx[slot] = np.fromiter((i for r in block for i in near[r]), np.intp, int(count[block].sum()))
+        idx[slot] = np.fromiter(chain.from_iterable(near[block]), np.intp, int(count[block].sum()))
         along = np.matmul(own.points_mm[idx] - X[block][:, None, :], direction[block][:, :, None])[..., 0]
         out[block] = np.partition(np.where(slot, along, -np.inf), -2, axis=1)[:, -2]
     return out
