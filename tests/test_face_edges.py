@@ -230,3 +230,29 @@ def test_the_faces_moved_in_a_forked_child_are_the_faces_moved_here(monkeypatch)
         assert all(np.array_equal(x, y) for x, y in zip(a.boundary.holes_uv, b.boundary.holes_uv))
         moved += a is not b
     assert moved >= 1
+
+
+def test_the_halves_split_the_work_within_lpt_bound_of_the_best_split():
+    """The faces go to the two processes by their outline length (largest first, each to the lighter half):
+    every face once, each half in order, and the heavier half within 7/6 of the best split (Graham's bound for
+    two machines), the best found by trying every split."""
+    import itertools
+
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 5, 11):
+        work = list(rng.uniform(1.0, 100.0, n))
+        here, there = fe._halves(work)
+        assert sorted(here + there) == list(range(n)) and here == sorted(here) and there == sorted(there)
+        heavier = max(sum(work[k] for k in here), sum(work[k] for k in there))
+        best = min(max(sum(w for w, s in zip(work, side) if s), sum(w for w, s in zip(work, side) if not s))
+                   for side in itertools.product((0, 1), repeat=n))
+        assert heavier <= 7 / 6 * best + 1e-9
+
+
+def test_an_outline_length_is_the_perimeter_of_its_polygons_in_the_flat_chart():
+    """A plane's 100 x 50 mm rectangle with a 10 mm square hole: 300 + 40 mm."""
+    outer = np.array([[0, 0], [100, 0], [100, 50], [0, 50]], float)
+    hole = np.array([[10, 10], [20, 10], [20, 20], [10, 20]], float)
+    s = PlaneSurface(np.zeros(3), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]),
+                     Boundary(outer, (hole,)))
+    assert fe._outline_mm(s) == pytest.approx(340.0)

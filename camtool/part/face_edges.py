@@ -212,16 +212,39 @@ def on_edges(surfaces: list, points_mm: list[np.ndarray], cloud_mm: np.ndarray, 
     def moved(faces: list[int]) -> list:
         return [_face_on_edges(k, surfaces, trees, boxes, cloud_mm, owner, threshold_mm, free_edges) for k in faces]
 
-    every = list(range(len(surfaces)))
-    if len(every) < ALONGSIDE_FACES:
-        return moved(every)
-    # each face's boundary moves on its own (its neighbours as given, not as moved): the odd faces in a forked
-    # child (``alongside``: where the machine gives this process a second CPU), the even ones here
-    with Alongside(partial(moved, every[1::2])) as child:
-        out = [None] * len(every)
-        out[0::2] = moved(every[0::2])
-        out[1::2] = child.result()
+    if len(surfaces) < ALONGSIDE_FACES:
+        return moved(list(range(len(surfaces))))
+    # each face's boundary moves on its own (its neighbours as given, not as moved): about half the work in a
+    # forked child (``alongside``: where the machine gives this process a second CPU), the rest here
+    here, there = _halves([_outline_mm(s) for s in surfaces])
+    with Alongside(partial(moved, there)) as child:
+        out = [None] * len(surfaces)
+        for k, s in zip(here, moved(here)):
+            out[k] = s
+        for k, s in zip(there, child.result()):
+            out[k] = s
     return out
+
+
+def _outline_mm(surface) -> float:
+    """The length (mm, in the flat chart) of the face's boundary polygons: the edge pass's work on the face
+    grows with it (its vertices are 1 mm apart, a ray each)."""
+    b = surface.boundary
+    total = 0.0
+    for poly in (b.outer_uv, *b.holes_uv):
+        xy = flat_mm(surface, np.asarray(poly, float).reshape(-1, 2))
+        total += float(_norm(np.roll(xy, -1, axis=0) - xy).sum())
+    return total if math.isfinite(total) else 0.0
+
+
+def _halves(work: list[float]) -> tuple[list[int], list[int]]:
+    """The items split in two of about equal work (the largest first, each to the lighter half), each in order."""
+    load, half = [0.0, 0.0], ([], [])
+    for k in sorted(range(len(work)), key=lambda k: (-work[k], k)):
+        lighter = int(load[1] < load[0])
+        load[lighter] += work[k]
+        half[lighter].append(k)
+    return sorted(half[0]), sorted(half[1])
 
 
 def _face_on_edges(k: int, surfaces: list, trees: list, boxes: "_Boxes", cloud_mm: np.ndarray, owner: np.ndarray,
