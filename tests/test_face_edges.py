@@ -256,3 +256,20 @@ def test_an_outline_length_is_the_perimeter_of_its_polygons_in_the_flat_chart():
     s = PlaneSurface(np.zeros(3), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]),
                      Boundary(outer, (hole,)))
     assert fe._outline_mm(s) == pytest.approx(340.0)
+
+
+def test_the_rows_interpolation_is_numpys_to_the_bit():
+    """``_interp_rows`` (a sphere's outline resampled, every edge at once) gives np.interp's values bit for bit,
+    row by row: knots hit exactly, repeated knots (an edge piece of no length), x at the row's end."""
+    rng = np.random.default_rng(3)
+    xp = np.cumsum(rng.uniform(0.0, 2.0, (40, 33)) * (rng.uniform(size=(40, 33)) > 0.2), axis=1)
+    xp[:, 0] = 0.0
+    xp[5] = 0.0   # a row of no length at all
+    fp = rng.normal(size=(40, 33, 2)) * 50
+    row = np.repeat(np.arange(40), 25)
+    x = rng.uniform(size=len(row)) * xp[row, -1]
+    x[::7] = xp[row[::7], rng.integers(0, 33, len(row[::7]))]   # on knots, the last included
+    got = fe._interp_rows(x, xp, fp, row)
+    for c in (0, 1):
+        want = np.array([np.interp(x[i], xp[row[i]], fp[row[i], :, c]) for i in range(len(x))])
+        assert np.array_equal(got[:, c], want)

@@ -412,12 +412,31 @@ def _flat_outline(surface, poly_uv: np.ndarray) -> np.ndarray:
     fine_xy = flat_mm(surface, fine_uv.reshape(-1, 2)).reshape(fine_uv.shape)
     along = np.concatenate([np.zeros((len(fine_xy), 1)),
                             np.cumsum(_norm(np.diff(fine_xy, axis=1)), axis=1)], axis=1)
-    out = []
-    for k in range(len(fine_xy)):
-        n = max(int(np.ceil(along[k, -1] / VERTEX_MM)), 1)
-        at = np.arange(n) / n * along[k, -1]
-        out.append(np.stack([np.interp(at, along[k], fine_xy[k, :, 0]), np.interp(at, along[k], fine_xy[k, :, 1])], 1))
-    return np.concatenate(out)
+    length = along[:, -1]
+    n = np.maximum(np.ceil(length / VERTEX_MM).astype(int), 1)   # each edge's vertices
+    edge = np.repeat(np.arange(len(n)), n)
+    at = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / n[edge] * length[edge]
+    return _interp_rows(at, along, fine_xy, edge)
+
+
+def _interp_rows(x: np.ndarray, xp: np.ndarray, fp: np.ndarray, row: np.ndarray) -> np.ndarray:
+    """``np.interp(x[i], xp[row[i]], fp[row[i], :, c])`` for every i and column c at once, to the bit (numpy's
+    rule: the last knot at or before x, its own value there or at the last knot, else slope times offset plus
+    value, from the other knot where that is NaN); xp's rows ascending, x within them (an outline's resampling)."""
+    last = xp.shape[1] - 1
+    j = np.minimum((xp[row] <= x[:, None]).sum(axis=1) - 1, last)
+    j = np.maximum(j, 0)
+    j1 = np.minimum(j + 1, last)
+    x0, x1, y0, y1 = xp[row, j], xp[row, j1], fp[row, j], fp[row, j1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slope = (y1 - y0) / (x1 - x0)[:, None]
+        out = slope * (x - x0)[:, None] + y0
+        nan = np.isnan(out)
+        if nan.any():
+            other = slope * (x - x1)[:, None] + y1
+            out = np.where(nan, np.where(np.isnan(other) & (y0 == y1), y0, other), out)
+    exact = (j == last) | (x0 == x)
+    return np.where(exact[:, None], y0, out)
 
 
 def _kept_on_sphere(surface, uv: np.ndarray, tol_mm: float) -> np.ndarray:
