@@ -788,12 +788,9 @@ def _points_end(ray: np.ndarray, t: np.ndarray, own: _FacePoints) -> np.ndarray:
     (or, if it is out of the points, from the first sample back among them, at most INWARD_MM) the ray
     is followed while it is among them; the edge is the farthest, along the ray, of the points nearest
     those samples (a point's own position: the ray's samples would overshoot where it runs slantwise out)."""
-    r = END_SPACINGS * own.spacing_mm
     m, K = ray.shape[:2]
-    d, idx = own.tree.query(ray.reshape(-1, 3), distance_upper_bound=r)
-    inside = np.isfinite(d).reshape(m, K)
-    idx = np.where(inside.ravel(), idx, 0).reshape(m, K)
     k0 = int(np.argmin(np.abs(t)))
+    inside, idx = _among_points(ray, own, k0, int(np.searchsorted(t, -INWARD_MM)))
     after = np.where(~inside[:, k0:], np.arange(k0, K)[None, :], K).min(axis=1)  # first sample out, from k0
     back = (np.arange(k0) >= np.searchsorted(t, -INWARD_MM))[None, :]
     before = np.where(inside[:, :k0] & back, np.arange(k0)[None, :], -1).max(axis=1)  # last sample in, before k0
@@ -808,6 +805,32 @@ def _points_end(ray: np.ndarray, t: np.ndarray, own: _FacePoints) -> np.ndarray:
     out = np.where(ok, along.max(axis=1), np.inf)
     return np.where(np.isfinite(out), out, np.inf)
 
+
+END_BLOCK_SAMPLES = 8   # ``_among_points`` follows the rays out of the points this many samples at a time
+
+
+def _among_points(ray: np.ndarray, own: _FacePoints, k0: int, k_back: int) -> tuple[np.ndarray, np.ndarray]:
+    """(inside, nearest point) (m, K) of the ray samples among the face's points (``_points_end``: a point within
+    END_SPACINGS spacings), asked only where ``_points_end`` reads them: from ``k_back`` to the vertex's sample
+    ``k0``, then on, block by block, along the rays still among the points (the rest: False, 0). Each sample is
+    asked on its own, so those asked are as when all are."""
+    r = END_SPACINGS * own.spacing_mm
+    m, K = ray.shape[:2]
+    inside, idx = np.zeros((m, K), bool), np.zeros((m, K), np.intp)
+
+    def ask(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        d, i = own.tree.query(ray[rows][:, cols].reshape(-1, 3), distance_upper_bound=r)
+        hit = np.isfinite(d).reshape(len(rows), len(cols))
+        inside[np.ix_(rows, cols)] = hit
+        idx[np.ix_(rows, cols)] = np.where(hit, i.reshape(hit.shape), 0)
+        return hit
+
+    ask(np.arange(m), np.arange(k_back, k0 + 1))
+    rows, k = np.flatnonzero(inside[:, k0]), k0 + 1
+    while len(rows) and k < K:
+        cols = np.arange(k, min(k + END_BLOCK_SAMPLES, K))
+        rows, k = rows[ask(rows, cols).all(axis=1)], k + len(cols)
+    return inside, idx
 
 def _window_max(values: np.ndarray, outward: np.ndarray, half: int) -> np.ndarray:
     """Cyclic running maximum over 2 x half + 1 vertices of the finite values, among vertices whose normals
