@@ -273,3 +273,34 @@ def test_the_rows_interpolation_is_numpys_to_the_bit():
     for c in (0, 1):
         want = np.array([np.interp(x[i], xp[row[i]], fp[row[i], :, c]) for i in range(len(x))])
         assert np.array_equal(got[:, c], want)
+
+
+def test_the_lengths_are_numpys_norms_to_the_bit():
+    """``_norm`` (the squares summed in turn) is ``np.linalg.norm(..., axis=-1)`` bit for bit on the shapes the
+    pass uses: rays (m, K, 3), points (n, 3), a single row, flat-chart vectors (n, 2), a strided view."""
+    rng = np.random.default_rng(11)
+    for shape in ((1, 3), (2, 3), (517, 3), (40, 61, 3), (1, 61, 3), (300, 2), (1, 2)):
+        for scale in (1e-6, 1.0, 1e4):
+            d = rng.normal(size=shape) * scale
+            assert np.array_equal(fe._norm(d), np.linalg.norm(d, axis=-1))
+    d = rng.normal(size=(30, 61, 3))[:, 5:40:3]
+    assert np.array_equal(fe._norm(d), np.linalg.norm(d, axis=-1))
+
+
+def test_the_discs_second_farthest_points_are_those_of_one_disc_at_a_time(monkeypatch):
+    """``_second_farthest`` (every disc in one padded block, in blocks as small as one disc) equals the disc by
+    disc reading: the second largest of (points - centre) @ direction, bit for bit; NaN for a sparse disc."""
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(-50, 50, (4000, 3)) * [1, 1, 0.02]
+    own = fe._FacePoints(pts)
+    X = rng.uniform(-55, 55, (200, 3)) * [1, 1, 0]
+    direction = rng.normal(size=(200, 3))
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    want = np.full(200, np.nan)
+    for i, near in enumerate(own.tree.query_ball_point(X, 6.0)):
+        if len(near) >= fe.END_DISC_POINTS:
+            want[i] = np.partition((pts[near] - X[i]) @ direction[i], -2)[-2]
+    assert np.isnan(want).sum() > 0 and np.isfinite(want).sum() > 100
+    for block in (fe.DISC_BLOCK_ENTRIES, 1):
+        monkeypatch.setattr(fe, "DISC_BLOCK_ENTRIES", block)
+        assert np.array_equal(fe._second_farthest(own, X, direction, 6.0), want, equal_nan=True)
