@@ -230,3 +230,77 @@ def test_the_faces_moved_in_a_forked_child_are_the_faces_moved_here(monkeypatch)
         assert all(np.array_equal(x, y) for x, y in zip(a.boundary.holes_uv, b.boundary.holes_uv))
         moved += a is not b
     assert moved >= 1
+
+
+def test_the_halves_split_the_work_within_lpt_bound_of_the_best_split():
+    """The faces go to the two processes by their outline length (largest first, each to the lighter half):
+    every face once, each half in order, and the heavier half within 7/6 of the best split (Graham's bound for
+    two machines), the best found by trying every split."""
+    import itertools
+
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 5, 11):
+        work = list(rng.uniform(1.0, 100.0, n))
+        here, there = fe._halves(work)
+        assert sorted(here + there) == list(range(n)) and here == sorted(here) and there == sorted(there)
+        heavier = max(sum(work[k] for k in here), sum(work[k] for k in there))
+        best = min(max(sum(w for w, s in zip(work, side) if s), sum(w for w, s in zip(work, side) if not s))
+                   for side in itertools.product((0, 1), repeat=n))
+        assert heavier <= 7 / 6 * best + 1e-9
+
+
+def test_an_outline_length_is_the_perimeter_of_its_polygons_in_the_flat_chart():
+    """A plane's 100 x 50 mm rectangle with a 10 mm square hole: 300 + 40 mm."""
+    outer = np.array([[0, 0], [100, 0], [100, 50], [0, 50]], float)
+    hole = np.array([[10, 10], [20, 10], [20, 20], [10, 20]], float)
+    s = PlaneSurface(np.zeros(3), np.array([0, 0, 1.0]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]),
+                     Boundary(outer, (hole,)))
+    assert fe._outline_mm(s) == pytest.approx(340.0)
+
+
+def test_the_rows_interpolation_is_numpys_to_the_bit():
+    """``_interp_rows`` (a sphere's outline resampled, every edge at once) gives np.interp's values bit for bit,
+    row by row: knots hit exactly, repeated knots (an edge piece of no length), x at the row's end."""
+    rng = np.random.default_rng(3)
+    xp = np.cumsum(rng.uniform(0.0, 2.0, (40, 33)) * (rng.uniform(size=(40, 33)) > 0.2), axis=1)
+    xp[:, 0] = 0.0
+    xp[5] = 0.0   # a row of no length at all
+    fp = rng.normal(size=(40, 33, 2)) * 50
+    row = np.repeat(np.arange(40), 25)
+    x = rng.uniform(size=len(row)) * xp[row, -1]
+    x[::7] = xp[row[::7], rng.integers(0, 33, len(row[::7]))]   # on knots, the last included
+    got = fe._interp_rows(x, xp, fp, row)
+    for c in (0, 1):
+        want = np.array([np.interp(x[i], xp[row[i]], fp[row[i], :, c]) for i in range(len(x))])
+        assert np.array_equal(got[:, c], want)
+
+
+def test_the_lengths_are_numpys_norms_to_the_bit():
+    """``_norm`` (the squares summed in turn) is ``np.linalg.norm(..., axis=-1)`` bit for bit on the shapes the
+    pass uses: rays (m, K, 3), points (n, 3), a single row, flat-chart vectors (n, 2), a strided view."""
+    rng = np.random.default_rng(11)
+    for shape in ((1, 3), (2, 3), (517, 3), (40, 61, 3), (1, 61, 3), (300, 2), (1, 2)):
+        for scale in (1e-6, 1.0, 1e4):
+            d = rng.normal(size=shape) * scale
+            assert np.array_equal(fe._norm(d), np.linalg.norm(d, axis=-1))
+    d = rng.normal(size=(30, 61, 3))[:, 5:40:3]
+    assert np.array_equal(fe._norm(d), np.linalg.norm(d, axis=-1))
+
+
+def test_the_discs_second_farthest_points_are_those_of_one_disc_at_a_time(monkeypatch):
+    """``_second_farthest`` (every disc in one padded block, in blocks as small as one disc) equals the disc by
+    disc reading: the second largest of (points - centre) @ direction, bit for bit; NaN for a sparse disc."""
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(-50, 50, (4000, 3)) * [1, 1, 0.02]
+    own = fe._FacePoints(pts)
+    X = rng.uniform(-55, 55, (200, 3)) * [1, 1, 0]
+    direction = rng.normal(size=(200, 3))
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    want = np.full(200, np.nan)
+    for i, near in enumerate(own.tree.query_ball_point(X, 6.0)):
+        if len(near) >= fe.END_DISC_POINTS:
+            want[i] = np.partition((pts[near] - X[i]) @ direction[i], -2)[-2]
+    assert np.isnan(want).sum() > 0 and np.isfinite(want).sum() > 100
+    for block in (fe.DISC_BLOCK_ENTRIES, 1):
+        monkeypatch.setattr(fe, "DISC_BLOCK_ENTRIES", block)
+        assert np.array_equal(fe._second_farthest(own, X, direction, 6.0), want, equal_nan=True)

@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from functools import cached_property, partial
+from itertools import chain
 
 import cv2
 import numpy as np
@@ -109,6 +110,19 @@ def uv_of_flat(surface, xy: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- the surfaces as level sets
+def _norm(d: np.ndarray) -> np.ndarray:
+    """Euclidean length over the last axis (2 or 3 components): ``np.linalg.norm(d, axis=-1)`` to the bit (the
+    squares summed in the same order), without its per-row reduction loop (a third of the pass's level time)."""
+    return np.sqrt(_squared(d))
+
+
+def _squared(d: np.ndarray) -> np.ndarray:
+    """The squared length over the last axis, as ``_norm`` sums it."""
+    s = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]
+    if d.shape[-1] == 3:
+        s += d[..., 2] * d[..., 2]
+    return s
+
 
 
 def level(surface, X: np.ndarray) -> np.ndarray:
@@ -118,7 +132,7 @@ def level(surface, X: np.ndarray) -> np.ndarray:
     d = X - surface.center_mm
     if isinstance(surface, Cylinder):
         d = d - (d @ surface.axis)[..., None] * surface.axis
-    return np.linalg.norm(d, axis=-1) - surface.radius_mm
+    return _norm(d) - surface.radius_mm
 
 
 def level_normal(surface, X: np.ndarray) -> np.ndarray:
@@ -128,7 +142,7 @@ def level_normal(surface, X: np.ndarray) -> np.ndarray:
     d = X - surface.center_mm
     if isinstance(surface, Cylinder):
         d = d - (d @ surface.axis)[..., None] * surface.axis
-    return d / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)[..., None]
+    return d / np.maximum(_norm(d), 1e-12)[..., None]
 
 
 def _projected(surface, X: np.ndarray) -> np.ndarray:
@@ -164,7 +178,7 @@ class FreeEdges:
         if len(free) == 0:
             return None
         a, b = V[free[:, 0]], V[free[:, 1]]
-        n = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) / 0.5).astype(int), 1)
+        n = np.maximum(np.ceil(_norm(b - a) / 0.5).astype(int), 1)
         seg = np.repeat(np.arange(len(free)), n + 1)
         frac = np.concatenate([np.linspace(0, 1, k + 1) for k in n])
         pts = a[seg] + frac[:, None] * (b - a)[seg]
@@ -180,7 +194,7 @@ class FreeEdges:
         a, ab = self.start_mm[s], self.end_mm[s] - self.start_mm[s]
         f = np.clip(np.einsum("ij,ij->i", X[near] - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-24), 0, 1)
         closest[near] = a + f[:, None] * ab
-        dist[near] = np.linalg.norm(X[near] - closest[near], axis=1)
+        dist[near] = _norm(X[near] - closest[near])
         return dist, closest
 
 
@@ -203,16 +217,39 @@ def on_edges(surfaces: list, points_mm: list[np.ndarray], cloud_mm: np.ndarray, 
     def moved(faces: list[int]) -> list:
         return [_face_on_edges(k, surfaces, trees, boxes, cloud_mm, owner, threshold_mm, free_edges) for k in faces]
 
-    every = list(range(len(surfaces)))
-    if len(every) < ALONGSIDE_FACES:
-        return moved(every)
-    # each face's boundary moves on its own (its neighbours as given, not as moved): the odd faces in a forked
-    # child (``alongside``: where the machine gives this process a second CPU), the even ones here
-    with Alongside(partial(moved, every[1::2])) as child:
-        out = [None] * len(every)
-        out[0::2] = moved(every[0::2])
-        out[1::2] = child.result()
+    if len(surfaces) < ALONGSIDE_FACES:
+        return moved(list(range(len(surfaces))))
+    # each face's boundary moves on its own (its neighbours as given, not as moved): about half the work in a
+    # forked child (``alongside``: where the machine gives this process a second CPU), the rest here
+    here, there = _halves([_outline_mm(s) for s in surfaces])
+    with Alongside(partial(moved, there)) as child:
+        out = [None] * len(surfaces)
+        for k, s in zip(here, moved(here)):
+            out[k] = s
+        for k, s in zip(there, child.result()):
+            out[k] = s
     return out
+
+
+def _outline_mm(surface) -> float:
+    """The length (mm, in the flat chart) of the face's boundary polygons: the edge pass's work on the face
+    grows with it (its vertices are 1 mm apart, a ray each)."""
+    b = surface.boundary
+    total = 0.0
+    for poly in (b.outer_uv, *b.holes_uv):
+        xy = flat_mm(surface, np.asarray(poly, float).reshape(-1, 2))
+        total += float(_norm(np.roll(xy, -1, axis=0) - xy).sum())
+    return total if math.isfinite(total) else 0.0
+
+
+def _halves(work: list[float]) -> tuple[list[int], list[int]]:
+    """The items split in two of about equal work (the largest first, each to the lighter half), each in order."""
+    load, half = [0.0, 0.0], ([], [])
+    for k in sorted(range(len(work)), key=lambda k: (-work[k], k)):
+        lighter = int(load[1] < load[0])
+        load[lighter] += work[k]
+        half[lighter].append(k)
+    return sorted(half[0]), sorted(half[1])
 
 
 def _face_on_edges(k: int, surfaces: list, trees: list, boxes: "_Boxes", cloud_mm: np.ndarray, owner: np.ndarray,
@@ -356,7 +393,7 @@ def _sphere_outline_uv(surface, closed_xy: np.ndarray) -> np.ndarray:
         pa, pb, mid = a[e] + lo[:, None] * ab[e], a[e] + hi[:, None] * ab[e], 0.5 * (lo + hi)
         on = surface.point_mm(*_sphere_uv(surface, 0.5 * (pa + pb)).T)
         halfway = surface.point_mm(*(0.5 * (_sphere_uv(surface, pa) + _sphere_uv(surface, pb))).T)
-        off = np.linalg.norm(halfway - on, axis=1) > 0.25 * SIMPLIFY_MM
+        off = _norm(halfway - on) > 0.25 * SIMPLIFY_MM
         e, lo, hi, mid = e[off], lo[off], hi[off], mid[off]
         edges.append(e)
         fracs.append(mid)
@@ -379,13 +416,32 @@ def _flat_outline(surface, poly_uv: np.ndarray) -> np.ndarray:
     fine_uv = closed[:-1, None, :] + s[None, :, None] * np.diff(closed, axis=0)[:, None, :]
     fine_xy = flat_mm(surface, fine_uv.reshape(-1, 2)).reshape(fine_uv.shape)
     along = np.concatenate([np.zeros((len(fine_xy), 1)),
-                            np.cumsum(np.linalg.norm(np.diff(fine_xy, axis=1), axis=2), axis=1)], axis=1)
-    out = []
-    for k in range(len(fine_xy)):
-        n = max(int(np.ceil(along[k, -1] / VERTEX_MM)), 1)
-        at = np.arange(n) / n * along[k, -1]
-        out.append(np.stack([np.interp(at, along[k], fine_xy[k, :, 0]), np.interp(at, along[k], fine_xy[k, :, 1])], 1))
-    return np.concatenate(out)
+                            np.cumsum(_norm(np.diff(fine_xy, axis=1)), axis=1)], axis=1)
+    length = along[:, -1]
+    n = np.maximum(np.ceil(length / VERTEX_MM).astype(int), 1)   # each edge's vertices
+    edge = np.repeat(np.arange(len(n)), n)
+    at = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / n[edge] * length[edge]
+    return _interp_rows(at, along, fine_xy, edge)
+
+
+def _interp_rows(x: np.ndarray, xp: np.ndarray, fp: np.ndarray, row: np.ndarray) -> np.ndarray:
+    """``np.interp(x[i], xp[row[i]], fp[row[i], :, c])`` for every i and column c at once, to the bit (numpy's
+    rule: the last knot at or before x, its own value there or at the last knot, else slope times offset plus
+    value, from the other knot where that is NaN); xp's rows ascending, x within them (an outline's resampling)."""
+    last = xp.shape[1] - 1
+    j = np.minimum((xp[row] <= x[:, None]).sum(axis=1) - 1, last)
+    j = np.maximum(j, 0)
+    j1 = np.minimum(j + 1, last)
+    x0, x1, y0, y1 = xp[row, j], xp[row, j1], fp[row, j], fp[row, j1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slope = (y1 - y0) / (x1 - x0)[:, None]
+        out = slope * (x - x0)[:, None] + y0
+        nan = np.isnan(out)
+        if nan.any():
+            other = slope * (x - x1)[:, None] + y1
+            out = np.where(nan, np.where(np.isnan(other) & (y0 == y1), y0, other), out)
+    exact = (j == last) | (x0 == x)
+    return np.where(exact[:, None], y0, out)
 
 
 def _kept_on_sphere(surface, uv: np.ndarray, tol_mm: float) -> np.ndarray:
@@ -395,7 +451,7 @@ def _kept_on_sphere(surface, uv: np.ndarray, tol_mm: float) -> np.ndarray:
     straight edges mapped onto a surface."""
     X = surface.point_mm(uv[:, 0], uv[:, 1])
     n = len(uv)
-    far = int(np.argmax(np.linalg.norm(X - X[0], axis=1)))
+    far = int(np.argmax(_norm(X - X[0])))
     keep = np.zeros(n, bool)
     keep[[0, far]] = True
     spans = np.array([(0, far), (far, n)], np.int64)
@@ -413,9 +469,10 @@ def _kept_on_sphere(surface, uv: np.ndarray, tol_mm: float) -> np.ndarray:
         span = np.repeat(np.arange(len(spans)), count)
         inner = np.repeat(i + 1, count) + np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
         Xi = X[inner][:, None]
-        w = np.clip(np.einsum("kij,kij->ki", Xi - p[span], d[span])
-                    / np.maximum(np.einsum("sij,sij->si", d, d), 1e-24)[span], 0.0, 1.0)
-        dev = np.linalg.norm(Xi - (p[span] + w[..., None] * d[span]), axis=2).min(axis=1)
+        ps, ds = p[span], d[span]
+        w = np.clip(np.einsum("kij,kij->ki", Xi - ps, ds) / np.maximum(np.einsum("sij,sij->si", d, d), 1e-24)[span],
+                    0.0, 1.0)
+        dev = np.sqrt(_squared(Xi - (ps + w[..., None] * ds)).min(axis=1))   # (the root is monotone: of the least)
         top = np.maximum.reduceat(dev, np.cumsum(count) - count)
         at_top = np.flatnonzero(dev == top[span])
         first = at_top[np.unique(span[at_top], return_index=True)[1]]   # each span's first vertex at its top
@@ -439,7 +496,7 @@ def _corners_squared(xy: np.ndarray) -> np.ndarray:
     of one edge land on the other's line past the corner, or on a third face's (a chamfer's mitre met by the
     side below it), and the simplified outline cuts or notches the corner by up to a few mm."""
     k = len(xy)
-    length = np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1)
+    length = _norm(np.roll(xy, -1, axis=0) - xy)
     straight = np.flatnonzero(length >= LONG_EDGE_MM)
     if len(straight) < 2:
         return xy
@@ -476,33 +533,47 @@ def _onto_neighbours(surface, rays: _Rays, others, new_xy, source) -> None:
     """Vertices onto the neighbour they meet (crossing or seam) whose points come nearest the meeting point,
     a nearer meeting breaking ties (in place)."""
     best_t = np.full(len(rays.xy), np.inf)
-    best_score = np.full(len(rays.xy), np.inf)
     with np.errstate(invalid="ignore"):   # (a ray off its surface is NaN: its box meets nothing)
-        ray_lo, ray_hi = rays.X.min(axis=1), rays.X.max(axis=1)
+        across_k = np.ascontiguousarray(rays.X.transpose(0, 2, 1))   # (m, 3, K): the least and most along each
+        ray_lo, ray_hi = across_k.min(axis=2), across_k.max(axis=2)      # ray in one pass each (exact either way)
         lo, hi = ray_lo - SNAP_REACH_MM, ray_hi + SNAP_REACH_MM   # each ray's box
     # each ray within the ball about its box's middle: a surface whose level there is farther from zero than the
     # ball's radius plus TANGENT_GAP_MM is neither crossed nor touched by it (the level changes by at most the
-    # distance moved: a plane's, a sphere's and a cylinder's alike), so it is not asked (``_meeting``: inf)
-    mid, radius = 0.5 * (ray_lo + ray_hi), 0.5 * np.linalg.norm(ray_hi - ray_lo, axis=1) + TANGENT_GAP_MM + 1e-6
+    # distance moved: a plane's, a sphere's and a cylinder's alike), so it is not asked (it meets nothing)
+    mid, radius = 0.5 * (ray_lo + ray_hi), 0.5 * _norm(ray_hi - ray_lo) + TANGENT_GAP_MM + 1e-6
+    nb, row, f = [], [], []   # the (neighbour, ray) pairs that may meet, with the neighbour's level along the ray
     for j in _near_rays(ray_lo, ray_hi, others):
-        other, tree = others[j]
+        other, _ = others[j]
         # only the rays the neighbour's points can come near (``_near_rays``, ray by ray): the others meet
-        # nothing of it (``_meeting`` takes each ray on its own)
+        # nothing of it (``_meeting_rows`` takes each ray on its own)
         near_lo, near_hi = others.box(j)
         sub = np.flatnonzero(np.all(hi >= near_lo, axis=1) & np.all(lo <= near_hi, axis=1))
         sub = sub[np.abs(level(other, mid[sub])) <= radius[sub]]
         if len(sub) == 0:
             continue
-        tk = np.full(len(rays.xy), np.inf)
-        tk[sub] = _meeting(surface, other, rays.X[sub], rays.t, rays.uv[sub])
-        rows = np.flatnonzero(np.isfinite(tk))
-        if len(rows) == 0:
-            continue
-        gap = tree.query(_ray_at(rays.X, rays.t, tk[rows], rows), distance_upper_bound=SNAP_REACH_MM)[0]
-        score = gap + DISTANCE_WEIGHT * np.abs(tk[rows])
-        better = np.isfinite(gap) & (score < best_score[rows])
-        idx = rows[better]
-        best_t[idx], best_score[idx], source[idx] = tk[idx], score[better], j
+        level_j = level(other, rays.X[sub])
+        # only rays the surface crosses or comes within TANGENT_GAP_MM of can meet it: the rest meet nothing (a
+        # part's faces are mostly far from each other's surfaces, so this skips most rays before the work below)
+        with np.errstate(invalid="ignore"):   # (a crossing or a touch: the level passes within the gap of zero)
+            maybe = (level_j.min(axis=1) < TANGENT_GAP_MM) & (level_j.max(axis=1) > -TANGENT_GAP_MM)
+        if maybe.any():
+            nb.append(np.full(int(maybe.sum()), j))
+            row.append(sub[maybe])
+            f.append(level_j[maybe])
+    if nb:   # all neighbours' pairs at once, in the neighbours' order (each pair is taken on its own)
+        nb, row = np.concatenate(nb), np.concatenate(row)
+        tk = _meeting_rows(surface, others, nb, rays, row, np.concatenate(f))
+        hit = np.flatnonzero(np.isfinite(tk))
+        nb, row, tk = nb[hit], row[hit], tk[hit]
+    if len(nb):
+        X = _ray_at(rays.X, rays.t, tk, row)
+        gap = _per_neighbour(nb, lambda j, X: others[j][1].query(X, distance_upper_bound=SNAP_REACH_MM)[0], X)
+        score = gap + DISTANCE_WEIGHT * np.abs(tk)
+        ok = np.flatnonzero(np.isfinite(gap))
+        # per vertex the least score, the first neighbour of equals (as a strict ``<`` over the neighbours in turn)
+        order = ok[np.lexsort((nb[ok], score[ok], row[ok]))]
+        win = order[np.r_[True, row[order][1:] != row[order][:-1]]] if len(order) else order
+        best_t[row[win]], source[row[win]] = tk[win], nb[win]
     on = source >= 0
     new_xy[on] = rays.xy[on] + best_t[on, None] * rays.outward[on]
 
@@ -674,15 +745,40 @@ def _extent_settled(surface, xy, on_extent: np.ndarray, own: "_FacePoints", radi
     normal = _outward(xy, END_TANGENT_VERTICES)[rows]
     a, b = (surface.point_mm(*uv_of_flat(surface, xy[rows] + h * normal).T) for h in (-0.5, 0.5))
     X = 0.5 * (a + b)
-    direction = (b - a) / np.maximum(np.linalg.norm(b - a, axis=1), 1e-12)[:, None]
+    direction = (b - a) / np.maximum(_norm(b - a), 1e-12)[:, None]
     # the second farthest of random points (density rho) in a half disc on a straight edge lies, on average,
     # 1 / (R rho) inside it (the band 2 R wide and g deep holds 2 R g rho points); the face's density from its
     # spacing (median nearest-neighbour distance d of a Poisson sample: rho = ln 2 / (pi d^2))
     inside_mm = 1.0 / (radius_mm * math.log(2) / (math.pi * own.spacing_mm ** 2))
-    for i, near in enumerate(own.tree.query_ball_point(X, radius_mm)):
-        if len(near) >= END_DISC_POINTS:
-            along = (own.points_mm[near] - X[i]) @ direction[i]
-            xy[rows[i]] += (np.partition(along, -2)[-2] + inside_mm) * normal[i]
+    second = _second_farthest(own, X, direction, radius_mm)
+    ok = np.isfinite(second)
+    xy[rows[ok]] += (second[ok] + inside_mm)[:, None] * normal[ok]
+
+
+DISC_BLOCK_ENTRIES = 1 << 21   # ``_second_farthest`` pads the discs' points to blocks of at most this many
+
+
+def _second_farthest(own: "_FacePoints", X: np.ndarray, direction: np.ndarray, radius_mm: float) -> np.ndarray:
+    """Per disc (centre X (n, 3), ``radius_mm``), the second largest of its face points' distances along
+    ``direction`` (n, 3) from the centre; NaN where it holds fewer than END_DISC_POINTS points. The discs' points
+    are padded to one (discs, most points, 3) block and measured by one stacked matmul, the same product as
+    disc by disc (a matrix-vector product per disc: a plain dot or einsum would round differently)."""
+    near = own.tree.query_ball_point(X, radius_mm)
+    count = np.fromiter(map(len, near), np.intp, len(near))
+    out = np.full(len(X), np.nan)
+    rows = np.flatnonzero(count >= END_DISC_POINTS)
+    if len(rows) == 0:
+        return out
+    width = int(count[rows].max())
+    step = max(DISC_BLOCK_ENTRIES // width, 1)
+    for lo in range(0, len(rows), step):
+        block = rows[lo:lo + step]
+        slot = np.arange(width)[None, :] < count[block][:, None]
+        idx = np.zeros((len(block), width), np.intp)
+        idx[slot] = np.fromiter(chain.from_iterable(near[block]), np.intp, int(count[block].sum()))
+        along = np.matmul(own.points_mm[idx] - X[block][:, None, :], direction[block][:, :, None])[..., 0]
+        out[block] = np.partition(np.where(slot, along, -np.inf), -2, axis=1)[:, -2]
+    return out
 
 
 def spacing_mm(tree: cKDTree, points: np.ndarray) -> float:
@@ -698,12 +794,9 @@ def _points_end(ray: np.ndarray, t: np.ndarray, own: _FacePoints) -> np.ndarray:
     (or, if it is out of the points, from the first sample back among them, at most INWARD_MM) the ray
     is followed while it is among them; the edge is the farthest, along the ray, of the points nearest
     those samples (a point's own position: the ray's samples would overshoot where it runs slantwise out)."""
-    r = END_SPACINGS * own.spacing_mm
     m, K = ray.shape[:2]
-    d, idx = own.tree.query(ray.reshape(-1, 3), distance_upper_bound=r)
-    inside = np.isfinite(d).reshape(m, K)
-    idx = np.where(inside.ravel(), idx, 0).reshape(m, K)
     k0 = int(np.argmin(np.abs(t)))
+    inside, idx = _among_points(ray, own, k0, int(np.searchsorted(t, -INWARD_MM)))
     after = np.where(~inside[:, k0:], np.arange(k0, K)[None, :], K).min(axis=1)  # first sample out, from k0
     back = (np.arange(k0) >= np.searchsorted(t, -INWARD_MM))[None, :]
     before = np.where(inside[:, :k0] & back, np.arange(k0)[None, :], -1).max(axis=1)  # last sample in, before k0
@@ -711,13 +804,39 @@ def _points_end(ray: np.ndarray, t: np.ndarray, own: _FacePoints) -> np.ndarray:
     start = np.where(inside[:, k0], k0, before)
     ok = (last >= 0) & (last < K - 1)
     direction = ray[:, k0 + 1] - ray[:, k0]
-    direction /= np.maximum(np.linalg.norm(direction, axis=1), 1e-12)[:, None]
+    direction /= np.maximum(_norm(direction), 1e-12)[:, None]
     along = np.einsum("mkj,mj->mk", own.points_mm[idx] - ray[:, k0:k0 + 1], direction)  # (m, K)
     k = np.arange(K)[None, :]
     along = np.where(inside & (k >= np.minimum(start, last)[:, None]) & (k <= last[:, None]), along, -np.inf)
     out = np.where(ok, along.max(axis=1), np.inf)
     return np.where(np.isfinite(out), out, np.inf)
 
+
+END_BLOCK_SAMPLES = 8   # ``_among_points`` follows the rays out of the points this many samples at a time
+
+
+def _among_points(ray: np.ndarray, own: _FacePoints, k0: int, k_back: int) -> tuple[np.ndarray, np.ndarray]:
+    """(inside, nearest point) (m, K) of the ray samples among the face's points (``_points_end``: a point within
+    END_SPACINGS spacings), asked only where ``_points_end`` reads them: from ``k_back`` to the vertex's sample
+    ``k0``, then on, block by block, along the rays still among the points (the rest: False, 0). Each sample is
+    asked on its own, so those asked are as when all are."""
+    r = END_SPACINGS * own.spacing_mm
+    m, K = ray.shape[:2]
+    inside, idx = np.zeros((m, K), bool), np.zeros((m, K), np.intp)
+
+    def ask(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        d, i = own.tree.query(ray[rows][:, cols].reshape(-1, 3), distance_upper_bound=r)
+        hit = np.isfinite(d).reshape(len(rows), len(cols))
+        inside[np.ix_(rows, cols)] = hit
+        idx[np.ix_(rows, cols)] = np.where(hit, i.reshape(hit.shape), 0)
+        return hit
+
+    ask(np.arange(m), np.arange(k_back, k0 + 1))
+    rows, k = np.flatnonzero(inside[:, k0]), k0 + 1
+    while len(rows) and k < K:
+        cols = np.arange(k, min(k + END_BLOCK_SAMPLES, K))
+        rows, k = rows[ask(rows, cols).all(axis=1)], k + len(cols)
+    return inside, idx
 
 def _window_max(values: np.ndarray, outward: np.ndarray, half: int) -> np.ndarray:
     """Cyclic running maximum over 2 x half + 1 vertices of the finite values, among vertices whose normals
@@ -783,7 +902,7 @@ def _outward(xy: np.ndarray, k: int = 0) -> np.ndarray:
     k = k or TANGENT_VERTICES
     tangent = np.roll(xy, -k, axis=0) - np.roll(xy, k, axis=0)
     outward = np.stack([tangent[:, 1], -tangent[:, 0]], axis=-1)
-    return outward / np.maximum(np.linalg.norm(outward, axis=1), 1e-12)[:, None]
+    return outward / np.maximum(_norm(outward), 1e-12)[:, None]
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -874,25 +993,14 @@ def _corner(xy: np.ndarray, source: np.ndarray, left: int, right: int) -> np.nda
     return None
 
 
-def _meeting(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray) -> np.ndarray:
-    """Per vertex, the distance t (mm) along its normal where the ray meets ``other``: the crossing nearest
-    to the vertex where the surfaces cross, the touching point where they meet tangentially; inf if none."""
-    f = level(other, ray)  # (m, K)
-    best = np.full(len(f), np.inf)
-    # only rays the surface crosses or comes within TANGENT_GAP_MM of can meet it: the rest stay inf (a part's
-    # faces are mostly far from each other's surfaces, so this skips most rays before the work below)
-    with np.errstate(invalid="ignore"):   # (a crossing or a touch: the level passes within the gap of zero)
-        maybe = np.flatnonzero((f.min(axis=1) < TANGENT_GAP_MM) & (f.max(axis=1) > -TANGENT_GAP_MM))
-    if len(maybe) < len(f):
-        best[maybe] = _meeting_rows(surface, other, ray[maybe], t, ray_uv[maybe], f[maybe])
-        return best
-    return _meeting_rows(surface, other, ray, t, ray_uv, f)
-
-
-def _meeting_rows(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """``_meeting`` given the neighbour's level along the rays, ``f`` (m, K). The crossings and touching points
-    are few (a ray crosses a surface once or twice in K samples): each is taken where it is, (row, column)."""
-    m = len(f)
+def _meeting_rows(surface, others, nb: np.ndarray, rays: _Rays, ray_of: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Per row, a ray (``ray_of``: into ``rays``) and the neighbour ``nb`` (sorted; into ``others``) with its level
+    ``f`` (m, K) along the ray: the
+    distance t (mm) along the ray where it meets that neighbour, the crossing nearest to the vertex where the
+    surfaces cross, the touching point where they meet tangentially; inf if none. The crossings and touching
+    points are few (a ray crosses a surface once or twice in K samples): each is taken where it is, (row, column);
+    what depends on the neighbour is asked neighbour by neighbour (``_per_neighbour``), the rest all at once."""
+    m, t = len(f), rays.t
     best = np.full(m, np.inf)
     # crossings: sign changes between samples, interpolated
     r, c = np.nonzero((f[:, :-1] * f[:, 1:] <= 0) & (f[:, :-1] != f[:, 1:]))
@@ -916,30 +1024,47 @@ def _meeting_rows(surface, other, ray: np.ndarray, t: np.ndarray, ray_uv: np.nda
         order = np.lexsort((c, np.abs(tk), r))   # per ray, the nearest to the vertex (the first of equals)
         first = order[np.r_[True, r[order][1:] != r[order][:-1]]]
         rows, cand = r[first], tk[first]
-        X = _ray_at(ray, t, cand, rows)
-        uv = ray_uv[rows, np.clip(np.searchsorted(t, cand), 0, len(t) - 1)]
-        nA, nB = surface.normal_at(uv[:, 0], uv[:, 1]), level_normal(other, X)
+        ray = ray_of[rows]
+        X = _ray_at(rays.X, t, cand, ray)
+        uv = rays.uv[ray, np.clip(np.searchsorted(t, cand), 0, len(t) - 1)]
+        group = nb[rows]
+        nA = _per_neighbour(group, lambda j, uv: surface.normal_at(uv[:, 0], uv[:, 1]), uv)
+        nB = _per_neighbour(group, lambda j, X: level_normal(others[j][0], X), X)
         cos = np.abs(np.einsum("ij,ij->i", nA, nB))
         keep = (cos > cos_tangent) == touching
         # the ray must meet the edge head on, not run along it past a corner
         i = np.clip(np.searchsorted(t, cand), 1, len(t) - 1)
-        along = ray[rows, i] - ray[rows, i - 1]
-        along /= np.maximum(np.linalg.norm(along, axis=1), 1e-12)[:, None]
+        along = rays.X[ray, i] - rays.X[ray, i - 1]
+        along /= np.maximum(_norm(along), 1e-12)[:, None]
         if not touching:  # the edge's normal in the face: the neighbour's normal, less the face's
             across = nB - np.einsum("ij,ij->i", nB, nA)[:, None] * nA
             head_on = np.abs(np.einsum("ij,ij->i", along, across)) >= math.cos(math.radians(HEAD_ON_DEG)) * \
-                np.linalg.norm(across, axis=1)
+                _norm(across)
         else:  # a seam: the neighbour's distance curves across it, not along it
             h = 1.0
             side = np.cross(nA, along)
-            f_side = (level(other, _projected(surface, X + h * side)) + level(other, _projected(surface, X - h * side))
-                      - 2 * level(other, X)) / h ** 2
+            f_side = _per_neighbour(group, lambda j, X, s: _side_curvature(surface, others[j][0], X, s, h), X, side)
             f_ray = np.abs(curv[first]) / (t[1] - t[0]) ** 2
             head_on = np.abs(f_side) <= math.tan(math.radians(HEAD_ON_DEG)) ** 2 * f_ray
         keep &= head_on
         take = keep & (np.abs(cand) < np.abs(best[rows]))
         best[rows[take]] = cand[take]
     return best
+
+
+def _side_curvature(surface, other, X: np.ndarray, side: np.ndarray, h: float) -> np.ndarray:
+    """The second difference (per mm^2) of the neighbour's level across the rays, over +-h mm of the surface."""
+    return (level(other, _projected(surface, X + h * side)) + level(other, _projected(surface, X - h * side))
+            - 2 * level(other, X)) / h ** 2
+
+
+def _per_neighbour(nb: np.ndarray, fn, *arrays: np.ndarray) -> np.ndarray:
+    """``fn(j, *rows)`` for each neighbour j's run of rows (``nb`` sorted), stacked: the products a neighbour (or
+    the face) takes are made on the same rows as when each neighbour is taken in turn (a matrix product of one
+    row rounds differently from one of many)."""
+    cut = np.flatnonzero(np.diff(nb)) + 1
+    bounds = zip(np.r_[0, cut], np.r_[cut, len(nb)])
+    return np.concatenate([fn(int(nb[lo]), *(a[lo:hi] for a in arrays)) for lo, hi in bounds])
 
 
 def _ray_at(ray: np.ndarray, t: np.ndarray, tk: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -954,6 +1079,6 @@ def _resampled(closed_xy: np.ndarray, step_mm: float) -> np.ndarray:
     """The closed polygon with vertices at most ``step_mm`` apart (its own vertices kept)."""
     closed = np.vstack([closed_xy, closed_xy[:1]])
     seg = np.diff(closed, axis=0)
-    n = np.maximum(np.ceil(np.linalg.norm(seg, axis=1) / step_mm).astype(int), 1)
+    n = np.maximum(np.ceil(_norm(seg) / step_mm).astype(int), 1)
     frac = np.concatenate([np.arange(k) / k for k in n])
     return np.repeat(closed[:-1], n, axis=0) + frac[:, None] * np.repeat(seg, n, axis=0)

@@ -106,7 +106,8 @@ class SpherePatch:
     def _direction(self, u, v) -> np.ndarray:
         u = np.asarray(u, dtype=float)
         v = np.asarray(v, dtype=float)
-        local = np.stack([np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v) * np.ones_like(u)], axis=-1)
+        cos_v = np.cos(v)
+        local = np.stack([cos_v * np.cos(u), cos_v * np.sin(u), np.sin(v) * np.ones_like(u)], axis=-1)
         return local @ self.frame.T
 
     def point_mm(self, u, v) -> np.ndarray:
