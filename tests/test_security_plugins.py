@@ -115,8 +115,8 @@ def test_a_job_dies_with_its_batch_even_on_sigkill(tmp_path):
     pidfile = tmp_path / "pid"
     code = f"""
 import subprocess, sys, time
-from camtool.batch import runner
-p = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"], preexec_fn=runner._die_with_parent,
+from camtool.alongside import die_with_parent
+p = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"], preexec_fn=die_with_parent,
                      start_new_session=True)
 open({str(pidfile)!r}, "w").write(str(p.pid))
 time.sleep(60)

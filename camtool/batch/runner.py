@@ -36,12 +36,6 @@ RESULT_FD_ENV = "CAMTOOL_RESULT_FD"  # the job's JSON result goes to this pipe, 
 MAX_RESULT_BYTES = 64 << 20
 
 
-def _die_with_parent() -> None:
-    """In the job process, before exec: SIGKILL when the batch (the thread that started it) dies, even by
-    SIGKILL, so no job outlives its batch (``alongside.die_with_parent``)."""
-    die_with_parent()
-
-
 _live: set[subprocess.Popen] = set()
 _live_lock = threading.Lock()
 
@@ -271,7 +265,7 @@ def run_one(spec: JobSpec) -> JobResult:
             try:
                 proc = subprocess.Popen(cmd, stdout=log, stderr=log, stdin=subprocess.DEVNULL,
                                         env={**job_env(), RESULT_FD_ENV: str(write_fd)}, pass_fds=(write_fd,),
-                                        start_new_session=True, cwd=JOB_CWD, preexec_fn=_die_with_parent)
+                                        start_new_session=True, cwd=JOB_CWD, preexec_fn=die_with_parent)
             except BaseException:
                 os.close(read_fd)
                 raise

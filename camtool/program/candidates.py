@@ -303,7 +303,7 @@ def _state(kin, t, q, qd, qdd, zone, process, linear: bool) -> dict:
     # straight TCP moves between process waypoints away from singularities (where a straight TCP
     # line can need unbounded joint speeds) and outside the spans the post stage asks joint moves for;
     # joint moves elsewhere
-    in_proc = ~free & dexterous & ~in_spans(t, getattr(process, "joint_moves_s", ())) if linear \
+    in_proc = ~free & dexterous & ~in_spans(t, process.joint_moves_s) if linear \
         else np.zeros(len(t), bool)
     return dict(t=t, q=q, qd=qd, qdd=qdd, zone=zone, P=P, R=R, J=J, free=free, tol=tol,
                 merge_tol=MERGE_SHARE * tol, in_proc=in_proc)
@@ -504,7 +504,7 @@ def merged_candidates(trajectory, robot, process, linear: bool, held=()) -> Cand
     held = tuple(int(i) for i in held)
     key = (id(trajectory), robot.name, np.asarray(robot.tool_T_mm, float).tobytes(),
            np.asarray(robot.base_T_mm, float).tobytes(), float(process.path_tol_mm), float(process.ori_tol_deg),
-           bool(linear), held, tuple(getattr(process, "joint_moves_s", ())))
+           bool(linear), held, tuple(process.joint_moves_s))
     if _MERGED.get("key") == key and _MERGED.get("trajectory") is trajectory:
         return _MERGED["value"]
     value = candidate_steps().apply(Candidates.from_trajectory(trajectory, robot, process, linear, held))
