@@ -258,3 +258,53 @@ def test_a_scans_leads_rise_by_its_noise_band():
             far[[k[0], k[-1]]] = True
     assert above[far].min() > band - 0.3
     assert np.percentile(np.abs(above[path.is_work]), 50) < 0.5
+
+
+def _noisy_cap(noise_mm, n=60000, R=200.0, seed=2):
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-70, 70, (n, 2))
+    P = np.column_stack([xy, np.sqrt(R ** 2 - (xy ** 2).sum(1)) - R])
+    c = np.array([0.0, 0.0, -R])
+    N = (P - c) / R
+    return P + N * rng.normal(0, noise_mm, n)[:, None], N, c
+
+
+def _normal_noise_deg(s, c, radius_mm=45.0):
+    """Per-axis RMS tilt (deg) of the surface's normals from the true sphere's inside ``radius_mm``."""
+    g = s.grid
+    X, Y = np.meshgrid(g.x0 + np.arange(g.nx) * g.g, g.y0 + np.arange(g.ny) * g.g)
+    inside = np.hypot(X, Y) < radius_mm
+    pts = s.origin_mm + X[..., None] * s.frame[:, 0] + Y[..., None] * s.frame[:, 1] + s.height[..., None] * s.frame[:, 2]
+    true = (pts - c) / np.linalg.norm(pts - c, axis=-1, keepdims=True)
+    d = (s.normals - true)[inside]
+    return np.degrees(np.sqrt(np.mean(np.stack([d @ s.frame[:, 0], d @ s.frame[:, 1]], 1) ** 2, axis=0)))
+
+
+@pytest.mark.parametrize("noise_mm", [1.0, 0.3])
+def test_a_scans_normals_are_smoothed_until_the_noise_no_longer_tilts_them(noise_mm):
+    """The normals' sigma grows with the scan's noise until its closed-form tilt (RMS r / (L^2 sqrt(8 pi rho)))
+    is SCAN_NORMAL_NOISE_DEG; the tilt measured against the true sphere agrees. A quiet scan keeps the tool's
+    footprint (6 mm)."""
+    from camtool.part.freeform import NORMAL_SMOOTHING_MM, SCAN_NORMAL_NOISE_DEG, SCAN_NORMAL_SMOOTHING_MAX_MM
+
+    P, N, c = _noisy_cap(noise_mm)
+    s = freeform_surface(Workpiece(P, N, source="scan.xyz"), FIT)
+    tilt = _normal_noise_deg(s, c)
+    if noise_mm >= 1.0:
+        assert NORMAL_SMOOTHING_MM < s.normal_smoothing_mm <= SCAN_NORMAL_SMOOTHING_MAX_MM
+        assert (tilt <= 1.2 * SCAN_NORMAL_NOISE_DEG).all() and (tilt >= 0.7 * SCAN_NORMAL_NOISE_DEG).all()
+    else:
+        assert s.normal_smoothing_mm == NORMAL_SMOOTHING_MM
+        assert (tilt < SCAN_NORMAL_NOISE_DEG).all()
+    # the stage file keeps the sigma the normals were made with
+    again = surface_from_dict(json.loads(json.dumps(s.to_dict())))
+    assert again.normal_smoothing_mm == s.normal_smoothing_mm
+
+
+def test_scan_normal_smoothing_grows_with_noise_and_stops_at_its_cap():
+    from camtool.part.freeform import SCAN_NORMAL_SMOOTHING_MAX_MM, scan_normal_smoothing_mm
+
+    sig = [scan_normal_smoothing_mm(r, 4.0, 2.0, 6.0) for r in (0.01, 0.3, 1.0, 1.5, 50.0)]
+    assert sig[0] == sig[1] == 6.0 and 6.0 < sig[2] < sig[3] < SCAN_NORMAL_SMOOTHING_MAX_MM == sig[4]
+    # a denser scan averages more points in the same window: less smoothing for the same noise
+    assert scan_normal_smoothing_mm(1.0, 8.0, 2.0, 6.0) < scan_normal_smoothing_mm(1.0, 4.0, 2.0, 6.0)

@@ -37,6 +37,8 @@ KNOWN_WEIGHT_SHARE = 0.2    # a scan's node has a height where its window holds 
 NOISE_BAND_SIGMAS = 3.0     # a scan's noise band in RMS residuals (the motion check's scan tolerance, run/stages.py)
 LEAD_LIFT_MIN_MM = 1.0      # a free-form face's leads rise at least this far (a scanned mesh's roughness)
 MARGIN_CELLS = 4            # nodes of margin round the face's box (the leads start on the surface continued)
+SCAN_NORMAL_NOISE_DEG = 0.1         # a scan's normals are smoothed until its noise tilts them by at most this (RMS)
+SCAN_NORMAL_SMOOTHING_MAX_MM = 10.0  # ... but over a Gaussian of at most this sigma (a 40 mm disc: the part's shape)
 
 
 def _b64(a: np.ndarray) -> dict:
@@ -356,6 +358,20 @@ def _median_spacing(xy: np.ndarray, sample: int = 20000, queries: int = 2000) ->
     return max(float(np.median(dist[:, 1])) * math.sqrt(m / len(xy)), 1e-3)
 
 
+def scan_normal_smoothing_mm(noise_rms_mm: float, points_per_mm2: float, smoothing_mm: float, floor_mm: float) -> float:
+    """The Gaussian sigma (mm) of a scan's normals: at least ``floor_mm`` (the tool's footprint), and wide enough
+    that the scan's noise tilts them by at most ``SCAN_NORMAL_NOISE_DEG`` RMS, up to ``SCAN_NORMAL_SMOOTHING_MAX_MM``.
+
+    White noise of RMS r on points at density rho (``points_per_mm2``), smoothed by Gaussians of total sigma L (the
+    heights' ``smoothing_mm``, then the normals'), has slopes of RMS r / (L^2 sqrt(8 pi rho)) along each axis. At
+    6 mm the 1 mm-noise shell scan's tool axis wobbled 0.3 deg from one 5 mm pose to the next, and near-singular
+    wrist joints turned that into jerk: its rows ran at 41-56 % of the feed."""
+    tau = math.radians(SCAN_NORMAL_NOISE_DEG)
+    L2 = float(noise_rms_mm) / (tau * math.sqrt(8.0 * math.pi * max(float(points_per_mm2), 1e-12)))
+    wanted = math.sqrt(max(L2 - float(smoothing_mm) ** 2, 0.0))
+    return max(float(floor_mm), min(wanted, SCAN_NORMAL_SMOOTHING_MAX_MM))
+
+
 def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
                      normal_smoothing_mm: float = NORMAL_SMOOTHING_MM) -> FreeformSurface:
     """A free-form surface (world mm) of a placed workpiece, or of its points ``indices`` (one face).
@@ -426,6 +442,11 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     height = fill(height, known, g)
     if is_mesh:
         res = xyh[:, 2] - grid.interp(height, xyh[:, 0], xyh[:, 1])
+    if not is_mesh:
+        finite = res[np.isfinite(res)]
+        noise = float(np.sqrt(np.mean(finite ** 2))) if finite.size else 0.0
+        density = int(keep.sum()) / max(float(material.sum()) * g * g, 1e-9)
+        normal_smoothing_mm = scan_normal_smoothing_mm(noise, density, sigma, normal_smoothing_mm)
     normals = normals_of(height, g, frame, normal_smoothing_mm, reliable)
     material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
     res_abs = np.abs(res[np.isfinite(res)]) if len(res) else np.zeros(1)
