@@ -372,6 +372,21 @@ def scan_normal_smoothing_mm(noise_rms_mm: float, points_per_mm2: float, smoothi
     return max(float(floor_mm), min(wanted, SCAN_NORMAL_SMOOTHING_MAX_MM))
 
 
+def _scan_normal_sigma(residuals_mm, n_points: int, area_mm2: float, smoothing_mm: float, floor_mm: float) -> float:
+    """``scan_normal_smoothing_mm`` of a scan's residuals from its smoothed surface, its points over its area."""
+    finite = residuals_mm[np.isfinite(residuals_mm)]
+    noise = float(np.sqrt(np.mean(finite ** 2))) if finite.size else 0.0
+    return scan_normal_smoothing_mm(noise, n_points / max(area_mm2, 1e-9), smoothing_mm, floor_mm)
+
+
+def _fit_stats(residuals_mm, n_points: int, threshold_mm: float) -> FitStats:
+    """The surface's fit figures: a point is an inlier within the threshold or 3 RMS residuals."""
+    res_abs = np.abs(residuals_mm[np.isfinite(residuals_mm)]) if len(residuals_mm) else np.zeros(1)
+    rms = float(np.sqrt(np.mean(res_abs ** 2)))
+    n_in = int((res_abs <= max(threshold_mm, 3.0 * rms)).sum())
+    return FitStats(n_in / n_points, rms, float(res_abs.max()), int(n_points), n_in)
+
+
 def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
                      normal_smoothing_mm: float = NORMAL_SMOOTHING_MM) -> FreeformSurface:
     """A free-form surface (world mm) of a placed workpiece, or of its points ``indices`` (one face).
@@ -443,16 +458,11 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     if is_mesh:
         res = xyh[:, 2] - grid.interp(height, xyh[:, 0], xyh[:, 1])
     if not is_mesh:
-        finite = res[np.isfinite(res)]
-        noise = float(np.sqrt(np.mean(finite ** 2))) if finite.size else 0.0
-        density = int(keep.sum()) / max(float(material.sum()) * g * g, 1e-9)
-        normal_smoothing_mm = scan_normal_smoothing_mm(noise, density, sigma, normal_smoothing_mm)
+        normal_smoothing_mm = _scan_normal_sigma(res, int(keep.sum()), float(material.sum()) * g * g, sigma,
+                                                 normal_smoothing_mm)
     normals = normals_of(height, g, frame, normal_smoothing_mm, reliable)
     material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
-    res_abs = np.abs(res[np.isfinite(res)]) if len(res) else np.zeros(1)
-    thr = float(settings.threshold_mm)
-    n_in = int((res_abs <= max(thr, 3.0 * np.sqrt(np.mean(res_abs ** 2)))).sum())
-    stats = FitStats(n_in / len(P), float(np.sqrt(np.mean(res_abs ** 2))), float(res_abs.max()), int(len(P)), n_in)
+    stats = _fit_stats(res, len(P), float(settings.threshold_mm))
     close_px = int(math.ceil(float(settings.close_gaps_mm) / g))
     return _assembled(origin, frame, grid, height, normals, material, stats, "mesh" if is_mesh else "scan",
                       sigma, normal_smoothing_mm, warnings, close_px)
