@@ -1,0 +1,41 @@
+"""benchmarks/freeform.py's public parts against benchmarks/parts/freeform/LICENSES.md: each part's file and
+SHA-256 are recorded there, each file kept here is the one recorded (its own bytes hashed), and each part fetched
+rather than kept (``FETCH``: a copyleft licence) is ignored by git, so a local copy is never committed."""
+from __future__ import annotations
+
+import hashlib
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import freeform as fb  # noqa: E402
+
+LICENSES = (fb.PARTS_DIR / "LICENSES.md").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("name", sorted(fb.PARTS))
+def test_part_recorded_with_its_sum(name):
+    fname, _, sha, _, _ = fb.PARTS[name]
+    assert f"{sha}  {fname}" in LICENSES, f"LICENSES.md does not record {fname} with {sha}"
+
+
+@pytest.mark.parametrize("name", sorted(fb.PARTS))
+def test_kept_file_is_the_recorded_one(name):
+    fname, _, sha, _, _ = fb.PARTS[name]
+    path = fb.PARTS_DIR / fname
+    if name in fb.FETCH and not path.exists():
+        pytest.skip(f"{fname} is fetched, not kept ({fb.FETCH[name]})")
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == sha
+
+
+@pytest.mark.parametrize("name", sorted(fb.FETCH))
+def test_fetched_part_is_ignored_by_git(name):
+    path = fb.PARTS_DIR / fb.PARTS[name][0]
+    r = subprocess.run(["git", "-C", str(ROOT), "check-ignore", "-q", "--no-index", str(path)], capture_output=True)
+    assert r.returncode == 0, f"{path.relative_to(ROOT)} is not ignored: a local copy could be committed"
+    tracked = subprocess.run(["git", "-C", str(ROOT), "ls-files", "--error-unmatch", str(path)], capture_output=True)
+    assert tracked.returncode != 0, f"{path.relative_to(ROOT)} is tracked"
