@@ -58,6 +58,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import trimesh
 from scipy.spatial.transform import Rotation
 
 HERE = Path(__file__).resolve().parent
@@ -440,14 +441,8 @@ def million_point_scan(path: Path, n: int = 1_000_000, sigma_mm: float = 1.0) ->
     """The noether panel resampled to n points, 1 mm of noise along the normal, as a PLY cloud (mm)."""
     mesh = fm.load_mesh(PARTS_DIR / PARTS["noether_panel_scan"][0], 1000.0)
     rng = np.random.default_rng(46)
-    area = mesh.area_faces
-    f = rng.choice(len(area), n, p=area / area.sum())
-    u, v = rng.random(n), rng.random(n)
-    flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    t = mesh.triangles[f]
-    p = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
-    p += rng.normal(0.0, sigma_mm, (n, 1)) * mesh.face_normals[f]
+    p, f = trimesh.sample.sample_surface(mesh, n, seed=rng)
+    p = p + rng.normal(0.0, sigma_mm, (n, 1)) * mesh.face_normals[f]
     head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {n}\n"
             "property float x\nproperty float y\nproperty float z\nend_header\n").encode()
     path.write_bytes(head + p.astype("<f4").tobytes())

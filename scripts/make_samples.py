@@ -371,6 +371,9 @@ def shell_scan(rng, n: int = 60_000, sigma_mm: float = 1.0, outlier_ratio: float
         keep &= np.hypot(c[:, 0] - hx, c[:, 1] - hy) > 25.0
     mesh = trimesh.Trimesh(P, f[keep], process=False)
     m_in = n - int(round(n * outlier_ratio))
+    # Sampled by hand, not by trimesh.sample.sample_surface (as part_scan and the benchmarks do):
+    # trimesh draws its random numbers in another order (one cumulative-sum pick, then an (n, 2)
+    # block), so it would change the shipped freeform_shell_scan.ply and the programs made from it.
     area = mesh.area_faces
     fi = rng.choice(len(area), m_in, p=area / area.sum())
     a, b = rng.random(m_in), rng.random(m_in)
