@@ -41,7 +41,8 @@ from camtool.settings import RasterSettings  # noqa: E402
 from test_freeform import grid_mesh, mesh_workpiece  # noqa: E402
 from process_reference import contacts, removal_at, sample_points  # noqa: E402
 from test_process_mesh_map import (FIT, POLISH, dense_reference, face_chart_points, plane_track, saddle,  # noqa: E402
-                                   saddle_normal, saddle_point, share_of, tilted)
+                                   saddle_exact_share, share_of, small_saddle_face, tilted)
+from test_process_mesh_map import saddle_raster as saddle_raster_track  # noqa: E402
 
 KEYS = ("worked_area_mm2", "mean", "rms_pct", "uniformity_within_5pct", "uniformity_within_10pct",
         "edge_rolloff_width_mm", "uncovered_share")
@@ -94,31 +95,16 @@ def flat() -> None:
 
 
 def saddle_raster() -> None:
-    V, F = grid_mesh(np.linspace(-70, 70, 57), np.linspace(-55, 55, 45), saddle)
-    face = fit_surface(mesh_workpiece(V, F)[0], FIT)
+    face = small_saddle_face()
     print("== 2b. a saddle CAD mesh 140 x 110 mm, passes along x past its edges; share within 5 %: the exact reference"
           " over the face's worked area | the mesh map | unrefined")
     for step in (10.0, 13.0, 16.0):
-        rows = []
-        for k, y0 in enumerate(np.arange(-70.0, 70.1, step) + 0.3):
-            x = np.arange(-85.0, 85.0 + 1e-9, 0.4) * (1 if k % 2 == 0 else -1)
-            rows += [np.column_stack([x, np.full_like(x, y0), saddle(x, y0)]),
-                     np.array([[x[-1], y0, saddle(x[-1], y0) + 20]])]
-        tcp = np.vstack(rows)
-        t = np.arange(len(tcp)) * 0.004
+        t, tcp = saddle_raster_track(step)
         t0 = time.perf_counter()
         pm = track_map(POLISH, face, t, tcp, rows_mm=step)
         seconds = time.perf_counter() - t0
         un = mesh_process_map(POLISH, face, t, tcp, pm.grid, step, refine=False)
-        uv = face.uv_from_points(tcp)
-        off = np.einsum("ij,ij->i", tcp - face.point_mm(uv[:, 0], uv[:, 1]), face.normal_at(uv[:, 0], uv[:, 1]))
-        on = np.abs(off) <= POLISH.contact_tol_mm
-        kk = np.flatnonzero(on[:-1] & on[1:])
-        mid = 0.5 * (tcp[kk] + tcp[kk + 1])
-        per_mm = POLISH.preston_coefficient_per_pa * POLISH.force_n * 1e-3 * 1e12
-        seg = (tcp[kk], tcp[kk + 1], mid, saddle_normal(mid), per_mm * np.linalg.norm(tcp[kk + 1] - tcp[kk], axis=1))
-        P = saddle_point(face, face_chart_points(face, 200_000))
-        exact = exact_share(removal_at(P, seg, "parabolic", 15.0), 1.0 / np.abs(saddle_normal(P) @ face.frame[:, 2]))
+        exact = saddle_exact_share(face, tcp, 200_000)
         got, alone = map_figures(pm)["uniformity_within_5pct"], map_figures(un)["uniformity_within_5pct"]
         print(f"  step {step:4.1f} mm: {exact:.4f} | {got:.4f} | {alone:.4f}   ({seconds:.1f} s, "
               f"{len(pm.fine.values)} samples)")

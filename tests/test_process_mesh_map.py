@@ -13,9 +13,8 @@ from camtool.part.surface import Boundary, Cylinder, PlaneSurface
 from camtool.path.raster import raster_path
 from camtool.process.figures import map_figures, plot_map_png, save_map_npz
 from camtool.process.footprint import Footprint
-from camtool.process.grid import MapGrid
 from camtool.process.html import process_heat_map_figure
-from camtool.process.integrate import contacts_from_tcp, process_map
+from camtool.process.integrate import contacts_from_tcp
 from camtool.process.maps import surface_map, track_map
 from camtool.process.mesh_map import RIPPLE_SAMPLES, MeshMap, mesh_process_map
 from camtool.process.stepover import _track, choose_step_over, predicted_map
@@ -142,22 +141,28 @@ def saddle_normal(P):
     return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
-def test_a_raster_on_a_curved_mesh_matches_the_exact_reference():
-    """Passes 13 mm apart across a saddle CAD mesh (140 x 110 mm), on the true surface and past the face's edges:
-    the share within +-5 % against direct sums of the TCP track's segments over random points of the true saddle
-    (the true normals; uniform in area over the face's worked area), within 0.5 pp; the map on the vertices alone
-    is farther off. The segments in contact are those whose ends lie within the contact tolerance of the face
-    (continued past its edge, as camtool.part makes it), the only part of the reference taken from camtool."""
+def small_saddle_face():
+    """The saddle CAD mesh 140 x 110 mm taken as a free-form face."""
     V, F = grid_mesh(np.linspace(-70, 70, 57), np.linspace(-55, 55, 45), saddle)
-    face = fit_surface(mesh_workpiece(V, F)[0], FIT)
+    return fit_surface(mesh_workpiece(V, F)[0], FIT)
+
+
+def saddle_raster(step_mm: float):
+    """(times, TCP track) at 100 mm/s: passes along x step_mm apart on the true saddle, past the small saddle's
+    edges, each followed by a 20 mm lift."""
     rows = []
-    for k, y0 in enumerate(np.arange(-70.0, 70.1, 13.0) + 0.3):
+    for k, y0 in enumerate(np.arange(-70.0, 70.1, step_mm) + 0.3):
         x = np.arange(-85.0, 85.0 + 1e-9, 0.4) * (1 if k % 2 == 0 else -1)
         rows += [np.column_stack([x, np.full_like(x, y0), saddle(x, y0)]),
                  np.array([[x[-1], y0, saddle(x[-1], y0) + 20]])]
     tcp = np.vstack(rows)
-    t = np.arange(len(tcp)) * 0.004          # 100 mm/s
-    pm = track_map(POLISH, face, t, tcp, rows_mm=13.0)
+    return np.arange(len(tcp)) * 0.004, tcp
+
+
+def saddle_exact_share(face, tcp, n_points: int) -> float:
+    """The exact share within 5 % of the track on the true saddle: direct sums of its segments in contact (both
+    ends within the contact tolerance of the face, the true normals) over n_points random points of the true
+    saddle, uniform in area over the face's worked area."""
     uv = face.uv_from_points(tcp)
     off = np.einsum("ij,ij->i", tcp - face.point_mm(uv[:, 0], uv[:, 1]), face.normal_at(uv[:, 0], uv[:, 1]))
     on = np.abs(off) <= POLISH.contact_tol_mm
@@ -165,9 +170,21 @@ def test_a_raster_on_a_curved_mesh_matches_the_exact_reference():
     mid = 0.5 * (tcp[kk] + tcp[kk + 1])
     per_mm = POLISH.preston_coefficient_per_pa * POLISH.force_n * 1e-3 * 1e12
     segments = (tcp[kk], tcp[kk + 1], mid, saddle_normal(mid), per_mm * np.linalg.norm(tcp[kk + 1] - tcp[kk], axis=1))
-    P = saddle_point(face, face_chart_points(face, 40_000))
+    P = saddle_point(face, face_chart_points(face, n_points))
     area = 1.0 / np.abs(saddle_normal(P) @ face.frame[:, 2])      # chart-uniform points: the area element
-    exact = share_of(removal_at(P, segments, "parabolic", 15.0), area)
+    return share_of(removal_at(P, segments, "parabolic", 15.0), area)
+
+
+def test_a_raster_on_a_curved_mesh_matches_the_exact_reference():
+    """Passes 13 mm apart across a saddle CAD mesh (140 x 110 mm), on the true surface and past the face's edges:
+    the share within +-5 % against direct sums of the TCP track's segments over random points of the true saddle
+    (the true normals; uniform in area over the face's worked area), within 0.5 pp; the map on the vertices alone
+    is farther off. The segments in contact are those whose ends lie within the contact tolerance of the face
+    (continued past its edge, as camtool.part makes it), the only part of the reference taken from camtool."""
+    face = small_saddle_face()
+    t, tcp = saddle_raster(13.0)
+    pm = track_map(POLISH, face, t, tcp, rows_mm=13.0)
+    exact = saddle_exact_share(face, tcp, 40_000)
     assert 0.2 < exact < 0.8                # the ripple crosses the band: the share is a real measurement (0.361)
     assert map_figures(pm)["uniformity_within_5pct"] == pytest.approx(exact, abs=0.005)
     unrefined = map_figures(mesh_process_map(POLISH, face, t, tcp, pm.grid, 13.0, refine=False))
