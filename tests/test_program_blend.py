@@ -4,7 +4,7 @@ import pytest
 
 from camtool.program.blend import BLEND_SHARE, BlendCorners
 from camtool.program.candidates import merged_candidates
-from camtool.program.plan import profile_tool
+from camtool.program.plan import profile_tool, row_markers, stop_at_part_ends
 from camtool.program.process import ProcessInfo
 from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
@@ -49,3 +49,28 @@ def test_a_level_no_corner_can_get_does_not_grow_the_plan_without_bound(merged):
 
     plan = BlendCorners(LEVELS, 3).plan(merged)
     assert len(plan) <= 2 * MAX_GROWTH * int(merged.keep.sum()) + 2
+
+
+def test_row_markers_pair_each_rows_first_and_last_move(merged):
+    """camtool.program.plan.row_markers: the start lines at each row's first move (with its label, None past the
+    labels given), the end lines at its last; rows counted from 1 in order."""
+    plan = BlendCorners(LEVELS).plan(merged)
+    before, after = row_markers(plan, ProcessInfo(row_labels=("first",)), lambda r, label: [f"start {r} {label}"],
+                                lambda r: [f"end {r}"])
+    assert sorted(before) == np.flatnonzero(plan.row_start).tolist()
+    assert sorted(after) == np.flatnonzero(plan.row_end).tolist()
+    assert [before[i] for i in sorted(before)] == [["start 1 first"], ["start 2 None"]]
+    assert [after[i] for i in sorted(after)] == [["end 1"], ["end 2"]]
+    assert all(plan.row[i] == int(before[i][0].split()[1]) - 1 for i in before)
+
+
+def test_stop_at_part_ends_stops_every_part_but_the_last(merged):
+    plan = BlendCorners(LEVELS, 1).plan(merged)
+    n = len(plan)
+    parts = [range(0, n // 3), range(n // 3, n // 2), range(n // 2, n)]
+    own = plan.level.copy()
+    level = stop_at_part_ends(plan.level, parts)
+    assert level[n // 3 - 1] == -1 and level[n // 2 - 1] == -1
+    untouched = np.setdiff1d(np.arange(n), [n // 3 - 1, n // 2 - 1])
+    assert np.array_equal(level[untouched], plan.level[untouched])
+    assert np.array_equal(plan.level, own)          # the plan's own levels stay

@@ -63,7 +63,7 @@ from camtool.errors import BadInput
 from .blend import BlendCorners
 from .candidates import merged_candidates
 from .moveplan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, MovePlan  # noqa: F401 (what the writers read)
-from .steps import ExactStops
+from .steps import ExactStops, context_for, program_steps
 
 
 def plan_moves(trajectory, robot, process, *, linear: bool, levels_mm, min_level_on_surface: int = 0,
@@ -84,6 +84,41 @@ def plan_moves(trajectory, robot, process, *, linear: bool, levels_mm, min_level
     candidates = merged_candidates(trajectory, robot, process, linear, held)
     plan = BlendCorners(tuple(np.asarray(levels_mm, float).tolist()), min_level_on_surface).plan(candidates)
     return ExactStops(min_level_on_surface, max_level).apply(plan)
+
+
+def planned_moves(trajectory, robot, process, *, linear: bool, levels_mm, min_level_on_surface: int = 0,
+                  held=(), arcs_max_sweep_deg: float | None = None, arc_start_linear: bool = False) -> MovePlan:
+    """A writer's moves: ``plan_moves`` within the format's blend radii, then the program steps
+    (``steps.program_steps``: null linear moves, and circles as circular moves with ``arcs_max_sweep_deg``)."""
+    plan = plan_moves(trajectory, robot, process, linear=linear, levels_mm=levels_mm,
+                      min_level_on_surface=min_level_on_surface, held=held)
+    steps = program_steps(arcs_max_sweep_deg=arcs_max_sweep_deg, arc_start_linear=arc_start_linear)
+    return steps.apply(plan, context_for(trajectory, robot, process, plan, levels_mm, min_level_on_surface))
+
+
+def stop_at_part_ends(level: np.ndarray, parts: list[range]) -> np.ndarray:
+    """Each move's level, -1 (an exact stop) at the end of every part but the last: the program
+    calls (or loads) the next part there, which ends the motion."""
+    level = np.array(level, copy=True)
+    for r in parts[:-1]:
+        level[r.stop - 1] = -1
+    return level
+
+
+def row_markers(plan: MovePlan, process, start_lines, end_lines) -> tuple[dict[int, list[str]], dict[int, list[str]]]:
+    """A format's lines before a row's first move and after its last one, by move index:
+    ``start_lines(row_no, label)`` (label: the row's from ``process.row_labels``, or None) and
+    ``end_lines(row_no)``; rows count from 1."""
+    labels = list(process.row_labels)
+    before: dict[int, list[str]] = {}
+    after: dict[int, list[str]] = {}
+    for i in np.flatnonzero(plan.row_start | plan.row_end):
+        row_no = int(plan.row[i]) + 1
+        if plan.row_start[i]:
+            before[i] = start_lines(row_no, labels[row_no - 1] if row_no - 1 < len(labels) else None)
+        if plan.row_end[i]:
+            after[i] = end_lines(row_no)
+    return before, after
 
 
 def move_lengths(plan: MovePlan) -> np.ndarray:

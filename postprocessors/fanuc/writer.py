@@ -9,9 +9,9 @@ import numpy as np
 
 from camtool import __version__
 from camtool.program.convention import controller_axes, tool_in_tool0, wobj_frame
-from camtool.program.plan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
+from camtool.program.plan import (KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, move_lengths, planned_moves, profile_tool,
+                                  row_markers, split_parts, stop_at_part_ends)
 from camtool.program.process import ProcessInfo, program_date
-from camtool.program.steps import context_for, program_steps
 
 from .dialect import (ATTR_COMMENT_MAX, AXES, MAX_ARC_DEG, ROBOT_AXES, comment_text, ls_number, program_name,
                       validate_profile, wpr_deg)
@@ -27,11 +27,13 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     o = profile.options
     name, _ = program_name(profile.program_name, o["program_name_length"])
     robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP UTOOL holds
-    plan = _plan(trajectory, robot, process, [float(v) for v in o["cnt_mm"]], o["arcs"])
+    radii = [float(v) for v in o["cnt_mm"]]
+    plan = planned_moves(trajectory, robot, process, linear=True, levels_mm=radii,
+                         arcs_max_sweep_deg=MAX_ARC_DEG if o["arcs"] else None)
     kind = np.array(plan.kind)
     parts = split_parts(len(plan), o["lines_per_program"], plan.free, "moves",
                         f"{profile.source}: options.lines_per_program")
-    level = _levels(plan, parts)
+    level = stop_at_part_ends(plan.level, parts)   # CALL ends the motion: the program before ends with FINE
     order = [a for ax in AXES for a in profile.axes if a.axis == ax]
     values, via_values = _axis_values(plan, robot, profile, order, kind)
     speed = _speeds(plan, kind, values, np.array([a.max_speed for a in order]), robot, move_lengths(plan), o)
@@ -41,22 +43,6 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     job = dict(kind=kind, values=values, via=via_values, speed=speed, term=_terms(level, o["cnt"]), before=before,
                after=after, order=order, o=o, frames=frames)
     return _write_files(outdir, _programs(name, parts, header, job, o["program_name_length"]))
-
-
-def _plan(trajectory, robot, process: ProcessInfo, radii: list[float], arcs: bool):
-    """The program's moves: planned within the profile's ``cnt_mm`` radii, then the program
-    steps (arcs)."""
-    plan = plan_moves(trajectory, robot, process, linear=True, levels_mm=radii, min_level_on_surface=0)
-    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if arcs else None)
-    return steps.apply(plan, context_for(trajectory, robot, process, plan, radii, 0))
-
-
-def _levels(plan, parts: list[range]) -> np.ndarray:
-    """Each move's level, -1 (FINE) at the end of every program but the last."""
-    level = plan.level.copy()
-    for r in parts[:-1]:
-        level[r.stop - 1] = -1   # CALL ends the motion: the program before ends with FINE
-    return level
 
 
 def _terms(level: np.ndarray, cnt: list) -> list[str]:
@@ -79,17 +65,14 @@ def _axis_values(plan, robot, profile, order: list, kind: np.ndarray) -> tuple[n
 
 def _row_markers(plan, process: ProcessInfo, out_no) -> tuple[dict[int, list[str]], dict[int, list[str]]]:
     """The remarks and DO instructions before a row's first move and after its last one."""
-    labels = list(process.row_labels)
-    before: dict[int, list[str]] = {}
-    after: dict[int, list[str]] = {}
-    for i in np.flatnonzero(plan.row_start | plan.row_end):
-        r = int(plan.row[i]) + 1
-        if plan.row_start[i]:
-            label = f" {comment_text(labels[r - 1], 12)}" if r - 1 < len(labels) else ""
-            before[i] = [f"!ROW {r}/{plan.rows}{label} ;"] + ([f"DO[{out_no}]=ON ;"] if out_no else [])
-        if plan.row_end[i]:
-            after[i] = ([f"DO[{out_no}]=OFF ;"] if out_no else []) + [f"!END ROW {r} ;"]
-    return before, after
+    def start(r: int, label: str | None) -> list[str]:
+        text = f" {comment_text(label, 12)}" if label is not None else ""
+        return [f"!ROW {r}/{plan.rows}{text} ;"] + ([f"DO[{out_no}]=ON ;"] if out_no else [])
+
+    def end(r: int) -> list[str]:
+        return ([f"DO[{out_no}]=OFF ;"] if out_no else []) + [f"!END ROW {r} ;"]
+
+    return row_markers(plan, process, start, end)
 
 
 def _header(robot, profile, process: ProcessInfo, name: str, plan, level: np.ndarray, frames: dict) -> dict:

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from camtool.errors import BadInput
-from camtool.program.check import arc_findings, check_motion
+from camtool.program.check import arc_findings, check_motion, row_marker_findings
 from camtool.program.durations import move_durations
 from camtool.program.moves import JOINT
 from camtool.program.targets import cartesian_targets, target_joints
@@ -53,15 +53,8 @@ def check(path: Path, robot, profile) -> list[str]:
                 if len(vals) != want:
                     out.append(f"{jp}:{ln}: {pre} line has {len(vals)} values, expected {want} for group {g}")
                     consistent = False
-        for it in j.items:
-            if it[0] == "row":
-                if open_row is not None:
-                    out.append(f"{jp}:{it[1]}: a row starts before the previous one ended")
-                open_row = it[1]
-            elif it[0] == "end_row":
-                if open_row is None:
-                    out.append(f"{jp}:{it[1]}: a row ends that never started")
-                open_row = None
+        rows, open_row = row_marker_findings(jp, j.items, open_row)
+        out += rows
     if not consistent or not n_moves:
         if not n_moves and not out:
             out.append(f"{path}: no MOVJ found")

@@ -12,8 +12,8 @@ from camtool.program.convention import controller_axes, controller_pose_base, st
 from camtool.robots.confdata import yaskawa_rconf
 from camtool.program.kinematics import Kinematics
 from camtool.program.moves import JOINT
-from camtool.program.plan import KIND_CIRCULAR, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
-from camtool.program.steps import context_for, program_steps
+from camtool.program.plan import (KIND_CIRCULAR, KIND_LINEAR, move_lengths, planned_moves, profile_tool, row_markers,
+                                  split_parts, stop_at_part_ends)
 from camtool.program.process import ProcessInfo, program_date
 
 from .dialect import (comment_text, euler_xyz_deg, _fmt_column, group_axes, GROUPS, job_name, MAX_ARC_DEG,
@@ -57,17 +57,13 @@ def _plan(trajectory, robot, profile, process: ProcessInfo):
     radii = [float(v) for v in o["pl_mm"]][:o["max_pl"]]
     lo = max(1, o["pl"]) - 1
     held = stated_joints(profile, robot, [f"RB1:{i}" for i in range(1, 7)])  # Re (7th axis), BS1, ST1
-    plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=radii, min_level_on_surface=lo, held=held)
-    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if cart and o["arcs"] else None, arc_start_linear=True)
-    return steps.apply(plan, context_for(trajectory, robot, process, plan, radii, lo))
+    return planned_moves(trajectory, robot, process, linear=cart, levels_mm=radii, min_level_on_surface=lo, held=held,
+                         arcs_max_sweep_deg=MAX_ARC_DEG if cart and o["arcs"] else None, arc_start_linear=True)
 
 
 def _pl(plan, parts: list[range]) -> np.ndarray:
     """Each move's PL, 0 (an exact stop) at the end of every job but the last."""
-    pl = plan.level + 1  # level -1 (exact stop) -> PL=0
-    for r in parts[:-1]:
-        pl[r.stop - 1] = 0  # CALL JOB ends the motion: the job before ends with a stop
-    return pl
+    return stop_at_part_ends(plan.level, parts) + 1  # level -1 (exact stop) -> PL=0; CALL JOB ends the motion
 
 
 def _speeds(plan, robot, profile, groups: dict, kind: np.ndarray) -> list[str]:
@@ -123,17 +119,14 @@ def _targets(plan, robot, profile, groups: dict, kind: np.ndarray) -> tuple[dict
 
 def _row_markers(plan, process: ProcessInfo, out_no) -> tuple[dict[int, list[str]], dict[int, list[str]]]:
     """The comments and DOUT instructions before a row's first move and after its last one."""
-    labels = list(process.row_labels)
-    before: dict[int, list[str]] = {}
-    after: dict[int, list[str]] = {}
-    for i in np.flatnonzero(plan.row_start | plan.row_end):
-        r = int(plan.row[i]) + 1
-        if plan.row_start[i]:
-            label = f" {comment_text(labels[r - 1], 24).upper()}" if r - 1 < len(labels) else ""
-            before[i] = [f"'ROW {r}/{plan.rows}{label}"[:33]] + ([f"DOUT OT#({out_no}) ON"] if out_no else [])
-        if plan.row_end[i]:
-            after[i] = ([f"DOUT OT#({out_no}) OFF"] if out_no else []) + [f"'END ROW {r}"]
-    return before, after
+    def start(r: int, label: str | None) -> list[str]:
+        text = f" {comment_text(label, 24).upper()}" if label is not None else ""
+        return [f"'ROW {r}/{plan.rows}{text}"[:33]] + ([f"DOUT OT#({out_no}) ON"] if out_no else [])
+
+    def end(r: int) -> list[str]:
+        return ([f"DOUT OT#({out_no}) OFF"] if out_no else []) + [f"'END ROW {r}"]
+
+    return row_markers(plan, process, start, end)
 
 
 def _header(robot, profile, process: ProcessInfo, name: str, groups: dict, kind: np.ndarray, pl: np.ndarray,

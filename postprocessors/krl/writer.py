@@ -12,9 +12,10 @@ import numpy as np
 from camtool import __version__
 from camtool.program.convention import controller_axes, controller_pose, tool_in_tool0, wobj_frame
 from camtool.program.moves import joint_travel
-from camtool.program.plan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
+from camtool.program.plan import (KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, move_lengths, planned_moves, profile_tool,
+                                  row_markers, split_parts, stop_at_part_ends)
 from camtool.program.process import ProcessInfo, program_date
-from camtool.program.steps import context_for, program_steps, rotation_angles_rad
+from camtool.program.steps import rotation_angles_rad
 
 from .dialect import (AXES, EXTERNAL_AXES, LINE_MAX, MAX_ARC_DEG, ROBOT_AXES, VEL_CP_DECIMALS, comment_text,
                       cptp_percent, fmt_column, frame_text, krl_name, validate_profile)
@@ -49,9 +50,10 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     name, _ = krl_name(profile.program_name, 20)   # room for the parts' _NNN
     robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP the program declares
     levels = [float(v) for v in o["cdis_mm"]]
-    plan = _plan(trajectory, robot, process, levels, o["arcs"])
+    plan = planned_moves(trajectory, robot, process, linear=True, levels_mm=levels,
+                         arcs_max_sweep_deg=MAX_ARC_DEG if o["arcs"] else None)
     parts = split_parts(len(plan), o["lines_per_file"], plan.free, "moves", f"{profile.source}: options.lines_per_file")
-    level = _levels(plan, parts)
+    level = stop_at_part_ends(plan.level, parts)   # a module ends with a stop: the next one is called there
     axes = controller_axes(profile, robot, plan.q)
     motion = _motion(plan, robot, profile, axes, levels, level)
     pre, moves = _moves(plan, robot, motion, o, {r.start for r in parts})
@@ -60,22 +62,6 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     header = _header(trajectory, robot, profile, process, plan, level)
     bodies = [_body(r, pre, moves, before, after) for r in parts]
     return _write_files(outdir, _modules(name, header, _settings(robot, profile), parts, bodies, targets))
-
-
-def _plan(trajectory, robot, process: ProcessInfo, levels: list[float], arcs: bool):
-    """The program's moves: planned within the profile's ``cdis_mm`` radii, then the program
-    steps (arcs)."""
-    plan = plan_moves(trajectory, robot, process, linear=True, levels_mm=levels, min_level_on_surface=0)
-    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if arcs else None)
-    return steps.apply(plan, context_for(trajectory, robot, process, plan, levels, 0))
-
-
-def _levels(plan, parts: list[range]) -> np.ndarray:
-    """Each move's level, -1 (an exact stop) at the end of every module but the last."""
-    level = plan.level.copy()
-    for r in parts[:-1]:
-        level[r.stop - 1] = -1   # a module ends with a stop: the next one is called there
-    return level
 
 
 def _motion(plan, robot, profile, axes: dict, levels: list[float], level: np.ndarray) -> _Motion:
@@ -94,17 +80,14 @@ def _motion(plan, robot, profile, axes: dict, levels: list[float], level: np.nda
 
 def _row_markers(plan, process: ProcessInfo, out_no) -> tuple[dict[int, list[str]], dict[int, list[str]]]:
     """The comments and $OUT assignments before a row's first move and after its last one."""
-    labels = list(process.row_labels)
-    before: dict[int, list[str]] = {}
-    after: dict[int, list[str]] = {}
-    for i in np.flatnonzero(plan.row_start | plan.row_end):
-        row_no = int(plan.row[i]) + 1
-        if plan.row_start[i]:
-            label = f": {comment_text(labels[row_no - 1], 40)}" if row_no - 1 < len(labels) else ""
-            before[i] = [f"; Row {row_no} of {plan.rows}{label}"] + ([f"$OUT[{out_no}]=TRUE"] if out_no else [])
-        if plan.row_end[i]:
-            after[i] = ([f"$OUT[{out_no}]=FALSE"] if out_no else []) + [f"; End of row {row_no}"]
-    return before, after
+    def start(row_no: int, label: str | None) -> list[str]:
+        text = f": {comment_text(label, 40)}" if label is not None else ""
+        return [f"; Row {row_no} of {plan.rows}{text}"] + ([f"$OUT[{out_no}]=TRUE"] if out_no else [])
+
+    def end(row_no: int) -> list[str]:
+        return ([f"$OUT[{out_no}]=FALSE"] if out_no else []) + [f"; End of row {row_no}"]
+
+    return row_markers(plan, process, start, end)
 
 
 def _header(trajectory, robot, profile, process: ProcessInfo, plan, level: np.ndarray) -> list[str]:

@@ -12,8 +12,9 @@ from camtool import __version__
 from camtool.program.convention import controller_axes, controller_pose, stated_joints
 from camtool.robots.confdata import abb_confdata
 from camtool.program.kinematics import Kinematics
-from camtool.program.plan import KIND_CIRCULAR, KIND_LINEAR, move_lengths, plan_moves, profile_tool, split_parts
-from camtool.program.steps import context_for, program_steps, rotation_angles_rad
+from camtool.program.plan import (KIND_CIRCULAR, KIND_LINEAR, move_lengths, planned_moves, profile_tool, row_markers,
+                                  split_parts, stop_at_part_ends)
+from camtool.program.steps import rotation_angles_rad
 from camtool.program.process import ProcessInfo, program_date
 from camtool.transforms import matrix_from_xyz_rpy, quaternion_wxyz_from_matrix
 
@@ -51,7 +52,7 @@ def write(trajectory, robot, profile, outdir: Path, process: ProcessInfo | None 
     robot = robot.with_placement(tool_T_mm=profile_tool(profile))  # the TCP the program declares
     plan = _plan(trajectory, robot, profile, process)
     parts = split_parts(len(plan), o["lines_per_module"], plan.free, "moves", f"{profile.source}: options.lines_per_module")
-    level = _levels(plan, parts)
+    level = stop_at_part_ends(plan.level, parts)  # a module ends with a stop: the next one is loaded there
     moves = _move_lines(plan, robot, profile, names, level)
     before, after = _row_markers(plan, process, o["process_signal"])
     header = _header(trajectory, robot, profile, process, plan, level)
@@ -75,17 +76,8 @@ def _plan(trajectory, robot, profile, process: ProcessInfo):
     lo, hi = BLEND_ZONES.index(o["zone"]), BLEND_ZONES.index(o["max_zone"])
     levels = [ZONE_MM[z] for z in BLEND_ZONES[:hi + 1]]
     held = stated_joints(profile, robot, RAX)  # the joints on eax_a..eax_f (a 7th joint, a track)
-    plan = plan_moves(trajectory, robot, process, linear=cart, levels_mm=levels, min_level_on_surface=lo, held=held)
-    steps = program_steps(arcs_max_sweep_deg=MAX_ARC_DEG if cart and o["arcs"] else None)
-    return steps.apply(plan, context_for(trajectory, robot, process, plan, levels, lo))
-
-
-def _levels(plan, parts: list[range]) -> np.ndarray:
-    """Each move's zone level, -1 (fine) at the end of every module but the last."""
-    level = plan.level.copy()
-    for r in parts[:-1]:
-        level[r.stop - 1] = -1  # a module ends with a stop: the next one is loaded there
-    return level
+    return planned_moves(trajectory, robot, process, linear=cart, levels_mm=levels, min_level_on_surface=lo, held=held,
+                         arcs_max_sweep_deg=MAX_ARC_DEG if cart and o["arcs"] else None)
 
 
 def _timing(plan, robot, kind: np.ndarray) -> tuple[list[str], list[str]]:
@@ -170,18 +162,14 @@ def _move_lines(plan, robot, profile, names: _Names, level: np.ndarray) -> list[
 
 def _row_markers(plan, process: ProcessInfo, sig: str) -> tuple[dict[int, list[str]], dict[int, list[str]]]:
     """The comments and SetDO statements before a row's first move and after its last one."""
-    labels = list(process.row_labels)
-    before: dict[int, list[str]] = {}
-    after: dict[int, list[str]] = {}
-    row_no = 0
-    for i in np.flatnonzero(plan.row_start | plan.row_end):
-        if plan.row_start[i]:
-            row_no = int(plan.row[i]) + 1
-            label = f": {comment_text(labels[row_no - 1], 40)}" if row_no - 1 < len(labels) else ""
-            before[i] = [f"! Row {row_no} of {plan.rows}{label}"] + ([f"SetDO {sig}, 1;"] if sig else [])
-        if plan.row_end[i]:
-            after[i] = ([f"SetDO {sig}, 0;"] if sig else []) + [f"! End of row {int(plan.row[i]) + 1}"]
-    return before, after
+    def start(row_no: int, label: str | None) -> list[str]:
+        text = f": {comment_text(label, 40)}" if label is not None else ""
+        return [f"! Row {row_no} of {plan.rows}{text}"] + ([f"SetDO {sig}, 1;"] if sig else [])
+
+    def end(row_no: int) -> list[str]:
+        return ([f"SetDO {sig}, 0;"] if sig else []) + [f"! End of row {row_no}"]
+
+    return row_markers(plan, process, start, end)
 
 
 def _body(r: range, moves: list[str], before: dict, after: dict) -> list[str]:
