@@ -227,31 +227,45 @@ def resolve_outdir(outdir, create: bool = True) -> int:
     if "\0" in raw:
         raise BadInput(f"{snippet(raw)}: a NUL byte in the output folder's name")
     full = raw if os.path.isabs(raw) else os.path.join(os.getcwd(), raw)
-    fd = os.open("/", _WALK_FLAGS)
-    walked = ""
+    names = [name for name in full.split("/") if name not in ("", ".")]
+
+    def refuse(i: int, exc: OSError, fd: int) -> None:
+        walked = "/" + "/".join(names[:i + 1])
+        if isinstance(exc, FileNotFoundError):
+            raise BadInput(f"{raw}: {walked} does not exist") from None
+        if exc.errno not in (errno.ELOOP, errno.ENOTDIR):
+            raise BadInput(f"{raw}: cannot open the output folder ({exc.strerror or exc})") from None
+        if stat.S_ISLNK(os.lstat(names[i], dir_fd=fd).st_mode):
+            raise BadInput(f"{raw}: {walked} is a symlink; camtool resolves -o without following links "
+                           "(give the folder's real path)") from None
+        raise BadInput(f"{raw}: {walked} exists and is not a folder; give an output folder") from None
+
+    return _walk(os.open("/", _WALK_FLAGS), names, _WALK_FLAGS, create, refuse)
+
+
+def _walk(fd: int, names: list[str], flags: int, create: bool, refuse) -> int:
+    """The one folder walker (``-o`` and the folders below it): from the folder open as ``fd`` down ``names``,
+    one component at a time opened with ``flags`` (``O_NOFOLLOW``: a link is never followed); a missing one
+    is made first (``mkdirat``) when ``create`` (never ``..``). A component that cannot be opened (missing
+    and not made, a link, a file, ...) goes to ``refuse(i, exc, fd)`` (``fd``: the folder holding it), which
+    raises or returns to have the OSError raised as it is. Returns the last folder's descriptor; ``fd`` is
+    closed (the caller closes the one returned)."""
     try:
-        for name in full.split("/"):
-            if name in ("", "."):
-                continue
-            walked = walked + "/" + name
+        for i, name in enumerate(names):
             try:
-                nfd = os.open(name, _WALK_FLAGS, dir_fd=fd)
-            except FileNotFoundError:
+                nfd = os.open(name, flags, dir_fd=fd)
+            except FileNotFoundError as exc:
                 if not create or name == "..":
-                    raise BadInput(f"{raw}: {walked} does not exist") from None
+                    refuse(i, exc, fd)
+                    raise
                 try:
                     os.mkdir(name, 0o755, dir_fd=fd)
                 except FileExistsError:
                     pass
-                nfd = os.open(name, _WALK_FLAGS, dir_fd=fd)
+                nfd = os.open(name, flags, dir_fd=fd)
             except OSError as exc:
-                if exc.errno not in (errno.ELOOP, errno.ENOTDIR):
-                    raise BadInput(f"{raw}: cannot open the output folder ({exc.strerror or exc})") from None
-                mode = os.lstat(name, dir_fd=fd).st_mode
-                if stat.S_ISLNK(mode):
-                    raise BadInput(f"{raw}: {walked} is a symlink; camtool resolves -o without following links "
-                                   "(give the folder's real path)") from None
-                raise BadInput(f"{raw}: {walked} exists and is not a folder; give an output folder") from None
+                refuse(i, exc, fd)
+                raise
             os.close(fd)
             fd = nfd
     except BaseException:
@@ -405,30 +419,15 @@ def _parts(rel) -> list[str]:
 
 def _open_dir(outdir, parts: list[str], create: bool) -> int:
     """A descriptor of ``outdir/parts...``, walked with O_NOFOLLOW (created with ``create``)."""
-    fd = os.open(at(outdir), _DIR_FLAGS)
-    try:
-        for i, name in enumerate(parts):
-            if create:
-                try:
-                    os.mkdir(name, 0o755, dir_fd=fd)
-                except FileExistsError:
-                    pass
-            try:
-                nfd = os.open(name, _DIR_FLAGS, dir_fd=fd)
-            except OSError as exc:
-                if exc.errno in (errno.ELOOP, errno.ENOTDIR):
-                    mode = os.lstat(name, dir_fd=fd).st_mode
-                    if stat.S_ISREG(mode):
-                        raise BadInput(f"{Path(outdir, *parts[:i + 1])}: is a file where camtool needs a folder; "
-                                       "remove or rename it") from None
-                    _refuse_special(Path(outdir, *parts[:i + 1]), mode)
-                raise
-            os.close(fd)
-            fd = nfd
-    except BaseException:
-        os.close(fd)
-        raise
-    return fd
+    def refuse(i: int, exc: OSError, fd: int) -> None:
+        if exc.errno in (errno.ELOOP, errno.ENOTDIR):
+            mode = os.lstat(parts[i], dir_fd=fd).st_mode
+            if stat.S_ISREG(mode):
+                raise BadInput(f"{Path(outdir, *parts[:i + 1])}: is a file where camtool needs a folder; "
+                               "remove or rename it") from None
+            _refuse_special(Path(outdir, *parts[:i + 1]), mode)
+
+    return _walk(os.open(at(outdir), _DIR_FLAGS), parts, _DIR_FLAGS, create, refuse)
 
 
 def _target_mode(dfd: int, name: str) -> int | None:
