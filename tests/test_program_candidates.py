@@ -157,6 +157,35 @@ def test_held_joint_chords_refuse_a_straight_move_past_the_wrist_singularity():
     assert HeldJointChords(kin, q, P, held)(np.array([0]), np.array([2]), np.array([1]))[0] < 0.2
 
 
+def test_held_joint_chords_make_each_waypoints_jacobian_once_and_answer_as_a_fresh_measure():
+    """Douglas-Peucker asks about the same waypoints again and again: HeldJointChords makes each one's
+    Jacobian once (counted through the kinematics), and every answer is bit for bit a fresh instance's."""
+    from camtool.program.candidates import HeldJointChords
+    from camtool.program.kinematics import Kinematics
+
+    kin = Kinematics(_sia20())
+    rng = np.random.default_rng(7)
+    q = np.array([0.3, 0.5, -0.4, -1.1, 0.7, 0.9, -0.2]) + rng.normal(0.0, 0.05, (40, 7))
+    P = kin.pose(q)[0]
+    held = np.zeros(7, bool)
+    held[2] = True
+    rows = []
+
+    class Counting(Kinematics):
+        def jacobian6(self, qs):
+            rows.append(len(qs))
+            return super().jacobian6(qs)
+
+    cached = HeldJointChords(Counting(_sia20()), q, P, held)
+    queries = [(0, 39, np.arange(1, 39)), (0, 20, np.arange(1, 20)), (20, 39, np.arange(21, 39)),
+               (5, 15, np.arange(6, 15))]
+    for a, b, k in queries:
+        got = cached(np.full(len(k), a), np.full(len(k), b), k)
+        fresh = HeldJointChords(kin, q, P, held)(np.full(len(k), a), np.full(len(k), b), k)
+        assert np.array_equal(got, fresh) and np.all(np.isfinite(got))
+    assert sum(rows) == 38                   # waypoints 1..38, each once
+
+
 def test_stated_joints_are_the_axes_beside_the_six_the_controller_solves():
     from camtool.program.convention import stated_joints
 

@@ -176,6 +176,21 @@ class HeldJointChords:
         self.kin, self.q, self.P = kin, q, P
         self.held = np.asarray(held, bool)
         self.scale = np.where(kin.prismatic, 1e-3, 1.0)[~self.held]  # 1 rad ~ 1000 mm, as JointChords
+        self._J: np.ndarray | None = None          # (S, 6, dof) each waypoint's weighted Jacobian, once asked
+        self._made = np.zeros(len(q), bool)
+
+    def _jacobians(self, k: np.ndarray) -> np.ndarray:
+        """The waypoints' TCP Jacobians, the angular rows times 1000 (1 rad of the tool's orientation weighs
+        like 1000 mm): each made once, the first time Douglas-Peucker asks for it (the new ones in one batch)."""
+        new = np.unique(k[~self._made[k]])
+        if len(new):
+            if self._J is None:
+                self._J = np.empty((len(self.q), 6, self.q.shape[1]))
+            J = self.kin.jacobian6(self.q[new])
+            J[:, 3:] *= 1000.0
+            self._J[new] = J
+            self._made[new] = True
+        return self._J[k]
 
     def __call__(self, a, b, k):
         d = self.P[b] - self.P[a]
@@ -183,8 +198,7 @@ class HeldJointChords:
         s = np.clip(np.einsum("ki,ki->k", self.P[k] - self.P[a], d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
         h, q = self.held, self.q
         dh = q[a][:, h] + s[:, None] * (q[b][:, h] - q[a][:, h]) - q[k][:, h]
-        J = self.kin.jacobian6(q[k])
-        J[:, 3:] *= 1000.0   # 1 rad of the tool's orientation weighs like 1000 mm
+        J = self._jacobians(k)
         rhs = -np.einsum("kij,kj->ki", J[:, :, h], dh)
         U, sv, Vt = np.linalg.svd(J[:, :, ~h], full_matrices=False)
         ok = sv[:, -1] > 1e-9 * np.maximum(sv[:, 0], 1e-300)
