@@ -41,7 +41,7 @@ from camtool.settings import RasterSettings  # noqa: E402
 from test_freeform import grid_mesh, mesh_workpiece  # noqa: E402
 from process_reference import contacts, removal_at, sample_points  # noqa: E402
 from test_process_mesh_map import (FIT, POLISH, dense_reference, face_chart_points, plane_track, saddle,  # noqa: E402
-                                   saddle_exact_share, share_of, small_saddle_face, tilted)
+                                   saddle_exact_share, share_of, small_saddle_face, three_passes, tilted)
 from test_process_mesh_map import saddle_raster as saddle_raster_track  # noqa: E402
 
 KEYS = ("worked_area_mm2", "mean", "rms_pct", "uniformity_within_5pct", "uniformity_within_10pct",
@@ -113,11 +113,7 @@ def saddle_raster() -> None:
 def curved() -> None:
     V, F = grid_mesh(np.linspace(-120, 120, 97), np.linspace(-90, 90, 73), saddle)
     face = fit_surface(mesh_workpiece(V, F)[0], FIT)
-    rows = []
-    for k, y0 in enumerate((-10.0, 0.0, 10.0)):
-        x = np.arange(-80.0, 80.0 + 1e-9, 0.5) * (1 if k % 2 == 0 else -1)
-        rows.append(np.column_stack([x, np.full_like(x, y0), saddle(x, y0)]))
-        rows.append(rows[-1][-1:] + [0, 0, 20.0])
+    rows = three_passes()
     tcp = np.vstack(rows)
     t0 = time.perf_counter()
     pm = track_map(POLISH, face, np.arange(len(tcp)) * 0.005, tcp)

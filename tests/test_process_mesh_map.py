@@ -263,13 +263,19 @@ def dense_reference(points, contacts, normals, weights, fp_radius, shape, step=0
     return out
 
 
-def test_a_curved_mesh_matches_direct_sums_over_the_true_surface(saddle_face):
-    # three passes across the saddle, along x at y = -10, 0, 10, on the true surface, lifted between them
+def three_passes() -> list[np.ndarray]:
+    """Three passes across the saddle, along x at y = -10, 0, 10 every 0.5 mm on the true surface, each followed
+    by its 20 mm lift: [pass, lift, pass, lift, pass, lift]."""
     rows = []
     for k, y0 in enumerate((-10.0, 0.0, 10.0)):
         x = np.arange(-80.0, 80.0 + 1e-9, 0.5) * (1 if k % 2 == 0 else -1)
         rows.append(np.column_stack([x, np.full_like(x, y0), saddle(x, y0)]))
         rows.append(rows[-1][-1:] + [0, 0, 20.0])
+    return rows
+
+
+def test_a_curved_mesh_matches_direct_sums_over_the_true_surface(saddle_face):
+    rows = three_passes()
     tcp = np.vstack(rows)
     t = np.arange(len(tcp)) * 0.005    # 100 mm/s
     pm = track_map(POLISH, saddle_face, t, tcp)
