@@ -4,7 +4,7 @@ import pytest
 
 from camtool.program.blend import BLEND_SHARE, BlendCorners
 from camtool.program.candidates import merged_candidates
-from camtool.program.plan import profile_tool, row_markers, stop_at_part_ends
+from camtool.program.plan import part_names, profile_tool, row_markers, stop_at_part_ends
 from camtool.program.process import ProcessInfo
 from camtool.program.profiles import load_profile
 from camtool.robots import get_robot
@@ -74,3 +74,10 @@ def test_stop_at_part_ends_stops_every_part_but_the_last(merged):
     untouched = np.setdiff1d(np.arange(n), [n // 3 - 1, n // 2 - 1])
     assert np.array_equal(level[untouched], plan.level[untouched])
     assert np.array_equal(plan.level, own)          # the plan's own levels stay
+
+
+def test_part_names_fit_the_controllers_length_and_count_from_one():
+    assert part_names("PLATE", 3, 8) == ["PLATE_1", "PLATE_2", "PLATE_3"]
+    names = part_names("LONGNAME", 12, 8)        # the name is cut to make room for the suffix
+    assert names[0] == "LONGNA_1" and names[-1] == "LONGN_12"
+    assert all(len(n) <= 8 for n in names) and len(set(names)) == 12

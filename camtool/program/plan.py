@@ -166,6 +166,11 @@ def split_parts(n: int, limit: int, allowed_after: np.ndarray, what: str, where:
     return parts
 
 
+def part_names(name: str, count: int, max_len: int) -> list[str]:
+    """The names of a split program's parts: ``name`` cut so that ``_1``, ``_2``, ... fits in ``max_len``."""
+    return [name[:max_len - len(f"_{k}")] + f"_{k}" for k in range(1, count + 1)]
+
+
 def round_durations(dt: np.ndarray, resolution: float, fastest: np.ndarray | None = None) -> np.ndarray:
     """Durations on a grid of ``resolution`` whose running sum tracks the planned one (error
     diffusion): each written duration is the planned one rounded up or down so that the

@@ -9,8 +9,8 @@ import numpy as np
 
 from camtool import __version__
 from camtool.program.convention import controller_axes, tool_in_tool0, wobj_frame
-from camtool.program.plan import (KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, move_lengths, planned_moves, profile_tool,
-                                  row_markers, split_parts, stop_at_part_ends)
+from camtool.program.plan import (KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, move_lengths, part_names, planned_moves,
+                                  profile_tool, row_markers, split_parts, stop_at_part_ends)
 from camtool.program.process import ProcessInfo, program_date
 
 from .dialect import (ATTR_COMMENT_MAX, AXES, MAX_ARC_DEG, ROBOT_AXES, comment_text, ls_number, program_name,
@@ -107,13 +107,8 @@ def _programs(name: str, parts: list[range], header: dict, job: dict, max_len: i
     turn."""
     if len(parts) == 1:
         return {name: _program(name, parts[0], header, job, setup_frames=True)}
-    files: dict[str, list[str]] = {}
-    names = []
-    for k, r in enumerate(parts, 1):
-        s = f"_{k}"
-        part = name[:max_len - len(s)] + s
-        names.append(part)
-        files[part] = _program(part, r, header, job, setup_frames=False)
+    names = part_names(name, len(parts), max_len)
+    files = {part: _program(part, r, header, job, setup_frames=False) for part, r in zip(names, parts)}
     return {name: _main(name, header, names, job), **files}
 
 

@@ -12,8 +12,8 @@ from camtool.program.convention import controller_axes, controller_pose_base, st
 from camtool.robots.confdata import yaskawa_rconf
 from camtool.program.kinematics import Kinematics
 from camtool.program.moves import JOINT
-from camtool.program.plan import (KIND_CIRCULAR, KIND_LINEAR, move_lengths, planned_moves, profile_tool, row_markers,
-                                  split_parts, stop_at_part_ends)
+from camtool.program.plan import (KIND_CIRCULAR, KIND_LINEAR, move_lengths, part_names, planned_moves, profile_tool,
+                                  row_markers, split_parts, stop_at_part_ends)
 from camtool.program.process import ProcessInfo, program_date
 
 from .dialect import (comment_text, euler_xyz_deg, _fmt_column, group_axes, GROUPS, job_name, MAX_ARC_DEG,
@@ -155,13 +155,8 @@ def _jobs(name: str, parts: list[range], header: dict, job: dict, name_length: i
     """The jobs' lines by job name: one job, or a main job calling the parts in turn."""
     if len(parts) == 1:
         return {name: _job(name, parts[0], header, job)}
-    files: dict[str, list[str]] = {}
-    names = []
-    for i, r in enumerate(parts, 1):
-        s = f"_{i}"
-        part = name[:name_length - len(s)] + s
-        names.append(part)
-        files[part] = _job(part, r, header, job)
+    names = part_names(name, len(parts), name_length)
+    files = {part: _job(part, r, header, job) for part, r in zip(names, parts)}
     main = ["/JOB", f"//NAME {name}", "//POS", "///NPOS 0,0,0,0,0,0", "//INST", f"///DATE {header['date']}",
             f"///COMM {header['comm']}", "///ATTR SC,RW", f"///GROUP1 {header['group']}", "NOP"] + header["notes"] \
         + [f"CALL JOB:{n_}" for n_ in names] + ["END"]
