@@ -116,17 +116,42 @@ def best_of(cands: np.ndarray, lower: np.ndarray, upper: np.ndarray, revolute: n
     return mid + dev[c, np.arange(K)], m[c, np.arange(K)], valid.any(axis=0)
 
 
+def _all_of(*checks):
+    """One check (..., n) -> (...) bool that passes where every given one does (None: no check)."""
+    checks = [c for c in checks if c is not None]
+    if not checks:
+        return None
+    if len(checks) == 1:
+        return checks[0]
+    return lambda Q: np.logical_and.reduce([np.asarray(c(Q), bool) for c in checks])
+
+
+def screen_model(robot, settings=None, free_spin: bool = False) -> "ClosedForm | None":
+    """``ClosedForm.for_robot`` that also refuses a wrist bend that brings the job's tool closer than the
+    cell's clearance to the link before the wrist (``collision.wrist_bend``), as the planner would;
+    ``settings``: the job's ``JobSettings`` (None: the limits alone)."""
+    joint_ok = None
+    if settings is not None:
+        from ..collision.stage import collision_world
+        from ..collision.wrist_bend import WristBend
+
+        bend = WristBend(collision_world(settings, robot))
+        joint_ok = bend.ok if bend.matters else None
+    return ClosedForm.for_robot(robot, free_spin, joint_ok)
+
+
 class ClosedForm:
     """Batched closed-form IK, reach bound and Jacobian of one robot (see the module doc)."""
 
-    def __init__(self, robot, kind: str, ik, free_spin: bool = False, track_shift=None):
+    def __init__(self, robot, kind: str, ik, free_spin: bool = False, track_shift=None, joint_ok=None):
         self.robot, self.kind, self.ik, self.free_spin = robot, kind, ik, bool(free_spin)
         self.ch: Chain = ik.ch
         L = robot.limits
         self.lower, self.upper = np.asarray(L.lower, float), np.asarray(L.upper, float)
         self.revolute = ~np.asarray(robot.prismatic, bool)
         # the controller's axis limits (the IRB2400's coupled axis 3), besides the joint box
-        self.controller_ok = None if robot.conventions.identity else robot.conventions.within_limits
+        axes_ok = None if robot.conventions.identity else robot.conventions.within_limits
+        self.controller_ok = _all_of(axes_ok, joint_ok)
         self.tool_inv = np.linalg.inv(robot.tool_T_mm)
         self.tool = np.asarray(robot.tool_T_mm, float)
         self.shift = track_shift
@@ -144,23 +169,25 @@ class ClosedForm:
         self.spins = _spin_stack(n_spin)
 
     @staticmethod
-    def for_robot(robot, free_spin: bool = False) -> "ClosedForm | None":
-        """The closed-form model of ``robot``: SRS (7R, or a linear track + 7R) or 6R spherical wrist; else None."""
+    def for_robot(robot, free_spin: bool = False, joint_ok=None) -> "ClosedForm | None":
+        """The closed-form model of ``robot``: SRS (7R, or a linear track + 7R) or 6R spherical wrist; else None.
+        ``joint_ok`` (optional, (..., n) rad -> (...) bool): a further check of a solution besides the limits
+        (the tool's wrist bend, ``screen_model``)."""
         from ..robots.ik_spherical_wrist import SphericalWristIK
         from ..robots.ik_srs import SrsIK
 
         try:
             if robot.dof == 7:
-                return ClosedForm(robot, "srs", SrsIK(robot), free_spin)
+                return ClosedForm(robot, "srs", SrsIK(robot), free_spin, joint_ok=joint_ok)
             if robot.dof == 8 and robot.prismatic[0] and not robot.prismatic[1:].any():
                 mid = 0.5 * (robot.limits.lower[0] + robot.limits.upper[0])
                 ik = SrsIK(robot, [mid])
                 shift = track_shift(robot, ik)
                 if shift is None:
                     return None
-                return ClosedForm(robot, "srs_track", ik, free_spin, shift)
+                return ClosedForm(robot, "srs_track", ik, free_spin, shift, joint_ok=joint_ok)
             if robot.dof == 6:
-                return ClosedForm(robot, "spherical_wrist", SphericalWristIK(robot), free_spin)
+                return ClosedForm(robot, "spherical_wrist", SphericalWristIK(robot), free_spin, joint_ok=joint_ok)
         except BadInput:
             return None
         return None

@@ -29,7 +29,7 @@ from ..job import Job, Section
 from ..run.job_settings import JobSettings
 from ..vary import parse_range
 from ..run.stages import path_for_job, robot_for_job, surface_for_job, time_for_job, workpiece_for_job
-from .kinematics import ClosedForm
+from .kinematics import screen_model
 from .margins import reach_margins
 from .screen import AXES, UNITS, PathGeometry, ScreenResult, ScreenSettings, screen_batch
 from .. import safe_io
@@ -166,7 +166,8 @@ _CTX: dict = {}
 
 def _set_context(ctx: _Context) -> None:
     _CTX["ctx"] = ctx
-    _CTX["model"] = ClosedForm.for_robot(robot_for_job(ctx.job), ctx.free_spin)
+    robot = robot_for_job(ctx.job)
+    _CTX["model"] = screen_model(robot, JobSettings.from_job(ctx.job, robot), ctx.free_spin)
 
 
 def _screen_chunk(offsets, full: bool) -> list[ScreenResult]:
@@ -322,7 +323,7 @@ class PlacementProblem:
         self.workpiece = workpiece_for_job(job)
         self.surface = surface_for_job(job, self.workpiece)
         self.path = path_for_job(job, self.surface)
-        self.model = ClosedForm.for_robot(self.robot, self.path.free_spin)
+        self.model = screen_model(self.robot, st, self.path.free_spin)
         if self.model is None:
             raise BadInput(f"robot {self.robot.name}: camtool place screens with closed-form IK families (SRS 7R "
                            "arm, a linear track + SRS arm, or a 6R spherical wrist); this robot has none")

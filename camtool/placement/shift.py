@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import ClosedForm
+from .kinematics import screen_model
 from .screen import PathGeometry, ScreenSettings, screen_batch
 
 YAWS_DEG = (5.0, -5.0, 10.0, -10.0, 20.0, -20.0, 30.0, -30.0, 45.0, -45.0, 90.0, -90.0, 180.0)
@@ -81,7 +81,7 @@ def nearest_feasible_shift(job, settings, robot, path, search: ShiftSearch = Shi
     the shift, if any, only adds margin).
     """
     t0 = time.perf_counter()
-    model = ClosedForm.for_robot(robot, path.free_spin)
+    model = screen_model(robot, settings, path.free_spin)
     if model is None or len(path) == 0:
         return None
     st = ScreenSettings()
