@@ -97,3 +97,47 @@ def test_a_forced_reconfiguration_job_passes_the_independent_motion_check(forced
     assert m["ok"] and m["max_penetration_mm"] <= 0.1 and m["work_deviation_mm"] <= 0.1, m
     assert m["min_clearance_mm"] >= 5.0
     assert len(jp.events["lifted_connectors"]) >= 3
+
+
+def test_cartesian_lift_along_a_given_direction_keeps_the_orientation():
+    robot = get_robot("sia20")
+    solver = CwlnSolver(robot, IkSettings(max_iterations=300))
+    q0 = np.radians([10, 40, 0, -60, 0, 50, 0])
+    T0 = robot.fk_tcp(q0)
+    away = np.array([-1.0, 0.0, 0.0])
+    rows = cartesian_lift(solver, T0, q0, 60.0, 3, away)
+    T = np.array([robot.fk_tcp(q) for q in rows])
+    assert np.allclose(T[:, :3, 3], T0[:3, 3] + np.outer([20, 40, 60], away), atol=1e-3)
+    assert np.allclose(T[:, :3, :3], T0[:3, :3], atol=1e-5)
+
+
+def test_a_lift_the_tool_axis_blocks_leaves_along_the_mean_normal():
+    """A steep tool in a pocket: a lift along its axis drives its back end into the rim (a half-space the flange
+    may not enter), one along the part's mean normal (here: the direction straight out) leaves cleanly."""
+    from camtool.errors import PlanInfeasible
+    from camtool.plan.connectors import lift_and_reconfigure
+
+    robot = get_robot("sia20")
+    solver = CwlnSolver(robot, IkSettings(max_iterations=300))
+    q0 = np.radians([10, 40, 0, -60, 0, 50, 0])
+    T0 = robot.fk_tcp(q0)
+    z = T0[:3, 2]
+    away = -z + 1.5 * np.cross(z, [0.0, 0.0, 1.0])   # 56 deg off the tool axis
+    away /= np.linalg.norm(away)
+    u = -z - (-z @ away) * away                       # what a lift along -z adds beyond `away`
+    u /= np.linalg.norm(u)
+    rim = robot.fk(q0)[:3, 3] @ u + 5.0
+
+    def valid(q):
+        return robot.fk(q)[:3, 3] @ u < rim
+
+    s = LiftSettings(100.0, 4, np.radians(10), 50.0, 500.0, 0)
+    with pytest.raises(PlanInfeasible, match="the arm still touches the part"):
+        lift_and_reconfigure(solver, robot, T0, q0, T0, q0, s, valid)
+    rows, info = lift_and_reconfigure(solver, robot, T0, q0, T0, q0, s, valid, away)
+    assert info["lift_along"] == "mean_normal" and info["lift_mm"] == 100.0
+    tcp = np.array([robot.fk_tcp(q)[:3, 3] for q in rows]) - T0[:3, 3]
+    assert np.allclose(np.cross(tcp, away), 0.0, atol=1e-3) and np.all(tcp @ away > 0)
+    assert all(valid(q) for q in rows)
+    plain = lift_and_reconfigure(solver, robot, T0, q0, T0, q0, s, None, away)[1]
+    assert "lift_along" not in plain     # the tool axis first, as before, wherever it is free

@@ -129,15 +129,21 @@ def _all_of(*checks):
 def screen_model(robot, settings=None, free_spin: bool = False) -> "ClosedForm | None":
     """``ClosedForm.for_robot`` that also refuses a wrist bend that brings the job's tool closer than the
     cell's clearance to the link before the wrist (``collision.wrist_bend``), as the planner would;
-    ``settings``: the job's ``JobSettings`` (None: the limits alone)."""
-    joint_ok = None
+    ``settings``: the job's ``JobSettings`` (None: the limits alone). The bend joint's range is narrowed to the
+    free bend, so that the joint-limit margin (and the search's cost) counts from where the tool meets the link."""
+    joint_ok, free = None, None
     if settings is not None:
         from ..collision.stage import collision_world
         from ..collision.wrist_bend import WristBend
 
         bend = WristBend(collision_world(settings, robot))
-        joint_ok = bend.ok if bend.matters else None
-    return ClosedForm.for_robot(robot, free_spin, joint_ok)
+        if bend.matters:
+            joint_ok = bend.ok
+            free = bend.free_range_deg()
+    model = ClosedForm.for_robot(robot, free_spin, joint_ok)
+    if model is not None and joint_ok is not None and free is not None:
+        model.narrow(bend.bend_joint, np.radians(free[0]), np.radians(free[1]))   # margins count from the free bend
+    return model
 
 
 class ClosedForm:
@@ -167,6 +173,12 @@ class ClosedForm:
                 self.t_lo, self.t_hi = float(self.lower[0]), float(self.upper[0])
         n_spin = (SPINS_6R if kind == "spherical_wrist" else SPINS_SRS) if self.free_spin else 1
         self.spins = _spin_stack(n_spin)
+
+    def narrow(self, joint: int, lower: float, upper: float) -> None:
+        """Narrow one joint's range (rad or mm) for the screen: solutions and margins count within it."""
+        self.lower, self.upper = self.lower.copy(), self.upper.copy()
+        self.lower[joint] = max(self.lower[joint], float(lower))
+        self.upper[joint] = min(self.upper[joint], float(upper))
 
     @staticmethod
     def for_robot(robot, free_spin: bool = False, joint_ok=None) -> "ClosedForm | None":

@@ -52,17 +52,19 @@ class LiftSettings:
 
 
 def cartesian_lift(solver: CwlnSolver, T_base_mm: np.ndarray, q_start: np.ndarray, height_mm: float,
-                   steps: int) -> np.ndarray | None:
+                   steps: int, away: np.ndarray | None = None) -> np.ndarray | None:
     """Joint rows (steps, dof) lifting the TCP from ``T_base_mm`` along -tool z by ``height_mm``; None if IK fails.
 
     ``T_base_mm`` is the TCP pose in the robot base frame; the tool z axis
-    points into the surface, so -z leaves it.
+    points into the surface, so -z leaves it. ``away`` (unit, base frame): lift along it instead, the
+    tool's orientation kept.
     """
     out = np.empty((steps, len(q_start)))
     q = np.asarray(q_start, float)
+    d = -T_base_mm[:3, 2] if away is None else np.asarray(away, float)
     for i in range(1, steps + 1):
         T = T_base_mm.copy()
-        T[:3, 3] = T_base_mm[:3, 3] - T_base_mm[:3, 2] * height_mm * i / steps
+        T[:3, 3] = T_base_mm[:3, 3] + d * height_mm * i / steps
         res = solver.solve(T, q, max_iterations=300)
         if not res.converged:
             return None
@@ -77,34 +79,22 @@ def is_reconfiguration(qa: np.ndarray, qb: np.ndarray, robot: Robot, settings: L
 
 
 def lift_and_reconfigure(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray,
-                         qb: np.ndarray, settings: LiftSettings, valid=None) -> tuple[np.ndarray, dict]:
+                         qb: np.ndarray, settings: LiftSettings, valid=None,
+                         away: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """Rows strictly between (qa at Ta) and (qb at Tb): lift at a, reconfigure at the clearance, descend at b.
 
     ``Ta``, ``Tb``: TCP poses in the robot base frame. ``valid(q) -> bool``
     (optional) checks the reconfiguration; where the straight joint move fails
-    it, RRT-Connect replaces it. Raises PlanInfeasible when a lift cannot be
-    solved or no collision-free reconfiguration is found.
+    it, RRT-Connect replaces it. ``away`` (unit, base frame; optional): where no lift along the tool
+    axis is free (a tool steep in a pocket, whose back end a lift along its axis drives into the rim),
+    the lifts along it are tried too (the part's mean outward normal). Raises PlanInfeasible when a
+    lift cannot be solved or no collision-free reconfiguration is found.
     """
-    world = valid.world if isinstance(valid, WorldChecker) else None
-    touches, chosen = [], None
-    for height in settings.clearance_mm * np.array(LIFT_FRACTIONS):
-        up = cartesian_lift(solver, Ta, qa, height, settings.steps)
-        down = cartesian_lift(solver, Tb, qb, height, settings.steps) if up is not None else None
-        if up is None or down is None:
-            continue
-        down = down[::-1]
-        if valid is not None and not (valid(up[-1]) and valid(down[0])):
-            beyond = _beyond_limits(robot, [up[-1], down[0]])
-            hit = _world_hit(world, [up[-1], down[0]]) if world is not None and beyond is None else None
-            touches.append(f"at {height:g} mm above the surface " + (
-                beyond or hit or "the arm still touches the part"))
-            continue
-        hit = _world_hit(world, np.concatenate([up, down])) if world is not None else None
-        if hit is not None:
-            touches.append(f"the {height:g} mm lift brings {hit}")
-            continue   # a lower lift may pass under the obstacle
-        chosen = height, up, down
-        break
+    touches, chosen, direction = [], None, None
+    for direction in (None, away):
+        chosen = _first_free_lift(solver, robot, Ta, qa, Tb, qb, settings, valid, direction, touches)
+        if chosen is not None or away is None:
+            break
     if chosen is None:
         if touches:
             raise PlanInfeasible(f"{touches[0]}; raise planner.lift_mm or move the part (camtool place)"
@@ -115,6 +105,8 @@ def lift_and_reconfigure(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: n
                              "it closer (camtool place)")
     height, up, down = chosen
     info = {"lift_mm": float(height), "rrt": False}
+    if direction is not None:
+        info["lift_along"] = "mean_normal"   # every lift along the tool axis failed
     middle = np.zeros((0, len(qa)))
     if valid is not None:
         w = np.where(robot.prismatic, 1.0 / SEARCH_TRACK_SCALE_MM, 1.0)
@@ -126,6 +118,31 @@ def lift_and_reconfigure(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: n
     info["straight_from"] = len(up)  # rows from here to the first descent row are reached by straight joint moves
     info["straight_to"] = len(up) + len(middle)
     return np.concatenate([up, middle, down]), info
+
+
+def _first_free_lift(solver, robot, Ta, qa, Tb, qb, settings: LiftSettings, valid, away, touches: list):
+    """(height, up rows, down rows) of the highest free lift along ``away`` (None: the tool axis), or None;
+    each refused height's reason appended to ``touches``."""
+    world = valid.world if isinstance(valid, WorldChecker) else None
+    along = "" if away is None else " along the part's mean normal"
+    for height in settings.clearance_mm * np.array(LIFT_FRACTIONS):
+        up = cartesian_lift(solver, Ta, qa, height, settings.steps, away)
+        down = cartesian_lift(solver, Tb, qb, height, settings.steps, away) if up is not None else None
+        if up is None or down is None:
+            continue
+        down = down[::-1]
+        if valid is not None and not (valid(up[-1]) and valid(down[0])):
+            beyond = _beyond_limits(robot, [up[-1], down[0]])
+            hit = _world_hit(world, [up[-1], down[0]]) if world is not None and beyond is None else None
+            touches.append(f"at {height:g} mm above the surface{along} " + (
+                beyond or hit or "the arm still touches the part"))
+            continue
+        hit = _world_hit(world, np.concatenate([up, down])) if world is not None else None
+        if hit is not None:
+            touches.append(f"the {height:g} mm lift{along} brings {hit}")
+            continue   # a lower lift may pass under the obstacle
+        return height, up, down
+    return None
 
 
 def _beyond_limits(robot: Robot, rows) -> str | None:
@@ -166,6 +183,7 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
     jp = joint_path
     seg = np.asarray(path.segment)
     base_inv = np.linalg.inv(robot.base_T_mm)
+    away = _mean_outward(path, base_inv)
     keep = np.ones(len(jp.q), bool)
     inserts: dict[int, tuple[np.ndarray, dict]] = {}
     for r0, r1 in _connectors(jp, seg, touch_points):
@@ -176,7 +194,7 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
         Ta = base_inv @ path.poses_mm[jp.path_index[r0]]
         Tb = base_inv @ path.poses_mm[jp.path_index[r1]]
         try:
-            new, info = lift_and_reconfigure(solver, robot, Ta, jp.q[r0], Tb, jp.q[r1], settings, valid)
+            new, info = lift_and_reconfigure(solver, robot, Ta, jp.q[r0], Tb, jp.q[r1], settings, valid, away)
         except PlanInfeasible as exc:
             raise PlanInfeasible(f"reconfiguration before {path.segment_text(int(jp.path_index[r1]))}: {exc}") from None
         keep[r0 + 1:r1] = False
@@ -187,6 +205,15 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
     if not inserts:
         return replace(jp, events={**jp.events, "lifted_connectors": []})
     return _spliced(jp, keep, inserts)
+
+
+def _mean_outward(path: Path, base_inv: np.ndarray) -> np.ndarray | None:
+    """The part's mean outward normal (base frame): the mean of the work poses' -tool z, or None where they
+    cancel out (a closed part worked all round)."""
+    work = path.poses_mm[path.is_work] if path.is_work.any() else path.poses_mm
+    m = -work[:, :3, 2].mean(axis=0) if len(work) else np.zeros(3)
+    n = float(np.linalg.norm(m))
+    return None if n < 0.5 else base_inv[:3, :3] @ (m / n)
 
 
 def _connectors(jp: JointPath, seg: np.ndarray, touch_points: bool):
