@@ -123,3 +123,12 @@ def test_the_screen_refuses_a_pose_only_a_far_bend_reaches(bend):
     assert not np.isfinite(wrist.best(T)[1]).any()
     q = np.radians([-36.0, 37.0, 16.0, -31.0, -95.0, 28.0])
     assert np.isfinite(wrist.best(robot.fk_tcp(q)[None])[1]).all()
+
+
+def test_why_names_the_bend_the_link_and_the_free_range(bend):
+    robot = _robot()
+    text = bend.why(np.radians([-36.0, 37.0, 16.0, -31.0, -107.0, 28.0]), robot.joint_names)
+    a, b = bend.free_range_deg()
+    assert text == (f"j5 = -107.0 deg there; with this tool and cell.clearance_mm 5 mm it clears link_4 only "
+                    f"within [{a:.1f}, {b:.1f}] deg (its limits: [-120, 120] deg)")
+    assert bend.why(np.radians([-36.0, 37.0, 16.0, -31.0, -95.0, 28.0]), robot.joint_names) == ""

@@ -86,3 +86,18 @@ class WristBend:
         while b < len(self.kept) - 1 and self.kept[b + 1]:
             b += 1
         return math.degrees(self.grid_rad[a]), math.degrees(self.grid_rad[b])
+
+    def why(self, q, joint_names) -> str:
+        """'<joint> = v deg there; with this tool it keeps cell.clearance_mm from <link> within [a, b] deg (its
+        limits: [lo, hi])' when configuration q's bend is one the wrist pairs refuse, else ''."""
+        q = np.asarray(q, float)
+        if not self.matters or bool(self.ok(q[None])[0]):
+            return ""
+        j = self.bend_joint
+        free = self.free_range_deg()
+        lo, hi = math.degrees(self.grid_rad[0]), math.degrees(self.grid_rad[-1])
+        links = sorted({n for pair in self.names for n in pair if n != "tool"})
+        where = (f"within [{free[0]:.1f}, {free[1]:.1f}] deg" if free is not None else "at no bend")
+        return (f"{joint_names[j]} = {math.degrees(q[j]):.1f} deg there; with this tool and cell.clearance_mm "
+                f"{self.clearance_mm:g} mm it clears {', '.join(links) or 'the wrist'} only {where} "
+                f"(its limits: [{lo:g}, {hi:g}] deg)")

@@ -514,6 +514,18 @@ def ik_settings(settings: PlannerSettings) -> IkSettings:
                       posture_gain=settings.posture_gain if settings.method == "seed" else 0.0)
 
 
+def _explain_bend(entry: dict, q: np.ndarray, world, robot: Robot) -> None:
+    """Where every configuration collides because the wrist bends the tool into the link before it, say how far
+    the wrist bends there and how far this tool lets it (``collision.wrist_bend``), in the entry's reason."""
+    if world is None or not entry.get("reason", "").startswith("every configuration tried collides"):
+        return
+    from ..collision.wrist_bend import WristBend
+
+    bend = WristBend(world).why(q, robot.joint_names)
+    if bend:
+        entry["reason"] += f": {bend}"
+
+
 def plan_path(path: Path, robot: Robot, settings: PlannerSettings, world=None) -> JointPath:
     """Plan joint values (rad / mm) for every pose of ``path``.
 
@@ -552,6 +564,7 @@ def plan_path(path: Path, robot: Robot, settings: PlannerSettings, world=None) -
                 if hit:
                     entry["reason"] = f"every configuration tried collides: {hit}"
         first = unreachable[0]
+        _explain_bend(first, jp.q[missed[0]], world, robot)
         why = f"; there {first['reason']}" if "reason" in first else ""
         raise PlanInfeasible(
             f"{len(unreachable)} of {len(path)} path poses are out of reach of {robot.name} "
