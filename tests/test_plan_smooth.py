@@ -127,3 +127,43 @@ def test_the_spline_through_smoothed_poses_must_stay_inside_the_joint_limits():
     q[:, 5] = top - np.array([0.4, 0.2, 0.05, 0.0, 0.0, 0.0, 0.05, 0.2, 0.4])  # flat on the limit, bending
     assert np.all(q[:, 5] <= top)                                            # every pose inside ...
     assert not spline_within_limits(q, s, robot)                             # ... the spline overshoots
+
+
+def _kkt_case(n=8, seed=4):
+    from camtool.robots import get_robot
+
+    robot = get_robot("seed8")
+    rng = np.random.default_rng(seed)
+    s = np.cumsum(rng.uniform(4.0, 6.0, n))
+    q = rng.uniform(-0.5, 0.5, (n, robot.dof))
+    J = rng.normal(size=(n, 6, robot.dof))
+    e = rng.normal(scale=0.1, size=(n, 6))
+    scale = np.where(robot.prismatic, 500.0, 1.0)
+    w3, w2 = np.ones((n - 3, robot.dof)), np.ones((n - 2, robot.dof))
+    return robot, q, e, J, divided_difference(s, 3), divided_difference(s, 2), scale, w3, w2
+
+
+def test_kkt_step_meets_the_linearised_task():
+    from camtool.plan.smooth import _kkt_step
+
+    robot, q, e, J, D3, D2, scale, w3, w2 = _kkt_case()
+    dq = _kkt_step(q, e, J, D3, D2, robot, SmoothSettings(100.0), q.min(0) - 10.0, q.max(0) + 10.0, scale, w3, w2)
+    assert np.allclose(np.einsum("krj,kj->kr", J, dq), e, atol=1e-8)   # J dq = e at every pose, exactly
+
+
+def test_kkt_step_with_more_joints_held_than_free_is_not_handed_to_superlu(capfd, monkeypatch):
+    """Every joint held at a limit (a zero-width box, every pose outside it): a pose's 6 task rows and its 8 held
+    joints are dependent, the KKT system singular. Issue #46: SuperLU, handed such a system on the noether panel
+    with seed8, printed BLAS's "DGEMV parameter number 2 had an illegal value" on stderr before raising; it is
+    no longer asked (one solve, the unconstrained one, then None)."""
+    import camtool.plan.smooth as smooth
+
+    calls = []
+    real = smooth.spla.spsolve
+    monkeypatch.setattr(smooth.spla, "spsolve", lambda K, b: calls.append(K.shape) or real(K, b))
+    robot, q, e, J, D3, D2, scale, w3, w2 = _kkt_case()
+    n, dof = q.shape
+    assert smooth._kkt_step(q, e, J, D3, D2, robot, SmoothSettings(100.0), q.mean(0), q.mean(0), scale, w3,
+                            w2) is None
+    assert calls == [(n * dof + n * 6,) * 2]
+    assert capfd.readouterr().err == ""

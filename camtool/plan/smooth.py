@@ -137,8 +137,14 @@ def _kkt_step(q, e_rows, J_rows, D3, D2, robot, st: SmoothSettings, lo, hi, scal
     row_norm = np.maximum(np.sqrt(np.asarray(A.multiply(A).sum(axis=1)).ravel()), 1e-12)
     A, b = sp.diags(1.0 / row_norm) @ A, b / row_norm
     fixed: dict[int, float] = {}
+    free_per_pose = dof - J_rows.shape[1]   # a pose's joints its task rows leave free
     for _ in range(6):  # active set on the joint limits
         idx = np.array(sorted(fixed), dtype=int)
+        if len(idx) and np.bincount(idx % n, minlength=n).max() > free_per_pose:
+            # a pose with more joints held at a limit than its task leaves free: its task rows and the held
+            # joints are dependent, K is singular. Said here: SuperLU would find it only after printing
+            # BLAS's "DGEMV parameter number 2 had an illegal value" on stderr (issue #46) and raising
+            return None
         F = sp.csr_matrix((np.ones(len(idx)), (np.arange(len(idx)), idx)), shape=(len(idx), n * dof))
         A_all = sp.vstack([A, F]).tocsr()
         b_all = np.concatenate([b, [fixed[i] for i in idx]])
