@@ -6,6 +6,9 @@ placement may still fail (a scanned dome moved by its hint failed in timing). ``
 and time stages of the job at that placement (the workpiece read, fitted and rastered there, as ``camtool run``
 would) and prints it only if they pass within the joints' limits; else it asks the screen again with wider
 margins (``HINT_MARGINS``), and if none plans, it names no placement (``camtool place`` searches further).
+Where the screen finds no placement at any of those margins, it is asked once more without margins
+(``LAST_MARGINS``: a narrow window, as the IRB2400's wrist bend leaves the noether panel scan), that placement
+planned before it is printed; where it finds none even so, the refusal says so (``NOWHERE``).
 The number of placements tried is fixed (no clock): the same job gives the same hint.
 """
 from __future__ import annotations
@@ -20,6 +23,10 @@ from ..timing.pathlaw import remembered_runs
 from .job_settings import JobSettings
 
 HINT_MARGINS = ((0.02, 0.02), (0.05, 0.05), (0.10, 0.08))  # (reach, joint) margins of the screen, in order
+LAST_MARGINS = (0.0, 0.0)   # where none of those finds a placement: the screen without margins (a narrow window,
+                            # as the noether panel's for the IRB2400's wrist bend), planned before it is printed
+NOWHERE = ("no placement within {mm:g} mm (nor turned about z) reaches every pose in the closed-form screen; "
+           "camtool place searches wider (--vary)")
 SCREENED = "reaches every pose in the closed-form screen (camtool place searches further)"
 PLANNED = "plans and times every pose (tried)"
 
@@ -59,7 +66,9 @@ def planned_shift(job, settings, robot, path, margins=HINT_MARGINS) -> dict | No
     not) and its message; None where the screen finds nothing."""
     tried: dict = {}
     first = last = None
-    for reach_margin, joint_margin in margins:
+    for k, (reach_margin, joint_margin) in enumerate((*margins, LAST_MARGINS)):
+        if k == len(margins) and (first is not None or last is not None):
+            break   # the margins found placements: their answer stands
         shift = nearest_feasible_shift(job, settings, robot, path,
                                        ShiftSearch(reach_margin=reach_margin, joint_margin=joint_margin))
         first = shift if first is None else first

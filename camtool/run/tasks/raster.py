@@ -34,7 +34,8 @@ from ...report.figures import (
 )
 from ...placement.partial import partial_path, partial_summary, reachable_stretches
 from ...plan.kernel import load_compiled
-from ..reach_hint import planned_shift
+from ..reach_hint import NOWHERE, planned_shift
+from ...placement.shift import ShiftSearch
 from ..job_settings import JobSettings
 from ...part.surface import FaceSet
 from ...timing import sampled_for
@@ -200,6 +201,8 @@ def planned_and_timed(r: RasterRun, made: Rastered, part, ahead: Ahead | None = 
                                world=collision_world(settings, robot))
             if shift is not None and not shift["already_reachable"]:
                 raise PlanInfeasible(f"{exc}; {shift['message']}", report=exc.report) from None
+            if shift is None and exc.report.get("unreachable"):
+                raise PlanInfeasible(f"{exc}; {NOWHERE.format(mm=ShiftSearch().max_mm)}", report=exc.report) from None
             raise
     return path, joint_path, trajectory, stretches
 
