@@ -132,3 +132,22 @@ def test_why_names_the_bend_the_link_and_the_free_range(bend):
     assert text == (f"j5 = -107.0 deg there; with this tool and cell.clearance_mm 5 mm it clears link_4 only "
                     f"within [{a:.1f}, {b:.1f}] deg (its limits: [-120, 120] deg)")
     assert bend.why(np.radians([-36.0, 37.0, 16.0, -31.0, -95.0, 28.0]), robot.joint_names) == ""
+
+
+def test_screen_model_counts_the_bend_margin_from_the_free_range():
+    from camtool.job import load_job
+    from camtool.placement.kinematics import screen_model
+    from camtool.run.job_settings import JobSettings
+    from camtool.run.stages import robot_for_job
+
+    from conftest import SAMPLES
+
+    job = load_job(SAMPLES / "irb2400_plate.toml", ["tool.tcp_xyz_mm=[0.0, 0.0, 150.0]"])
+    robot = robot_for_job(job)
+    settings = JobSettings.from_job(job, robot)
+    model = screen_model(robot, settings)
+    a, b = WristBend(CollisionWorld(robot, settings.cell, settings.check.tool_radius_mm)).free_range_deg()
+    assert np.degrees([model.lower[4], model.upper[4]]) == pytest.approx([a, b])
+    assert np.allclose(np.delete(model.lower, 4), np.delete(robot.limits.lower, 4))
+    assert np.allclose(robot.limits.upper[4], np.radians(120.0))   # the robot's own limits untouched
+    assert screen_model(robot).upper[4] == pytest.approx(np.radians(120.0))   # no settings: the limits alone
