@@ -245,14 +245,42 @@ def test_a_program_that_leaves_the_path_is_not_placed(tmp_path, monkeypatch):
     """The simulator's findings stop the run like a check's: a program the controller would
     run off the planned path is never placed."""
     import camtool.program.candidates as moves
+    import camtool.program.post as post_mod
 
     r = get_robot("seed8")
     monkeypatch.setattr(moves, "MERGE_SHARE", 30.0)  # a writer that merges far beyond the tolerance
     monkeypatch.setattr(moves, "_MERGED", {})
+    monkeypatch.setattr(post_mod, "CLOSER_ROUNDS", 0)  # and is not written again closer
     out = tmp_path / "o"
     with pytest.raises(PlanInfeasible, match=r"from the planned path \(tolerance 0.1 mm\)"):
         write_job_programs(rows_trajectory(r), r, _job(tmp_path, post='formats = ["rapid"]\n'), out)
     assert not any(p.suffix in (".mod", ".pgf") for p in out.iterdir())
+
+
+def test_the_closer_rounds_bring_a_program_far_off_the_path_back_within_the_tolerance(tmp_path, monkeypatch):
+    """A writer that merges 50 times beyond its share: its first program leaves the path by far more than
+    the tolerance (the simulator, unchanged, measures it), and the closer rounds write the stretches it
+    names closer, round after round, until the simulated program is within the aim; it is placed."""
+    import camtool.program.candidates as moves
+    import camtool.program.post as post_mod
+
+    r = get_robot("seed8")
+    monkeypatch.setattr(moves, "MERGE_SHARE", 30.0)
+    monkeypatch.setattr(moves, "_MERGED", {})
+    seen, real = [], post_mod.simulate_program
+
+    def simulate(*a, **k):
+        seen.append(real(*a, **k))
+        return seen[-1]
+
+    monkeypatch.setattr(post_mod, "simulate_program", simulate)
+    report = {}
+    files = write_job_programs(rows_trajectory(r), r, _job(tmp_path, post='formats = ["rapid"]\n'), tmp_path / "o",
+                               report=report)
+    assert sorted(f.name for f in files) == ["CAMTOOL.mod", "CAMTOOL.pgf"]
+    assert seen[0].max_deviation_mm > 2 * 0.1 and 2 <= len(seen) <= 1 + post_mod.CLOSER_ROUNDS
+    assert report["rapid"]["max_deviation_mm"] <= post_mod.AIM_SHARE * 0.1
+    assert report["rapid"]["moves"] > seen[0].moves
 
 
 def test_the_job_names_the_rows_and_dates_the_programs(tmp_path):
@@ -280,26 +308,86 @@ def test_the_job_names_the_rows_and_dates_the_programs(tmp_path):
 
 def test_a_program_its_simulator_finds_off_the_path_is_written_again_closer(tmp_path, monkeypatch):
     """The writer merges moves within post.path_tol_mm; where the simulated program still leaves the
-    planned path (a finding "from the planned path"), the format is written again with its moves
-    merged within a tighter share, and only the last attempt's files are placed."""
+    planned path (a finding "from the planned path"), the format is written again with the stretch around
+    the moves it names merged within a share of the tolerance (``ProcessInfo.closer_s``): more targets there,
+    the same elsewhere, and only the last attempt's files are placed."""
     import camtool.program.post as post_mod
 
-    calls, real = [], post_mod.simulate_program
+    calls, asked, named, real = [], [], [], post_mod.simulate_program
+    write = post_mod._write_checked
+
+    def spy(fmt, post, trajectory, robot, folders, process, writing, reference, world=None):
+        asked.append(writing.closer_s)
+        return write(fmt, post, trajectory, robot, folders, process, writing, reference, world)
 
     def simulate(plugin, file, robot, profile, trajectory, process, reference, world=None):
         sim = real(plugin, file, robot, profile, trajectory, process, reference, world)
-        calls.append(file.read_text(encoding="latin-1").count("\n"))
-        if len(calls) == 1:   # the first attempt: as if it were 0.2 mm off
-            sim.findings.append(f"{file}:9: the simulated TCP is 0.200 mm from the planned path "
-                                "(tolerance 0.1 mm) at t = 1.000 s")
+        calls.append(file.with_suffix(".mod").read_text(encoding="latin-1").count("Move"))
+        if len(calls) == 1:   # the first attempt: as if the middle move on work were 2 mm off
+            mid = len(sim.deviation_s) // 2
+            named.append(sim.deviation_s[mid - 1:mid + 2])
+            sim.findings.append(f"{file}:9: the simulated TCP is 2.000 mm from the planned path "
+                                f"(tolerance 1 mm) at t = {named[0][1][0]:.3f} s")
+            sim.deviation_s = tuple((a, b, 2.0 if k == mid else d) for k, (a, b, d) in enumerate(sim.deviation_s))
         return sim
 
     monkeypatch.setattr(post_mod, "simulate_program", simulate)
+    monkeypatch.setattr(post_mod, "_write_checked", spy)
     r = get_robot("seed8")
-    files = write_job_programs(rows_trajectory(r), r, _job(tmp_path, post='formats = ["rapid"]\n'), tmp_path / "o")
-    assert len(calls) == 2 and calls[1] >= calls[0]      # written twice, the second no shorter
+    job = _job(tmp_path, post='formats = ["rapid"]\npath_tol_mm = 1.0\n')   # a gentle motion: 1 mm merges
+    files = write_job_programs(rows_trajectory(r), r, job, tmp_path / "o")
+    assert len(calls) == 2 and calls[1] > calls[0]      # written twice, the second with more moves
     assert sorted(f.name for f in files) == ["CAMTOOL.mod", "CAMTOOL.pgf"]
-    assert "within 0.06 mm" in files[0].read_text() or "within 0.06 mm" in files[1].read_text()
+    assert asked[0] == () and len(asked[1]) == 1
+    before, _mid, after = named[0]
+    assert asked[1][0] == pytest.approx((before[0], after[1], post_mod.AIM_SHARE * 1.0 / 2.0))
+
+
+def test_closer_spans_take_the_moves_beside_and_tighten_where_named_again():
+    """``closer_spans``: a move above the aim is taken with the moves just before and after it (contiguous
+    ones only), within the aim over its deviation (at most CLOSER_SHARE) of the tolerance; named again, the
+    union within that share of the share it had; moves within the aim add nothing."""
+    from camtool.program.post import CLOSER_SHARE, closer_spans
+
+    moves = ((0.0, 1.0, 0.05), (1.0, 2.0, 0.3), (2.0, 3.0, 0.05), (5.0, 6.0, 0.09), (6.0, 7.0, 0.01))
+    got = closer_spans((), moves, 0.08)
+    assert np.allclose(got, [(0.0, 3.0, 0.08 / 0.3), (5.0, 7.0, CLOSER_SHARE)])
+    again = closer_spans(got, ((2.0, 3.0, 0.16), (8.0, 9.0, 0.01)), 0.08)
+    assert np.allclose(again, [(0.0, 3.0, 0.08 / 0.3 * 0.5), (5.0, 7.0, CLOSER_SHARE)])
+    assert closer_spans(got, moves[:1], 0.08) == got
+
+
+def test_the_closer_rounds_stop_at_their_count_and_fall_back_to_a_program_that_passed(monkeypatch, tmp_path):
+    """``_closer_rounds``: a program within the tolerance but above the aim is written closer; when the
+    rounds end failing, the one that passed is written again (and placed). A program the rounds never bring within
+    the tolerance is refused after CLOSER_ROUNDS rewrites, the finding saying what was tried and what to change."""
+    import camtool.program.post as post_mod
+    from camtool.program.process import ProcessInfo
+
+    script = {}   # the deviation of a writing, by its closer spans (the writer is deterministic)
+
+    def fake(fmt, post, trajectory, robot, folders, process, writing, reference, world=None):
+        dev = script.get(writing.closer_s, script["else"])
+        asked.append(writing.closer_s)
+        found = [f"x.mod:9: the simulated TCP is {dev:.3f} mm from the planned path (tolerance 0.1 mm)"] \
+            if dev > 0.1 else []
+        return [], found, {"max_deviation_mm": dev}, (), ((1.0, 2.0, dev),)
+
+    monkeypatch.setattr(post_mod, "_write_checked", fake)
+    post = type("Post", (), {"plugin": type("P", (), {"forget": lambda self: None})()})()
+    asked = []
+    script.update({(): 0.09, "else": 0.3})   # above the aim, then off the path: the first writing again
+    files, found, figures = post_mod._format_programs("rapid", post, None, None, (tmp_path, tmp_path),
+                                                      ProcessInfo(), None)
+    assert found == [] and figures["max_deviation_mm"] == 0.09
+    assert asked[:2] == [(), ((1.0, 2.0, 0.5),)] and asked[-1] == () and len(asked) == 2 + post_mod.CLOSER_ROUNDS
+    asked.clear()
+    script.update({(): 0.3})   # never mended
+    files, found, figures = post_mod._format_programs("rapid", post, None, None, (tmp_path, tmp_path),
+                                                      ProcessInfo(), None)
+    assert len(asked) == 1 + post_mod.CLOSER_ROUNDS and len(found) == 1
+    assert f"written {post_mod.CLOSER_ROUNDS} time(s) closer to the plan there" in found[0]
+    assert "post.path_tol_mm" in found[0]
 
 
 def test_joint_spans_grow_where_the_controller_still_cannot_follow():
@@ -325,7 +413,7 @@ def test_straight_moves_the_controller_cannot_follow_are_written_again_as_joint_
     def fake(fmt, post, trajectory, robot, folders, process, writing, reference, world=None):
         asked.append(writing.joint_moves_s)
         left = named[len(asked) - 1]
-        return [], (["x.JBI:9: r moves at 300 deg/s, above its limit 200 deg/s"] if left else []), None, left
+        return [], (["x.JBI:9: r moves at 300 deg/s, above its limit 200 deg/s"] if left else []), None, left, ()
 
     monkeypatch.setattr(post_mod, "_write_checked", fake)
 

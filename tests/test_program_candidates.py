@@ -207,3 +207,50 @@ def test_spans_the_post_stage_asks_joint_moves_for_are_no_straight_moves():
     assert np.array_equal(np.flatnonzero(inside), [4, 5, 6])
     assert not in_spans(t, ((0.2 + 2 * SPAN_SLACK_S, 0.25 - 2 * SPAN_SLACK_S),)).any()
     assert not in_spans(t, ()).any()
+
+
+def test_span_shares_are_the_smallest_share_of_the_spans_holding_each_time():
+    from camtool.program.candidates import span_shares
+
+    t = 10.0 + np.arange(0, 1.0, 0.05)   # spans count from t[0], as the joint-move spans
+    got = span_shares(t, ((0.2, 0.3, 0.5), (0.25, 0.4, 0.25)))
+    assert np.allclose(got[[3, 4, 6, 8, 9]], [1.0, 0.5, 0.25, 0.25, 1.0])
+    assert np.array_equal(span_shares(t, ()), np.ones(len(t)))
+
+
+def test_a_span_the_post_stage_writes_closer_keeps_its_skipped_waypoints_within_its_share(start):
+    """``ProcessInfo.closer_s``: inside a (start, end, share) span the straight moves skip only waypoints
+    within MERGE_SHARE x share of the tolerance of their line (each waypoint's TCP by the robot's own
+    forward kinematics, not the merge's), and keep more targets there; outside it, the moves skip
+    waypoints farther than that (the span is what made the difference)."""
+    from camtool.program.candidates import MERGE_SHARE
+
+    tr, r, _c = start
+    first, last = runs(np.asarray(tr.zone) == WORK)
+    t0 = tr.t_s[0]
+    span = (tr.t_s[first[1]] - t0, tr.t_s[last[1]] - t0, 0.25)   # the second row, within a quarter
+    loose = merged_candidates(tr, r, ProcessInfo(path_tol_mm=1.0), linear=True)   # a gentle motion: 1 mm merges
+    close = merged_candidates(tr, r, ProcessInfo(path_tol_mm=1.0, closer_s=(span,)), linear=True)
+
+    def worst_skipped(c, lo, hi):
+        """The largest distance (mm) of a skipped waypoint of a straight move inside [lo, hi] from its line."""
+        idx = np.flatnonzero(c.keep)
+        worst = 0.0
+        for a, b in zip(idx[:-1], idx[1:]):
+            inside = lo <= c.st["t"][a] - t0 and c.st["t"][b] - t0 <= hi
+            if not (inside and c.st["in_proc"][a] and c.st["in_proc"][b]):
+                continue
+            Pa, Pb = (r.fk_tcp(c.st["q"][i])[:3, 3] for i in (a, b))
+            for k in range(a + 1, b):
+                Pk = r.fk_tcp(c.st["q"][k])[:3, 3]
+                s = np.clip(np.dot(Pk - Pa, Pb - Pa) / np.dot(Pb - Pa, Pb - Pa), 0.0, 1.0)
+                worst = max(worst, float(np.linalg.norm(Pa + s * (Pb - Pa) - Pk)))
+        return worst
+
+    limit = MERGE_SHARE * 0.25 * 1.0
+    assert worst_skipped(close, span[0], span[1]) <= limit + 1e-6
+    assert worst_skipped(loose, span[0], span[1]) > limit
+    held = lambda c, lo, hi: int(np.sum(c.keep & (c.st["t"] - t0 >= lo) & (c.st["t"] - t0 <= hi)))  # noqa: E731
+    assert held(close, span[0], span[1]) > held(loose, span[0], span[1])
+    row0 = (tr.t_s[first[0]] - t0, tr.t_s[last[0]] - t0)   # the first row, outside the span, as it was
+    assert held(close, *row0) == held(loose, *row0)

@@ -226,3 +226,33 @@ def test_the_moves_the_controller_cannot_follow_are_named_by_their_span():
     assert "unfollowed_s" not in rep.as_dict()
     kw["duration_s"] = np.array([np.nan, 1.0, 2.0, 1.0])
     assert simulate(ProgramMoves(**kw, where=["x:1", "x:2", "x:3", "x:4"]), r).unfollowed_s == ()
+
+
+def test_each_move_on_work_has_its_own_deviation_and_time_span(tmp_path):
+    """``SimReport.deviation_s``: a target moved 2 mm off the plan makes the moves into and out of it the
+    farthest (their largest deviation is the report's maximum, and the finding's time lies in one of them);
+    the spans are the moves' own (each starting where the move before it ends, as written), every other
+    move within the tolerance."""
+    r, p, post, tr, files = _program("inform", "seed8", tmp_path)
+    lines = files[0].read_bytes().decode().split("\r\n")
+    row = next(i for i, ln in enumerate(lines) if ln.startswith("'ROW 1/"))
+    mv = next(ln for ln in lines[row + 3:] if ln.startswith("MOVJ"))
+    bc = next(i for i, ln in enumerate(lines) if ln.startswith(mv.split()[2] + "="))
+    lines[bc] = f"{mv.split()[2]}={int(lines[bc].split('=')[1]) + 410}"   # 2 mm along the track
+    files[0].write_bytes("\r\n".join(lines).encode())
+    prog = post.read_program(files[0], r, p)
+    rep = simulate(prog, r, reference_from_trajectory(tr, r), path_tol_mm=0.1)
+    dev = np.array(rep.deviation_s)
+    assert len(dev) >= rep.moves_on_work and "deviation_s" not in rep.as_dict()
+    assert np.all(dev[:, 1] > dev[:, 0]) and np.all(np.diff(dev[:, 0]) > 0)
+    assert dev[:, 2].max() == rep.max_deviation_mm > 1.0
+    off = np.flatnonzero(dev[:, 2] > 0.1)
+    assert 0 < len(off) < len(dev) / 4 and np.all(np.diff(off) == 1)   # one stretch of moves, around the target
+    t_found = float(re.search(r"at t = ([0-9.]+) s", next(f for f in rep.findings if "planned path" in f)).group(1))
+    assert any(a - 1e-3 <= t_found <= b + 1e-3 for a, b, _d in dev[off])
+    dur = move_durations(prog, r, target_joints(prog, r, p))
+    ends = np.cumsum(np.where(np.isfinite(dur), dur, 0.0))
+    assert np.all(np.isclose(dev[:, 1][:, None], ends[None]).any(axis=1))   # each span ends where a move does
+    moved = next(k for k, w in enumerate(prog.where) if w.endswith(f":{lines.index(mv) + 1}"))
+    into = np.flatnonzero(np.isclose(dev[:, 1], ends[moved]))
+    assert len(into) == 1 and into[0] in off   # the move into the moved target is off the path

@@ -313,7 +313,8 @@ def _state(kin, t, q, qd, qdd, zone, process, linear: bool) -> dict:
         if linear:
             dexterous[rows] = kin.dexterity(q[rows]) >= MIN_DEXTERITY
     free = np.isin(zone, FREE_ZONES)
-    tol = np.where(free, FREE_TOL_FACTOR, 1.0) * float(process.path_tol_mm)
+    # within the spans the post stage writes closer to the plan (``ProcessInfo.closer_s``), a share of it
+    tol = np.where(free, FREE_TOL_FACTOR, 1.0) * float(process.path_tol_mm) * span_shares(t, process.closer_s)
     # straight TCP moves between process waypoints away from singularities (where a straight TCP
     # line can need unbounded joint speeds) and outside the spans the post stage asks joint moves for;
     # joint moves elsewhere
@@ -335,6 +336,19 @@ def in_spans(t: np.ndarray, spans) -> np.ndarray:
         tt = t - t[0]
         for a, b in spans:
             out |= (tt >= a - SPAN_SLACK_S) & (tt <= b + SPAN_SLACK_S)
+    return out
+
+
+def span_shares(t: np.ndarray, spans) -> np.ndarray:
+    """(len(t),) the share of the tolerance at the times ``t`` (s; measured from ``t[0]``): the smallest
+    share of the (start, end, share) ``spans`` holding each (within ``SPAN_SLACK_S``), 1 outside them."""
+    t = np.asarray(t, float)
+    out = np.ones(len(t))
+    if len(t):
+        tt = t - t[0]
+        for a, b, share in spans:
+            inside = (tt >= a - SPAN_SLACK_S) & (tt <= b + SPAN_SLACK_S)
+            out[inside] = np.minimum(out[inside], share)
     return out
 
 
@@ -518,7 +532,7 @@ def merged_candidates(trajectory, robot, process, linear: bool, held=()) -> Cand
     held = tuple(int(i) for i in held)
     key = (id(trajectory), robot.name, np.asarray(robot.tool_T_mm, float).tobytes(),
            np.asarray(robot.base_T_mm, float).tobytes(), float(process.path_tol_mm), float(process.ori_tol_deg),
-           bool(linear), held, tuple(process.joint_moves_s))
+           bool(linear), held, tuple(process.joint_moves_s), tuple(process.closer_s))
     if _MERGED.get("key") == key and _MERGED.get("trajectory") is trajectory:
         return _MERGED["value"]
     value = candidate_steps().apply(Candidates.from_trajectory(trajectory, robot, process, linear, held))

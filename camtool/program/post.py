@@ -252,9 +252,12 @@ def write_programs(trajectory, robot, post_settings: PostSettings, profiles: dic
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-MERGE_RETRY_SCALES = (1.0, 0.6, 0.36)   # a program its simulator finds off the path is written again,
-                                        # its moves merged within this share of post.path_tol_mm
 DEVIATION_FINDING = "from the planned path"
+CLOSER_ROUNDS = 6     # rounds of writing again, closer to the plan, the stretches its simulator finds off the path
+CLOSER_SHARE = 0.5    # ... each round within at most this share of the tolerance they had (less where they are
+                      # farther off: the aim over their deviation)
+AIM_SHARE = 0.8       # the writer aims the simulated deviation at this share of post.path_tol_mm: a margin for a real
+                      # controller's rounding and zone handling (the simulator's finding stays at the tolerance)
 
 
 def _tcp_robot(robot, post):
@@ -278,9 +281,9 @@ def _reference(profiles: dict, trajectory, robot, process):
 
 def _format_programs(fmt, post, trajectory, robot, folders: tuple[Path, Path], process, reference, world=None):
     """One format's programs, written into the private folder, checked and simulated (``_write_checked``);
-    written again with its targets merged closer while the simulator finds them off the path and
-    merging closer can mend it (``MERGE_RETRY_SCALES``), then with joint moves where it finds straight
-    moves the controller cannot follow (``_joint_move_rounds``). Returns (files, findings, figures or None)."""
+    written again with joint moves where the simulator finds straight moves the controller cannot follow
+    (``_joint_move_rounds``), then with the stretches it finds off the planned path written closer to it
+    (``_closer_rounds``). Returns (files, findings, figures or None)."""
     once = _Once()   # a format written again says its warnings (a job name cut short) once
     log.addFilter(once)
     try:
@@ -305,24 +308,11 @@ class _Once(logging.Filter):
 
 
 def _rewritten_programs(fmt, post, trajectory, robot, folders: tuple[Path, Path], process, reference, world=None):
-    """``_format_programs``' rounds: the merge retries, then the joint-move rounds."""
-    from dataclasses import replace
-
-    files, found, figures, unfollowed = [], [], None, ()
-    for scale in MERGE_RETRY_SCALES:
-        for f in files:   # the previous attempt's files, inside the private folder
-            f.unlink(missing_ok=True)
-        if scale < 1.0:
-            log.info("%s: the simulated program leaves the planned path; written again with targets "
-                     "merged within %.3g mm", fmt, process.path_tol_mm * scale)
-        writing = replace(process, path_tol_mm=process.path_tol_mm * scale)
-        files, found, figures, unfollowed = _write_checked(fmt, post, trajectory, robot, folders, process, writing,
-                                                           reference, world)
-        if not (found and all(DEVIATION_FINDING in x for x in found)):
-            break   # written within the tolerance, or a finding merging closer cannot mend
-    if found and unfollowed:
-        files, found, figures = _joint_move_rounds(fmt, post, trajectory, robot, folders, process, reference, world,
-                                                   (writing, files, found, figures, unfollowed))
+    """``_format_programs``' rounds: the first writing, the joint-move rounds, then the closer rounds."""
+    args = (fmt, post, trajectory, robot, folders, process, reference, world)
+    last = (process,) + _write_checked(fmt, post, trajectory, robot, folders, process, process, reference, world)
+    last = _joint_move_rounds(*args, last)
+    files, found, figures = _closer_rounds(*args, last)
     post.plugin.forget()   # what a format kept of its own files (a dense job's: hundreds of MB)
     forget_solved()
     return files, found, figures
@@ -350,10 +340,11 @@ def _joint_move_rounds(fmt, post, trajectory, robot, folders, process, reference
     """Written again, up to ``JOINT_MOVE_ROUNDS`` times, with joint moves over the straight moves the
     simulator found the controller cannot follow (near a wrist singularity a straight line needs joint
     speeds without bound, or has no solution; a joint move through there has neither, and it is merged
-    within the path tolerance like any other): (files, findings, figures) of the last round."""
+    within the path tolerance like any other). ``last`` and the result: (writing, files, findings, figures,
+    unfollowed, deviations) of the last round (``_write_checked``)."""
     from dataclasses import replace
 
-    writing, files, found, figures, unfollowed = last
+    writing, files, found, figures, unfollowed, deviations = last
     for _ in range(JOINT_MOVE_ROUNDS):
         if not (found and unfollowed):
             break
@@ -363,8 +354,79 @@ def _joint_move_rounds(fmt, post, trajectory, robot, folders, process, reference
         log.info("%s: the controller cannot follow %d straight move(s) as written (first at t = %.3f s); "
                  "written again with joint moves there", fmt, len(unfollowed), unfollowed[0][0])
         writing = replace(writing, joint_moves_s=spans)
-        files, found, figures, unfollowed = _write_checked(fmt, post, trajectory, robot, folders, process, writing,
-                                                           reference, world)
+        files, found, figures, unfollowed, deviations = _write_checked(fmt, post, trajectory, robot, folders, process,
+                                                                       writing, reference, world)
+    return writing, files, found, figures, unfollowed, deviations
+
+
+def closer_spans(spans: tuple, deviations: tuple, above_mm: float) -> tuple:
+    """``spans`` (start, end, share) with the moves of ``deviations`` (start, end, deviation mm, in time
+    order) farther than ``above_mm`` from the planned path added, each with the moves just before and after
+    it (a corner is cut by the moves on both sides of its target): a stretch that meets spans already there
+    takes their union, within the smallest share they had times ``above_mm`` over the stretch's deviation
+    (at most ``CLOSER_SHARE``); a new one within that of the whole tolerance. In time order."""
+    new: list = []
+    for i, (a, b, dev) in enumerate(deviations):
+        if dev <= above_mm:
+            continue
+        if i > 0 and abs(deviations[i - 1][1] - a) < 1e-9:
+            a = deviations[i - 1][0]
+        if i + 1 < len(deviations) and abs(deviations[i + 1][0] - b) < 1e-9:
+            b = deviations[i + 1][1]
+        if new and a <= new[-1][1] + 1e-9:
+            a, b, dev = new[-1][0], max(b, new[-1][1]), max(dev, new[-1][2])
+            new.pop()
+        new.append((a, b, dev))
+    out = [tuple(x) for x in spans]
+    for a, b, dev in new:
+        meets = [x for x in out if a <= x[1] + 1e-9 and x[0] <= b + 1e-9]
+        share = min(CLOSER_SHARE, above_mm / dev) * min([1.0] + [x[2] for x in meets])
+        a, b = min([a] + [x[0] for x in meets]), max([b] + [x[1] for x in meets])
+        out = [x for x in out if x not in meets] + [(a, b, share)]
+    return tuple(sorted(out))
+
+
+def _off_path(found: list, figures, aim_mm: float) -> bool:
+    """True when what a program's check and simulation found is its distance from the planned path alone,
+    or, with nothing found, that distance is above ``aim_mm``."""
+    if found:
+        return all(DEVIATION_FINDING in x for x in found)
+    dev = (figures or {}).get("max_deviation_mm")
+    return dev is not None and dev > aim_mm
+
+
+def _closer_rounds(fmt, post, trajectory, robot, folders, process, reference, world, last):
+    """Written again, up to ``CLOSER_ROUNDS`` times, with the stretches the simulator finds farther than
+    ``AIM_SHARE`` of the tolerance from the planned path merged and blended closer to it (``closer_spans``:
+    shorter moves there, targets on the plan's own motion, smaller corners). When a round fails where one
+    before it passed, that one is written again. Returns (files, findings, figures) of the last writing."""
+    from dataclasses import replace
+
+    writing, files, found, figures, _unfollowed, deviations = last
+    aim = AIM_SHARE * process.path_tol_mm
+    passed = None if found else writing
+    rounds = 0
+    while rounds < CLOSER_ROUNDS and _off_path(found, figures, aim):
+        spans = closer_spans(writing.closer_s, deviations, aim)
+        if spans == tuple(writing.closer_s):
+            break
+        rounds += 1
+        for f in files:
+            f.unlink(missing_ok=True)
+        log.info("%s: the simulated program is %.4g mm from the planned path; written again closer to it in %d "
+                 "stretch(es)", fmt, (figures or {}).get("max_deviation_mm") or float("nan"), len(spans))
+        writing = replace(writing, closer_s=spans)
+        files, found, figures, _unfollowed, deviations = _write_checked(fmt, post, trajectory, robot, folders,
+                                                                        process, writing, reference, world)
+        passed = writing if not found else passed
+    if found and passed is not None:   # a round that failed where an earlier one passed: that one, again
+        for f in files:
+            f.unlink(missing_ok=True)
+        files, found, figures, _unfollowed, _dev = _write_checked(fmt, post, trajectory, robot, folders, process,
+                                                                  passed, reference, world)
+    elif found and rounds:
+        found = [x + (f" (written {rounds} time(s) closer to the plan there; loosen post.path_tol_mm or place the "
+                      "part elsewhere: camtool place)" if DEVIATION_FINDING in x else "") for x in found]
     return files, found, figures
 
 
@@ -372,7 +434,8 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], pro
                    world=None):
     """Write one format into the private folder with ``writing`` (the process, its tolerance perhaps
     tightened), check its files and simulate them against ``process``' tolerance and ``reference``;
-    findings name the output folder. Returns (files, findings, figures or None)."""
+    findings name the output folder. Returns (files, findings, figures or None, the moves the controller
+    cannot follow (``SimReport.unfollowed_s``), each move's deviation on work (``SimReport.deviation_s``))."""
     tmp, outdir = folders
     plugin, profile = post.plugin, post.profile
     tcp_robot = _tcp_robot(robot, post)
@@ -390,7 +453,7 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], pro
     for f in (files[:1] if plugin.check_covers_calls or not plugin.own_check else files):
         findings += [s.replace(str(tmp), str(outdir)) for s in check_file(plugin, f, tcp_robot, profile)]
     t_check = time.perf_counter() - t0
-    figures, unfollowed = None, ()
+    figures, unfollowed, deviations = None, (), ()
     if plugin.simulated and files and not findings:
         t0 = time.perf_counter()
         sim = simulate_program(plugin, files[0], tcp_robot, profile, trajectory, process, reference, world)
@@ -401,12 +464,12 @@ def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], pro
                        simulate_s=round(time.perf_counter() - t0, 4),
                        bytes=sum(f.stat().st_size for f in files), path_tol_mm=process.path_tol_mm)
         log.info("%s: %s", fmt, "; ".join(summary_lines(sim)))
-        unfollowed = sim.unfollowed_s
+        unfollowed, deviations = sim.unfollowed_s, sim.deviation_s
     elif plugin.simulated and files and _motion_findings(findings):
         # the check found joints too fast between targets: where the controller runs them so is named by
         # its simulation (a target solved on the other wrist branch), for the joint-move rounds only
         unfollowed = simulate_program(plugin, files[0], tcp_robot, profile, trajectory, process, reference).unfollowed_s
-    return files, findings, figures, unfollowed
+    return files, findings, figures, unfollowed, deviations
 
 
 def _motion_findings(findings: list[str]) -> bool:

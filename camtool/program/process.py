@@ -27,6 +27,9 @@ class ProcessInfo:
     - ``joint_moves_s``: (start, end) spans (s from the plan's start) written as joint moves, not
       straight ones: the post stage sets them where the program's simulator found a straight move the
       controller cannot follow (a wrist singularity: no joint solution, or a joint above its speed), or ().
+    - ``closer_s``: (start, end, share) spans (s from the plan's start) whose moves are merged and whose
+      corners are blended within ``share`` (< 1) of ``path_tol_mm``: the post stage sets them where the
+      program's simulator found the program farther from the planned path than it aims for, or ().
     """
 
     path_tol_mm: float = DEFAULT_PATH_TOL_MM
@@ -36,6 +39,7 @@ class ProcessInfo:
     job_time: str | None = None
     row_labels: tuple = field(default_factory=tuple)
     joint_moves_s: tuple = field(default_factory=tuple)
+    closer_s: tuple = field(default_factory=tuple)
 
 
 def program_date(option: str, process: ProcessInfo | None = None) -> str:

@@ -89,7 +89,7 @@ def simulate(prog, robot, reference: Reference | None = None, *, dt_s: float = S
     findings += found
     surf, found = surface_of(prog, s)
     findings += found
-    work_len, feed, max_dev, p99, planned, found = work_figures(prog, chain, s, surf, reference, path_tol_mm)
+    work_len, feed, max_dev, p99, planned, found, moves_dev = work_figures(prog, chain, s, surf, reference, path_tol_mm)
     findings += found
     cell = None
     if world is not None and world.pairs:
@@ -103,7 +103,8 @@ def simulate(prog, robot, reference: Reference | None = None, *, dt_s: float = S
                      p99_deviation_mm=p99, feed=feed, exact_stops=stops, exact_stops_on_surface=surf.stops_surface,
                      part_switches=int(surf.switch_after.sum()), part_switches_on_surface=surf.switches_surface,
                      limit_violations=n_lim, speed_violations=n_speed, samples=S, findings=findings, cell=cell,
-                     unfollowed_s=unfollowed_moves(robot, chain, s) if n_lim or n_speed or len(s.unsolved) else ())
+                     unfollowed_s=unfollowed_moves(robot, chain, s) if n_lim or n_speed or len(s.unsolved) else (),
+                     deviation_s=moves_dev)
 
 
 def _cell_pass(prog, world, s) -> tuple[dict, list[str]]:

@@ -208,8 +208,8 @@ def surface_of(prog, s) -> tuple[Surface, list[str]]:
 
 
 def work_figures(prog, chain, s, surf: Surface, reference: Reference | None, path_tol_mm: float | None):
-    """(work length mm, feed statistics, max and p99 deviation mm, planned duration, findings)
-    of the samples on work, against the planned path."""
+    """(work length mm, feed statistics, max and p99 deviation mm, planned duration, findings, each move's
+    deviation (``move_deviations``)) of the samples on work, against the planned path."""
     findings: list[str] = []
     t, q, m, M, S, total = s.t, s.q, s.m, len(prog), len(s.t), s.total
     on_work, rows = surf.on_work, surf.rows
@@ -239,6 +239,7 @@ def work_figures(prog, chain, s, surf: Surface, reference: Reference | None, pat
                             within_2pct=float(w[rel <= 0.02].sum() / w.sum()))
     max_dev = p99 = None
     planned = None
+    moves_dev: tuple = ()
     if reference is not None:
         planned = reference.duration_s
         if on_work.any():
@@ -246,6 +247,7 @@ def work_figures(prog, chain, s, surf: Surface, reference: Reference | None, pat
             dev = np.concatenate([_distance_to_polyline(X[work_at[b]], reference, t[work_at[b]], tol)
                                   for b in _blocks(len(work_at))])   # each point's distance is its own
             max_dev, p99 = float(np.max(dev)), float(np.percentile(dev, 99))
+            moves_dev = move_deviations(s, work_at, dev)
             if path_tol_mm is not None and max_dev > path_tol_mm + DEV_ABS_TOL_MM:
                 worst = int(np.flatnonzero(on_work)[int(np.argmax(dev))])
                 findings.append(f"{prog.where[m[worst]] if M > 1 else prog.where[0]}: the simulated TCP is "
@@ -258,7 +260,19 @@ def work_figures(prog, chain, s, surf: Surface, reference: Reference | None, pat
             findings.append(f"{prog.where[0].rsplit(':', 1)[0]}: the program takes {total:.3f} s, the plan "
                             f"{planned:.3f} s ({100 * (total / planned - 1):+.2f} %, allowed "
                             f"{100 * TIME_REL_TOL:.1f} %)")
-    return work_len, feed, max_dev, p99, planned, findings
+    return work_len, feed, max_dev, p99, planned, findings, moves_dev
+
+
+def move_deviations(s, work_at: np.ndarray, dev: np.ndarray) -> tuple:
+    """(start, end, deviation) of every move with samples on work, in order: its time span (s) and the
+    largest distance (mm) of those samples from the planned path; where the post stage writes the
+    program closer to the plan (``camtool.program.post``)."""
+    if not len(work_at):
+        return ()
+    worst = np.full(len(s.T), -1.0)
+    np.maximum.at(worst, s.m[work_at], dev)
+    return tuple((float(s.T[k - 1]) if k > 0 else 0.0, float(s.T[k]), float(worst[k]))
+                 for k in np.flatnonzero(worst >= 0))
 
 
 @dataclass
@@ -286,11 +300,14 @@ class SimReport:
     cell: dict | None = None      # the cell pass on the simulated motion (a world given): pairs, evaluations
     unfollowed_s: tuple = ()      # (start, end) s of each move the controller cannot follow as written (no
                                   # joint solution, a joint above its speed or outside its limits); not reported
+    deviation_s: tuple = ()       # (start s, end s, deviation mm) of each move on work (``move_deviations``);
+                                  # not reported
 
     def as_dict(self) -> dict:
         from dataclasses import asdict
         out = asdict(self)
         out.pop("unfollowed_s")
+        out.pop("deviation_s")
         return out
 
 
