@@ -167,3 +167,35 @@ def test_an_arc_ending_between_waypoints_is_checked_by_their_times():
     assert np.array_equal(_waypoints_between(plan, 0, 1, ctx), [2, 3, 4, 5, 6])
     plan.wp = np.array([2, -1])
     assert len(_waypoints_between(plan, 0, 1, _ctx(P))) == 0   # no times: nothing to check by
+
+
+def test_arcs_in_a_span_written_closer_keep_to_its_share(planned):
+    """``StepContext.closer_s`` (``ProcessInfo.closer_s``): inside a span the post stage writes closer to the
+    plan an arc must hold the waypoints within its share of ARC_SHARE x the tolerance (each waypoint's distance
+    from the written circle, by the circle's own centre and radius); outside it, arcs are as before."""
+    from dataclasses import replace
+
+    from camtool.program.arcs import circle_through
+    from camtool.program.steps import ARC_SHARE
+
+    plan, ctx, _r = planned
+    free = FitArcs(max_sweep_deg=120.0).apply(plan, ctx)
+    rows = [plan.t[plan.row == k] - plan.t[0] for k in range(plan.rows)]
+    span = (rows[0][0], rows[0][-1], 0.02)   # the first row within 2 % of the tolerance
+
+    def arcs(out):
+        """(start time, worst waypoint distance from its circle, mm) of each circular move."""
+        got = []
+        for k in np.flatnonzero(out.kind == "C"):
+            c, rad, n, _r0, _sw, _ok = circle_through(out.P[k - 1][None], out.via_P[k][None], out.P[k][None])
+            X = ctx.waypoint_P[out.wp[k - 1]:out.wp[k] + 1] - c[0]
+            h = X @ n[0]
+            dist = np.hypot(h, np.linalg.norm(X - h[:, None] * n[0], axis=1) - rad[0])
+            got.append((out.t[k - 1] - plan.t[0], dist.max()))
+        return got
+
+    close = FitArcs(max_sweep_deg=120.0).apply(plan, replace(ctx, closer_s=(span,)))
+    in_row0 = lambda a: span[0] - 1e-9 <= a[0] <= span[1]   # noqa: E731
+    assert any(in_row0(a) and a[1] > ARC_SHARE * 0.1 * 0.02 for a in arcs(free))   # the span made a difference
+    assert all(a[1] <= ARC_SHARE * 0.1 * 0.02 + 1e-9 for a in arcs(close) if in_row0(a))
+    assert [a for a in arcs(close) if not in_row0(a)] == [a for a in arcs(free) if not in_row0(a)]

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .arcs import arc_point, circle_through
-from .candidates import RETRACT, runs
+from .candidates import RETRACT, runs, span_shares
 from .moveplan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, MovePlan
 
 ARC_SHARE = 0.4     # share of the path tolerance the circle may leave the planned path by
@@ -39,7 +39,9 @@ class StepContext:
     format's blend radii (mm, ascending) and the smallest level on the surface;
     ``waypoint_mid_P`` (W - 1, 3), the planned motion's TCP halfway (in time) through each step
     between waypoints (empty when not made: arcs are then held to the chords alone), and
-    ``waypoint_t`` (W,) the waypoints' times (s, the plan's clock, as ``MovePlan.t``)."""
+    ``waypoint_t`` (W,) the waypoints' times (s, the plan's clock, as ``MovePlan.t``); ``closer_s`` the spans
+    the post stage writes closer to the plan (``ProcessInfo.closer_s``): arcs and their corners there are
+    held to that share of the tolerance."""
 
     waypoint_P: np.ndarray
     waypoint_R: np.ndarray
@@ -49,6 +51,7 @@ class StepContext:
     min_level_on_surface: int = 0
     waypoint_mid_P: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     waypoint_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    closer_s: tuple = ()   # (start, end, share): spans written within a share of the tolerance (ProcessInfo)
 
 
 class MoveStep(ABC):
@@ -234,7 +237,8 @@ class FitArcs(MoveStep):
         kind = np.array(plan.kind)
         if n < 3 or not (kind == KIND_LINEAR).any():
             return plan
-        tol = ARC_SHARE * ctx.path_tol_mm
+        share = span_shares(plan.t, ctx.closer_s)   # 1 outside the spans written closer to the plan
+        tol_at = ARC_SHARE * ctx.path_tol_mm * share
         ori_tol = np.radians(ctx.ori_tol_deg)
         max_sweep = np.radians(self.max_sweep_deg)
         WP = ctx.waypoint_P
@@ -257,6 +261,7 @@ class FitArcs(MoveStep):
                 if min(np.linalg.norm(P[m] - P[a]), np.linalg.norm(P[b] - P[m])) < self.min_chord_mm:
                     b += 1
                     continue
+                tol = float(tol_at[a:b + 1].min())
                 fits, sweep, geo = _on_circle(P[a], P[m], P[b], P[a:b + 1], tol)
                 if not fits or sweep > max_sweep:
                     break
@@ -329,7 +334,7 @@ class FitArcs(MoveStep):
         bad: list = []
         if not len(levels):
             return level, bad
-        budget = BLEND_SHARE * ctx.path_tol_mm
+        budget = BLEND_SHARE * ctx.path_tol_mm * span_shares(plan.t, ctx.closer_s)
         circ = plan.kind == KIND_CIRCULAR
         corners = np.flatnonzero((circ | np.r_[circ[1:], False]) & (level >= 0))
         corners = corners[(corners > 0) & (corners < len(plan) - 1)]
@@ -339,9 +344,9 @@ class FitArcs(MoveStep):
             P_in, P_out = self._path(plan, k), self._path(plan, k + 1)
             lv = int(level[k])
             floor = ctx.min_level_on_surface if plan.row[k] >= 0 else 0
-            while lv > floor and _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget:
+            while lv > floor and _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget[k]:
                 lv -= 1
-            if _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget:
+            if _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget[k]:
                 bad.append(int(k))
             level[k] = lv
         return level, bad
@@ -370,7 +375,7 @@ def context_for(trajectory, robot, process, plan: MovePlan, levels_mm, min_level
                        ori_tol_deg=float(process.ori_tol_deg), levels_mm=tuple(levels_mm),
                        min_level_on_surface=min_level_on_surface,
                        waypoint_mid_P=_motion_midpoints(kin, trajectory) if linear else np.zeros((0, 3)),
-                       waypoint_t=np.asarray(trajectory.t_s, float))
+                       waypoint_t=np.asarray(trajectory.t_s, float), closer_s=tuple(process.closer_s))
 
 
 def _motion_midpoints(kin, trajectory) -> np.ndarray:
