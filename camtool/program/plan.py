@@ -29,7 +29,9 @@ that become move targets:
   straight move skips a waypoint only while the joints it solves stay within
   ``HELD_JOINT_GUARD`` of the plan's there (``HeldJointChords``); the post stage writes
   joint moves over spans its simulator finds the controller cannot follow
-  (``ProcessInfo.joint_moves_s``).
+  (``ProcessInfo.joint_moves_s``), and, where it finds the program farther from the planned
+  path than it aims for, merges and blends the moves of those spans within a share of the
+  tolerance (``ProcessInfo.closer_s``: every tolerance above, and the arcs', scaled there).
 - **Blending.** Every target but the first, the last and the top of each
   retract gets the largest blend level (zone radius in mm) whose corner
   rounding stays within ``BLEND_SHARE`` of the tolerance (a chord deviates
