@@ -357,17 +357,16 @@ def test_closer_spans_take_the_moves_beside_and_tighten_where_named_again():
     assert closer_spans(got, moves[:1], 0.08) == got
 
 
-def test_the_closer_rounds_stop_at_their_count_and_fall_back_to_a_program_that_passed(monkeypatch, tmp_path):
-    """``_closer_rounds``: a program within the tolerance but above the aim is written closer; when the
-    rounds end failing, the one that passed is written again (and placed). A program the rounds never bring within
-    the tolerance is refused after CLOSER_ROUNDS rewrites, the finding saying what was tried and what to change."""
+def test_the_closer_rounds_stop_at_their_count_and_place_the_best_program_that_passed(monkeypatch, tmp_path):
+    """``_closer_rounds``: a program within the tolerance but above the aim is written closer. Rounds that stop
+    lowering the deviation end after CLOSER_PATIENCE of them, and the passing writing with the smallest deviation
+    is written again and placed; rounds that keep lowering it end after CLOSER_ROUNDS. A program the rounds
+    never bring within the tolerance is refused, the finding saying what was tried and what to change."""
     import camtool.program.post as post_mod
     from camtool.program.process import ProcessInfo
 
-    script = {}   # the deviation of a writing, by its closer spans (the writer is deterministic)
-
     def fake(fmt, post, trajectory, robot, folders, process, writing, reference, world=None):
-        dev = script.get(writing.closer_s, script["else"])
+        dev = deviation(len(asked), writing.closer_s)   # the writer is deterministic: by its spans, or by round
         asked.append(writing.closer_s)
         found = [f"x.mod:9: the simulated TCP is {dev:.3f} mm from the planned path (tolerance 0.1 mm)"] \
             if dev > 0.1 else []
@@ -375,19 +374,29 @@ def test_the_closer_rounds_stop_at_their_count_and_fall_back_to_a_program_that_p
 
     monkeypatch.setattr(post_mod, "_write_checked", fake)
     post = type("Post", (), {"plugin": type("P", (), {"forget": lambda self: None})()})()
+
+    def run():
+        asked.clear()
+        return post_mod._format_programs("rapid", post, None, None, (tmp_path, tmp_path), ProcessInfo(), None)
+
     asked = []
-    script.update({(): 0.09, "else": 0.3})   # above the aim, then off the path: the first writing again
-    files, found, figures = post_mod._format_programs("rapid", post, None, None, (tmp_path, tmp_path),
-                                                      ProcessInfo(), None)
+    deviation = lambda i, spans: 0.09 if spans == () else 0.3   # noqa: E731   above the aim, then off the path
+    files, found, figures = run()
     assert found == [] and figures["max_deviation_mm"] == 0.09
-    assert asked[:2] == [(), ((1.0, 2.0, 0.5),)] and asked[-1] == () and len(asked) == 2 + post_mod.CLOSER_ROUNDS
-    asked.clear()
-    script.update({(): 0.3})   # never mended
-    files, found, figures = post_mod._format_programs("rapid", post, None, None, (tmp_path, tmp_path),
-                                                      ProcessInfo(), None)
-    assert len(asked) == 1 + post_mod.CLOSER_ROUNDS and len(found) == 1
-    assert f"written {post_mod.CLOSER_ROUNDS} time(s) closer to the plan there" in found[0]
+    assert asked[:2] == [(), ((1.0, 2.0, 0.5),)] and asked[-1] == () and len(asked) == 2 + post_mod.CLOSER_PATIENCE
+    deviation = lambda i, spans: 0.3   # noqa: E731   never mended
+    files, found, figures = run()
+    assert len(asked) == 1 + post_mod.CLOSER_PATIENCE and len(found) == 1
+    assert f"written {post_mod.CLOSER_PATIENCE} time(s) closer to the plan there" in found[0]
     assert "post.path_tol_mm" in found[0]
+    deviation = lambda i, spans: 0.099 - 0.001 * i   # noqa: E731   lowered a little every round, above the aim
+    files, found, figures = run()
+    assert found == [] and len(asked) == 1 + post_mod.CLOSER_ROUNDS
+    assert figures["max_deviation_mm"] == pytest.approx(0.099 - 0.001 * post_mod.CLOSER_ROUNDS)
+    seen: dict = {}   # best in the first round (a writing written again comes out as it did)
+    deviation = lambda i, spans: seen.setdefault(spans, [0.095, 0.09, 0.092, 0.093][min(len(seen), 3)])  # noqa: E731
+    files, found, figures = run()
+    assert figures["max_deviation_mm"] == 0.09 and asked[-1] == asked[1] and len(asked) == 5
 
 
 def test_joint_spans_grow_where_the_controller_still_cannot_follow():

@@ -256,6 +256,7 @@ DEVIATION_FINDING = "from the planned path"
 CLOSER_ROUNDS = 6     # rounds of writing again, closer to the plan, the stretches its simulator finds off the path
 CLOSER_SHARE = 0.5    # ... each round within at most this share of the tolerance they had (less where they are
                       # farther off: the aim over their deviation)
+CLOSER_PATIENCE = 2   # ... ending once this many rounds in a row have not lowered the largest deviation
 AIM_SHARE = 0.8       # the writer aims the simulated deviation at this share of post.path_tol_mm: a margin for a real
                       # controller's rounding and zone handling (the simulator's finding stays at the tolerance)
 
@@ -398,15 +399,18 @@ def _off_path(found: list, figures, aim_mm: float) -> bool:
 def _closer_rounds(fmt, post, trajectory, robot, folders, process, reference, world, last):
     """Written again, up to ``CLOSER_ROUNDS`` times, with the stretches the simulator finds farther than
     ``AIM_SHARE`` of the tolerance from the planned path merged and blended closer to it (``closer_spans``:
-    shorter moves there, targets on the plan's own motion, smaller corners). When a round fails where one
-    before it passed, that one is written again. Returns (files, findings, figures) of the last writing."""
+    shorter moves there, targets on the plan's own motion, smaller corners); the rounds stop early once
+    ``CLOSER_PATIENCE`` of them in a row have not lowered the largest deviation (where the plan's own motion
+    is that far from its poses' path, no target mends it). The writing that passed with the smallest deviation
+    is the one placed (written again if a later round came out worse). Returns (files, findings, figures)."""
     from dataclasses import replace
 
     writing, files, found, figures, _unfollowed, deviations = last
     aim = AIM_SHARE * process.path_tol_mm
-    passed = None if found else writing
-    rounds = 0
-    while rounds < CLOSER_ROUNDS and _off_path(found, figures, aim):
+    lowest = _max_deviation(figures)
+    best = None if found else (lowest, writing)   # the passing writing with the smallest deviation
+    rounds = stale = 0
+    while rounds < CLOSER_ROUNDS and stale < CLOSER_PATIENCE and _off_path(found, figures, aim):
         spans = closer_spans(writing.closer_s, deviations, aim)
         if spans == tuple(writing.closer_s):
             break
@@ -414,20 +418,30 @@ def _closer_rounds(fmt, post, trajectory, robot, folders, process, reference, wo
         for f in files:
             f.unlink(missing_ok=True)
         log.info("%s: the simulated program is %.4g mm from the planned path; written again closer to it in %d "
-                 "stretch(es)", fmt, (figures or {}).get("max_deviation_mm") or float("nan"), len(spans))
+                 "stretch(es)", fmt, _max_deviation(figures), len(spans))
         writing = replace(writing, closer_s=spans)
         files, found, figures, _unfollowed, deviations = _write_checked(fmt, post, trajectory, robot, folders,
                                                                         process, writing, reference, world)
-        passed = writing if not found else passed
-    if found and passed is not None:   # a round that failed where an earlier one passed: that one, again
+        dev = _max_deviation(figures)
+        stale = 0 if dev < lowest else stale + 1
+        lowest = min(lowest, dev)
+        if not found and (best is None or dev < best[0]):
+            best = (dev, writing)
+    if best is not None and best[1] is not writing:   # a later round came out worse: the best one, again
         for f in files:
             f.unlink(missing_ok=True)
         files, found, figures, _unfollowed, _dev = _write_checked(fmt, post, trajectory, robot, folders, process,
-                                                                  passed, reference, world)
+                                                                  best[1], reference, world)
     elif found and rounds:
         found = [x + (f" (written {rounds} time(s) closer to the plan there; loosen post.path_tol_mm or place the "
                       "part elsewhere: camtool place)" if DEVIATION_FINDING in x else "") for x in found]
     return files, found, figures
+
+
+def _max_deviation(figures) -> float:
+    """The simulated program's largest distance from the planned path on work (mm; inf when not measured)."""
+    dev = (figures or {}).get("max_deviation_mm")
+    return float("inf") if dev is None else float(dev)
 
 
 def _write_checked(fmt, post, trajectory, robot, folders: tuple[Path, Path], process, writing, reference,
