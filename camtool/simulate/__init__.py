@@ -33,7 +33,9 @@ writers:
 distance of the simulated TCP from the planned path on work (mm), TCP feed
 statistics on work, exact stops and module / job switches on the surface,
 joint position and speed limit violations, and the program's time against the
-plan's. ``SimReport.findings`` lists what breaks the acceptance rules.
+plan's. ``SimReport.findings`` lists what breaks the acceptance rules; ``SimReport.deviation_s``
+holds each move's largest deviation on work with its time span (the post stage writes the moves
+farther than it aims for closer to the plan, ``camtool.program.post``).
 
 The modules, one job each: ``reference`` (the planned path), ``interpolation`` (the
 controller's interpolation at ``dt_s``), ``measures`` (limits, the surface, feed,
