@@ -216,7 +216,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "min_area_mm2": _nonneg("Faces smaller than this are dropped or merged (small_faces).", 100.0),
         "small_faces": Key("str", "drop", "What becomes of a face smaller than min_area_mm2: drop it, or merge its points into the neighbouring face they fit (within 3x fit.threshold_mm, normals agreeing).", choices=("drop", "merge")),
         "max_faces": Key("int", 32, "Most faces the segmentation looks for.", check=lambda x: 1 <= x <= 256, expect="an integer in 1..256"),
-        "sharp_edge_deg": Key("float", 30.0, "Smooth regions of the part are split where the surface turns by more than this angle between neighbouring points (a sharp edge); a smooth region the plane, sphere and cylinder faces hold only in fragments is one free-form face (docs/faces.md).", check=lambda x: 5 <= x <= 90, expect="an angle in 5..90 deg"),
+        "sharp_edge_deg": Key("float", 30.0, "Smooth regions of the part are split where the surface turns by more than this dihedral angle across an edge (a mesh's crease between two triangles, or within 3 mm; on a scan between neighbouring points); a smooth region the plane, sphere and cylinder faces hold only in fragments is one free-form face (docs/faces.md).", check=lambda x: 5 <= x <= 90, expect="an angle in 5..90 deg"),
         "raster": Key("table", {}, "Raster keys per face index, e.g. {\"2\" = {step_over_mm = 5, cylinder_rows = \"along\"}}; needs select = [indices] or {largest = N}."),
     },
     "post": {

@@ -10,10 +10,14 @@ where the analytic faces really hold it:
    point's normal is its triangle's on a mesh, and on a scan the thinnest principal
    direction of its ``EDGE_NEIGHBOURS`` nearest neighbours (a scan's own normals are as
    noisy as the scan; the sample's neighbours span several millimetres). A point is on a **sharp
-   edge** when ``EDGE_VOTES`` of those neighbours within ``EDGE_SPACINGS`` point spacings
-   turn its normal (unsigned) by more than ``sharp_edge_deg``
+   edge** when the surface turns by more than ``sharp_edge_deg`` across an edge near it
    (``faces.sharp_edge_deg``, default 30 deg: a chamfer of 45 deg or a box's 90 deg
-   corner is an edge; a dome's or a door's curvature over a few millimetres is not). The
+   corner is an edge; a dome's or a door's curvature is not): on a mesh, a crease of the mesh
+   (``creases``: two triangles turning by more) lies within ``EDGE_SPACINGS`` point spacings, or a
+   neighbour within ``EDGE_MM`` turns its normal by more (a scale that does not grow with the part:
+   a large part's sample lies millimetres apart, and a car door's window frame turning at radius
+   8-25 mm is no edge); on a scan, ``EDGE_VOTES`` of those neighbours within ``EDGE_SPACINGS``
+   point spacings turn its normal (unsigned) by more. The
    other points, linked to their nearest neighbours closer than ``sampling.CONNECT_SPACINGS``
    spacings, fall into connected regions; an edge point joins the region of its nearest
    non-edge neighbour whose normal agrees within ``sharp_edge_deg``.
@@ -55,11 +59,13 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import BadInput
+from .creases import crease_points
 
 SHARP_EDGE_DEG = 30.0     # default of faces.sharp_edge_deg: a dihedral angle above this splits two regions
 SAMPLE = 20000            # points (strided) the regions are found on
 EDGE_NEIGHBOURS = 16      # the edge test looks at this many nearest neighbours ...
 EDGE_SPACINGS = 4.0       # ... closer than this many median point spacings ...
+EDGE_MM = 3.0             # on a mesh, the neighbours' normal test looks no farther than this (its creases do the rest)
 EDGE_VOTES = 1            # ... and a point is on an edge when this many of them turn its normal past sharp_edge_deg
 COVER_SHARE = 0.9         # a region whose analytic faces hold less than this share of its points is free-form,
 MAX_PIECES = 3            # ... and one whose largest MAX_PIECES analytic faces hold less than COVER_SHARE of it
@@ -103,9 +109,28 @@ def _pca_normals(P: np.ndarray, nb: np.ndarray) -> np.ndarray:
     return vecs[:, :, 0]
 
 
-def smooth_regions(P: np.ndarray, N: np.ndarray | None, sharp_edge_deg: float, connect_spacings: float) -> np.ndarray:
+def _edge_points(P: np.ndarray, dist: np.ndarray, cos_nb: np.ndarray, cos_sharp: float, spacing: float,
+                 mesh) -> np.ndarray:
+    """Whether each sample point is on a sharp edge. A scan (``mesh`` None): a neighbour within ``EDGE_SPACINGS``
+    spacings turns its normal past the angle. A mesh ``(vertices_mm, faces, sharp_edge_deg)``: a crease of the mesh
+    (``creases``) lies within ``EDGE_SPACINGS`` spacings, or a neighbour within ``EDGE_MM`` (and those spacings)
+    turns its normal past the angle (a tight bend the mesh tessellates finer than the angle)."""
+    within = dist <= EDGE_SPACINGS * spacing
+    if mesh is None:
+        return ((cos_nb < cos_sharp) & within).sum(axis=1) >= EDGE_VOTES
+    near = within & (dist <= EDGE_MM)
+    edge = ((cos_nb < cos_sharp) & near).sum(axis=1) >= EDGE_VOTES
+    creases = crease_points(mesh[0], mesh[1], mesh[2], spacing / 2.0)
+    if len(creases):
+        edge |= cKDTree(creases).query(P, distance_upper_bound=EDGE_SPACINGS * spacing)[0] <= EDGE_SPACINGS * spacing
+    return edge
+
+
+def smooth_regions(P: np.ndarray, N: np.ndarray | None, sharp_edge_deg: float, connect_spacings: float,
+                   mesh=None) -> np.ndarray:
     """Region label of each point (-1: none), the points split at sharp edges (see the module docstring).
-    ``N``: the points' normals when they are exact (a mesh's triangles'); None: estimated (a scan)."""
+    ``N``: the points' normals when they are exact (a mesh's triangles'); None: estimated (a scan).
+    ``mesh``: ``(vertices_mm, faces)`` of a mesh workpiece, whose own creases mark its edges; None: a scan."""
     n = len(P)
     if n < 2 * EDGE_NEIGHBOURS:
         return np.full(n, -1, np.int64)
@@ -117,7 +142,7 @@ def smooth_regions(P: np.ndarray, N: np.ndarray | None, sharp_edge_deg: float, c
     cos_sharp = math.cos(math.radians(sharp_edge_deg))
     cos_nb = np.abs(np.einsum("ij,ikj->ik", N, N[nb]))   # unsigned: scans' normals are unoriented
     within = dist <= EDGE_SPACINGS * spacing
-    edge = ((cos_nb < cos_sharp) & within).sum(axis=1) >= EDGE_VOTES
+    edge = _edge_points(P, dist, cos_nb, cos_sharp, spacing, None if mesh is None else (*mesh, sharp_edge_deg))
     # the smooth points linked to their near neighbours that are smooth too
     link = within & (dist <= connect_spacings * spacing) & (cos_nb >= cos_sharp) & ~edge[:, None] & ~edge[nb]
     link[:, 0] = False
@@ -400,7 +425,8 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
 
     mesh = getattr(workpiece, "faces", None) is not None
     N = np.asarray(workpiece.normals, float)[pick] if mesh else None
-    region = smooth_regions(P[pick], N, settings.sharp_edge_deg, CONNECT_SPACINGS)
+    region = smooth_regions(P[pick], N, settings.sharp_edge_deg, CONNECT_SPACINGS,
+                            (workpiece.vertices_mm, workpiece.faces) if mesh and workpiece.vertices_mm is not None else None)
     owner = np.full(n, -1, np.int64)
     faces = list(seg.faces) if seg is not None else []
     for f in faces:
