@@ -49,6 +49,7 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
     job = load_job(job_file, list(overrides))
     from .. import safe_io
 
+    workpiece = None
     if from_file is not None:
         surface = load_surface(from_file)
     else:
@@ -56,7 +57,7 @@ def command(job_file: Path, overrides: tuple[str, ...], as_json: bool, plot_file
         for w in workpiece.warnings:
             click.echo(f"camtool: warning: {w}", err=True)
         surface = surface_for_job(job, workpiece)
-    path = path_for_job(job, surface)
+    path = path_for_job(job, surface, workpiece)
     summary = {"job": str(job_file), "surface": surface.model, **path_figures(path, surface)}
     click.get_current_context().with_resource(safe_io.writing_into(outdir))  # checked, held and locked as run's
     if outdir is not None:

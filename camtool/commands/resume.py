@@ -67,7 +67,7 @@ def joint_path_of(job, settings, robot, from_file: Path | None, path_file: Path 
         return load_stage(path_file, expect=("Path",)), load_stage(from_file, expect=("JointPath",))
     wp = workpiece(job)
     surface = surface_for_job(job, wp)
-    path = load_stage(path_file, expect=("Path",)) if path_file is not None else path_for_job(job, surface)
+    path = load_stage(path_file, expect=("Path",)) if path_file is not None else path_for_job(job, surface, wp)
     return plan_with_sized_leads(settings, surface, path, robot, part_for_checks(settings, wp, surface))
 
 

@@ -36,6 +36,7 @@ from ..plan.strategy import ik_settings
 from ..collision.stage import collision_world, with_world
 from ..program.post import thin_waypoints
 from .post_inputs import write_job_programs
+from ..path.lead_clearance import cleared_leads
 from ..path.raster import raster_path
 from ..report.run_report import (
     plan_metrics,
@@ -136,9 +137,14 @@ def robot_for_job(job: Job):
         matrix_from_xyz_rpy(job.tool.tcp_xyz_mm, job.tool.tcp_rpy_deg))
 
 
-def path_for_job(job: Job, surface):
-    """Raster the job's surface into a tool Path (world frame)."""
-    return raster_path(surface, RasterSettings.from_section(job.raster))
+def path_for_job(job: Job, surface, workpiece=None):
+    """Raster the job's surface into a tool Path (world frame); given the job's ``workpiece`` (as loaded), with its
+    free-form faces' leads lifted clear of it (``leads_clear_of_part``), as ``camtool run`` rasters it."""
+    path = raster_path(surface, RasterSettings.from_section(job.raster))
+    if workpiece is None:
+        return path
+    settings = JobSettings.from_job(job)
+    return leads_clear_of_part(settings, surface, path, part_for_checks(settings, workpiece, surface))
 
 
 # --------------------------------------------------------------------------- plan and time
@@ -255,7 +261,7 @@ class _Leads:
     record: dict
     rounds_used: int = 0
 
-    def grow(self, settings: JobSettings, surface, robot, plan: Callable, rounds: int) -> bool:
+    def grow(self, settings: JobSettings, surface, robot, plan: Callable, rounds: int, workpiece=None) -> bool:
         """Up to ``rounds`` times: measure the ramps on the plan, re-raster with a longer lead and ``plan`` it.
 
         True when the leads are long enough for the plan in hand; False when capped
@@ -276,7 +282,8 @@ class _Leads:
                 self.record["capped"] = True
                 return False
             try:
-                new_path = raster_path(surface, replace(raster, lead_mm=longer))
+                new_path = leads_clear_of_part(settings, surface, raster_path(surface, replace(raster, lead_mm=longer)),
+                                               workpiece)
                 new_joint_path = plan(new_path)
             except PlanInfeasible as exc:
                 self.record["kept_because"] = f"a {longer:g} mm lead cannot be planned: {exc}"
@@ -309,7 +316,7 @@ def plan_with_sized_leads(settings: JobSettings, surface, path, robot, workpiece
     lead = raster.lead_mm
     sizing = _Leads(path, raw, lead, {"lead_mm_set": lead, "lead_mm_used": lead, "max_mm": raster.lead_max_mm})
     kernel_only = sizing.grow(settings, surface, robot, lambda p: plan_path(p, robot, settings.planner, world),
-                              LEAD_SIZING_ROUNDS)
+                              LEAD_SIZING_ROUNDS, workpiece)
     try:
         sizing.joint_path = plan_for_job(settings, sizing.path, robot, workpiece, planned=sizing.joint_path)
     except PlanInfeasible as exc:
@@ -320,7 +327,7 @@ def plan_with_sized_leads(settings: JobSettings, surface, path, robot, workpiece
         sizing.joint_path = plan_for_job(settings, path, robot, workpiece, planned=raw)
         kernel_only = False
     rounds_left = LEAD_SIZING_ROUNDS - sizing.rounds_used if kernel_only else 0  # else: capped, or kept
-    sizing.grow(settings, surface, robot, lambda p: plan_for_job(settings, p, robot, workpiece), rounds_left)
+    sizing.grow(settings, surface, robot, lambda p: plan_for_job(settings, p, robot, workpiece), rounds_left, workpiece)
     return sizing.path, replace(sizing.joint_path, events={**sizing.joint_path.events, "leads": sizing.record})
 
 
@@ -354,6 +361,28 @@ def part_for_checks(settings: JobSettings, workpiece, surface):
     if getattr(surface, "model", "") == "freeform":
         on[on] = _not_alone(P[on])
     return replace(workpiece, points_mm=P[on], normals=np.asarray(workpiece.normals)[on])
+
+
+def _freeform_poses(surface, path) -> np.ndarray | None:
+    """Which poses of ``path`` are a free-form face's (None: none is)."""
+    if isinstance(surface, FaceSet):
+        free = [i for f, i in zip(surface.surfaces, surface.indices) if getattr(f, "model", "") == "freeform"]
+        return np.isin(path.face, free) if free and path.face is not None else None
+    return np.ones(len(path), bool) if getattr(surface, "model", "") == "freeform" else None
+
+
+def leads_clear_of_part(settings: JobSettings, surface, path, part):
+    """``path`` with its free-form faces' leads lifted clear of ``part`` (``part_for_checks``; the modifier
+    ``path.lead_clearance``): their straight leads run on past the face's edge, where the part may go on and turn
+    up towards the tool (a door's handle recess, a flange). An analytic face's leads follow its surface (or its
+    tangent, ``raster.lead_path``) and stay as they are, as does every lead already clear."""
+    only = _freeform_poses(surface, path)
+    if part is None or only is None or not only.any():
+        return path
+    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
+    band = max((f.lead_band_mm for f in faces if getattr(f, "source_kind", "") == "scan"), default=0.0)
+    return cleared_leads(path, part_from_path(part, path).signed_distance, settings.raster.lead_mm, only,
+                         inside_mm=band)   # a scan's leads may run in its noise band, as the motion check allows
 
 
 def _not_alone(P: np.ndarray) -> np.ndarray:

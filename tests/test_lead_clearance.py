@@ -1,0 +1,88 @@
+"""Leads lifted clear of the part (camtool.path.lead_clearance), against a part whose signed distance is closed form:
+the plane z = 0 rising at 45 deg beyond x = 103 mm, just past the first row's work end (a recess's rim, a flange)."""
+import numpy as np
+
+from camtool.path.lead_clearance import LEAD_CLEAR_MM, cleared_leads
+from camtool.path.toolpath import ZONE_CODE, Path
+
+RISE_X_MM = 103.0
+
+
+def signed_distance(P):
+    """mm in front of the part z <= max(0, x - 103) (+), inside it (-): exact for the slope's side and the plane."""
+    P = np.atleast_2d(P)
+    x, z = P[:, 0], P[:, 2]
+    # above the plane and above the slope: the distance to the nearer of the two (inside: minus the depth)
+    return np.minimum(z, (z - (x - RISE_X_MM)) / np.sqrt(2.0))
+
+
+def two_row_path():
+    """Two rows along x at y = 0 and y = 25 (the second back), each with two lead poses of 15 mm either side
+    (unlifted), three self-motion poses between them, approach and depart; tool z pointing down (-z)."""
+    rows = []
+    zone, seg = [], []
+    for s, (y, way) in enumerate(((0.0, 1.0), (25.0, -1.0))):
+        xs = np.arange(0.0, 100.01, 10.0)[::int(way)]
+        lead_in = xs[0] - way * np.array([15.0, 7.5])
+        lead_out = xs[-1] + way * np.array([7.5, 15.0])
+        if s == 1:
+            mid = np.array([[x, 12.5, 5.0] for x in (110.0, 112.0, 110.0)])
+            rows.append(mid)
+            zone += ["self_motion"] * 3
+            seg += [1] * 3
+        for xx, z in ((lead_in, "lead_in"), (xs, "work"), (lead_out, "lead_out")):
+            rows.append(np.stack([xx, np.full(len(xx), y), np.zeros(len(xx))], 1))
+            zone += [z] * len(xx)
+            seg += [s] * len(xx)
+    P = np.vstack(rows)
+    P = np.vstack([P[:1] + [0, 0, 10], P, P[-1:] + [0, 0, 10]])
+    zone = ["approach"] + zone + ["depart"]
+    seg = [0] + seg + [1]
+    poses = np.tile(np.eye(4), (len(P), 1, 1))
+    poses[:, :3, :3] = np.diag([1.0, -1.0, -1.0])   # tool z = -world z
+    poses[:, :3, 3] = P
+    return Path(poses, np.array(seg, np.int32), np.zeros(len(P), np.int32),
+                np.array([ZONE_CODE[z] for z in zone], np.int32))
+
+
+def test_a_lead_that_runs_into_the_rise_is_lifted_clear_and_nothing_else_moves():
+    path = two_row_path()
+    P0 = path.poses_mm[:, :3, 3]
+    zone = np.asarray(path.zone)
+    out_first = np.flatnonzero((zone == ZONE_CODE["lead_out"]) & (path.segment == 0))
+    assert signed_distance(P0[out_first]).min() < -5.0                 # the tangent lead runs 5+ mm into the part
+    new = cleared_leads(path, signed_distance, lead_mm=15.0)
+    P = new.poses_mm[:, :3, 3]
+    moved = np.linalg.norm(P - P0, axis=1) > 1e-9
+    lead_or_self = np.isin(zone, [ZONE_CODE[z] for z in ("lead_in", "lead_out", "self_motion")])
+    assert signed_distance(P[lead_or_self]).min() >= 0.0                 # on the part at most, not in it
+    assert signed_distance(P[out_first]).min() >= 0.5 * LEAD_CLEAR_MM
+    assert not moved[zone == ZONE_CODE["work"]].any()                    # the work stays on the part
+    assert np.allclose(new.poses_mm[:, :3, :3], path.poses_mm[:, :3, :3])  # orientations kept
+    # the lifted lead rises straight up (against the tool axis); the rise 4.5 mm past the work's end is too close
+    # for the cube (c = 47 mm > 3 leads of 15 mm), the square clears it: 5.9 mm at the near pose (closed form:
+    # (z - 4.5) / sqrt 2 = 1, within the rounds' convergence), four times that at the far one
+    lift = P[out_first] - P0[out_first]
+    assert np.allclose(lift[:, :2], 0.0) and (lift[:, 2] > 0).all()
+    assert np.isclose(lift[0, 2] / lift[1, 2], 0.5 ** 2)
+    assert 4.5 + 0.5 * np.sqrt(2.0) <= lift[0, 2] <= 4.5 + np.sqrt(2.0) + 1e-6
+    # the leads on the flat side of the rows, on the part but not in it, stay where they were
+    in_first = np.flatnonzero((zone == ZONE_CODE["lead_in"]) & (path.segment == 0))
+    assert not moved[in_first].any()
+
+
+def test_a_self_motion_takes_its_ends_lifts_and_a_clear_path_comes_back_as_it_was():
+    path = two_row_path()
+    new = cleared_leads(path, signed_distance, lead_mm=15.0)
+    zone = np.asarray(path.zone)
+    k = np.flatnonzero(zone == ZONE_CODE["self_motion"])
+    a, b = k[0] - 1, k[-1] + 1
+    d = new.poses_mm[:, :3, 3] - path.poses_mm[:, :3, 3]
+    f = np.arange(1, len(k) + 1) / (len(k) + 1)
+    blend = (1 - f)[:, None] * d[a] + f[:, None] * d[b]
+    assert np.all(d[k, 2] >= blend[:, 2] - 1e-9)                       # at least the blend of its ends' lifts
+    assert signed_distance(new.poses_mm[k, :3, 3]).min() >= 0.5 * LEAD_CLEAR_MM
+    # every lead clear already: the same object back
+    assert cleared_leads(new, signed_distance, lead_mm=15.0, clear_mm=0.5) is new
+    # poses not in ``only`` are left alone
+    assert cleared_leads(path, signed_distance, lead_mm=15.0, only=np.zeros(len(path), bool)) is path
