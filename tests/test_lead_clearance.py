@@ -86,3 +86,27 @@ def test_a_self_motion_takes_its_ends_lifts_and_a_clear_path_comes_back_as_it_wa
     assert cleared_leads(new, signed_distance, lead_mm=15.0, clear_mm=0.5) is new
     # poses not in ``only`` are left alone
     assert cleared_leads(path, signed_distance, lead_mm=15.0, only=np.zeros(len(path), bool)) is path
+
+
+def test_a_self_motion_whose_chord_crosses_a_ridge_rises_over_it():
+    """A ridge 1 mm thin and 8 mm high at y = 18.75 between the transition's last pose and the next lead: every pose
+    is clear of it, the straight chord between them is not (it crosses at 2.5 mm); after clearing, the chords
+    sampled every 0.1 mm are all out of it."""
+    def ridge(P):
+        P = np.atleast_2d(P)
+        return np.minimum(P[:, 2], np.maximum(np.abs(P[:, 1] - 18.75) - 0.5, P[:, 2] - 8.0))
+
+    path = two_row_path()
+    zone = np.asarray(path.zone)
+    k = np.flatnonzero(zone == ZONE_CODE["self_motion"])
+    chain = np.arange(k[0] - 1, k[-1] + 2)
+
+    def chord_min(p):
+        Q = p.poses_mm[chain, :3, 3]
+        t = np.linspace(0, 1, 1001)[:, None, None]
+        return ridge((Q[:-1] + t * (Q[1:] - Q[:-1])).reshape(-1, 3)).min()
+
+    assert ridge(path.poses_mm[:, :3, 3]).min() >= 0.0 and chord_min(path) < -0.4   # through the ridge
+    new = cleared_leads(path, ridge, lead_mm=15.0)
+    assert chord_min(new) >= 0.0
+    assert np.allclose(new.poses_mm[zone != ZONE_CODE["self_motion"]], path.poses_mm[zone != ZONE_CODE["self_motion"]])

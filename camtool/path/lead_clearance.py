@@ -32,6 +32,7 @@ from .toolpath import ZONE_CODE, Path
 
 LEAD_CLEAR_MM = 1.0   # a lead or self-motion pose closer than this to the part is lifted
 ROUNDS = 8            # rounds of lifting a lead and measuring it again
+CHORD_STEP_MM = 2.0   # a self-motion is measured along its chords at most this far apart
 CLEARED_SHARE = 0.5   # a ramp whose poses end this share of clear_mm in front of the part clears it
 MAX_RISE_LEADS = 3.0  # a lead rises by at most this many of its own lengths at its far end
 RAMP_POWERS = (3, 2, 1)  # the lift's power of the lead's share: the cube first (no kink, no jump in curvature)
@@ -119,9 +120,16 @@ def _transitions_follow(path: Path, P: np.ndarray, extra: np.ndarray, signed_dis
         extra[k] = (1 - f)[:, None] * extra[a] + f[:, None] * extra[b]
         bump = np.sin(np.pi * f)
         up = -np.asarray(path.poses_mm[k, :3, 2], float)
+        # measured along the chords between the poses too (a transition's poses may lie 90 mm apart)
+        chain = np.concatenate([[a], k, [b]])
+        q, w = _along_chords(P[chain] + extra[chain])
+        bump_q = (1 - w) * np.concatenate([[0.0], bump])[q] + w * np.concatenate([bump, [0.0]])[q]
+        up_c = np.vstack([up[:1], up, up[-1:]])
+        up_q = (1 - w)[:, None] * up_c[q] + w[:, None] * up_c[q + 1]
+        at = (1 - w)[:, None] * (P[chain] + extra[chain])[q] + w[:, None] * (P[chain] + extra[chain])[q + 1]
         clear_mm, inside_mm = clear
-        if np.nan_to_num(signed_distance(P[k] + extra[k]), nan=np.inf).min() < -inside_mm:
-            h, _ = _rise(signed_distance, P[k] + extra[k], up, bump, clear_mm, cap)
+        if np.nan_to_num(signed_distance(at), nan=np.inf).min() < -inside_mm:
+            h, _ = _rise(signed_distance, at, up_q, bump_q, clear_mm, cap)
             extra[k] += (h * bump)[:, None] * up
     for code in (_APPROACH, _DEPART):
         k = np.flatnonzero(zone == code)
@@ -131,3 +139,13 @@ def _transitions_follow(path: Path, P: np.ndarray, extra: np.ndarray, signed_dis
                 extra[k] = extra[src]
     return extra
 
+
+def _along_chords(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(chord index, share along it) of points at most ``CHORD_STEP_MM`` apart on the polyline ``chain`` (its
+    vertices included, the last one not)."""
+    q, w = [], []
+    for i, length in enumerate(np.linalg.norm(np.diff(chain, axis=0), axis=1)):
+        n = max(1, int(np.ceil(length / CHORD_STEP_MM)))
+        q.append(np.full(n, i))
+        w.append(np.arange(n) / n)
+    return np.concatenate(q), np.concatenate(w)
