@@ -375,9 +375,14 @@ def leads_clear_of_part(settings: JobSettings, surface, path, part):
     """``path`` with its free-form faces' leads lifted clear of ``part`` (``part_for_checks``; the modifier
     ``path.lead_clearance``): their straight leads run on past the face's edge, where the part may go on and turn
     up towards the tool (a door's handle recess, a flange). An analytic face's leads follow its surface (or its
-    tangent, ``raster.lead_path``) and stay as they are, as does every lead already clear."""
+    tangent, ``raster.lead_path``) and stay as they are, as does every lead already clear. A scanned cloud worked
+    as one face is checked against its own points on that face (``part_for_checks``), which the leads, on its
+    tangent and above its noise band, leave behind; there is no other part to clear, and the part's geometry of a
+    1 M-point scan would cost 20 s here (the motion check still measures every lead against it)."""
     only = _freeform_poses(surface, path)
     if part is None or only is None or not only.any():
+        return path
+    if part.faces is None and not settings.segmented:
         return path
     faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
     band = max((f.lead_band_mm for f in faces if getattr(f, "source_kind", "") == "scan"), default=0.0)
