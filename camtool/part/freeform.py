@@ -118,6 +118,13 @@ class FreeformSurface:
             return LEAD_LIFT_MIN_MM
         return max(NOISE_BAND_SIGMAS * float(self.stats.rms_mm), LEAD_LIFT_MIN_MM)
 
+    def project_mm(self, points_mm: np.ndarray) -> np.ndarray:
+        """Points (..., 3) mm taken onto the surface along the chart's normal e3 (the height field over them)."""
+        c = (np.asarray(points_mm, float) - self.origin_mm) @ self.frame
+        h = self.grid.interp(self.height, c[..., 0], c[..., 1])
+        return self.origin_mm + c[..., 0, None] * self.frame[:, 0] + c[..., 1, None] * self.frame[:, 1] \
+            + h[..., None] * self.frame[:, 2]
+
     def uv_from_points(self, points_mm: np.ndarray) -> np.ndarray:
         """(N, 2) parameters of points (projected along e3 onto the surface)."""
         c = (np.asarray(points_mm, float) - self.origin_mm) @ self.frame

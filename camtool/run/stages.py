@@ -223,12 +223,14 @@ def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path
     return insert_home_moves(joint_path, moves["approach"], moves["depart"], {"free_moves": figures})
 
 
-def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str | None = None, planned=None):
+def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str | None = None, planned=None,
+                 surface=None):
     """Plan ``path`` with the job's planner (or another ``method``), plus home moves when a workpiece is given.
 
     ``workpiece``: the part the free motion keeps clear of (``part_for_checks``).
     ``planned``: ``plan_path``'s joint path of this very ``path`` and planner, when the
-    caller has it already (lead sizing); it is then not planned again."""
+    caller has it already (lead sizing); it is then not planned again. ``surface``: the face rastered; a
+    free-form one takes the sag's work midposes onto itself (``plan.sag``)."""
     planner = settings.planner if method is None else settings.planner.with_method(method)
     solver = CwlnSolver(robot, ik_settings(planner), free_spin=path.free_spin)  # lifts and densified poses
     world = collision_world(settings, robot)
@@ -240,7 +242,8 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
                                  link_radius_mm=settings.check.link_radius_mm,
                                  clearance_mm=settings.check.clearance_mm, solver=solver, world=world,
                                  tip_exempt_mm=settings.check.tool_contact_exempt_mm)
-    joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm)
+    joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm,
+                                   getattr(surface, "project_mm", None))
     joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
     if workpiece is not None:
         joint_path = add_home_moves(planner, workpiece, path, robot, joint_path, world=world)
@@ -312,22 +315,24 @@ def plan_with_sized_leads(settings: JobSettings, surface, path, robot, workpiece
     world = collision_world(settings, robot)
     raw = plan_path(path, robot, settings.planner, world)
     if not raster.lead_auto or raster.lead_mm <= 0:
-        return path, plan_for_job(settings, path, robot, workpiece, planned=raw)
+        return path, plan_for_job(settings, path, robot, workpiece, planned=raw, surface=surface)
     lead = raster.lead_mm
     sizing = _Leads(path, raw, lead, {"lead_mm_set": lead, "lead_mm_used": lead, "max_mm": raster.lead_max_mm})
     kernel_only = sizing.grow(settings, surface, robot, lambda p: plan_path(p, robot, settings.planner, world),
                               LEAD_SIZING_ROUNDS, workpiece)
     try:
-        sizing.joint_path = plan_for_job(settings, sizing.path, robot, workpiece, planned=sizing.joint_path)
+        sizing.joint_path = plan_for_job(settings, sizing.path, robot, workpiece, planned=sizing.joint_path,
+                                         surface=surface)
     except PlanInfeasible as exc:
         if sizing.lead_mm == lead:
             raise
         sizing.record["kept_because"] = f"a {sizing.lead_mm:g} mm lead cannot be planned: {exc}"
         sizing.path, sizing.lead_mm, sizing.record["lead_mm_used"] = path, lead, lead
-        sizing.joint_path = plan_for_job(settings, path, robot, workpiece, planned=raw)
+        sizing.joint_path = plan_for_job(settings, path, robot, workpiece, planned=raw, surface=surface)
         kernel_only = False
     rounds_left = LEAD_SIZING_ROUNDS - sizing.rounds_used if kernel_only else 0  # else: capped, or kept
-    sizing.grow(settings, surface, robot, lambda p: plan_for_job(settings, p, robot, workpiece), rounds_left, workpiece)
+    sizing.grow(settings, surface, robot, lambda p: plan_for_job(settings, p, robot, workpiece, surface=surface),
+                rounds_left, workpiece)
     return sizing.path, replace(sizing.joint_path, events={**sizing.joint_path.events, "leads": sizing.record})
 
 

@@ -47,9 +47,10 @@ def _hermite(t_s, q, qd, qdd, k, tt):
 
 
 def reference_from_trajectory(trajectory, robot, feed_mm_s: float | None = None) -> Reference:
-    """The planned path of a timed trajectory: the polyline through the TCP of its path poses
-    (``path_index >= 0``) on its process zones (lead-in, work, lead-out), broken between
-    stretches; and, where the timed motion itself bows off that polyline by more than
+    """The planned path of a timed trajectory: the polyline through the TCP of its waypoints on its
+    process zones (lead-in, work, lead-out): the path's poses and the planner's own there (a chord
+    sag's midposes on the surface, a bowed chord's on the line: ``plan.sag``, ``plan.densify``),
+    broken between stretches; and, where the timed motion itself bows off that polyline by more than
     ``REF_SAG_MM`` (its quintic pieces between waypoints), that motion's TCP curve as
     ``Reference.motion``."""
     from camtool.path.toolpath import ZONE_CODE
@@ -58,9 +59,8 @@ def reference_from_trajectory(trajectory, robot, feed_mm_s: float | None = None)
     t = np.asarray(trajectory.t_s, float)
     qa = np.asarray(trajectory.q, float)
     proc = np.isin(zone, [ZONE_CODE["work"], ZONE_CODE["lead_in"], ZONE_CODE["lead_out"]])
-    pose = np.asarray(trajectory.path_index) >= 0
     stretch = np.cumsum(np.r_[1, np.diff(proc.astype(int)) != 0])  # stretch number of every waypoint
-    idx = np.flatnonzero(proc & pose)
+    idx = np.flatnonzero(proc)
     chain = _Chain(robot)
     P = chain.fk(qa[idx])[0]
     breaks = np.r_[stretch[idx[1:]] != stretch[idx[:-1]], True]  # the polyline ends after point i
