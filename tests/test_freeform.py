@@ -196,6 +196,20 @@ def test_uv_round_trip(saddle_part):
     assert np.allclose(np.linalg.norm(s.normal_at(uv[:, 0], uv[:, 1]), axis=1), 1.0)
 
 
+def test_points_taken_onto_the_face_lie_on_the_part(saddle_part):
+    """project_mm: points off the face come onto it along the chart's normal; against the saddle's own formula."""
+    _, mesh, s = saddle_part
+    rng = np.random.default_rng(1)
+    lo, hi = s.boundary.bounds()
+    uv = rng.uniform(lo, hi, (300, 2))
+    uv = uv[s.boundary.contains(uv)]
+    on = s.point_mm(uv[:, 0], uv[:, 1])
+    off = on + rng.uniform(-2.0, 2.0, (len(on), 1)) * s.frame[:, 2]
+    got = s.project_mm(off)
+    assert np.allclose(got, on, atol=1e-9)       # moved along e3 only, back onto the same height field
+    assert np.abs(got[:, 2] - saddle(got[:, 0], got[:, 1])).max() < 0.01
+
+
 def test_fit_summary_lists_the_face(saddle_part):
     from camtool.commands.fit import surface_summary
 

@@ -53,3 +53,53 @@ def test_batched_sags_are_the_midpose_sags():
     sags = chord_sags_mm(Ta, Tb)
     assert np.allclose(sags, [arc_midpose(a, b)[1] for a, b in zip(Ta, Tb)], rtol=1e-9, atol=1e-7)   # arccos of near-parallel axes: ~1e-8 mm
     assert sags[0] == 0.0 and sags[1] < 1e-7 and (sags[2:] > 1e-3).all()
+
+
+def _crease_projector(slope=0.2):
+    """Onto the facetted surface z = slope * |x| (a crease along y), along z: the free-form face's projection."""
+    def project(p):
+        p = np.array(p, float)
+        p[..., 2] = slope * np.abs(p[..., 0])
+        return p
+    return project
+
+
+def _pose_at(p, z_axis=(0.0, 0.0, -1.0)):
+    T = np.eye(4)
+    T[:3, 3] = p
+    T[:3, 2] = z_axis
+    T[:3, 0] = [1.0, 0.0, 0.0]
+    T[:3, 1] = np.cross(T[:3, 2], T[:3, 0])
+    return T
+
+
+def test_a_step_on_a_free_form_face_gets_its_midpose_on_the_facets():
+    """Across a crease the arc through smoothed tool axes (here parallel: no sag) misses the facets; the face's
+    own midpose lies on them, and the sag is the chord's distance from them (closed form: slope * 5 mm)."""
+    from camtool.plan.sag import _arc_midposes, _surface_midposes
+    project = _crease_projector(0.2)
+    a, b = _pose_at([-5.0, 0.0, 1.0]), _pose_at([5.0, 0.0, 1.0])    # both on z = 0.2 |x|
+    Ta, Tb = a[None], b[None]
+    T_arc, sag_arc = _arc_midposes(Ta, Tb)
+    assert sag_arc[0] == 0.0
+    T, sag = _surface_midposes(Ta, Tb, T_arc, sag_arc, project)
+    assert np.allclose(T[0, :3, 3], [0.0, 0.0, 0.0])                   # on the crease, not the chord at z = 1
+    assert sag[0] == pytest.approx(1.0)
+
+
+def test_a_lead_meets_the_face_above_it_keeps_the_arc_and_under_it_comes_onto_it():
+    """On a ridge z = -0.2 |x| a lead's straight chord to the first work pose can run into the part: its midpose
+    is then taken onto the surface; a chord that stays over it keeps the arc's midpose."""
+    from camtool.plan.sag import _arc_midposes, _surface_midposes
+    project = _crease_projector(-0.2)
+    work = _pose_at([5.0, 0.0, -1.0])                                  # on the face
+    above = _pose_at([-5.0, 0.0, 3.0])                                 # chord's midpoint 1 mm over the ridge
+    under = _pose_at([-5.0, 0.0, 0.5])                                 # chord's midpoint 0.25 mm into it
+    for lead, expect in ((above, None), (under, [0.0, 0.0, 0.0])):
+        Ta, Tb = lead[None], work[None]
+        T_arc, sag_arc = _arc_midposes(Ta, Tb)
+        T, sag = _surface_midposes(Ta, Tb, T_arc, sag_arc, project)
+        if expect is None:
+            assert np.allclose(T, T_arc) and np.allclose(sag, sag_arc)
+        else:
+            assert np.allclose(T[0, :3, 3], expect) and sag[0] == pytest.approx(0.25)

@@ -256,3 +256,20 @@ def test_each_move_on_work_has_its_own_deviation_and_time_span(tmp_path):
     moved = next(k for k, w in enumerate(prog.where) if w.endswith(f":{lines.index(mv) + 1}"))
     into = np.flatnonzero(np.isclose(dev[:, 1], ends[moved]))
     assert len(into) == 1 and into[0] in off   # the move into the moved target is off the path
+
+
+def test_the_reference_runs_through_the_planners_own_waypoints_on_work():
+    """A waypoint the planner adds on work (path_index -1: a chord sag's midpose on the surface) is part of the
+    planned path: the reference's polyline passes through its TCP."""
+    from dataclasses import replace
+    from camtool.timing.feed import tcp_positions_world
+    r = get_robot("seed8")
+    tr = rows_trajectory(r, rows=1)
+    pidx = np.asarray(tr.path_index).copy()
+    work = np.flatnonzero(np.asarray(tr.zone) == 0)
+    k = int(work[len(work) // 2])
+    pidx[k] = -1
+    ref = reference_from_trajectory(replace(tr, path_index=pidx), r)
+    tcp = tcp_positions_world(r, np.asarray(tr.q)[k:k + 1])[0] - r.base_T_mm[:3, 3]
+    tcp = tcp @ r.base_T_mm[:3, :3]
+    assert np.min(np.linalg.norm(ref.points - tcp, axis=1)) < 1e-6

@@ -16,10 +16,12 @@ c / 2 * tan(theta / 4), towards the tool where the normals diverge (convex),
 away from it where they converge (concave). The orientation is slerped halfway.
 
 On a free-form face (a mesh's own facets, or a scan's smoothed height field) the tool axes are normals
-smoothed over several mm, so the arc through them is not the surface: a work step's midpose is then put on
+smoothed over several mm, so the arc through them is not the surface: a step's midpose is then put on
 the surface itself (``project``: the chord's midpoint taken onto it along the chart's normal), and the sag
 tested is the chord's own distance from the surface there (issue #46: the wavy sheet's arc midposes lay up to
-0.25 mm off its facets). Lead steps keep the arc (past the face's edge the surface is only continued).
+0.25 mm off its facets), where both its poses lie on the face (``ON_FACE_MM``); a lead that rises off it past
+its edge keeps the arc (the surface there is only continued), unless its chord runs under the surface where
+it meets the face: then its midpose is taken onto the surface too (the wavy sheet's lead-ins into a trough).
 """
 from __future__ import annotations
 
@@ -35,6 +37,7 @@ from .cwln import CwlnSolver
 from .densify import bisected, slerp_midposes
 
 MAX_SPLITS = 3  # a step is halved at most this many times for its sag (8 pieces), twice more for its bow
+ON_FACE_MM = 0.01      # a step whose poses both lie this close to a free-form face is on it (its midposes too)
 SAG_SCREEN_MM = 1e-6   # the batched screen leaves a step to its own test unless this much within the tolerance
                        # (arccos near parallel tool axes is good to ~1e-8 rad: ~1e-7 mm of sag on a 100 mm step)
 
@@ -82,32 +85,39 @@ def chord_sags_mm(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
     return np.where(flat | (sag <= 0.0), 0.0, sag)
 
 
-def _surface_midposes(Ta, Tb, project) -> tuple[np.ndarray, np.ndarray]:
-    """(m, 4, 4) midposes on the surface (orientations slerped halfway, positions the chords' midpoints taken onto
-    the surface by ``project``), (m,) the chords' distances from the surface there (mm)."""
-    T = slerp_midposes(Ta, Tb)
-    mid = 0.5 * (Ta[:, :3, 3] + Tb[:, :3, 3])
-    T[:, :3, 3] = project(mid)
-    return T, np.linalg.norm(T[:, :3, 3] - mid, axis=1)
+def _surface_midposes(Ta, Tb, T_arc, sag_arc, project):
+    """``_arc_midposes``' (m, 4, 4) midposes and (m,) sags with a free-form face's where the face decides: a step
+    whose poses both lie on the face (``ON_FACE_MM``) gets the chord's midpoint taken onto the surface, its sag the
+    chord's distance from it there; a step with one pose on it (a lead meeting the face) gets the same where its
+    chord runs under the surface (into the part), its sag how deep; the others keep the arc's."""
+    T, sag = T_arc.copy(), sag_arc.copy()
+    pa, pb = Ta[:, :3, 3], Tb[:, :3, 3]
+    on = (np.linalg.norm(project(pa) - pa, axis=1) <= ON_FACE_MM).astype(int) \
+        + (np.linalg.norm(project(pb) - pb, axis=1) <= ON_FACE_MM)
+    mid = 0.5 * (pa + pb)
+    onto = project(mid)
+    towards_tool = -(Ta[:, :3, 2] + Tb[:, :3, 2])
+    under = np.einsum("ki,ki->k", onto - mid, towards_tool) > 0.0   # the surface lies between the chord and the tool
+    both, dips = on == 2, (on == 1) & under
+    T[both | dips, :3, 3] = onto[both | dips]
+    sag[both | dips] = np.linalg.norm(onto - mid, axis=1)[both | dips]
+    return T, sag
 
 
-def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None, on_face=None) -> dict[int, np.ndarray]:
+def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> dict[int, np.ndarray]:
     """{step: inserted q (k, dof) in order} for the steps (Ta[i], qa[i]) -> (Tb[i], qb[i]) (base frame).
 
     ``densify.bisected`` with the arc's midposes (the orientations by one batched slerp a level): an interval
     whose sag exceeds ``tol_mm`` gets the arc's midpose, up to ``MAX_SPLITS`` times. A step this module splits
     is also kept within the bow tolerance, two levels more (``densify`` no longer sees it as one step of the
     Path): a half within the sag tolerance whose joint midpoint's TCP leaves the chord by more than
-    ``bow_tol_mm`` is split too. ``project`` / ``on_face`` (m,): the steps on a free-form face get the surface's
-    midposes (``_surface_midposes``), their halves too.
+    ``bow_tol_mm`` is split too. ``project`` (base-frame points onto a free-form face): the face's midposes
+    where it decides (``_surface_midposes``).
     """
-    face = np.zeros(len(Ta), bool) if project is None or on_face is None else np.asarray(on_face, bool)
-
-    def sagging(depth, Ta, qa, Tb, qb, q_mid, tags):
+    def sagging(depth, Ta, qa, Tb, qb, q_mid):
         T_mid, sag = _arc_midposes(Ta, Tb)
-        face = tags
-        if face.any():
-            T_mid[face], sag[face] = _surface_midposes(Ta[face], Tb[face], project)
+        if project is not None:
+            T_mid, sag = _surface_midposes(Ta, Tb, T_mid, sag, project)
         wanted = []
         for i in range(len(Ta)):
             if sag[i] <= tol_mm:
@@ -121,7 +131,7 @@ def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None, on_fa
             wanted.append(i)
         return T_mid, wanted
 
-    return bisected(solver, Ta, qa, Tb, qb, MAX_SPLITS + 2, sagging, tags=face)
+    return bisected(solver, Ta, qa, Tb, qb, MAX_SPLITS + 2, sagging)
 
 
 def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver,
@@ -129,9 +139,8 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
     """``joint_path`` with arc-midpoint rows where a surface step's sag exceeds ``chord_tol_mm / 2``.
 
     ``project``: world points (m, 3) mm -> the same taken onto a free-form face (``FreeformSurface.project_mm``);
-    its work steps then get midposes on it (module doc). Inserted rows have path_index -1 and the zone of the step (of its lead, on a step between work and a
-    lead); the
-    events get ``sag_steps`` (steps split, rows inserted, the sag tolerance).
+    its steps then get midposes on it (module doc). Inserted rows have path_index -1 and the zone of the step
+    (of its lead, on a step between work and a lead); the events get ``sag_steps`` (steps split, rows inserted, the sag tolerance).
     """
     jp = joint_path
     tol = 0.5 * chord_tol_mm
@@ -142,23 +151,20 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
     if project is not None:   # the projector in the base frame the solver works in
         base = np.asarray(robot.base_T_mm, float)
         base_project = lambda p: (project(p @ base[:3, :3].T + base[:3, 3]) - base[:3, 3]) @ base[:3, :3]  # noqa: E731
-    face = np.zeros(len(steps), bool)
     if len(steps):   # the steps whose sag is within the tolerance are left alone, all at once
         poses = np.einsum("ij,njk->nik", base_inv, path.poses_mm)
         Ta, Tb = poses[jp.path_index[steps]], poses[jp.path_index[steps + 1]]
         sags = chord_sags_mm(Ta, Tb)
         if base_project is not None:
-            face = (np.asarray(jp.zone)[steps] == WORK) & (np.asarray(jp.zone)[steps + 1] == WORK)
-            if face.any():
-                sags[face] = _surface_midposes(Ta[face], Tb[face], base_project)[1]
-        keep = sags > tol - SAG_SCREEN_MM   # the rest: each step's own test below
-        steps, face = steps[keep], face[keep]
+            T_arc = np.broadcast_to(np.eye(4), Ta.shape).copy()
+            sags = _surface_midposes(Ta, Tb, T_arc, sags, base_project)[1]
+        steps = steps[sags > tol - SAG_SCREEN_MM]   # the rest: each step's own test below
     inserts = {}
     if len(steps):
         T = np.einsum("ij,njk->nik", base_inv, path.poses_mm[jp.path_index[np.r_[steps, steps + 1]]])
         q = np.asarray(jp.q, float)
         split = _split_steps(solver, T[:len(steps)], q[steps], T[len(steps):], q[steps + 1], tol, chord_tol_mm,
-                             base_project, face)
+                             base_project)
         inserts = {int(steps[i]): v for i, v in sorted(split.items())}
     events = {**jp.events, "sag_steps": {"steps": len(inserts), "rows": int(sum(len(v) for v in inserts.values())),
                                          "sag_tol_mm": tol}}
