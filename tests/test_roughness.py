@@ -3,7 +3,8 @@ reference: the noise drawn, and the closed-form surface the vertices were put on
 import numpy as np
 import pytest
 
-from camtool.part.roughness import BAND_MAX_MM, BAND_QUANTILE, SCAN_ROUGHNESS_MM, mesh_roughness, vertex_residuals
+from camtool.part.roughness import (BAND_MAX_MM, BAND_QUANTILE, CAD_COPLANAR_SHARE, SCAN_ROUGHNESS_MM, mesh_roughness,
+                                   vertex_residuals)
 
 
 def sheet(noise_mm=0.0, n=60, spacing_mm=2.0, seed=0):
@@ -65,3 +66,45 @@ def test_the_band_is_measured_over_two_smoothing_sigmas():
     narrow = mesh_roughness(V, smoothing_mm=1.0).band_mm     # 12 neighbours (+-4 mm): the quadric follows the ripple
     wide = mesh_roughness(V, smoothing_mm=5.0).band_mm       # 79 neighbours (+-10 mm): the ripple is roughness
     assert narrow < 0.06 and wide > 0.1
+
+
+def _triangulated(V, n=60):
+    """The grid sheet's vertices (n x n, row-major) as a mesh: two triangles per cell."""
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1))
+    a = (j * n + i).ravel()
+    return np.r_[np.c_[a, a + 1, a + n + 1], np.c_[a, a + n + 1, a + n]]
+
+
+def test_a_rough_mesh_with_noise_is_a_scan_even_with_its_triangles():
+    V = sheet(0.05)
+    r = mesh_roughness(V, faces=_triangulated(V))
+    assert r.is_scan and r.coplanar_share < CAD_COPLANAR_SHARE / 10    # noise leaves no two triangles coplanar
+
+
+def test_a_coarse_tessellation_cut_along_its_cells_is_cad():
+    """A 25 mm height-field grid of a wave (rough to the quadric: facets far coarser than its curvature), each cell
+    cut into four triangles at its centre put on the cell's own facet plane (as a mesher splits facets): CAD."""
+    n, g = 21, 25.0
+    x, y = np.meshgrid(np.arange(n) * g, np.arange(n) * g)
+    z = 40.0 * np.sin(x / 60.0) * np.cos(y / 70.0)
+    V = np.c_[x.ravel(), y.ravel(), z.ravel()]
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1))
+    a = (j * n + i).ravel()
+    c0, c1, c2, c3 = a, a + 1, a + n + 1, a + n
+    centre = 0.5 * (V[c0] + V[c2])                  # on the diagonal c0-c2: in the plane of both its triangles
+    k = len(V) + np.arange(len(a))
+    V = np.r_[V, centre]
+    F = np.r_[np.c_[c0, c1, k], np.c_[c1, c2, k], np.c_[c2, c3, k], np.c_[c3, c0, k]]
+    assert mesh_roughness(V).is_scan                               # by its vertices alone it looks rough
+    r = mesh_roughness(V, faces=F)
+    assert not r.is_scan and r.band_mm == 0.0 and r.coplanar_share >= CAD_COPLANAR_SHARE
+    assert mesh_roughness(V, faces=F, scan="yes").is_scan           # the workpiece still has the last word
+
+
+@pytest.mark.parametrize("name,scale,is_scan", [("noether_wavy_hole.ply", 50.0, False),
+                                                 ("snp_dome_scan.ply", 1000.0, True)])
+def test_the_vendored_wavy_sheet_is_cad_and_the_dome_scan_a_scan(name, scale, is_scan):
+    import trimesh
+    from pathlib import Path
+    m = trimesh.load(Path(__file__).parents[1] / "benchmarks" / "parts" / "freeform" / name, process=False)
+    assert mesh_roughness(np.asarray(m.vertices) * scale, faces=m.faces).is_scan == is_scan

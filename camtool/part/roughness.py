@@ -32,6 +32,8 @@ from scipy.spatial import cKDTree
 
 from .freeform import SCAN_SMOOTHING_MIN_MM, SCAN_SMOOTHING_SPACINGS
 
+COPLANAR_REL = 1e-5         # two triangles are coplanar when the fourth corner is this share of their edge off the plane
+CAD_COPLANAR_SHARE = 0.02   # a rough mesh with this share of its triangle pairs coplanar is CAD (scans: <= 0.2 %)
 ROUGH_NEIGHBOURS = 12       # a vertex's quadric is fitted to this many nearest other vertices
 SCAN_ROUGHNESS_MM = 0.003   # a mesh whose median |residual| exceeds this is rough: judged as a scan
 BAND_QUANTILE = 99.99       # a scan's noise band: this percentile of |residual| (the rows pass over all of them) ...
@@ -48,6 +50,7 @@ class Roughness:
     median_mm: float
     band_mm: float
     is_scan: bool
+    coplanar_share: float | None = None   # of a rough mesh's triangle pairs (None: not measured)
 
 
 def vertex_residuals(vertices_mm: np.ndarray, queries: np.ndarray | None = None,
@@ -82,22 +85,47 @@ def _residuals(V, q, k, tree):
     return p[:, 2] - np.einsum("ni,ni->n", design(p[:, 0], p[:, 1]), coef)
 
 
-def mesh_roughness(vertices_mm: np.ndarray, smoothing_mm: float = 0.0, scan: str = "auto") -> Roughness:
+def coplanar_share(vertices_mm: np.ndarray, faces: np.ndarray) -> float:
+    """Share of a mesh's pairs of triangles sharing an edge that are coplanar (module doc); degenerate triangles
+    (no plane) are left out. trimesh gives the pairs (``face_adjacency``)."""
+    import trimesh
+
+    m = trimesh.Trimesh(np.asarray(vertices_mm, float), np.asarray(faces, np.int64), process=False)
+    n = m.face_normals
+    adj = m.face_adjacency
+    if not len(adj):
+        return 0.0
+    ok = (np.linalg.norm(n[adj[:, 0]], axis=1) > 0.5) & (np.linalg.norm(n[adj[:, 1]], axis=1) > 0.5)
+    edge, other = m.face_adjacency_edges[ok], m.face_adjacency_unshared[ok, 1]
+    V = m.vertices
+    h = np.abs(np.einsum("ij,ij->i", V[other] - V[edge[:, 0]], n[adj[ok, 0]]))
+    length = np.linalg.norm(V[edge[:, 1]] - V[edge[:, 0]], axis=1)
+    return float(np.mean(h <= COPLANAR_REL * length)) if ok.any() else 0.0
+
+
+def mesh_roughness(vertices_mm: np.ndarray, smoothing_mm: float = 0.0, scan: str = "auto",
+                   faces: np.ndarray | None = None) -> Roughness:
     """The roughness of a mesh's vertices (every k-th of a large mesh, deterministic), its noise band measured
     over two ``smoothing_mm`` sigmas (0: the free-form default). Coincident vertices (an STL's or a triangle
     soup's corners) count once: a vertex's copy would pin its quadric. ``scan``: "auto" judges by the
-    roughness, "yes" / "no" as the workpiece says (``workpiece.scan``); the band is 0 unless a scan."""
-    V = np.unique(np.round(np.asarray(vertices_mm, float), 6), axis=0)
+    roughness and, for a rough mesh with its ``faces``, by its coplanar triangles (module doc), "yes" / "no" as
+    the workpiece says (``workpiece.scan``); the band is 0 unless a scan."""
+    V, inverse = np.unique(np.round(np.asarray(vertices_mm, float), 6), axis=0, return_inverse=True)
     if len(V) < 7 or scan == "no":
         return Roughness(0.0, 0.0, False)
     tree = cKDTree(V)
     q = np.arange(0, len(V), max(1, -(-len(V) // MAX_QUERIES)))
     r = np.abs(vertex_residuals(V, q, ROUGH_NEIGHBOURS, tree))
     median = float(np.median(r))
-    if scan == "no" or (scan == "auto" and median <= SCAN_ROUGHNESS_MM):
+    if scan == "auto" and median <= SCAN_ROUGHNESS_MM:
         return Roughness(median, 0.0, False)
+    share = None
+    if faces is not None and scan == "auto":   # the faces renumbered to the merged vertices
+        share = coplanar_share(V, np.asarray(inverse).ravel()[np.asarray(faces)])
+    if scan == "auto" and share is not None and share >= CAD_COPLANAR_SHARE:
+        return Roughness(median, 0.0, False, share)
     spacing = float(np.median(tree.query(V[q], k=2, workers=-1)[0][:, 1]))
     sigma = smoothing_mm if smoothing_mm > 0 else max(SCAN_SMOOTHING_SPACINGS * spacing, SCAN_SMOOTHING_MIN_MM)
     k = int(np.clip(np.ceil(np.pi * (2.0 * sigma / max(spacing, 1e-9)) ** 2), ROUGH_NEIGHBOURS, MAX_BAND_NEIGHBOURS))
     wide = np.abs(vertex_residuals(V, q, k, tree))
-    return Roughness(median, min(float(np.percentile(wide, BAND_QUANTILE)), BAND_MAX_MM), True)
+    return Roughness(median, min(float(np.percentile(wide, BAND_QUANTILE)), BAND_MAX_MM), True, share)

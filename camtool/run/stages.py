@@ -420,7 +420,7 @@ def scanned_mesh_band_mm(workpiece, smoothing_mm: float = 0.0, scan: str = "auto
     clearance rules."""
     if workpiece.faces is None or workpiece.vertices_mm is None:
         return 0.0
-    rough = mesh_roughness(workpiece.vertices_mm, smoothing_mm, scan)
+    rough = mesh_roughness(workpiece.vertices_mm, smoothing_mm, scan, workpiece.faces)
     return rough.band_mm if rough.is_scan else 0.0
 
 
