@@ -1,6 +1,7 @@
 """Free-form faces (camtool.part.freeform): a saddle mesh, a noisy scanned cap, holes, stage files, rows on the
 surface. Small generated parts: each test runs in about a second."""
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -322,3 +323,17 @@ def test_scan_normal_smoothing_grows_with_noise_and_stops_at_its_cap():
     assert sig[0] == sig[1] == 6.0 and 6.0 < sig[2] < sig[3] < SCAN_NORMAL_SMOOTHING_MAX_MM == sig[4]
     # a denser scan averages more points in the same window: less smoothing for the same noise
     assert scan_normal_smoothing_mm(1.0, 8.0, 2.0, 6.0) < scan_normal_smoothing_mm(1.0, 4.0, 2.0, 6.0)
+
+
+def test_the_sag_takes_its_midposes_onto_a_cad_meshs_face_only(saddle_part):
+    """run.stages.face_projector: a CAD mesh's free-form face projects; the same face judged a scan
+    (workpiece.scan = "yes"), a scan's own vertices (noise) and no surface do not (their midposes stay on the arc)."""
+    from types import SimpleNamespace
+    from camtool.run.stages import face_projector
+    wp, _, s = saddle_part
+    auto, yes = (SimpleNamespace(workpiece=SimpleNamespace(scan=v)) for v in ("auto", "yes"))
+    assert face_projector(auto, s, wp) == s.project_mm
+    assert face_projector(yes, s, wp) is None
+    noisy = replace(wp, vertices_mm=wp.vertices_mm + np.random.default_rng(0).normal(0, 0.05, wp.vertices_mm.shape))
+    assert face_projector(auto, s, noisy) is None
+    assert face_projector(auto, None, wp) is None

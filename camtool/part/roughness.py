@@ -103,6 +103,27 @@ def coplanar_share(vertices_mm: np.ndarray, faces: np.ndarray) -> float:
     return float(np.mean(h <= COPLANAR_REL * length)) if ok.any() else 0.0
 
 
+def mesh_is_scan(vertices_mm: np.ndarray, scan: str = "auto", faces: np.ndarray | None = None) -> bool:
+    """Whether a mesh is judged as a scan (``mesh_roughness``'s verdict, without its noise band)."""
+    return _judged(vertices_mm, scan, faces)[0]
+
+
+def _judged(vertices_mm, scan, faces):
+    """(is a scan, median |residual| mm, coplanar share or None, merged vertices, their tree, queried indices)."""
+    V, inverse = np.unique(np.round(np.asarray(vertices_mm, float), 6), axis=0, return_inverse=True)
+    if len(V) < 7 or scan == "no":
+        return False, 0.0, None, V, None, None
+    tree = cKDTree(V)
+    q = np.arange(0, len(V), max(1, -(-len(V) // MAX_QUERIES)))
+    median = float(np.median(np.abs(vertex_residuals(V, q, ROUGH_NEIGHBOURS, tree))))
+    if scan == "auto" and median <= SCAN_ROUGHNESS_MM:
+        return False, median, None, V, tree, q
+    share = None
+    if faces is not None and scan == "auto":   # the faces renumbered to the merged vertices
+        share = coplanar_share(V, np.asarray(inverse).ravel()[np.asarray(faces)])
+    return not (scan == "auto" and share is not None and share >= CAD_COPLANAR_SHARE), median, share, V, tree, q
+
+
 def mesh_roughness(vertices_mm: np.ndarray, smoothing_mm: float = 0.0, scan: str = "auto",
                    faces: np.ndarray | None = None) -> Roughness:
     """The roughness of a mesh's vertices (every k-th of a large mesh, deterministic), its noise band measured
@@ -110,19 +131,8 @@ def mesh_roughness(vertices_mm: np.ndarray, smoothing_mm: float = 0.0, scan: str
     soup's corners) count once: a vertex's copy would pin its quadric. ``scan``: "auto" judges by the
     roughness and, for a rough mesh with its ``faces``, by its coplanar triangles (module doc), "yes" / "no" as
     the workpiece says (``workpiece.scan``); the band is 0 unless a scan."""
-    V, inverse = np.unique(np.round(np.asarray(vertices_mm, float), 6), axis=0, return_inverse=True)
-    if len(V) < 7 or scan == "no":
-        return Roughness(0.0, 0.0, False)
-    tree = cKDTree(V)
-    q = np.arange(0, len(V), max(1, -(-len(V) // MAX_QUERIES)))
-    r = np.abs(vertex_residuals(V, q, ROUGH_NEIGHBOURS, tree))
-    median = float(np.median(r))
-    if scan == "auto" and median <= SCAN_ROUGHNESS_MM:
-        return Roughness(median, 0.0, False)
-    share = None
-    if faces is not None and scan == "auto":   # the faces renumbered to the merged vertices
-        share = coplanar_share(V, np.asarray(inverse).ravel()[np.asarray(faces)])
-    if scan == "auto" and share is not None and share >= CAD_COPLANAR_SHARE:
+    is_scan, median, share, V, tree, q = _judged(vertices_mm, scan, faces)
+    if not is_scan:
         return Roughness(median, 0.0, False, share)
     spacing = float(np.median(tree.query(V[q], k=2, workers=-1)[0][:, 1]))
     sigma = smoothing_mm if smoothing_mm > 0 else max(SCAN_SMOOTHING_SPACINGS * spacing, SCAN_SMOOTHING_MIN_MM)

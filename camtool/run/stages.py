@@ -50,7 +50,7 @@ from ..report.html import write_run_html
 from ..robots import get_robot
 from ..settings import PlannerSettings, RasterSettings, TimingSettings
 from .job_settings import JobSettings
-from ..part.roughness import mesh_roughness
+from ..part.roughness import mesh_is_scan, mesh_roughness
 from ..part.surface import FaceSet
 from ..timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
 from ..path.toolpath import row_segments
@@ -223,14 +223,26 @@ def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path
     return insert_home_moves(joint_path, moves["approach"], moves["depart"], {"free_moves": figures})
 
 
+def face_projector(settings: JobSettings, surface, workpiece):
+    """What the sag takes its midposes onto (``plan.sag``): a free-form face's own surface when it is a CAD mesh's
+    facets (``FreeformSurface.project_mm``); None for an analytic face, a scan's smoothed surface or a scanned
+    mesh (``part.roughness``): taken onto those, the midposes would follow their noise, and the time law slows
+    for it (the shell sample's cycle 124 -> 361 s), so they stay on the arc through the tool axes."""
+    if getattr(surface, "source_kind", None) != "mesh" or workpiece is None or workpiece.faces is None:
+        return None
+    if mesh_is_scan(workpiece.vertices_mm, settings.workpiece.scan, workpiece.faces):
+        return None
+    return surface.project_mm
+
+
 def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str | None = None, planned=None,
                  surface=None):
     """Plan ``path`` with the job's planner (or another ``method``), plus home moves when a workpiece is given.
 
     ``workpiece``: the part the free motion keeps clear of (``part_for_checks``).
     ``planned``: ``plan_path``'s joint path of this very ``path`` and planner, when the
-    caller has it already (lead sizing); it is then not planned again. ``surface``: the face rastered; a
-    free-form one takes the sag's work midposes onto itself (``plan.sag``)."""
+    caller has it already (lead sizing); it is then not planned again. ``surface``: the face rastered; a CAD
+    mesh's free-form one takes the sag's midposes onto itself (``face_projector``)."""
     planner = settings.planner if method is None else settings.planner.with_method(method)
     solver = CwlnSolver(robot, ik_settings(planner), free_spin=path.free_spin)  # lifts and densified poses
     world = collision_world(settings, robot)
@@ -243,7 +255,7 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
                                  clearance_mm=settings.check.clearance_mm, solver=solver, world=world,
                                  tip_exempt_mm=settings.check.tool_contact_exempt_mm)
     joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm,
-                                   getattr(surface, "project_mm", None))
+                                   face_projector(settings, surface, workpiece))
     joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
     if workpiece is not None:
         joint_path = add_home_moves(planner, workpiece, path, robot, joint_path, world=world)
