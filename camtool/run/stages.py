@@ -227,7 +227,7 @@ def face_projector(settings: JobSettings, surface, workpiece):
     """What the sag takes its midposes onto (``plan.sag``): a free-form face's own surface when it is a CAD mesh's
     facets (``FreeformSurface.project_mm``); None for an analytic face, a scan's smoothed surface or a scanned
     mesh (``part.roughness``): taken onto those, the midposes would follow their noise, and the time law slows
-    for it (the shell sample's cycle 124 -> 361 s), so they stay on the arc through the tool axes."""
+    for it (the shell sample's cycle 214 -> 361 s at its former placement), so they stay on the arc through the tool axes."""
     if getattr(surface, "source_kind", None) != "mesh" or workpiece is None or workpiece.faces is None:
         return None
     if mesh_is_scan(workpiece.vertices_mm, settings.workpiece.scan, workpiece.faces):
