@@ -41,14 +41,13 @@ def slerp_midposes(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
 
 
 def bisected(solver: CwlnSolver, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray, qb: np.ndarray, levels: int,
-             midposes, tags: np.ndarray | None = None) -> dict[int, np.ndarray]:
+             midposes) -> dict[int, np.ndarray]:
     """{step: inserted q (k, dof) in order} for the steps (Ta[i], qa[i]) -> (Tb[i], qb[i]) (base frame), halved
     level by level (every interval of one depth at once), up to ``levels`` times.
 
     ``midposes(depth, Ta, qa, Tb, qb, q_mid)`` gives the intervals' midposes (m, 4, 4) and the indices of those to
     split; each is solved (CWLN without the clamp task, from the joint midpoint ``q_mid``: the least change),
-    and one solved within the joint limits is inserted and its two halves go on to the next level. ``tags`` (m,):
-    a mark per step its halves inherit, passed on as ``midposes(..., tags=...)``."""
+    and one solved within the joint limits is inserted and its two halves go on to the next level."""
     step = np.arange(len(Ta))
     key = np.full(len(Ta), 0.5)     # where the midpoint lies in its step (0..1): the order of the inserts
     half = 0.25
@@ -57,8 +56,7 @@ def bisected(solver: CwlnSolver, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray,
         if not len(step):
             break
         q_mid = 0.5 * (qa + qb)
-        T_mid, wanted = midposes(depth, Ta, qa, Tb, qb, q_mid) if tags is None else \
-            midposes(depth, Ta, qa, Tb, qb, q_mid, tags=tags)
+        T_mid, wanted = midposes(depth, Ta, qa, Tb, qb, q_mid)
         keep, q_new = [], []
         for i in wanted:
             res = solver.solve(T_mid[i], q_mid[i], clamp=False)
@@ -76,7 +74,6 @@ def bisected(solver: CwlnSolver, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray,
         key = np.concatenate([key[keep] - half, key[keep] + half])
         Ta, Tb = np.concatenate([Ta[keep], T_mid[keep]]), np.concatenate([T_mid[keep], Tb[keep]])
         qa, qb = np.concatenate([qa[keep], q_new]), np.concatenate([q_new, qb[keep]])
-        tags = None if tags is None else np.concatenate([tags[keep], tags[keep]])
         half *= 0.5
     return {s: np.array([q for _, q in sorted(v, key=lambda e: e[0])]) for s, v in found.items()}
 
