@@ -108,3 +108,24 @@ def test_the_vendored_wavy_sheet_is_cad_and_the_dome_scan_a_scan(name, scale, is
     from pathlib import Path
     m = trimesh.load(Path(__file__).parents[1] / "benchmarks" / "parts" / "freeform" / name, process=False)
     assert mesh_roughness(np.asarray(m.vertices) * scale, faces=m.faces).is_scan == is_scan
+
+
+def test_the_verdict_is_remembered_for_the_same_mesh_and_only_for_it(monkeypatch):
+    """A run asks whether its mesh is a scan once per plan: the second ask of the same mesh and rule does not judge
+    again; another mesh, or another rule, is judged afresh."""
+    import camtool.part.roughness as rough
+
+    calls = []
+    real = rough._judged
+    monkeypatch.setattr(rough, "_judged", lambda *a: calls.append(1) or real(*a))
+    monkeypatch.setattr(rough, "_VERDICTS", {})
+    rng = np.random.default_rng(0)
+    V = rng.uniform(0, 100, (300, 3))
+    F = np.array([[0, 1, 2], [2, 3, 4]])
+    first = rough.mesh_is_scan(V, "auto", F)
+    assert rough.mesh_is_scan(V, "auto", F) == first and len(calls) == 1
+    rough.mesh_is_scan(V, "no", F)
+    W = V.copy()
+    W[0, 0] += 1e-3
+    rough.mesh_is_scan(W, "auto", F)
+    assert len(calls) == 3
