@@ -203,7 +203,10 @@ def test_ctrl_c_stops_cleanly_with_exit_0(tmp_path):
     (tmp_path / "in").mkdir()
     proc = subprocess.Popen([sys.executable, "-m", "camtool.cli", "watch", str(tmp_path / "in"), "-o",
                              str(tmp_path / "out"), "--template", str(TEMPLATE), "--interval", "0.1"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            # as from a terminal: a suite started in the background by a non-interactive shell
+                            # inherits SIGINT ignored, and Python then leaves Ctrl-C ignored too (a 120 s hang)
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert "Ctrl-C to stop" in proc.stderr.readline()
         time.sleep(0.3)  # a few polls
