@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import BadInput
+from .freeform_exact import ChartMesh
 from .freeform_grid import Grid, fill, grid_over, normals_of
 from .freeform_rows import row_distance, row_table, seed_row
 from .freeform_sample import chart_frame, cloud_heights, mesh_heights, to_chart
@@ -64,7 +65,9 @@ class FreeformSurface:
     ``origin_mm``, ``frame`` (columns e1, e2, e3; e3 towards the tool): the chart plane. ``grid``: its nodes;
     ``height`` (ny, nx) mm along e3, ``normals`` (ny, nx, 3) unit (world, towards the tool), ``material``
     (ny, nx) the face's nodes, ``distance`` (ny, nx) the signed geodesic distance from the seed row.
-    ``table_grid`` / ``table``: chart y per (u, v). (u, v) are (chart x, geodesic distance), both mm."""
+    ``table_grid`` / ``table``: chart y per (u, v). (u, v) are (chart x, geodesic distance), both mm.
+    ``mesh``: a CAD mesh face's own triangles; its points are then on them wherever one lies over the chart point
+    (``freeform_exact``), the height field's elsewhere (holes, the margin the leads run on)."""
 
     origin_mm: np.ndarray
     frame: np.ndarray
@@ -81,6 +84,7 @@ class FreeformSurface:
     smoothing_mm: float = 0.0            # the scan's smoothing sigma (0 for a mesh)
     normal_smoothing_mm: float = NORMAL_SMOOTHING_MM
     warnings: tuple[str, ...] = ()
+    mesh: ChartMesh | None = None        # a CAD mesh face's triangles (chart coordinates): exact heights between nodes
     model: str = field(default="freeform", init=False)
     uv_unit: str = field(default="mm", init=False)
 
@@ -95,10 +99,18 @@ class FreeformSurface:
         u, v = np.broadcast_arrays(np.asarray(u, float), np.asarray(v, float))
         return u, self.table_grid.interp(self.table, u, v)
 
+    def height_at(self, x, y) -> np.ndarray:
+        """Heights (mm) at chart (x, y): a CAD mesh face's own triangle's where it has one, else the height field's."""
+        h = self.grid.interp(self.height, x, y)
+        if self.mesh is None:
+            return h
+        exact = self.mesh.heights(x, y)
+        return np.where(np.isfinite(exact), exact, h)
+
     def point_mm(self, u, v) -> np.ndarray:
         """Points (..., 3) in mm at u (along the rows, mm) and v (geodesic distance across them, mm)."""
         x, y = self.chart_xy(u, v)
-        h = self.grid.interp(self.height, x, y)
+        h = self.height_at(x, y)
         e1, e2, e3 = self.frame[:, 0], self.frame[:, 1], self.frame[:, 2]
         return self.origin_mm + x[..., None] * e1 + y[..., None] * e2 + h[..., None] * e3
 
@@ -121,7 +133,7 @@ class FreeformSurface:
     def project_mm(self, points_mm: np.ndarray) -> np.ndarray:
         """Points (..., 3) mm taken onto the surface along the chart's normal e3 (the height field over them)."""
         c = (np.asarray(points_mm, float) - self.origin_mm) @ self.frame
-        h = self.grid.interp(self.height, c[..., 0], c[..., 1])
+        h = self.height_at(c[..., 0], c[..., 1])
         return self.origin_mm + c[..., 0, None] * self.frame[:, 0] + c[..., 1, None] * self.frame[:, 1] \
             + h[..., None] * self.frame[:, 2]
 
@@ -197,8 +209,13 @@ class FreeformSurface:
         inside = (fi >= 0) & (fi < self.grid.nx) & (fj >= 0) & (fj < self.grid.ny)
         material = np.zeros(h.shape, bool)
         material[inside] = self.material[fj[inside], fi[inside]]
+        mesh = None
+        if self.mesh is not None:   # the same triangles in the turned chart
+            V = self.mesh.vertices.copy()
+            V[:, :2] = V[:, :2] @ rot.T
+            mesh = ChartMesh(V, self.mesh.faces)
         return _assembled(self.origin_mm, frame, grid, h, n, material, self.stats, self.source_kind,
-                          self.smoothing_mm, self.normal_smoothing_mm, self.warnings, close_px=0)
+                          self.smoothing_mm, self.normal_smoothing_mm, self.warnings, close_px=0, mesh=mesh)
 
     # ----------------------------------------------------------------- stage files
 
@@ -221,6 +238,8 @@ class FreeformSurface:
             "uv_unit": "mm",
             "boundary": self.boundary.to_dict(),
         }
+        if self.mesh is not None:
+            d.update(mesh_vertices=_b64(self.mesh.vertices), mesh_faces=_b64(self.mesh.faces.astype(np.int64)))
         if self.stats is not None:
             st = self.stats
             d.update(inlier_ratio=st.inlier_ratio, rms_mm=st.rms_mm, max_residual_mm=st.max_residual_mm,
@@ -246,6 +265,13 @@ class FreeformSurface:
         for a in (height, normals, distance, table):
             if not np.all(np.isfinite(a)) or np.abs(a).max() > 1e7:
                 raise ValueError("freeform arrays must be finite")
+        mesh = None
+        if "mesh_vertices" in d:
+            V, F = _unb64(d["mesh_vertices"], "float64"), _unb64(d["mesh_faces"], "int64")
+            if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3 or not np.all(np.isfinite(V)) \
+                    or (len(F) and (F.min() < 0 or F.max() >= len(V))):
+                raise ValueError("freeform mesh: vertices (n, 3) finite and faces (m, 3) indexing them")
+            mesh = ChartMesh(V, F)
         stats = None
         if "inlier_ratio" in d:
             stats = FitStats(d["inlier_ratio"], d["rms_mm"], d["max_residual_mm"], d["n_points"], d["n_inliers"])
@@ -253,7 +279,7 @@ class FreeformSurface:
                                Boundary.from_dict(d["boundary"]), stats, str(d.get("source_kind", "mesh")),
                                float(d.get("smoothing_mm", 0.0)),
                                float(d.get("normal_smoothing_mm", NORMAL_SMOOTHING_MM)),
-                               tuple(str(w) for w in d.get("warnings", ())))
+                               tuple(str(w) for w in d.get("warnings", ())), mesh)
 
 
 # --------------------------------------------------------------------------- building
@@ -342,7 +368,7 @@ def _flat_outside(height: np.ndarray, material: np.ndarray) -> np.ndarray:
 
 
 def _assembled(origin, frame, grid, height, normals, material, stats, source_kind, smoothing_mm,
-               normal_smoothing_mm, warnings, close_px) -> FreeformSurface:
+               normal_smoothing_mm, warnings, close_px, mesh: ChartMesh | None = None) -> FreeformSurface:
     """The surface with its row chart (distance field, table) and boundary made from its height field."""
     if material.sum() < 9:
         raise BadInput("free-form face: fewer than 9 grid nodes of material; the face is too small for its grid")
@@ -351,7 +377,7 @@ def _assembled(origin, frame, grid, height, normals, material, stats, source_kin
     boundary = _boundary(grid, material, distance, close_px)
     return FreeformSurface(np.asarray(origin, float), np.asarray(frame, float), grid, height, normals, material,
                            distance, tgrid, table, boundary, stats, source_kind, smoothing_mm,
-                           normal_smoothing_mm, tuple(warnings))
+                           normal_smoothing_mm, tuple(warnings), mesh)
 
 
 def _median_spacing(xy: np.ndarray, sample: int = 20000, queries: int = 2000) -> float:
@@ -471,5 +497,5 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
     stats = _fit_stats(res, len(P), float(settings.threshold_mm))
     close_px = int(math.ceil(float(settings.close_gaps_mm) / g))
-    return _assembled(origin, frame, grid, height, normals, material, stats, "mesh" if is_mesh else "scan",
-                      sigma, normal_smoothing_mm, warnings, close_px)
+    return _assembled(origin, frame, grid, height, normals, material, stats, "mesh" if is_mesh else "scan", sigma,
+                      normal_smoothing_mm, warnings, close_px, ChartMesh.of(V, workpiece.faces) if is_mesh else None)

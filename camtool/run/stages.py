@@ -353,9 +353,10 @@ def time_for_job(settings: JobSettings, joint_path, path, robot, before_check: C
     return time_trajectory(joint_path, path, robot, settings.timing, before_check=before_check)
 
 
-def plan_and_time(settings: JobSettings, path, robot, method: str | None = None, workpiece=None):
-    """(joint path, trajectory) of ``path``: ``plan_for_job`` then ``time_for_job``."""
-    joint_path = plan_for_job(settings, path, robot, workpiece, method)
+def plan_and_time(settings: JobSettings, path, robot, method: str | None = None, workpiece=None, surface=None):
+    """(joint path, trajectory) of ``path``: ``plan_for_job`` then ``time_for_job``. ``surface``: the face rastered
+    (a CAD mesh's free-form face takes the sag's midposes onto itself, ``face_projector``)."""
+    joint_path = plan_for_job(settings, path, robot, workpiece, method, surface=surface)
     return joint_path, time_for_job(settings, joint_path, path, robot)
 
 

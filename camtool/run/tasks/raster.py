@@ -188,7 +188,7 @@ def planned_and_timed(r: RasterRun, made: Rastered, part, ahead: Ahead | None = 
                 if not (job.task.allow_partial and exc.report.get("unreachable")):
                     raise
                 path, stretches = partial_plan_path(path, exc)
-                joint_path, trajectory = plan_and_time(settings, path, robot, workpiece=part)
+                joint_path, trajectory = plan_and_time(settings, path, robot, workpiece=part, surface=made.surface)
                 tell(path, joint_path)
                 log.done("raster", path)  # the part of the raster that is programmed
         except PlanInfeasible as exc:

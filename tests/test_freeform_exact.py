@@ -1,0 +1,98 @@
+"""A CAD mesh face's exact heights (camtool/part/freeform_exact.py): against closed-form planes and the mesh itself."""
+import json
+import pickle
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import trimesh
+
+from camtool.part.fit import fit_surface
+from camtool.part.freeform_exact import ChartMesh
+from camtool.part.surface import surface_from_dict
+from camtool.part.workpiece import Workpiece
+from camtool.settings import FitSettings
+
+R_MM = 10.0          # the fillet's radius (a door's window frame bends at 8-25 mm)
+BEND_DEG = 60.0      # the sheet turns down by this much round it
+
+
+def test_heights_are_the_triangles_planes_and_the_top_one_wins():
+    """Two stacked triangles over the unit square's corner: the upper one's plane, by its closed form; none: NaN."""
+    V = np.array([[0, 0, 1.0], [10, 0, 3.0], [0, 10, 2.0], [0, 0, -5.0], [10, 0, -5.0], [0, 10, -5.0]])
+    m = ChartMesh(V, np.array([[0, 1, 2], [3, 4, 5]]))
+    x, y = np.array([1.0, 2.5, 4.0, 9.0]), np.array([1.0, 3.0, 0.5, 9.0])
+    h = m.heights(x, y)
+    assert np.allclose(h[:3], 1.0 + 0.2 * x[:3] + 0.1 * y[:3], atol=1e-12)   # z = 1 + x/5 + y/10
+    assert np.isnan(h[3])                                                   # outside both
+
+
+def bent_sheet(step_deg=3.0, width_mm=60.0):
+    """A sheet flat for x in [-60, 0], bent down round a R_MM fillet by BEND_DEG, then straight on for 40 mm."""
+    t = np.radians(np.arange(0.0, BEND_DEG + 1e-9, step_deg))
+    arc = np.c_[R_MM * np.sin(t), R_MM * (np.cos(t) - 1.0)]
+    end = arc[-1] + 40.0 * np.array([np.cos(t[-1]), -np.sin(t[-1])])
+    xz = np.r_[[[-60.0, 0.0], [-30.0, 0.0]], arc, [0.5 * (arc[-1] + end)], [end]]
+    ys = np.linspace(-width_mm / 2, width_mm / 2, 13)
+    V = np.array([[x, y, z] for y in ys for x, z in xz])
+    n = len(xz)
+    F = []
+    for j in range(len(ys) - 1):
+        for i in range(n - 1):
+            a, b, c, d = j * n + i, j * n + i + 1, (j + 1) * n + i, (j + 1) * n + i + 1
+            F += [[a, b, d], [a, d, c]]
+    return V, np.array(F)
+
+
+@pytest.fixture(scope="module")
+def fillet():
+    V, F = bent_sheet()
+    mesh = trimesh.Trimesh(V, F, process=False)
+    pts, fi = trimesh.sample.sample_surface(mesh, 20000, seed=0)
+    wp = Workpiece(np.asarray(pts), np.asarray(mesh.face_normals)[fi], F, "fillet.stl", "mm", (), V)
+    return mesh, fit_surface(wp, FitSettings.make(model="freeform"))
+
+
+def _off_mesh_mm(mesh, P):
+    return trimesh.proximity.closest_point(mesh, P)[1]
+
+
+def test_points_round_the_fillet_lie_on_the_mesh(fillet):
+    """The face's points over the bend are on its facets; the height field's bilinear ones are not (the cause of
+    the door's 1.7 mm): the test fails without the exact heights (with the mesh dropped, ``mesh=None``)."""
+    mesh, s = fillet
+    assert s.mesh is not None
+    lo, hi = s.boundary.bounds()
+    g = np.stack(np.meshgrid(np.linspace(lo[0], hi[0], 90), np.linspace(lo[1], hi[1], 9)), -1).reshape(-1, 2)
+    uv = g[s.boundary.contains(g)]
+    exact = _off_mesh_mm(mesh, s.point_mm(uv[:, 0], uv[:, 1]))
+    grid_only = replace(s, mesh=None)
+    bilinear = _off_mesh_mm(mesh, grid_only.point_mm(uv[:, 0], uv[:, 1]))
+    assert exact.max() < 1e-6
+    assert bilinear.max() > 0.01        # on this 1 mm grid; it grows with the grid squared (the door's: 2.6 mm)
+
+
+def test_projection_onto_the_fillet_lies_on_the_mesh(fillet):
+    """project_mm (the sag's midposes): chord midpoints across the bend come onto the facets."""
+    mesh, s = fillet
+    P, _, _ = trimesh.proximity.closest_point(mesh, np.c_[np.linspace(-5, 14, 40), np.zeros(40), np.zeros(40)])
+    mid = 0.5 * (P[:-1] + P[1:])        # chords between neighbouring surface points, under the convex bend
+    assert _off_mesh_mm(mesh, s.project_mm(mid)).max() < 1e-6
+
+
+def test_the_mesh_survives_the_stage_file_and_pickling(fillet):
+    _, s = fillet
+    back = surface_from_dict(json.loads(json.dumps(s.to_dict())))
+    again = pickle.loads(pickle.dumps(s))
+    u, v = np.linspace(-40, 10, 30), np.zeros(30)
+    assert np.array_equal(back.point_mm(u, v), s.point_mm(u, v))
+    assert np.array_equal(again.point_mm(u, v), s.point_mm(u, v))
+
+
+def test_turned_rows_keep_the_exact_heights(fillet):
+    mesh, s = fillet
+    t = s.rows_at(np.radians(30.0))
+    lo, hi = t.boundary.bounds()
+    g = np.stack(np.meshgrid(np.linspace(lo[0], hi[0], 40), np.linspace(lo[1], hi[1], 9)), -1).reshape(-1, 2)
+    uv = g[t.boundary.contains(g)]
+    assert _off_mesh_mm(mesh, t.point_mm(uv[:, 0], uv[:, 1])).max() < 1e-6
