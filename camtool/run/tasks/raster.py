@@ -40,7 +40,7 @@ from ..job_settings import JobSettings
 from ...part.surface import FaceSet
 from ...timing import sampled_for
 from ...timing.pathlaw import remembered_runs
-from ..stages import (RunResult, StageLog, finish_run, leads_clear_of_part, leads_into_part, motion_check,
+from ..stages import (RunResult, StageLog, clearance_part, finish_run, leads_clear_of_part, leads_into_part, motion_check,
                       motion_check_part, part_for_checks, plan_and_time, plan_with_sized_leads, post_checked, report_failure, report_unreachable,
                       run_report, time_for_job)
 
@@ -347,7 +347,7 @@ def _rastered(r: RasterRun) -> tuple[RasterRun, Rastered]:
     check_target_inputs(job, r.settings.process, surface)  # a target removal map it cannot meet: before planning
     settings, step_choice = auto_step_over(r.settings, surface)  # raster.step_over_mm = "auto"
     path = leads_clear_of_part(settings, surface, raster_path(surface, settings.raster),
-                               part_for_checks(settings, wp, surface))
+                               clearance_part(settings, wp, surface))
     path = log.done("raster", path)
     return replace(r, settings=settings), Rastered(wp, surface, path, step_choice)
 
