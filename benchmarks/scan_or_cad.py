@@ -37,8 +37,8 @@ def noisy_sheet(noise_mm: float, n: int = 60, spacing_mm: float = 2.0, seed: int
 
 def cases():
     """(name, vertices mm, faces or None, truth: "scan" / "cad")."""
-    for f in sorted(PARTS.glob("*.ply")):
-        m = trimesh.load(f, process=False)
+    for f in sorted([*PARTS.glob("*.ply"), *PARTS.glob("*.obj")]):   # the .obj: the door, when fetched
+        m = trimesh.load(f, process=False, force="mesh")
         yield f.name, np.asarray(m.vertices) * SCALE.get(f.name, 1000.0), m.faces, \
             "scan" if "scan" in f.name else "cad"
     for f in sorted((ROOT / "samples").glob("*.stl")):

@@ -78,7 +78,7 @@ def _triangulated(V, n=60):
 def test_a_rough_mesh_with_noise_is_a_scan_even_with_its_triangles():
     V = sheet(0.05)
     r = mesh_roughness(V, faces=_triangulated(V))
-    assert r.is_scan and r.coplanar_share < CAD_COPLANAR_SHARE / 10    # noise leaves no two triangles coplanar
+    assert r.is_scan and r.coplanar_share < CAD_COPLANAR_SHARE / 3    # noise leaves no two triangles coplanar
 
 
 def test_a_coarse_tessellation_cut_along_its_cells_is_cad():

@@ -34,7 +34,7 @@ from scipy.spatial import cKDTree
 from .freeform import SCAN_SMOOTHING_MIN_MM, SCAN_SMOOTHING_SPACINGS
 
 COPLANAR_REL = 1e-5         # two triangles are coplanar when the fourth corner is this share of their edge off the plane
-CAD_COPLANAR_SHARE = 0.02   # a rough mesh with this share of its triangle pairs coplanar is CAD (scans: <= 0.2 %)
+CAD_COPLANAR_SHARE = 0.005  # a rough mesh with this share of its triangle pairs coplanar is CAD (scans <= 0.16 %, a CAD door 1.62 %)
 ROUGH_NEIGHBOURS = 12       # a vertex's quadric is fitted to this many nearest other vertices
 SCAN_ROUGHNESS_MM = 0.003   # a mesh whose median |residual| exceeds this is rough: judged as a scan
 BAND_QUANTILE = 99.99       # a scan's noise band: this percentile of |residual| (the rows pass over all of them) ...
