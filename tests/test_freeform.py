@@ -186,12 +186,16 @@ def test_points_on_a_line_are_refused():
         freeform_surface(Workpiece(P, np.tile([0.0, 0, 1], (500, 1)), source="line.xyz"), FIT)
 
 
+def _uv_on_face(s, n, rng):
+    """Up to ``n`` uniform random parameters inside the face's boundary."""
+    lo, hi = s.boundary.bounds()
+    uv = rng.uniform(lo, hi, (n, 2))
+    return uv[s.boundary.contains(uv)]
+
+
 def test_uv_round_trip(saddle_part):
     _, _, s = saddle_part
-    rng = np.random.default_rng(0)
-    lo, hi = s.boundary.bounds()
-    uv = rng.uniform(lo, hi, (500, 2))
-    uv = uv[s.boundary.contains(uv)]
+    uv = _uv_on_face(s, 500, np.random.default_rng(0))
     back = s.uv_from_points(s.point_mm(uv[:, 0], uv[:, 1]))
     assert np.abs(back - uv).max() < 0.05
     assert np.allclose(np.linalg.norm(s.normal_at(uv[:, 0], uv[:, 1]), axis=1), 1.0)
@@ -201,9 +205,7 @@ def test_points_taken_onto_the_face_lie_on_the_part(saddle_part):
     """project_mm: points off the face come onto it along the chart's normal; against the saddle's own formula."""
     _, mesh, s = saddle_part
     rng = np.random.default_rng(1)
-    lo, hi = s.boundary.bounds()
-    uv = rng.uniform(lo, hi, (300, 2))
-    uv = uv[s.boundary.contains(uv)]
+    uv = _uv_on_face(s, 300, rng)
     on = s.point_mm(uv[:, 0], uv[:, 1])
     off = on + rng.uniform(-2.0, 2.0, (len(on), 1)) * s.frame[:, 2]
     got = s.project_mm(off)

@@ -389,27 +389,28 @@ def _freeform_poses(surface, path) -> np.ndarray | None:
     return np.ones(len(path), bool) if getattr(surface, "model", "") == "freeform" else None
 
 
+def _leads_may_meet(settings: JobSettings, part) -> bool:
+    """Whether a free-form face's leads may meet ``part`` (the workpiece, or its ``part_for_checks``): a mesh or a
+    segmented scan holds more than the face; a scanned cloud worked as one face is checked against its own points
+    on that face, which the leads, on its tangent and above its noise band, leave behind."""
+    return part is not None and (part.faces is not None or settings.segmented)
+
+
 def clearance_part(settings: JobSettings, workpiece, surface):
-    """What ``leads_clear_of_part`` measures against: ``part_for_checks`` (the workpiece itself for a mesh or a
-    segmented scan), or None for a scanned cloud worked as one face, which it leaves as it is (its filtered
-    points cost 2 s on a 1 M-point scan for nothing)."""
-    if workpiece is None or (workpiece.faces is None and not settings.segmented):
-        return None
-    return part_for_checks(settings, workpiece, surface)
+    """What ``leads_clear_of_part`` measures against: ``part_for_checks``, or None where the leads cannot meet the
+    part (``_leads_may_meet``; a 1 M-point scan's filtered points cost 2 s for nothing)."""
+    return part_for_checks(settings, workpiece, surface) if _leads_may_meet(settings, workpiece) else None
 
 
 def leads_clear_of_part(settings: JobSettings, surface, path, part):
     """``path`` with its free-form faces' leads lifted clear of ``part`` (``part_for_checks``; the modifier
     ``path.lead_clearance``): their straight leads run on past the face's edge, where the part may go on and turn
     up towards the tool (a door's handle recess, a flange). An analytic face's leads follow its surface (or its
-    tangent, ``raster.lead_path``) and stay as they are, as does every lead already clear. A scanned cloud worked
-    as one face is checked against its own points on that face (``part_for_checks``), which the leads, on its
-    tangent and above its noise band, leave behind; there is no other part to clear, and the part's geometry of a
-    1 M-point scan would cost 20 s here (the motion check still measures every lead against it)."""
+    tangent, ``raster.lead_path``) and stay as they are, as does every lead already clear, and every lead of a
+    part it cannot meet (``_leads_may_meet``: the geometry of a 1 M-point scan would cost 20 s here for nothing;
+    the motion check still measures every lead against it)."""
     only = _freeform_poses(surface, path)
-    if part is None or only is None or not only.any():
-        return path
-    if part.faces is None and not settings.segmented:
+    if not _leads_may_meet(settings, part) or only is None or not only.any():
         return path
     faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
     band = max((f.lead_band_mm for f in faces if getattr(f, "source_kind", "") == "scan"), default=0.0)
