@@ -275,3 +275,13 @@ def test_default_position_levels_give_up_arcs_they_cannot_blend(tmp_path):
     text = POST.write(rows_trajectory(r, rows=2), r, p, tmp_path)[0].read_bytes().decode("ascii")
     assert POST.check(tmp_path / "CAMTOOL.JBI", r, p) == []
     assert "MOVL" in text
+
+
+def test_a_row_left_open_at_the_end_of_the_job_is_a_finding(tmp_path):
+    r, p = _profile("seed8", tmp_path)
+    f = POST.write(rows_trajectory(r, rows=2), r, p, tmp_path)[0]
+    assert POST.check(f, r, p) == []
+    raw = f.read_bytes()
+    assert raw.count(b"'END ROW 2\r\n") == 1
+    f.write_bytes(raw.replace(b"'END ROW 2\r\n", b""))
+    assert any("never ends" in s for s in POST.check(f, r, p))

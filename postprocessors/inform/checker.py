@@ -55,6 +55,8 @@ def check(path: Path, robot, profile) -> list[str]:
                     consistent = False
         rows, open_row = row_marker_findings(jp, j.items, open_row)
         out += rows
+    if open_row is not None:
+        out.append(f"{path}: row started at line {open_row} never ends")
     if not consistent or not n_moves:
         if not n_moves and not out:
             out.append(f"{path}: no MOVJ found")
