@@ -315,7 +315,7 @@ def _run(r: RasterRun, helpers: _Helpers) -> RunResult:
     ahead.rastered(made.path)
     along = _Alongside(helpers.rastered(r.settings, made.wp, made.path, made.surface), helpers.figures, ahead, world)
     planned = _planned(r, made, along)
-    trajectories, compared = _compared(r, planned)
+    trajectories, compared = _compared(r, planned, made.surface)
     if not planned.handed_ahead or r.compare:
         along.figures.start(partial(draw_run_figures, r.figure_inputs(trajectories)))
     else:   # the joint plots are under way (``plots``): feed.png, from the trajectory sampled by the 4 ms check
@@ -383,16 +383,16 @@ def _planned(r: RasterRun, made: Rastered, along: _Alongside) -> _Planned:
     return _Planned(path, joint_path, trajectory, partial_figures, dwell, part, handed.timed_trajectory is not None)
 
 
-def _compared(r: RasterRun, planned: _Planned) -> tuple[dict, dict | None]:
+def _compared(r: RasterRun, planned: _Planned, surface) -> tuple[dict, dict | None]:
     """(the trajectories by planner method, the other planner's figures or None): with ``compare``, the path
-    planned and timed by the other method too (its failure is a figure)."""
+    planned and timed by the other method too, on the same ``surface`` as the first (its failure is a figure)."""
     settings = r.settings
     trajectories = {settings.planner.method: planned.trajectory}
     if not r.compare:
         return trajectories, None
     other = "general" if settings.planner.method == "seed" else "seed"
     try:
-        jp2, tr2 = plan_and_time(settings, planned.path, r.robot, other, workpiece=planned.part)
+        jp2, tr2 = plan_and_time(settings, planned.path, r.robot, other, workpiece=planned.part, surface=surface)
         trajectories[other] = tr2
         compared = run_report(planned.path, jp2, tr2, r.robot, r.job, other)
     except PlanInfeasible as exc:
