@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+import shapely
 from matplotlib.path import Path as MplPath
 
 from camtool.path.contour import CORNER_DEG, SIMPLIFY_MM, contour_runs, spans_full_turn
@@ -158,3 +159,42 @@ def test_contour_key_is_checked(tmp_path):
     job.write_text('[workpiece]\nfile = "x.stl"\n[raster]\ncontour = "sometimes"\n')
     with pytest.raises(BadInput, match="contour"):
         load_job(job)
+
+
+def weaving_ellipse(a_mm=200.0, b_mm=140.0, cell_mm=1.0, seed=3):
+    """An ellipse's outline traced on a scan's boundary cells: jittered by a cell and snapped to ``cell_mm``,
+    so it weaves in 1 mm steps (as a scanned face's outline does), counter-clockwise."""
+    t = np.linspace(0, 2 * math.pi, 1400, endpoint=False)
+    xy = np.c_[a_mm * np.cos(t), b_mm * np.sin(t)]
+    xy += np.random.default_rng(seed).integers(-1, 2, xy.shape) * cell_mm
+    xy = np.round(xy / cell_mm) * cell_mm
+    keep = np.r_[True, np.any(np.diff(xy, axis=0) != 0, axis=1)]
+    return xy[keep]
+
+
+def test_a_scans_weaving_outline_is_one_run_when_its_corners_are_rounded():
+    outline = weaving_ellipse()
+    hole = np.c_[30 * np.cos(np.linspace(0, -2 * math.pi, 200, endpoint=False)),
+                 30 * np.sin(np.linspace(0, -2 * math.pi, 200, endpoint=False))]
+    b = Boundary(outline, (np.round(hole),))
+    sharp = contour_runs(b, 1.0, 1.0, 7.5)
+    assert len(sharp) > 5   # the weave reads as corners: a smooth rim cut into runs a few mm long
+    rounded = contour_runs(b, 1.0, 1.0, 7.5, round_corners_mm=2.0)
+    assert len(rounded) == 2 and all(r.closed for r in rounded)
+    # still the offset ring: every point 7.5 mm inside the material's edge (as GEOS reads the weaving outline),
+    # farther only by the rounding
+    edge = shapely.make_valid(shapely.Polygon(outline, [b.holes_uv[0]])).buffer(0).boundary
+    outer = max(rounded, key=lambda r: r.length_mm)
+    d = shapely.distance(shapely.points(outer.xy_mm), edge)
+    assert 7.5 - SIMPLIFY_MM - 1e-6 < d.min() and d.max() < 7.5 + 2.0
+
+
+def test_rounding_keeps_a_real_corner_a_rounded_turn_not_a_split():
+    b = Boundary(rect(0, 100, 0, 60), ())
+    sharp = contour_runs(b, 1.0, 1.0, 5.0)
+    assert len(sharp) == 4   # split at the rectangle's four corners
+    rounded = contour_runs(b, 1.0, 1.0, 5.0, round_corners_mm=2.0)
+    assert len(rounded) == 1 and rounded[0].closed
+    corner = np.array([5.0, 5.0])  # the offset rectangle's corner: the run passes within 2 (sqrt 2 - 1) of it
+    d = np.linalg.norm(rounded[0].xy_mm - corner, axis=1).min()
+    assert abs(d - 2.0 * (math.sqrt(2) - 1)) < 0.05

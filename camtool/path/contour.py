@@ -16,6 +16,13 @@ sphere whose outline spans the full turn of u) the outline is repeated one turn
 either side before the offset, so the cut at u = +-pi gets no contour.
 Each offset ring is split where it turns by more than ``CORNER_DEG`` (the tool lifts
 off at a corner rather than stop on it); a ring with no corner is one closed run.
+A scan's outline weaves at its boundary cells (1 mm steps turning 40-70 deg at one
+vertex): offset as it is, a smooth rim came out as dozens of "corners" and as many
+runs a few mm long, each with its leads and a self-motion between them. Such an
+outline takes ``round_corners_mm``: the offset ring's convex corners are rounded to
+that radius (an erosion by offset + radius, then a dilation by the radius: a
+morphological opening, GEOS's own buffers), so the weave leaves no corner and a rim
+is one run, while a real corner of the part is worked round at that radius.
 Runs keep the material on their left and start at their first corner (a closed
 ring: its vertex lowest in y, then x), and rings are worked nearest first.
 """
@@ -53,12 +60,13 @@ class ContourRun:
 
 
 def contour_runs(boundary, kx: float, ky: float, offset_mm: float, periodic: bool = False,
-                 start_xy_mm=None) -> list[ContourRun]:
+                 start_xy_mm=None, round_corners_mm: float = 0.0) -> list[ContourRun]:
     """The contour runs of ``boundary`` (a ``surface.Boundary`` in u, v) ``offset_mm`` inside it, in work order.
 
     ``kx``, ``ky``: mm per unit of u and v (the chart's scales); ``periodic``: u is an
     angle and the outline spans the full turn (``spans_full_turn``); ``start_xy_mm``:
-    the chart point the first run should start nearest (the rows' end)."""
+    the chart point the first run should start nearest (the rows' end); ``round_corners_mm``: the radius the
+    offset ring's convex corners are rounded to (0: kept sharp; a scan's weaving outline, module doc)."""
     region = _region(boundary, kx, ky)
     if region.is_empty:
         return []
@@ -68,7 +76,11 @@ def contour_runs(boundary, kx: float, ky: float, offset_mm: float, periodic: boo
     # never nearer the middle than half the widest inscribed circle: a strip about a step wide gets two runs
     # beside its middle, not the slivers of a region shrunk to nothing
     inscribed = float(shapely.maximum_inscribed_circle(region, 0.05).length)
-    inner = region.buffer(-min(offset_mm, 0.5 * inscribed), join_style="round", quad_segs=16)
+    offset = min(offset_mm, 0.5 * inscribed)
+    rounding = min(round_corners_mm, max(0.5 * inscribed - offset, 0.0))
+    inner = region.buffer(-(offset + rounding), join_style="round", quad_segs=16)
+    if rounding > 0.0:
+        inner = inner.buffer(rounding, join_style="round", quad_segs=16)
     window = None
     if periodic:
         u_lo, u_hi = _u_range(boundary)

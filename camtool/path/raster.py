@@ -453,7 +453,8 @@ def _with_contour(surface, settings: RasterSettings, chart: _Chart, rows: _Block
         return rows
     runs = contour_runs(surface.boundary, chart.kx, chart.ky,
                         contour_offset_mm(settings.step_over_mm, settings.pitch_mm),
-                        periodic=spans_full_turn(surface), start_xy_mm=rows.uv[-1] * (chart.kx, chart.ky))
+                        periodic=spans_full_turn(surface), start_xy_mm=rows.uv[-1] * (chart.kx, chart.ky),
+                        round_corners_mm=SCAN_CONTOUR_ROUND_MM if getattr(surface, "source_kind", "") == "scan" else 0.0)
     if not runs:
         return rows
     c = contour_blocks(surface, chart.kx, chart.ky, runs, settings.pitch_mm, settings.lead_mm, rows.n_lead)
@@ -610,6 +611,7 @@ def _tangent_clearing_lift(p: np.ndarray, normal: np.ndarray, zone: np.ndarray, 
 # ----------------------------------------------------------------------------- coverage and summary
 
 
+SCAN_CONTOUR_ROUND_MM = 2.0  # a scanned free-form face's contour rounds its corners to this radius: twice its outline's 1 mm weave (path/contour.py)
 CONTOUR_BELOW = 0.995  # raster.contour = "auto": a face's rows alone covering less than this share get a contour
 
 
