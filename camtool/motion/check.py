@@ -194,7 +194,7 @@ def _zone_codes(zone, M) -> np.ndarray:
     return z
 
 
-def _bodies(robot, fk: BatchFK, s: MotionCheckSettings) -> list[_Body]:
+def chain_bodies(robot, fk: BatchFK, s: MotionCheckSettings) -> list[_Body]:
     """Tool capsule and the last ``s.links`` links (distinct joint origins) before the flange."""
     dof = robot.dof
     offsets = fk.constant_offsets_mm()
@@ -266,7 +266,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
     samples = _Samples(t_s, zone, s.dt_s)
     tcp_wp = _fk_chunks(fk, q, s.chunk_samples)  # the waypoints' TCP: contacts, joint steps per mm on work
     place = _Placer(samples, zone, pidx, label)
-    tally = _Tally(part, _bodies(robot, fk, s), s, _contact_tree(part, tcp_wp, s), _PerIndex(place.sample_index()))
+    tally = _Tally(part, chain_bodies(robot, fk, s), s, _contact_tree(part, tcp_wp, s), _PerIndex(place.sample_index()))
     cell = _cell_pass_start(world, fk, q, samples) if world is not None and world.pairs else None
     for start in range(0, len(samples), int(s.chunk_samples)):
         sl = slice(start, min(start + int(s.chunk_samples), len(samples)))
