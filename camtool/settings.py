@@ -109,6 +109,8 @@ class RasterSettings(_FromSection):
     contour: str = "auto"          # a contour pass along the boundary: "auto" (where the rows leave slivers), "on", "off"
     lead_path: str = "surface"     # the leads: on the face's surface continued, or lifted clear of the row's tangent
     max_poses: int = 1_000_000     # the most poses a raster may have (estimated before any work)
+    axis_tilt_max_rad: float = math.radians(30.0)   # free-form faces: the tool axis tilted clear of the part
+    axis_tilt_turn_rad: float = math.radians(2.0)   # the most that tilt changes between neighbouring poses
 
     @classmethod
     def from_section(cls, sec):
@@ -122,7 +124,8 @@ class RasterSettings(_FromSection):
                    lead_rad=math.radians(sec["lead_deg"]), tilt_rad=math.radians(sec["tilt_deg"]),
                    free_spin=bool(sec["free_spin"]), cylinder_rows=sec["cylinder_rows"],
                    edge_margin=float(sec["edge_margin"]), contour=sec["contour"], lead_path=sec["lead_path"],
-                   max_poses=int(sec["max_poses"]))
+                   max_poses=int(sec["max_poses"]), axis_tilt_max_rad=math.radians(sec["axis_tilt_max_deg"]),
+                   axis_tilt_turn_rad=math.radians(sec["axis_tilt_turn_deg"]))
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,7 @@ to the wall is 150 mm up the axis: it clears the wall by ``clear_mm`` from a = a
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -126,3 +127,18 @@ def test_blending_keeps_each_need_and_the_turn_between_neighbours():
     assert (theta[k] >= np.linalg.norm(need[k], axis=1) - 1e-12).all()
     assert np.degrees(np.abs(np.diff(theta))).max() <= 2.0 + 1e-9
     assert np.allclose(out[:, 2], 0.0)
+
+
+def test_off_the_surface_the_bodies_keep_the_clearance_asked():
+    path = floor_rows([60.0])
+    assert clearance(path).min() == pytest.approx(0.0, abs=1e-9)      # the wrist touches the wall: no tilt on work
+    assert tilted_axes(path, wall_sd, BODIES, AxisTiltSettings(off_surface_mm=5.0))[0] is path
+    lifted = np.array(path.poses_mm)
+    lifted[:, 2, 3] = 10.0                                            # a transition 10 mm above the floor
+    moving = replace(path, poses_mm=lifted, zone=np.full(len(path), ZONE_CODE["self_motion"]))
+    s = AxisTiltSettings(off_surface_mm=5.0)
+    out, fig = tilted_axes(moving, wall_sd, BODIES, s)
+    assert (clearance(out) >= 5.0 + s.clear_mm - 1e-6).all() and fig.work_poses_tilted == 0
+    need = math.degrees(math.asin(6.0 / 150.0))
+    z = out.poses_mm[:, :3, 2]
+    assert need <= np.degrees(np.arccos(-z[:, 2])).min() <= need + math.degrees(s.step_rad) + 1e-6

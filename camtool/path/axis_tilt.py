@@ -30,10 +30,11 @@ from typing import Callable
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .toolpath import SURFACE_CODES, Path
+from .toolpath import SURFACE_CODES, ZONE_CODE, Path
 
 ROUNDS = 4            # rounds of blending, measuring again and tilting further
 NEED_MAX_DEG = 89.0   # a refused pose's needed tilt is sought up to this angle
+OFF_SURFACE_CODES = tuple(ZONE_CODE[z] for z in ("self_motion", "approach", "depart"))
 
 
 @dataclass(frozen=True)
@@ -54,12 +55,13 @@ class AxisTiltSettings:
     turn_rad: float = math.radians(2.0)   # the most the tilt changes between neighbouring poses
     clear_mm: float = 1.0                 # a tilted pose's bodies end at least this far in front of the part
     inside_mm: float = 0.1                # a body deeper than this in the part needs a tilt (the check's tolerance)
+    off_surface_mm: float = 0.0           # off the surface (self-motion, approach, depart) bodies keep this clearance
     step_rad: float = math.radians(0.5)   # the grid of tilt angles tried
     azimuths: int = 16                    # directions across the axis tried
 
     def __post_init__(self):
         if not (0.0 <= self.max_rad < math.pi / 2 and self.turn_rad > 0 and self.step_rad > 0 and self.azimuths >= 1
-                and self.clear_mm >= 0 and self.inside_mm >= 0):
+                and self.clear_mm >= 0 and self.inside_mm >= 0 and self.off_surface_mm >= 0):
             raise ValueError(f"AxisTiltSettings out of range: {self}")
 
 
@@ -125,17 +127,18 @@ def _candidates(R: np.ndarray, angles_rad: np.ndarray, azimuths: int) -> np.ndar
     return axis[:, None, :] * angles_rad[None, :, None]
 
 
-def least_tilt(bodies: _Bodies, R: np.ndarray, t: np.ndarray, s: AxisTiltSettings,
-               max_rad: float) -> tuple[np.ndarray | None, float, int]:
-    """(the rotation vector (3,) of the least tilt up to ``max_rad`` that puts every body ``clear_mm`` in front,
-    or None; the best clearance reached (mm); the body deepest at no tilt) for one frame R at TCP t."""
+def least_tilt(bodies: _Bodies, R: np.ndarray, t: np.ndarray, s: AxisTiltSettings, max_rad: float,
+               target_mm: float | None = None) -> tuple[np.ndarray | None, float, int]:
+    """(the rotation vector (3,) of the least tilt up to ``max_rad`` that puts every body ``target_mm`` (default
+    ``clear_mm``) in front, or None; the best clearance reached (mm); the body deepest at no tilt) for one frame R
+    at TCP t."""
     n = int(math.floor(max_rad / s.step_rad + 1e-9))
     angles = s.step_rad * np.arange(1, n + 1)
     W = _candidates(R, angles, s.azimuths)                         # (A, n, 3)
     Rs = Rotation.from_rotvec(W.reshape(-1, 3)).as_matrix() @ R    # (A * n, 3, 3)
     c = bodies.clearance(Rs, np.broadcast_to(t, (len(Rs), 3))).min(axis=-1).reshape(W.shape[:2])
     worst = int(np.argmin(bodies.clearance(R[None], t[None])[0]))
-    ok = c >= s.clear_mm
+    ok = c >= (s.clear_mm if target_mm is None else target_mm)
     if not ok.any():
         return None, float(c.max()) if c.size else -np.inf, worst
     first = np.where(ok.any(axis=1), ok.argmax(axis=1), n)         # the least angle per azimuth
@@ -173,18 +176,17 @@ def tilted_axes(path: Path, signed_distance: Callable[[np.ndarray], np.ndarray],
     """(``path`` with its tool axes tilted clear of the part where its bodies are in it, what was done) (module
     docstring). ``signed_distance(points_mm)``: mm in front of the part (+) or inside it (-); ``bodies``: the
     capsules rigid with the TCP; ``only``: the poses that may need a tilt (a free-form face's), None: all.
-    Measured on the surface poses (work and leads). TiltRefused where ``settings.max_rad`` does not clear."""
+    Measured on the surface poses (work and leads: a body inside the part) and off it (self-motion, approach,
+    depart: a body nearer than ``off_surface_mm``). TiltRefused where ``settings.max_rad`` does not clear a surface
+    pose; a pose off the surface it does not clear is left as it is (the motion check judges it)."""
     s = settings
     if s.max_rad <= 0 or not bodies or len(path) == 0:
         return path, TiltFigures()
     B = _Bodies(tuple(bodies), signed_distance)
     R0 = np.asarray(path.poses_mm[:, :3, :3], float)
     t = np.asarray(path.poses_mm[:, :3, 3], float)
-    watch = np.isin(np.asarray(path.zone), SURFACE_CODES)
-    if only is not None:
-        watch &= np.asarray(only, bool)
-    k = np.flatnonzero(watch)
-    inside = k[B.clearance(R0[k], t[k]).min(axis=1) < -s.inside_mm]
+    k, floor = _watched(path, s, only)
+    inside = k[B.clearance(R0[k], t[k]).min(axis=1) < floor]
     if not len(inside):
         return path, TiltFigures()
     need = np.zeros((len(path), 3))
@@ -193,19 +195,24 @@ def tilted_axes(path: Path, signed_distance: Callable[[np.ndarray], np.ndarray],
     for round_ in range(1, ROUNDS + 1):
         for j in inside:
             have = float(np.linalg.norm(omega[j]))
-            w, _, worst = least_tilt(B, R[j], t[j], s, max(s.max_rad - have, 0.0))
-            if w is None:
+            on_surface = floor[k == j][0] < 0
+            w, _, worst = least_tilt(B, R[j], t[j], s, max(s.max_rad - have, 0.0),
+                                     s.clear_mm if on_surface else s.off_surface_mm + s.clear_mm)
+            if w is None and on_surface:
                 raise TiltRefused(_refusal(path, j, B, R0[j], t[j], s, worst))
-            need[j] = omega[j] + w
+            need[j] = need[j] if w is None else omega[j] + w
         omega = blended(need, R0[:, :, 2], s.turn_rad)
         R = Rotation.from_rotvec(omega).as_matrix() @ R0
-        inside = k[B.clearance(R[k], t[k]).min(axis=1) < -s.inside_mm]
+        c = B.clearance(R[k], t[k]).min(axis=1)
+        inside = k[(c < floor) & ((floor < 0) | ~(need[k] != 0).any(1))]   # off the surface: tried once
         if not len(inside):
             break
-    if len(inside):
-        j = int(inside[0])
+    if len(inside) and (floor[np.isin(k, inside)] < 0).any():
+        j = int(inside[floor[np.isin(k, inside)] < 0][0])
         raise TiltRefused(_refusal(path, j, B, R0[j], t[j], s, int(np.argmin(B.clearance(R[j][None], t[j][None])[0])),
                                    blended_fails=True))
+    if not (need != 0).any():
+        return path, TiltFigures()
     poses = np.array(path.poses_mm, float)
     poses[:, :3, :3] = R
     theta = np.linalg.norm(omega, axis=1)
@@ -214,6 +221,18 @@ def tilted_axes(path: Path, signed_distance: Callable[[np.ndarray], np.ndarray],
                           max_tilt_deg=float(np.degrees(theta.max())), poses_needing_tilt=int((need != 0).any(1).sum()),
                           rounds=round_)
     return replace(path, poses_mm=poses), figures
+
+
+def _watched(path: Path, s: AxisTiltSettings, only: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """(the poses measured, the clearance (mm) below which each needs a tilt): on the surface ``-inside_mm``, off it
+    (self-motion, approach, depart) ``off_surface_mm``."""
+    zone = np.asarray(path.zone)
+    surface = np.isin(zone, SURFACE_CODES)
+    watch = surface | np.isin(zone, OFF_SURFACE_CODES)
+    if only is not None:
+        watch &= np.asarray(only, bool)
+    k = np.flatnonzero(watch)
+    return k, np.where(surface[k], -s.inside_mm, s.off_surface_mm)
 
 
 def _refusal(path: Path, j: int, B: _Bodies, R: np.ndarray, t: np.ndarray, s: AxisTiltSettings, worst: int,

@@ -23,6 +23,7 @@ import trimesh
 from ..errors import PlanInfeasible
 from ..job import Job
 from ..motion import MotionCheckSettings, WaypointIndex, check_motion, part_from_path
+from ..motion.tool_bodies import tool_axis_bodies
 from .part_stages import surface_for_job, workpiece_for_job  # noqa: F401  (the stages of every task)
 from ..placement.margins import reach_margins
 from ..plan import plan_path
@@ -36,6 +37,7 @@ from ..plan.strategy import ik_settings
 from ..collision.stage import collision_world, with_world
 from ..program.post import thin_waypoints
 from .post_inputs import write_job_programs
+from ..path.axis_tilt import AxisTiltSettings, TiltRefused, tilted_axes
 from ..path.lead_clearance import cleared_leads
 from ..path.raster import raster_path
 from ..report.run_report import (
@@ -139,12 +141,13 @@ def robot_for_job(job: Job):
 
 def path_for_job(job: Job, surface, workpiece=None):
     """Raster the job's surface into a tool Path (world frame); given the job's ``workpiece`` (as loaded), with its
-    free-form faces' leads lifted clear of it (``leads_clear_of_part``), as ``camtool run`` rasters it."""
+    free-form faces' tool axes tilted and leads lifted clear of it (``shaped_for_part``), as ``camtool run`` rasters
+    it."""
     path = raster_path(surface, RasterSettings.from_section(job.raster))
     if workpiece is None:
         return path
     settings = JobSettings.from_job(job)
-    return leads_clear_of_part(settings, surface, path, clearance_part(settings, workpiece, surface))
+    return shaped_for_part(settings, surface, path, clearance_part(settings, workpiece, surface), robot_for_job(job))[0]
 
 
 # --------------------------------------------------------------------------- plan and time
@@ -297,13 +300,15 @@ class _Leads:
                 self.record["capped"] = True
                 return False
             try:
-                new_path = leads_clear_of_part(settings, surface, raster_path(surface, replace(raster, lead_mm=longer)),
-                                               workpiece)
+                new_path, tilt = shaped_for_part(settings, surface, raster_path(surface, replace(raster, lead_mm=longer)),
+                                                 workpiece, robot)
                 new_joint_path = plan(new_path)
             except PlanInfeasible as exc:
                 self.record["kept_because"] = f"a {longer:g} mm lead cannot be planned: {exc}"
                 return False
             self.path, self.joint_path, self.lead_mm = new_path, new_joint_path, longer
+            if tilt is not None:
+                self.record["axis_tilt"] = tilt   # the tilt of the path rastered again, for report.json
             self.record["lead_mm_used"] = longer
             self.rounds_used += 1
         return False
@@ -402,6 +407,38 @@ def clearance_part(settings: JobSettings, workpiece, surface):
     return part_for_checks(settings, workpiece, surface) if _leads_may_meet(settings, workpiece) else None
 
 
+def shaped_for_part(settings: JobSettings, surface, path, part, robot=None) -> tuple:
+    """(``path`` shaped to ``part`` (``part_for_checks``), the tilt's figures for report.json or None): its
+    free-form faces' tool axes tilted clear of the part where the tool or the wrist would be in it (with
+    ``robot``: ``_tilted``), then their leads lifted clear of it (``leads_clear_of_part``). A path of no free-form
+    face, or of a part its poses cannot meet (``_leads_may_meet``), comes back as it was."""
+    only = _freeform_poses(surface, path)
+    if not _leads_may_meet(settings, part) or only is None or not only.any():
+        return path, None
+    geometry = part_from_path(part, path)
+    figures = None
+    if robot is not None and settings.raster.axis_tilt_max_rad > 0:
+        path, figures = _tilted(settings, path, geometry, robot, only)
+    return _leads_cleared(settings, surface, path, geometry, only), figures
+
+
+def _tilted(settings: JobSettings, path, geometry, robot, only) -> tuple:
+    """(``path`` with its tool axes tilted clear of ``geometry`` (``path.axis_tilt``: the motion check's capsules
+    rigid with the TCP, its penetration tolerance), the tilt's figures); PlanInfeasible where the largest tilt
+    does not clear a pose."""
+    c = settings.check
+    bodies = tool_axis_bodies(robot, MotionCheckSettings(tool_radius_mm=c.tool_radius_mm,
+                                                         link_radius_mm=c.link_radius_mm,
+                                                         tool_contact_exempt_mm=c.tool_contact_exempt_mm))
+    tilt = AxisTiltSettings(max_rad=settings.raster.axis_tilt_max_rad, turn_rad=settings.raster.axis_tilt_turn_rad,
+                            inside_mm=c.penetration_tol_mm, off_surface_mm=c.clearance_mm)
+    try:
+        path, figures = tilted_axes(path, geometry.signed_distance, bodies, tilt, only)
+    except TiltRefused as exc:
+        raise PlanInfeasible(f"the tool axis cannot be tilted clear of the part: {exc}") from None
+    return path, figures.to_dict()
+
+
 def leads_clear_of_part(settings: JobSettings, surface, path, part):
     """``path`` with its free-form faces' leads lifted clear of ``part`` (``part_for_checks``; the modifier
     ``path.lead_clearance``): their straight leads run on past the face's edge, where the part may go on and turn
@@ -412,9 +449,14 @@ def leads_clear_of_part(settings: JobSettings, surface, path, part):
     only = _freeform_poses(surface, path)
     if not _leads_may_meet(settings, part) or only is None or not only.any():
         return path
+    return _leads_cleared(settings, surface, path, part_from_path(part, path), only)
+
+
+def _leads_cleared(settings: JobSettings, surface, path, geometry, only):
+    """``leads_clear_of_part`` on the part's geometry made (``part_from_path``)."""
     faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
     band = max((f.lead_band_mm for f in faces if getattr(f, "source_kind", "") == "scan"), default=0.0)
-    return cleared_leads(path, part_from_path(part, path).signed_distance, settings.raster.lead_mm, only,
+    return cleared_leads(path, geometry.signed_distance, settings.raster.lead_mm, only,
                          inside_mm=band)   # a scan's leads may run in its noise band, as the motion check allows
 
 

@@ -40,7 +40,7 @@ from ..job_settings import JobSettings
 from ...part.surface import FaceSet
 from ...timing import sampled_for
 from ...timing.pathlaw import remembered_runs
-from ..stages import (RunResult, StageLog, clearance_part, finish_run, leads_clear_of_part, leads_into_part, motion_check,
+from ..stages import (RunResult, StageLog, clearance_part, finish_run, leads_into_part, motion_check, shaped_for_part,
                       motion_check_part, part_for_checks, plan_and_time, plan_with_sized_leads, post_checked, report_failure, report_unreachable,
                       run_report, time_for_job)
 
@@ -154,6 +154,7 @@ class Rastered:
     surface: object
     path: object
     step_choice: dict | None
+    axis_tilt: dict | None = None   # the tool axes tilted clear of the part (``shaped_for_part``), or None
 
     @property
     def several(self) -> bool:
@@ -346,10 +347,10 @@ def _rastered(r: RasterRun) -> tuple[RasterRun, Rastered]:
         check_several_faces(job, r.settings)
     check_target_inputs(job, r.settings.process, surface)  # a target removal map it cannot meet: before planning
     settings, step_choice = auto_step_over(r.settings, surface)  # raster.step_over_mm = "auto"
-    path = leads_clear_of_part(settings, surface, raster_path(surface, settings.raster),
-                               clearance_part(settings, wp, surface))
+    path, tilt = shaped_for_part(settings, surface, raster_path(surface, settings.raster),
+                                 clearance_part(settings, wp, surface), r.robot)
     path = log.done("raster", path)
-    return replace(r, settings=settings), Rastered(wp, surface, path, step_choice)
+    return replace(r, settings=settings), Rastered(wp, surface, path, step_choice, tilt)
 
 
 def _hand_check(r: RasterRun, made: Rastered, checking: Standby, path, trajectory) -> None:
@@ -463,6 +464,9 @@ def _run_report(r: RasterRun, made: Rastered, planned: _Planned, simulated: dict
         report["partial"] = planned.partial_figures
     report["motion_check"] = motion
     report["programs_simulated"] = simulated
+    tilt = (planned.joint_path.events.get("leads") or {}).get("axis_tilt", made.axis_tilt)
+    if tilt is not None:   # the tool axes tilted clear of the part (free-form faces of a mesh)
+        report["axis_tilt"] = tilt
     faces_of_job = faces_settings(r.job)
     if faces_of_job.segmented:   # the faces of the part and which the job works (the fit stage's segmentation)
         faces = faces_report(faces_of_job, made.wp)
