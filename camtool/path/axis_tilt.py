@@ -194,13 +194,15 @@ def tilted_axes(path: Path, signed_distance: Callable[[np.ndarray], np.ndarray],
     R = R0
     for round_ in range(1, ROUNDS + 1):
         for j in inside:
-            have = float(np.linalg.norm(omega[j]))
             on_surface = floor[k == j][0] < 0
-            w, _, worst = least_tilt(B, R[j], t[j], s, max(s.max_rad - have, 0.0),
-                                     s.clear_mm if on_surface else s.off_surface_mm + s.clear_mm)
-            if w is None and on_surface:
+            target = s.clear_mm if on_surface else s.off_surface_mm + s.clear_mm
+            w, _, worst = least_tilt(B, R[j], t[j], s, s.max_rad, target)   # from where the blend left it
+            if w is None and round_ == 1 and on_surface:
                 raise TiltRefused(_refusal(path, j, B, R0[j], t[j], s, worst))
-            need[j] = need[j] if w is None else omega[j] + w
+            if w is not None:
+                need[j] = omega[j] + w
+                theta = float(np.linalg.norm(need[j]))
+                need[j] *= min(1.0, s.max_rad / theta)    # at most the maximum; the next round measures it
         omega = blended(need, R0[:, :, 2], s.turn_rad)
         R = Rotation.from_rotvec(omega).as_matrix() @ R0
         c = B.clearance(R[k], t[k]).min(axis=1)

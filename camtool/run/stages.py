@@ -431,7 +431,7 @@ def _tilted(settings: JobSettings, path, geometry, robot, only) -> tuple:
                                                          link_radius_mm=c.link_radius_mm,
                                                          tool_contact_exempt_mm=c.tool_contact_exempt_mm))
     tilt = AxisTiltSettings(max_rad=settings.raster.axis_tilt_max_rad, turn_rad=settings.raster.axis_tilt_turn_rad,
-                            inside_mm=c.penetration_tol_mm, off_surface_mm=c.clearance_mm)
+                            clear_mm=1.0 + c.clearance_mm, inside_mm=c.penetration_tol_mm)
     try:
         path, figures = tilted_axes(path, geometry.signed_distance, bodies, tilt, only)
     except TiltRefused as exc:
