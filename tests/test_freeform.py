@@ -249,6 +249,33 @@ def test_leads_run_straight_on_with_the_work_ends_orientation(saddle_part):
         assert lift[0] > 0 and np.all(np.diff(lift) > -1e-9) and lift[-1] == pytest.approx(LEAD_LIFT_MIN_MM, abs=1e-9)
 
 
+def test_transitions_start_and_end_where_the_straight_leads_do():
+    """The self-motion between two rows of a free-form face runs from the lead-out's end to the next lead-in's
+    start (the leads run straight off the surface: a transition laid between their (u, v) on the surface began
+    beside the lead-out and jumped back to the lead-in, a zig-zag the time law's spline cut into the part): its
+    first and last steps are one share of the straight span between the leads' ends, lifted by the sine arc."""
+    from camtool.path.toolpath import ZONE_CODE
+
+    V, F = grid_mesh(np.linspace(-60, 60, 61), np.linspace(-45, 45, 46), lambda X, Y: (X ** 2 + Y ** 2) / 160.0)
+    s = fit_surface(mesh_workpiece(V, F)[0], FIT)               # a bowl curved at R 80 mm: leads 30 mm long
+    settings = RasterSettings.make(step_over_mm=15.0, pitch_mm=5.0, lead_mm=30.0)
+    path = raster_path(s, settings)
+    P = path.poses_mm[:, :3, 3]
+    zone = np.asarray(path.zone)
+    runs = np.split(np.flatnonzero(zone == ZONE_CODE["self_motion"]),
+                    np.flatnonzero(np.diff(np.flatnonzero(zone == ZONE_CODE["self_motion"])) > 1) + 1)
+    assert len(runs) > 3
+    m = settings.transition_points
+    lift = max(settings.clearance_mm, settings.self_motion_lift_mm)
+    for k in runs:
+        a, b = k[0] - 1, k[-1] + 1
+        assert zone[a] == ZONE_CODE["lead_out"] and zone[b] == ZONE_CODE["lead_in"]
+        chain = P[np.concatenate([[a], k, [b]])]
+        steps = np.linalg.norm(np.diff(chain, axis=0), axis=1)
+        first = np.hypot(np.linalg.norm(P[b] - P[a]) / (m + 1), lift * np.sin(np.pi / (m + 1)))
+        assert max(steps[0], steps[-1]) <= first + 0.3     # off the leads' ends: one share of the span, lifted
+
+
 def test_a_scans_leads_rise_by_its_noise_band():
     """The noisy cap (1 mm): past the face's edge the leads' last quarter is at least the noise band (3 RMS
     residuals) off the true sphere, on its tool side; the work poses stay on it."""

@@ -305,7 +305,8 @@ def raster_path(surface, settings: RasterSettings) -> Path:
     rows = _row_blocks(surface, chart, g_lo, runs, sign, settings)
     blocks = _with_contour(surface, settings, chart, rows)
     on_surface, normal, lift = _block_poses(surface, blocks, settings, w)
-    transitions = _transitions(surface, blocks, lift, on_surface.R, settings)
+    straight = surface.model == "freeform" and blocks.n_lead   # leads off the surface: from where they end
+    transitions = _transitions(surface, blocks, lift, on_surface.R, settings, on_surface.pos if straight else None)
     poses, segment, pidx, zcode = _in_path_order(blocks, on_surface, transitions,
                                                  _approach_and_depart(on_surface.pos, normal, settings.clearance_mm),
                                                  settings.transition_points)
@@ -521,9 +522,14 @@ def _straight_leads(p, normal, travel, R, b: _Blocks, lead_mm: float):
     return p, normal, R
 
 
-def _transitions(surface, blocks: _Blocks, lift: np.ndarray, R: np.ndarray, settings: RasterSettings) -> _Poses:
+def _transitions(surface, blocks: _Blocks, lift: np.ndarray, R: np.ndarray, settings: RasterSettings,
+                 ends_mm: np.ndarray | None = None) -> _Poses:
     """The self-motion poses between consecutive segments (``transition_points`` each, in order): positions
-    interpolated in (u, v) and lifted off the part, orientations by slerp."""
+    interpolated in (u, v) and lifted off the part, orientations by slerp. ``ends_mm``: where the blocks' poses
+    really are, when not on the surface at their (u, v) (a free-form face's straight leads): the transition then
+    carries the two ends' offsets from there, blended along it, so it starts and ends where its leads do (on the
+    noether panel's short contour runs it began 10 mm from its lead-out's end and jumped 10 mm back to the next
+    lead-in, a zig-zag the time law's spline cut 2 mm into the part)."""
     m = settings.transition_points
     a_idx = blocks.start[:-1] + blocks.block[:-1] - 1
     b_idx = blocks.start[1:]
@@ -536,6 +542,12 @@ def _transitions(surface, blocks: _Blocks, lift: np.ndarray, R: np.ndarray, sett
     uv_t = uv_t.reshape(-1, 2)
     n_t = _unit(surface.normal_at(uv_t[:, 0], uv_t[:, 1]))
     pos_t = surface.point_mm(uv_t[:, 0], uv_t[:, 1]) + lift_t.reshape(-1, 1) * n_t
+    if ends_mm is not None and blocks.n_seg > 1:
+        ends = np.concatenate([a_idx, b_idx])
+        at = surface.point_mm(uv[ends, 0], uv[ends, 1]) + lift[ends, None] * _unit(surface.normal_at(uv[ends, 0], uv[ends, 1]))
+        off = ends_mm[ends] - at
+        off_a, off_b = off[:len(a_idx)], off[len(a_idx):]
+        pos_t = pos_t + (((1 - f)[None, :, None] * off_a[:, None, :]) + f[None, :, None] * off_b[:, None, :]).reshape(-1, 3)
     if blocks.n_seg > 1:
         ra, rb = Rotation.from_matrix(R[a_idx]), Rotation.from_matrix(R[b_idx])
         rel = (ra.inv() * rb).as_rotvec()
