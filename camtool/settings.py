@@ -110,7 +110,7 @@ class RasterSettings(_FromSection):
     lead_path: str = "surface"     # the leads: on the face's surface continued, or lifted clear of the row's tangent
     max_poses: int = 1_000_000     # the most poses a raster may have (estimated before any work)
     axis_tilt_max_rad: float = math.radians(30.0)   # free-form faces: the tool axis tilted clear of the part
-    axis_tilt_turn_rad: float = math.radians(2.0)   # the most that tilt changes between neighbouring poses
+    axis_tilt_turn_rad: float = math.radians(4.0)   # the most that tilt changes between neighbouring poses
 
     @classmethod
     def from_section(cls, sec):

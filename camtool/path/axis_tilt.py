@@ -52,7 +52,7 @@ class AxisTiltSettings:
     """How far and how smoothly the tool axis may turn off the raster's to clear the part (angles in rad)."""
 
     max_rad: float = math.radians(30.0)   # the largest tilt; 0 = no tilt (the motion check judges the raster)
-    turn_rad: float = math.radians(2.0)   # the most the tilt changes between neighbouring poses
+    turn_rad: float = math.radians(4.0)   # the most the tilt changes between neighbouring poses
     clear_mm: float = 1.0                 # a tilted pose's bodies end at least this far in front of the part
     inside_mm: float = 0.1                # a body deeper than this in the part needs a tilt (the check's tolerance)
     off_surface_mm: float = 0.0           # off the surface (self-motion, approach, depart) bodies keep this clearance
