@@ -152,7 +152,10 @@ def test_points_in_a_face_gap_lie_on_the_part(gapped):
     assert s.gaps is not None and s.mesh is not None
     P = _over_the_gaps(s)
     assert _off_mesh_mm(top, s.project_mm(P)).max() < 1e-6
-    membrane = replace(s, gaps=None).project_mm(P)
+    no_gaps = replace(s, gaps=None)
+    assert np.isnan(no_gaps.project_mm(P)[:, 2]).mean() > 0.8          # no triangle of its own there
+    c = (P - s.origin_mm) @ s.frame
+    membrane = s.origin_mm + np.c_[c[:, :2], no_gaps.height_at(c[:, 0], c[:, 1])] @ s.frame.T
     assert _off_mesh_mm(top, membrane).max() > 0.03
 
 
@@ -163,3 +166,15 @@ def test_the_gap_triangles_survive_the_stage_file_and_turned_rows(gapped):
     P = _over_the_gaps(s)
     assert np.array_equal(back.project_mm(P), s.project_mm(P))
     assert _off_mesh_mm(top, s.rows_at(np.radians(30.0)).project_mm(P)).max() < 1e-6
+
+
+def test_projection_past_the_face_edge_is_nan_and_the_points_keep_the_continued_surface(gapped):
+    """The sag's projector (``project_mm``) finds no face past its edge (NaN), where ``point_mm`` (the leads) runs on
+    the height field continued; over the face and its gaps it is the part's triangles."""
+    top, s = gapped
+    P = np.array([[18.0, 0.0, 30.0], [-18.0, 5.0, 30.0], [0.0, 0.0, 30.0]])
+    on = s.project_mm(P)
+    assert np.isnan(on[:2]).all() and np.isfinite(on[2]).all()
+    assert _off_mesh_mm(top, on[2:]).max() < 1e-6
+    c = (P - s.origin_mm) @ s.frame
+    assert np.isfinite(s.height_at(c[:, 0], c[:, 1])).all()

@@ -103,3 +103,26 @@ def test_a_lead_meets_the_face_above_it_keeps_the_arc_and_under_it_comes_onto_it
             assert np.allclose(T, T_arc) and np.allclose(sag, sag_arc)
         else:
             assert np.allclose(T[0, :3, 3], expect) and sag[0] == pytest.approx(0.25)
+
+
+def test_a_step_whose_midpoint_has_no_face_under_it_keeps_the_arc():
+    """Past the face's edge (the projector NaN: no triangle of it there) a lead's chord that runs under the
+    surface continued is not taken onto it: the continued surface is not the part (the Vito door's lead-out went
+    onto it, 2 mm off its own tangent, and the joint spline through those midposes looped 5.5 mm into the door)."""
+    from camtool.plan.sag import _arc_midposes, _surface_midposes
+    ridge = _crease_projector(-0.2)
+
+    def project(p):                                                    # the face ends at x = 1
+        q = ridge(p)
+        q[np.asarray(p)[..., 0] < 1.0] = np.nan
+        return q
+    work = _pose_at([5.0, 0.0, -1.0])
+    under = _pose_at([-5.0, 0.0, 0.5])                                 # under the ridge continued, past the edge
+    Ta, Tb = under[None], work[None]
+    T_arc, sag_arc = _arc_midposes(Ta, Tb)
+    assert np.isfinite(ridge(0.5 * (Ta[:, :3, 3] + Tb[:, :3, 3]))).all()
+    T, sag = _surface_midposes(Ta, Tb, T_arc, sag_arc, project)
+    assert np.allclose(T, T_arc) and np.allclose(sag, sag_arc)
+    near = _pose_at([2.0, 0.0, -0.4])[None]
+    T2, _ = _surface_midposes(Tb, near, *_arc_midposes(Tb, near), project)   # on the face: still onto it
+    assert np.allclose(T2[0, :3, 3], [3.5, 0.0, -0.7])

@@ -111,14 +111,20 @@ class FreeformSurface:
         h = self.grid.interp(self.height, x, y)
         if self.mesh is None:
             return h
-        exact = self.mesh.heights(x, y)
-        if self.gaps is not None:
-            miss = ~np.isfinite(exact)
-            if miss.any():
-                x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-                exact = np.array(exact, float)
-                exact[miss] = self.gaps.heights(x[miss], y[miss])
+        exact = self.triangle_heights(x, y)
         return np.where(np.isfinite(exact), exact, h)
+
+    def triangle_heights(self, x, y) -> np.ndarray:
+        """Heights (mm) at chart (x, y) of a CAD mesh face's own triangle, else of the part's in a gap of the face;
+        NaN where neither lies over the point (past the face's edge, over a hole) or the face is a scan's."""
+        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+        if self.mesh is None:
+            return np.full(x.shape, np.nan)
+        exact = self.mesh.heights(x, y)
+        miss = ~np.isfinite(exact)
+        if self.gaps is not None and miss.any():
+            exact[miss] = self.gaps.heights(x[miss], y[miss])
+        return exact
 
     def point_mm(self, u, v) -> np.ndarray:
         """Points (..., 3) in mm at u (along the rows, mm) and v (geodesic distance across them, mm)."""
@@ -144,9 +150,12 @@ class FreeformSurface:
         return max(NOISE_BAND_SIGMAS * float(self.stats.rms_mm), LEAD_LIFT_MIN_MM)
 
     def project_mm(self, points_mm: np.ndarray) -> np.ndarray:
-        """Points (..., 3) mm taken onto the surface along the chart's normal e3 (the height field over them)."""
+        """Points (..., 3) mm taken onto the surface along the chart's normal e3: onto a CAD mesh face's triangles
+        (``triangle_heights``), NaN where it has none under a point (past its edge the height field only continues
+        the face; the part there may fall away or turn: issue #46, a Vito door lead's midpose went onto it and the
+        joint spline through them looped 5.5 mm into the door); a scan's onto its height field."""
         c = (np.asarray(points_mm, float) - self.origin_mm) @ self.frame
-        h = self.height_at(c[..., 0], c[..., 1])
+        h = self.height_at(c[..., 0], c[..., 1]) if self.mesh is None else self.triangle_heights(c[..., 0], c[..., 1])
         return self.origin_mm + c[..., 0, None] * self.frame[:, 0] + c[..., 1, None] * self.frame[:, 1] \
             + h[..., None] * self.frame[:, 2]
 

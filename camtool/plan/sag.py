@@ -22,6 +22,9 @@ tested is the chord's own distance from the surface there (issue #46: the wavy s
 0.25 mm off its facets), where both its poses lie on the face (``ON_FACE_MM``); a lead that rises off it past
 its edge keeps the arc (the surface there is only continued), unless its chord runs under the surface where
 it meets the face: then its midpose is taken onto the surface too (the wavy sheet's lead-ins into a trough).
+Only onto the face itself: a midpoint with no face under it (past its edge, over a hole: ``project`` NaN) keeps
+the arc (the Vito door's lead-out midposes, on the surface continued past a steep edge, were off the lead's own
+chord, and the joint spline through them looped 5.5 mm into the door).
 """
 from __future__ import annotations
 
@@ -89,16 +92,20 @@ def _surface_midposes(Ta, Tb, T_arc, sag_arc, project):
     """``_arc_midposes``' (m, 4, 4) midposes and (m,) sags with a free-form face's where the face decides: a step
     whose poses both lie on the face (``ON_FACE_MM``) gets the chord's midpoint taken onto the surface, its sag the
     chord's distance from it there; a step with one pose on it (a lead meeting the face) gets the same where its
-    chord runs under the surface (into the part), its sag how deep; the others keep the arc's."""
+    chord runs under the surface (into the part), its sag how deep; the others keep the arc's, as does every step
+    whose midpoint has no face under it (``project`` NaN: past the face's edge, over a hole)."""
     T, sag = T_arc.copy(), sag_arc.copy()
     pa, pb = Ta[:, :3, 3], Tb[:, :3, 3]
-    on = (np.linalg.norm(project(pa) - pa, axis=1) <= ON_FACE_MM).astype(int) \
-        + (np.linalg.norm(project(pb) - pb, axis=1) <= ON_FACE_MM)
+    with np.errstate(invalid="ignore"):
+        on = (np.linalg.norm(project(pa) - pa, axis=1) <= ON_FACE_MM).astype(int) \
+            + (np.linalg.norm(project(pb) - pb, axis=1) <= ON_FACE_MM)
     mid = 0.5 * (pa + pb)
     onto = project(mid)
+    face = np.isfinite(onto).all(axis=1)
+    onto = np.where(face[:, None], onto, mid)
     towards_tool = -(Ta[:, :3, 2] + Tb[:, :3, 2])
     under = np.einsum("ki,ki->k", onto - mid, towards_tool) > 0.0   # the surface lies between the chord and the tool
-    both, dips = on == 2, (on == 1) & under
+    both, dips = (on == 2) & face, (on == 1) & under & face
     T[both | dips, :3, 3] = onto[both | dips]
     sag[both | dips] = np.linalg.norm(onto - mid, axis=1)[both | dips]
     return T, sag
@@ -138,7 +145,8 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
                       chord_tol_mm: float, project=None) -> JointPath:
     """``joint_path`` with arc-midpoint rows where a surface step's sag exceeds ``chord_tol_mm / 2``.
 
-    ``project``: world points (m, 3) mm -> the same taken onto a free-form face (``FreeformSurface.project_mm``);
+    ``project``: world points (m, 3) mm -> the same taken onto a free-form face (``FreeformSurface.project_mm``;
+    NaN where the face has no surface under a point);
     its steps then get midposes on it (module doc). Inserted rows have path_index -1 and the zone of the step
     (of its lead, on a step between work and a lead); the events get ``sag_steps`` (steps split, rows inserted, the sag tolerance).
     """
