@@ -57,7 +57,7 @@ def test_batched_sags_are_the_midpose_sags():
 
 def _crease_projector(slope=0.2):
     """Onto the facetted surface z = slope * |x| (a crease along y), along z: the free-form face's projection."""
-    def project(p):
+    def project(p, continued=False):
         p = np.array(p, float)
         p[..., 2] = slope * np.abs(p[..., 0])
         return p
@@ -105,24 +105,33 @@ def test_a_lead_meets_the_face_above_it_keeps_the_arc_and_under_it_comes_onto_it
             assert np.allclose(T[0, :3, 3], expect) and sag[0] == pytest.approx(0.25)
 
 
-def test_a_step_whose_midpoint_has_no_face_under_it_keeps_the_arc():
+def test_a_lead_past_the_face_edge_gets_midposes_on_its_own_chord_not_on_the_surface_continued():
     """Past the face's edge (the projector NaN: no triangle of it there) a lead's chord that runs under the
-    surface continued is not taken onto it: the continued surface is not the part (the Vito door's lead-out went
-    onto it, 2 mm off its own tangent, and the joint spline through those midposes looped 5.5 mm into the door)."""
-    from camtool.plan.sag import _arc_midposes, _surface_midposes
+    surface continued is not taken onto it -- the continued surface is not the part (the Vito door's lead-out went
+    onto it, 2 mm off its own line, and the joint spline through those midposes looped 5.5 mm into the door) --
+    but gets its own chord's midpoint, split while longer than LEAD_STEP_MM (the spline through a long lead step
+    that meets the work at a kink bowed out of it into the door's rim); over the surface continued: the arc."""
+    from camtool.plan.sag import LEAD_STEP_MM, _arc_midposes, _surface_midposes
     ridge = _crease_projector(-0.2)
 
-    def project(p):                                                    # the face ends at x = 1
+    def project(p, continued=False):                                   # the face ends at x = 1
         q = ridge(p)
-        q[np.asarray(p)[..., 0] < 1.0] = np.nan
+        if not continued:
+            q[np.asarray(p)[..., 0] < 1.0] = np.nan
         return q
     work = _pose_at([5.0, 0.0, -1.0])
     under = _pose_at([-5.0, 0.0, 0.5])                                 # under the ridge continued, past the edge
-    Ta, Tb = under[None], work[None]
+    above = _pose_at([-5.0, 0.0, 3.0])
+    short = _pose_at([0.0, 0.0, -0.2])                                 # its chord from the work: midpoint over the face
+    steps = [(under, work), (above, work), (_pose_at([-0.6, 0.0, -0.62]), _pose_at([1.2, 0.0, -0.24]))]
+    Ta = np.array([a for a, _ in steps])
+    Tb = np.array([b for _, b in steps])
     T_arc, sag_arc = _arc_midposes(Ta, Tb)
-    assert np.isfinite(ridge(0.5 * (Ta[:, :3, 3] + Tb[:, :3, 3]))).all()
     T, sag = _surface_midposes(Ta, Tb, T_arc, sag_arc, project)
-    assert np.allclose(T, T_arc) and np.allclose(sag, sag_arc)
-    near = _pose_at([2.0, 0.0, -0.4])[None]
-    T2, _ = _surface_midposes(Tb, near, *_arc_midposes(Tb, near), project)   # on the face: still onto it
-    assert np.allclose(T2[0, :3, 3], [3.5, 0.0, -0.7])
+    mid = 0.5 * (Ta[:, :3, 3] + Tb[:, :3, 3])
+    assert np.allclose(T[0, :3, 3], mid[0]) and sag[0] == np.inf       # the chord's own midpoint, split on
+    assert np.allclose(T[1], T_arc[1]) and sag[1] == sag_arc[1]        # over the surface continued: the arc
+    assert np.allclose(T[2, :3, 3], mid[2]) and sag[2] == 0.0          # short enough: no further split
+    assert np.linalg.norm(Tb[2, :3, 3] - Ta[2, :3, 3]) <= LEAD_STEP_MM
+    T2, _ = _surface_midposes(Tb[:1], short[None], *_arc_midposes(Tb[:1], short[None]), project)
+    assert np.allclose(T2[0, :3, 3], [2.5, 0.0, -0.5])                # on the face: onto it

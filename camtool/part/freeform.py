@@ -149,13 +149,15 @@ class FreeformSurface:
             return LEAD_LIFT_MIN_MM
         return max(NOISE_BAND_SIGMAS * float(self.stats.rms_mm), LEAD_LIFT_MIN_MM)
 
-    def project_mm(self, points_mm: np.ndarray) -> np.ndarray:
+    def project_mm(self, points_mm: np.ndarray, continued: bool = False) -> np.ndarray:
         """Points (..., 3) mm taken onto the surface along the chart's normal e3: onto a CAD mesh face's triangles
         (``triangle_heights``), NaN where it has none under a point (past its edge the height field only continues
         the face; the part there may fall away or turn: issue #46, a Vito door lead's midpose went onto it and the
-        joint spline through them looped 5.5 mm into the door); a scan's onto its height field."""
+        joint spline through them looped 5.5 mm into the door); a scan's onto its height field. ``continued``: onto
+        the surface continued (``height_at``) everywhere."""
         c = (np.asarray(points_mm, float) - self.origin_mm) @ self.frame
-        h = self.height_at(c[..., 0], c[..., 1]) if self.mesh is None else self.triangle_heights(c[..., 0], c[..., 1])
+        exact = self.mesh is not None and not continued
+        h = self.triangle_heights(c[..., 0], c[..., 1]) if exact else self.height_at(c[..., 0], c[..., 1])
         return self.origin_mm + c[..., 0, None] * self.frame[:, 0] + c[..., 1, None] * self.frame[:, 1] \
             + h[..., None] * self.frame[:, 2]
 

@@ -24,7 +24,10 @@ its edge keeps the arc (the surface there is only continued), unless its chord r
 it meets the face: then its midpose is taken onto the surface too (the wavy sheet's lead-ins into a trough).
 Only onto the face itself: a midpoint with no face under it (past its edge, over a hole: ``project`` NaN) keeps
 the arc (the Vito door's lead-out midposes, on the surface continued past a steep edge, were off the lead's own
-chord, and the joint spline through them looped 5.5 mm into the door).
+chord, and the joint spline through them looped 5.5 mm into the door). A lead whose chord runs under the
+surface continued past the edge gets midposes on its own chord instead, its steps from the face halved down to
+``LEAD_STEP_MM``: the time law's cubic spline through a 7.5 mm lead step that meets the work at a kink bowed
+0.2-0.44 mm out of it, into the door's rim.
 """
 from __future__ import annotations
 
@@ -41,6 +44,7 @@ from .densify import bisected, slerp_midposes
 
 MAX_SPLITS = 3  # a step is halved at most this many times for its sag (8 pieces), twice more for its bow
 ON_FACE_MM = 0.01      # a step whose poses both lie this close to a free-form face is on it (its midposes too)
+LEAD_STEP_MM = 2.0     # a lead step from a free-form face under its surface continued is halved down to this
 SAG_SCREEN_MM = 1e-6   # the batched screen leaves a step to its own test unless this much within the tolerance
                        # (arccos near parallel tool axes is good to ~1e-8 rad: ~1e-7 mm of sag on a 100 mm step)
 
@@ -93,21 +97,25 @@ def _surface_midposes(Ta, Tb, T_arc, sag_arc, project):
     whose poses both lie on the face (``ON_FACE_MM``) gets the chord's midpoint taken onto the surface, its sag the
     chord's distance from it there; a step with one pose on it (a lead meeting the face) gets the same where its
     chord runs under the surface (into the part), its sag how deep; the others keep the arc's, as does every step
-    whose midpoint has no face under it (``project`` NaN: past the face's edge, over a hole)."""
+    whose midpoint has no face under it (``project`` NaN: past the face's edge, over a hole), except a lead step
+    from the face under the surface continued there (``project(..., continued=True)``): its chord's midpoint, split
+    while longer than ``LEAD_STEP_MM`` (sag inf)."""
     T, sag = T_arc.copy(), sag_arc.copy()
     pa, pb = Ta[:, :3, 3], Tb[:, :3, 3]
     with np.errstate(invalid="ignore"):
         on = (np.linalg.norm(project(pa) - pa, axis=1) <= ON_FACE_MM).astype(int) \
             + (np.linalg.norm(project(pb) - pb, axis=1) <= ON_FACE_MM)
     mid = 0.5 * (pa + pb)
-    onto = project(mid)
-    face = np.isfinite(onto).all(axis=1)
-    onto = np.where(face[:, None], onto, mid)
+    face = np.isfinite(project(mid)).all(axis=1)
+    onto = project(mid, continued=True)
     towards_tool = -(Ta[:, :3, 2] + Tb[:, :3, 2])
     under = np.einsum("ki,ki->k", onto - mid, towards_tool) > 0.0   # the surface lies between the chord and the tool
     both, dips = (on == 2) & face, (on == 1) & under & face
     T[both | dips, :3, 3] = onto[both | dips]
     sag[both | dips] = np.linalg.norm(onto - mid, axis=1)[both | dips]
+    lead = (on == 1) & under & ~face
+    T[lead, :3, 3] = mid[lead]
+    sag[lead] = np.where(np.linalg.norm(pb - pa, axis=1) > LEAD_STEP_MM, np.inf, 0.0)[lead]
     return T, sag
 
 
@@ -158,7 +166,7 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
     base_project = None
     if project is not None:   # the projector in the base frame the solver works in
         base = np.asarray(robot.base_T_mm, float)
-        base_project = lambda p: (project(p @ base[:3, :3].T + base[:3, 3]) - base[:3, 3]) @ base[:3, :3]  # noqa: E731
+        base_project = lambda p, **kw: (project(p @ base[:3, :3].T + base[:3, 3], **kw) - base[:3, 3]) @ base[:3, :3]  # noqa: E731
     if len(steps):   # the steps whose sag is within the tolerance are left alone, all at once
         poses = np.einsum("ij,njk->nik", base_inv, path.poses_mm)
         Ta, Tb = poses[jp.path_index[steps]], poses[jp.path_index[steps + 1]]
