@@ -516,23 +516,9 @@ def _straight_leads(p, normal, travel, R, b: _Blocks, lead_mm: float):
     a = anchor[k]
     way = np.where(lead_in[k], -1.0, 1.0)
     p, normal, R = p.copy(), normal.copy(), R.copy()
-    p[k] = p[a] + (way * b.away[k] * lead_mm)[:, None] * _secant(p, travel, b.zone, a, np.where(lead_in[k], 1, -1))
+    p[k] = p[a] + (way * b.away[k] * lead_mm)[:, None] * travel[a]
     normal[k], R[k] = normal[a], R[a]
     return p, normal, R
-
-
-def _secant(p: np.ndarray, travel: np.ndarray, zone: np.ndarray, anchor: np.ndarray, inward: np.ndarray) -> np.ndarray:
-    """The way of each lead (unit, along the row's travel): the work's end step (the anchor to the work pose
-    ``inward`` of it) continued, so the lead leaves the work polyline without a kink; the tangent ``travel`` where
-    the work has one pose. The tangent is the plane of the smoothed normal: where a CAD face bends within the
-    smoothing (the Vito door's edges) it kinked the path 6-16 deg at the work's end, and the time law's spline
-    through the kink bowed 0.1-0.3 mm into the part; on a convex part a secant continued runs above it."""
-    nxt = np.clip(anchor + inward, 0, len(p) - 1)
-    ok = (zone[nxt] == _WORK) & (nxt != anchor)
-    step = (p[nxt] - p[anchor]) * inward[:, None]
-    n = np.linalg.norm(step, axis=1, keepdims=True)
-    ok &= n[:, 0] > 1e-9
-    return np.where(ok[:, None], step / np.maximum(n, 1e-12), travel[anchor])
 
 
 def _transitions(surface, blocks: _Blocks, lift: np.ndarray, R: np.ndarray, settings: RasterSettings) -> _Poses:
