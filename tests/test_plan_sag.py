@@ -105,33 +105,29 @@ def test_a_lead_meets_the_face_above_it_keeps_the_arc_and_under_it_comes_onto_it
             assert np.allclose(T[0, :3, 3], expect) and sag[0] == pytest.approx(0.25)
 
 
-def test_a_lead_past_the_face_edge_gets_midposes_on_its_own_chord_not_on_the_surface_continued():
-    """Past the face's edge (the projector NaN: no triangle of it there) a lead's chord that runs under the
-    surface continued is not taken onto it -- the continued surface is not the part (the Vito door's lead-out went
-    onto it, 2 mm off its own line, and the joint spline through those midposes looped 5.5 mm into the door) --
-    but gets its own chord's midpoint, split while longer than LEAD_STEP_MM (the spline through a long lead step
-    that meets the work at a kink bowed out of it into the door's rim); over the surface continued: the arc."""
-    from camtool.plan.sag import LEAD_STEP_MM, _arc_midposes, _surface_midposes
+def test_a_leads_dip_is_split_down_to_a_least_step_and_a_step_over_a_hole_keeps_the_arc():
+    """A lead whose chord runs under the surface continued (past the face's edge: the projector NaN there, the
+    continued one not) comes onto it, but a dipping step of DIP_STEP_MM or less is split no further (the Vito door's
+    lead-out dipped to its very pose: halves of 0.19 mm next to a 5.9 mm step looped the time law's spline 5.45 mm
+    into the door); a step between two face poses over a hole (NaN) keeps the arc, not the membrane."""
+    from camtool.plan.sag import DIP_STEP_MM, _arc_midposes, _surface_midposes
     ridge = _crease_projector(-0.2)
 
-    def project(p, continued=False):                                   # the face ends at x = 1
+    def project(p, continued=False):                                   # no face for -1 < x < 0.5 (a hole) and x < -3
         q = ridge(p)
+        x = np.asarray(p)[..., 0]
         if not continued:
-            q[np.asarray(p)[..., 0] < 1.0] = np.nan
+            q[((x > -1.0) & (x < 0.5)) | (x < -3.0)] = np.nan
         return q
     work = _pose_at([5.0, 0.0, -1.0])
-    under = _pose_at([-5.0, 0.0, 0.5])                                 # under the ridge continued, past the edge
-    above = _pose_at([-5.0, 0.0, 3.0])
-    short = _pose_at([0.0, 0.0, -0.2])                                 # its chord from the work: midpoint over the face
-    steps = [(under, work), (above, work), (_pose_at([-0.6, 0.0, -0.62]), _pose_at([1.2, 0.0, -0.24]))]
+    steps = [(_pose_at([-5.0, 0.0, 0.5]), work),                      # a lead past the edge, under the ridge continued
+             (_pose_at([3.6, 0.0, -0.82]), _pose_at([5.0, 0.0, -1.0])),   # 1.41 mm: dips 0.05 mm, too short to split
+             (_pose_at([-2.0, 0.0, -0.4]), _pose_at([2.0, 0.0, -0.4]))]  # both on the face, the midpoint over the hole
     Ta = np.array([a for a, _ in steps])
     Tb = np.array([b for _, b in steps])
     T_arc, sag_arc = _arc_midposes(Ta, Tb)
     T, sag = _surface_midposes(Ta, Tb, T_arc, sag_arc, project)
-    mid = 0.5 * (Ta[:, :3, 3] + Tb[:, :3, 3])
-    assert np.allclose(T[0, :3, 3], mid[0]) and sag[0] == np.inf       # the chord's own midpoint, split on
-    assert np.allclose(T[1], T_arc[1]) and sag[1] == sag_arc[1]        # over the surface continued: the arc
-    assert np.allclose(T[2, :3, 3], mid[2]) and sag[2] == 0.0          # short enough: no further split
-    assert np.linalg.norm(Tb[2, :3, 3] - Ta[2, :3, 3]) <= LEAD_STEP_MM
-    T2, _ = _surface_midposes(Tb[:1], short[None], *_arc_midposes(Tb[:1], short[None]), project)
-    assert np.allclose(T2[0, :3, 3], [2.5, 0.0, -0.5])                # on the face: onto it
+    assert np.allclose(T[0, :3, 3], [0.0, 0.0, 0.0]) and sag[0] == pytest.approx(0.25)
+    assert np.linalg.norm(Tb[1, :3, 3] - Ta[1, :3, 3]) <= DIP_STEP_MM and sag[1] == 0.0
+    assert np.allclose(T[1, :3, 3], [4.3, 0.0, -0.86]) and sag_arc[1] == 0.0      # onto it, but no further split
+    assert np.allclose(T[2], T_arc[2]) and sag[2] == sag_arc[2]

@@ -22,12 +22,10 @@ tested is the chord's own distance from the surface there (issue #46: the wavy s
 0.25 mm off its facets), where both its poses lie on the face (``ON_FACE_MM``); a lead that rises off it past
 its edge keeps the arc (the surface there is only continued), unless its chord runs under the surface where
 it meets the face: then its midpose is taken onto the surface too (the wavy sheet's lead-ins into a trough).
-Only onto the face itself: a midpoint with no face under it (past its edge, over a hole: ``project`` NaN) keeps
-the arc (the Vito door's lead-out midposes, on the surface continued past a steep edge, were off the lead's own
-chord, and the joint spline through them looped 5.5 mm into the door). A lead whose chord runs under the
-surface continued past the edge gets midposes on its own chord instead, its steps from the face halved down to
-``LEAD_STEP_MM``: the time law's cubic spline through a 7.5 mm lead step that meets the work at a kink bowed
-0.2-0.44 mm out of it, into the door's rim.
+A step on the face whose midpoint has no face under it (over a hole: ``project`` NaN) keeps the arc. A lead's
+dip is split only down to ``DIP_STEP_MM``: a lead-out of the Vito door ran under the surface continued all the
+way to its pose, so every half dipped again and the halves shrank to 0.19 mm next to its next 5.9 mm step; the
+time law's cubic spline through knots so uneven, at a kink, looped 10 mm and 5.45 mm into the door.
 """
 from __future__ import annotations
 
@@ -44,7 +42,7 @@ from .densify import bisected, slerp_midposes
 
 MAX_SPLITS = 3  # a step is halved at most this many times for its sag (8 pieces), twice more for its bow
 ON_FACE_MM = 0.01      # a step whose poses both lie this close to a free-form face is on it (its midposes too)
-LEAD_STEP_MM = 2.0     # a lead step from a free-form face under its surface continued is halved down to this
+DIP_STEP_MM = 2.0      # a lead step whose chord dips under a free-form face is halved down to this, no further
 SAG_SCREEN_MM = 1e-6   # the batched screen leaves a step to its own test unless this much within the tolerance
                        # (arccos near parallel tool axes is good to ~1e-8 rad: ~1e-7 mm of sag on a 100 mm step)
 
@@ -96,10 +94,9 @@ def _surface_midposes(Ta, Tb, T_arc, sag_arc, project):
     """``_arc_midposes``' (m, 4, 4) midposes and (m,) sags with a free-form face's where the face decides: a step
     whose poses both lie on the face (``ON_FACE_MM``) gets the chord's midpoint taken onto the surface, its sag the
     chord's distance from it there; a step with one pose on it (a lead meeting the face) gets the same where its
-    chord runs under the surface (into the part), its sag how deep; the others keep the arc's, as does every step
-    whose midpoint has no face under it (``project`` NaN: past the face's edge, over a hole), except a lead step
-    from the face under the surface continued there (``project(..., continued=True)``): its chord's midpoint, split
-    while longer than ``LEAD_STEP_MM`` (sag inf)."""
+    chord runs under the surface (into the part; the surface continued past the face's edge, ``project(...,
+    continued=True)``), its sag how deep (0 once the step is ``DIP_STEP_MM`` or shorter); the others keep the arc's,
+    as does a step on the face whose midpoint has none under it (``project`` NaN: over a hole)."""
     T, sag = T_arc.copy(), sag_arc.copy()
     pa, pb = Ta[:, :3, 3], Tb[:, :3, 3]
     with np.errstate(invalid="ignore"):
@@ -110,12 +107,10 @@ def _surface_midposes(Ta, Tb, T_arc, sag_arc, project):
     onto = project(mid, continued=True)
     towards_tool = -(Ta[:, :3, 2] + Tb[:, :3, 2])
     under = np.einsum("ki,ki->k", onto - mid, towards_tool) > 0.0   # the surface lies between the chord and the tool
-    both, dips = (on == 2) & face, (on == 1) & under & face
+    both, dips = (on == 2) & face, (on == 1) & under
     T[both | dips, :3, 3] = onto[both | dips]
     sag[both | dips] = np.linalg.norm(onto - mid, axis=1)[both | dips]
-    lead = (on == 1) & under & ~face
-    T[lead, :3, 3] = mid[lead]
-    sag[lead] = np.where(np.linalg.norm(pb - pa, axis=1) > LEAD_STEP_MM, np.inf, 0.0)[lead]
+    sag[dips & (np.linalg.norm(pb - pa, axis=1) <= DIP_STEP_MM)] = 0.0
     return T, sag
 
 
