@@ -121,7 +121,7 @@ def test_a_leads_dip_is_split_down_to_a_least_step_and_a_step_over_a_hole_keeps_
         return q
     work = _pose_at([5.0, 0.0, -1.0])
     steps = [(_pose_at([-5.0, 0.0, 0.5]), work),                      # a lead past the edge, under the ridge continued
-             (_pose_at([3.6, 0.0, -0.82]), _pose_at([5.0, 0.0, -1.0])),   # 1.41 mm: dips 0.05 mm, too short to split
+             (_pose_at([4.4, 0.0, -0.98]), _pose_at([5.0, 0.0, -1.0])),   # 0.6 mm: dips 0.05 mm, too short to split
              (_pose_at([-2.0, 0.0, -0.4]), _pose_at([2.0, 0.0, -0.4]))]  # both on the face, the midpoint over the hole
     Ta = np.array([a for a, _ in steps])
     Tb = np.array([b for _, b in steps])
@@ -129,5 +129,5 @@ def test_a_leads_dip_is_split_down_to_a_least_step_and_a_step_over_a_hole_keeps_
     T, sag = _surface_midposes(Ta, Tb, T_arc, sag_arc, project)
     assert np.allclose(T[0, :3, 3], [0.0, 0.0, 0.0]) and sag[0] == pytest.approx(0.25)
     assert np.linalg.norm(Tb[1, :3, 3] - Ta[1, :3, 3]) <= DIP_STEP_MM and sag[1] == 0.0
-    assert np.allclose(T[1, :3, 3], [4.3, 0.0, -0.86]) and sag_arc[1] == 0.0      # onto it, but no further split
+    assert np.allclose(T[1, :3, 3], [4.7, 0.0, -0.94]) and sag_arc[1] == 0.0      # onto it, but no further split
     assert np.allclose(T[2], T_arc[2]) and sag[2] == sag_arc[2]
