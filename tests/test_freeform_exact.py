@@ -96,3 +96,85 @@ def test_turned_rows_keep_the_exact_heights(fillet):
     g = np.stack(np.meshgrid(np.linspace(lo[0], hi[0], 40), np.linspace(lo[1], hi[1], 9)), -1).reshape(-1, 2)
     uv = g[t.boundary.contains(g)]
     assert _off_mesh_mm(mesh, t.point_mm(uv[:, 0], uv[:, 1])).max() < 1e-6
+
+
+# --------------------------------------------------------------------------- a face's gaps (another face's slivers)
+
+GAP_R_MM = 20.0     # a tight cylindrical bend: a membrane over a 4 mm gap sags w^2 / (8 R) = 0.1 mm off it
+
+
+def cylinder_sheet(dx_mm=1.0, dy_mm=2.0, z_mm=0.0):
+    """z = sqrt(R^2 - x^2) - R + z_mm for |x| <= 14, |y| <= 30: (vertices, faces, each triangle's (x index, y))."""
+    xs, ys = np.arange(-14.0, 14.0 + 1e-9, dx_mm), np.arange(-30.0, 30.0 + 1e-9, dy_mm)
+    V = np.array([[x, y, np.sqrt(GAP_R_MM ** 2 - x ** 2) - GAP_R_MM + z_mm] for y in ys for x in xs])
+    n = len(xs)
+    F, col = [], []
+    for j in range(len(ys) - 1):
+        for i in range(n - 1):
+            a, b, c, d = j * n + i, j * n + i + 1, (j + 1) * n + i, (j + 1) * n + i + 1
+            F += [[a, b, d], [a, d, c]]
+            col += [(i, ys[j]), (i, ys[j])]
+    return V, np.array(F), np.array(col)
+
+
+@pytest.fixture(scope="module")
+def gapped():
+    """The sheet's face without two strips 4 mm x 40 mm inside it (their triangles another face's, as round the
+    door's bends), and under it a second skin 8 mm down (a closed part's other side): the whole part is both."""
+    V, F, col = cylinder_sheet()
+    V2, F2, _ = cylinder_sheet(z_mm=-8.0)
+    whole_V, whole_F = np.r_[V, V2], np.r_[F, F2 + len(V)]
+    i, y = col[:, 0], col[:, 1]
+    gap = (((i >= 3) & (i < 7)) | ((i >= 18) & (i < 22))) & (np.abs(y + 1.0) < 20.0)
+    own = F[~gap]
+    part = trimesh.Trimesh(whole_V, whole_F, process=False)
+    top = trimesh.Trimesh(V, F, process=False)
+    pts, fi = trimesh.sample.sample_surface(trimesh.Trimesh(V, own, process=False), 20000, seed=0)
+    normals = np.asarray(top.face_normals)[np.flatnonzero(~gap)][fi]
+    face = Workpiece(np.asarray(pts), normals, own, "face.stl", "mm", (), whole_V)
+    whole = Workpiece(np.asarray(part.vertices), np.asarray(part.face_normals), whole_F, "part.stl", "mm", (), whole_V)
+    from camtool.part.freeform import freeform_surface
+    return top, freeform_surface(face, FitSettings.make(model="freeform"), part=whole)
+
+
+def _over_the_gaps(s):
+    """World points 30 mm above the face over its two gap strips (a 7 x 9 grid on each)."""
+    x = np.r_[np.linspace(-10.5, -7.5, 7), np.linspace(4.5, 7.5, 7)]
+    XY = np.stack(np.meshgrid(x, np.linspace(-16, 16, 9)), -1).reshape(-1, 2)
+    return np.c_[XY, np.full(len(XY), 30.0)]
+
+
+def test_points_in_a_face_gap_lie_on_the_part(gapped):
+    """Over the strips the face lacks, its points are on the part's own (the neighbouring face's) triangles, not on
+    the height field's membrane (0.1 mm under the bend) and not on the other skin 8 mm down: the test fails
+    without the gap triangles (``gaps=None``)."""
+    top, s = gapped
+    assert s.gaps is not None and s.mesh is not None
+    P = _over_the_gaps(s)
+    assert _off_mesh_mm(top, s.project_mm(P)).max() < 1e-6
+    no_gaps = replace(s, gaps=None)
+    assert np.isnan(no_gaps.project_mm(P)[:, 2]).mean() > 0.8          # no triangle of its own there
+    c = (P - s.origin_mm) @ s.frame
+    membrane = s.origin_mm + np.c_[c[:, :2], no_gaps.height_at(c[:, 0], c[:, 1])] @ s.frame.T
+    assert _off_mesh_mm(top, membrane).max() > 0.03
+
+
+def test_the_gap_triangles_survive_the_stage_file_and_turned_rows(gapped):
+    top, s = gapped
+    back = surface_from_dict(json.loads(json.dumps(s.to_dict())))
+    assert back.gaps is not None and np.array_equal(back.gaps.faces, s.gaps.faces)
+    P = _over_the_gaps(s)
+    assert np.array_equal(back.project_mm(P), s.project_mm(P))
+    assert _off_mesh_mm(top, s.rows_at(np.radians(30.0)).project_mm(P)).max() < 1e-6
+
+
+def test_projection_past_the_face_edge_is_nan_and_the_points_keep_the_continued_surface(gapped):
+    """The sag's projector (``project_mm``) finds no face past its edge (NaN), where ``point_mm`` (the leads) runs on
+    the height field continued; over the face and its gaps it is the part's triangles."""
+    top, s = gapped
+    P = np.array([[18.0, 0.0, 30.0], [-18.0, 5.0, 30.0], [0.0, 0.0, 30.0]])
+    on = s.project_mm(P)
+    assert np.isnan(on[:2]).all() and np.isfinite(on[2]).all()
+    assert _off_mesh_mm(top, on[2:]).max() < 1e-6
+    c = (P - s.origin_mm) @ s.frame
+    assert np.isfinite(s.height_at(c[:, 0], c[:, 1])).all()

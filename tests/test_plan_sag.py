@@ -57,7 +57,7 @@ def test_batched_sags_are_the_midpose_sags():
 
 def _crease_projector(slope=0.2):
     """Onto the facetted surface z = slope * |x| (a crease along y), along z: the free-form face's projection."""
-    def project(p):
+    def project(p, continued=False):
         p = np.array(p, float)
         p[..., 2] = slope * np.abs(p[..., 0])
         return p
@@ -103,3 +103,31 @@ def test_a_lead_meets_the_face_above_it_keeps_the_arc_and_under_it_comes_onto_it
             assert np.allclose(T, T_arc) and np.allclose(sag, sag_arc)
         else:
             assert np.allclose(T[0, :3, 3], expect) and sag[0] == pytest.approx(0.25)
+
+
+def test_a_leads_dip_is_split_down_to_a_least_step_and_a_step_over_a_hole_keeps_the_arc():
+    """A lead whose chord runs under the surface continued (past the face's edge: the projector NaN there, the
+    continued one not) comes onto it, but a dipping step of DIP_STEP_MM or less is split no further (the Vito door's
+    lead-out dipped to its very pose: halves of 0.19 mm next to a 5.9 mm step looped the time law's spline 5.45 mm
+    into the door); a step between two face poses over a hole (NaN) keeps the arc, not the membrane."""
+    from camtool.plan.sag import DIP_STEP_MM, _arc_midposes, _surface_midposes
+    ridge = _crease_projector(-0.2)
+
+    def project(p, continued=False):                                   # no face for -1 < x < 0.5 (a hole) and x < -3
+        q = ridge(p)
+        x = np.asarray(p)[..., 0]
+        if not continued:
+            q[((x > -1.0) & (x < 0.5)) | (x < -3.0)] = np.nan
+        return q
+    work = _pose_at([5.0, 0.0, -1.0])
+    steps = [(_pose_at([-5.0, 0.0, 0.5]), work),                      # a lead past the edge, under the ridge continued
+             (_pose_at([4.4, 0.0, -0.98]), _pose_at([5.0, 0.0, -1.0])),   # 0.6 mm: dips 0.05 mm, too short to split
+             (_pose_at([-2.0, 0.0, -0.4]), _pose_at([2.0, 0.0, -0.4]))]  # both on the face, the midpoint over the hole
+    Ta = np.array([a for a, _ in steps])
+    Tb = np.array([b for _, b in steps])
+    T_arc, sag_arc = _arc_midposes(Ta, Tb)
+    T, sag = _surface_midposes(Ta, Tb, T_arc, sag_arc, project)
+    assert np.allclose(T[0, :3, 3], [0.0, 0.0, 0.0]) and sag[0] == pytest.approx(0.25)
+    assert np.linalg.norm(Tb[1, :3, 3] - Ta[1, :3, 3]) <= DIP_STEP_MM and sag[1] == 0.0
+    assert np.allclose(T[1, :3, 3], [4.7, 0.0, -0.94]) and sag_arc[1] == 0.0      # onto it, but no further split
+    assert np.allclose(T[2], T_arc[2]) and sag[2] == sag_arc[2]

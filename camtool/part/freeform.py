@@ -40,6 +40,8 @@ LEAD_LIFT_MIN_MM = 1.0      # a free-form face's leads rise at least this far (a
 MARGIN_CELLS = 4            # nodes of margin round the face's box (the leads start on the surface continued)
 SCAN_NORMAL_NOISE_DEG = 0.1         # a scan's normals are smoothed until its noise tilts them by at most this (RMS)
 SCAN_NORMAL_SMOOTHING_MAX_MM = 10.0  # ... but over a Gaussian of at most this sigma (a 40 mm disc: the part's shape)
+GAP_BAND_MM = 5.0           # another face's triangle over the face within this of the height field is the part's
+                            # surface in a gap of the face's own triangles (farther: a flange over it, another skin)
 
 
 def _b64(a: np.ndarray) -> dict:
@@ -67,7 +69,10 @@ class FreeformSurface:
     (ny, nx) the face's nodes, ``distance`` (ny, nx) the signed geodesic distance from the seed row.
     ``table_grid`` / ``table``: chart y per (u, v). (u, v) are (chart x, geodesic distance), both mm.
     ``mesh``: a CAD mesh face's own triangles; its points are then on them wherever one lies over the chart point
-    (``freeform_exact``), the height field's elsewhere (holes, the margin the leads run on)."""
+    (``freeform_exact``), the height field's elsewhere (holes, the margin the leads run on).
+    ``gaps``: the part's other triangles in the face's gaps (``GAP_BAND_MM``): a CAD face whose own triangles leave
+    slivers to a neighbouring face (the door's skin round its tight bends) is closed over them (``close_gaps_mm``);
+    a point there is on the part's triangle, not on the height field's membrane (0.1-0.69 mm off the door)."""
 
     origin_mm: np.ndarray
     frame: np.ndarray
@@ -85,6 +90,7 @@ class FreeformSurface:
     normal_smoothing_mm: float = NORMAL_SMOOTHING_MM
     warnings: tuple[str, ...] = ()
     mesh: ChartMesh | None = None        # a CAD mesh face's triangles (chart coordinates): exact heights between nodes
+    gaps: ChartMesh | None = None        # the part's other triangles in the face's gaps (chart coordinates)
     model: str = field(default="freeform", init=False)
     uv_unit: str = field(default="mm", init=False)
 
@@ -100,12 +106,25 @@ class FreeformSurface:
         return u, self.table_grid.interp(self.table, u, v)
 
     def height_at(self, x, y) -> np.ndarray:
-        """Heights (mm) at chart (x, y): a CAD mesh face's own triangle's where it has one, else the height field's."""
+        """Heights (mm) at chart (x, y): a CAD mesh face's own triangle's where it has one, else the part's triangle
+        in a gap of the face (``gaps``), else the height field's."""
         h = self.grid.interp(self.height, x, y)
         if self.mesh is None:
             return h
-        exact = self.mesh.heights(x, y)
+        exact = self.triangle_heights(x, y)
         return np.where(np.isfinite(exact), exact, h)
+
+    def triangle_heights(self, x, y) -> np.ndarray:
+        """Heights (mm) at chart (x, y) of a CAD mesh face's own triangle, else of the part's in a gap of the face;
+        NaN where neither lies over the point (past the face's edge, over a hole) or the face is a scan's."""
+        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+        if self.mesh is None:
+            return np.full(x.shape, np.nan)
+        exact = self.mesh.heights(x, y)
+        miss = ~np.isfinite(exact)
+        if self.gaps is not None and miss.any():
+            exact[miss] = self.gaps.heights(x[miss], y[miss])
+        return exact
 
     def point_mm(self, u, v) -> np.ndarray:
         """Points (..., 3) in mm at u (along the rows, mm) and v (geodesic distance across them, mm)."""
@@ -130,10 +149,15 @@ class FreeformSurface:
             return LEAD_LIFT_MIN_MM
         return max(NOISE_BAND_SIGMAS * float(self.stats.rms_mm), LEAD_LIFT_MIN_MM)
 
-    def project_mm(self, points_mm: np.ndarray) -> np.ndarray:
-        """Points (..., 3) mm taken onto the surface along the chart's normal e3 (the height field over them)."""
+    def project_mm(self, points_mm: np.ndarray, continued: bool = False) -> np.ndarray:
+        """Points (..., 3) mm taken onto the surface along the chart's normal e3: onto a CAD mesh face's triangles
+        (``triangle_heights``), NaN where it has none under a point (past its edge the height field only continues
+        the face; the part there may fall away or turn: issue #46, a Vito door lead's midpose went onto it and the
+        joint spline through them looped 5.5 mm into the door); a scan's onto its height field. ``continued``: onto
+        the surface continued (``height_at``) everywhere."""
         c = (np.asarray(points_mm, float) - self.origin_mm) @ self.frame
-        h = self.height_at(c[..., 0], c[..., 1])
+        exact = self.mesh is not None and not continued
+        h = self.triangle_heights(c[..., 0], c[..., 1]) if exact else self.height_at(c[..., 0], c[..., 1])
         return self.origin_mm + c[..., 0, None] * self.frame[:, 0] + c[..., 1, None] * self.frame[:, 1] \
             + h[..., None] * self.frame[:, 2]
 
@@ -209,13 +233,9 @@ class FreeformSurface:
         inside = (fi >= 0) & (fi < self.grid.nx) & (fj >= 0) & (fj < self.grid.ny)
         material = np.zeros(h.shape, bool)
         material[inside] = self.material[fj[inside], fi[inside]]
-        mesh = None
-        if self.mesh is not None:   # the same triangles in the turned chart
-            V = self.mesh.vertices.copy()
-            V[:, :2] = V[:, :2] @ rot.T
-            mesh = ChartMesh(V, self.mesh.faces)
         return _assembled(self.origin_mm, frame, grid, h, n, material, self.stats, self.source_kind,
-                          self.smoothing_mm, self.normal_smoothing_mm, self.warnings, close_px=0, mesh=mesh)
+                          self.smoothing_mm, self.normal_smoothing_mm, self.warnings, close_px=0,
+                          mesh=_turned(self.mesh, rot), gaps=_turned(self.gaps, rot))
 
     # ----------------------------------------------------------------- stage files
 
@@ -238,8 +258,9 @@ class FreeformSurface:
             "uv_unit": "mm",
             "boundary": self.boundary.to_dict(),
         }
-        if self.mesh is not None:
-            d.update(mesh_vertices=_b64(self.mesh.vertices), mesh_faces=_b64(self.mesh.faces.astype(np.int64)))
+        for name, m in (("mesh", self.mesh), ("gap", self.gaps)):
+            if m is not None:
+                d.update({f"{name}_vertices": _b64(m.vertices), f"{name}_faces": _b64(m.faces.astype(np.int64))})
         if self.stats is not None:
             st = self.stats
             d.update(inlier_ratio=st.inlier_ratio, rms_mm=st.rms_mm, max_residual_mm=st.max_residual_mm,
@@ -265,13 +286,6 @@ class FreeformSurface:
         for a in (height, normals, distance, table):
             if not np.all(np.isfinite(a)) or np.abs(a).max() > 1e7:
                 raise ValueError("freeform arrays must be finite")
-        mesh = None
-        if "mesh_vertices" in d:
-            V, F = _unb64(d["mesh_vertices"], "float64"), _unb64(d["mesh_faces"], "int64")
-            if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3 or not np.all(np.isfinite(V)) \
-                    or (len(F) and (F.min() < 0 or F.max() >= len(V))):
-                raise ValueError("freeform mesh: vertices (n, 3) finite and faces (m, 3) indexing them")
-            mesh = ChartMesh(V, F)
         stats = None
         if "inlier_ratio" in d:
             stats = FitStats(d["inlier_ratio"], d["rms_mm"], d["max_residual_mm"], d["n_points"], d["n_inliers"])
@@ -279,7 +293,28 @@ class FreeformSurface:
                                Boundary.from_dict(d["boundary"]), stats, str(d.get("source_kind", "mesh")),
                                float(d.get("smoothing_mm", 0.0)),
                                float(d.get("normal_smoothing_mm", NORMAL_SMOOTHING_MM)),
-                               tuple(str(w) for w in d.get("warnings", ())), mesh)
+                               tuple(str(w) for w in d.get("warnings", ())), _mesh_from_dict(d, "mesh"),
+                               _mesh_from_dict(d, "gap"))
+
+
+def _turned(mesh: ChartMesh | None, rot: np.ndarray) -> ChartMesh | None:
+    """The same triangles in a chart turned about e3 (``rot`` maps old chart (x, y) to new)."""
+    if mesh is None:
+        return None
+    V = mesh.vertices.copy()
+    V[:, :2] = V[:, :2] @ rot.T
+    return ChartMesh(V, mesh.faces)
+
+
+def _mesh_from_dict(d: dict, name: str) -> ChartMesh | None:
+    """A stage file's chart mesh ``{name}_vertices`` / ``{name}_faces``, None when absent."""
+    if f"{name}_vertices" not in d:
+        return None
+    V, F = _unb64(d[f"{name}_vertices"], "float64"), _unb64(d[f"{name}_faces"], "int64")
+    if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3 or not np.all(np.isfinite(V)) \
+            or (len(F) and (F.min() < 0 or F.max() >= len(V))):
+        raise ValueError(f"freeform {name}: vertices (n, 3) finite and faces (m, 3) indexing them")
+    return ChartMesh(V, F)
 
 
 # --------------------------------------------------------------------------- building
@@ -368,7 +403,8 @@ def _flat_outside(height: np.ndarray, material: np.ndarray) -> np.ndarray:
 
 
 def _assembled(origin, frame, grid, height, normals, material, stats, source_kind, smoothing_mm,
-               normal_smoothing_mm, warnings, close_px, mesh: ChartMesh | None = None) -> FreeformSurface:
+               normal_smoothing_mm, warnings, close_px, mesh: ChartMesh | None = None,
+               gaps: ChartMesh | None = None) -> FreeformSurface:
     """The surface with its row chart (distance field, table) and boundary made from its height field."""
     if material.sum() < 9:
         raise BadInput("free-form face: fewer than 9 grid nodes of material; the face is too small for its grid")
@@ -377,7 +413,7 @@ def _assembled(origin, frame, grid, height, normals, material, stats, source_kin
     boundary = _boundary(grid, material, distance, close_px)
     return FreeformSurface(np.asarray(origin, float), np.asarray(frame, float), grid, height, normals, material,
                            distance, tgrid, table, boundary, stats, source_kind, smoothing_mm,
-                           normal_smoothing_mm, tuple(warnings), mesh)
+                           normal_smoothing_mm, tuple(warnings), mesh, gaps)
 
 
 def _median_spacing(xy: np.ndarray, sample: int = 20000, queries: int = 2000) -> float:
@@ -420,14 +456,49 @@ def _fit_stats(residuals_mm, n_points: int, threshold_mm: float) -> FitStats:
     return FitStats(n_in / n_points, rms, float(res_abs.max()), int(n_points), n_in)
 
 
+def _gap_mesh(part, own_faces: np.ndarray, origin, frame, grid: Grid, height: np.ndarray,
+              material: np.ndarray) -> ChartMesh | None:
+    """The triangles of ``part`` (the whole workpiece mesh) that are not the face's own (``own_faces``, rows of the
+    part's faces) and lie in the face's gaps: the middle over a node within the face's outline (its material or
+    a hole in it), every corner within ``GAP_BAND_MM`` of the (filled) height field. None when there are none."""
+    from scipy.ndimage import binary_fill_holes
+
+    F = np.ascontiguousarray(np.asarray(part.faces, np.int64))
+    own = np.ascontiguousarray(np.asarray(own_faces, np.int64))
+    row = np.dtype([("a", np.int64), ("b", np.int64), ("c", np.int64)])
+    other = F[~np.isin(F.view(row).ravel(), own.view(row).ravel())]
+    if not len(other):
+        return None
+    V = to_chart(np.asarray(part.vertices_mm, float), origin, frame)
+    T = V[other]
+    mid = T.mean(axis=1)
+    i = np.rint((mid[:, 0] - grid.x0) / grid.g).astype(np.int64)
+    j = np.rint((mid[:, 1] - grid.y0) / grid.g).astype(np.int64)
+    inside = (i >= 0) & (i < grid.nx) & (j >= 0) & (j < grid.ny)
+    over = np.zeros(len(other), bool)
+    over[inside] = binary_fill_holes(material)[j[inside], i[inside]]
+    near = np.abs(T[..., 2] - grid.interp(height, T[..., 0], T[..., 1])).max(axis=1) <= GAP_BAND_MM
+    keep = over & near
+    return ChartMesh.of(V, other[keep]) if keep.any() else None
+
+
+def _face_meshes(workpiece, part, V_chart: np.ndarray, origin, frame, grid: Grid, height: np.ndarray,
+                 material: np.ndarray) -> tuple[ChartMesh, ChartMesh | None]:
+    """(a mesh face's own triangles, the part's triangles in its gaps or None) in chart coordinates."""
+    gaps = None
+    if getattr(part, "faces", None) is not None and getattr(part, "vertices_mm", None) is not None:
+        gaps = _gap_mesh(part, workpiece.faces, origin, frame, grid, height, material)
+    return ChartMesh.of(V_chart, workpiece.faces), gaps
+
+
 def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
-                     normal_smoothing_mm: float = NORMAL_SMOOTHING_MM) -> FreeformSurface:
+                     normal_smoothing_mm: float = NORMAL_SMOOTHING_MM, part=None) -> FreeformSurface:
     """A free-form surface (world mm) of a placed workpiece, or of its points ``indices`` (one face).
 
     A mesh workpiece is sampled exactly from its triangles (z-buffer); a cloud is cleaned of outliers and
     smoothed at ``settings.smoothing_mm`` (0: ``SCAN_SMOOTHING_SPACINGS`` point spacings, at least
-    ``SCAN_SMOOTHING_MIN_MM``). ``settings``: ``FitSettings`` (threshold, close_gaps_mm, smoothing_mm).
-    BadInput with one line when the points hold no surface."""
+    ``SCAN_SMOOTHING_MIN_MM``). ``settings``: ``FitSettings`` (threshold, close_gaps_mm, smoothing_mm). ``part``: the
+    whole mesh ``workpiece`` is a face of (``_gap_mesh``). BadInput with one line when the points hold no surface."""
     P = np.asarray(workpiece.points_mm, float)
     N = np.asarray(workpiece.normals, float)
     source = getattr(workpiece, "source", "") or "workpiece"
@@ -497,5 +568,6 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
     stats = _fit_stats(res, len(P), float(settings.threshold_mm))
     close_px = int(math.ceil(float(settings.close_gaps_mm) / g))
+    mesh, gaps = _face_meshes(workpiece, part, V, origin, frame, grid, height, material) if is_mesh else (None, None)
     return _assembled(origin, frame, grid, height, normals, material, stats, "mesh" if is_mesh else "scan", sigma,
-                      normal_smoothing_mm, warnings, close_px, ChartMesh.of(V, workpiece.faces) if is_mesh else None)
+                      normal_smoothing_mm, warnings, close_px, mesh, gaps)

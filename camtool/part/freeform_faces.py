@@ -321,7 +321,7 @@ def _built_face(workpiece, idx: np.ndarray, labels: np.ndarray, r: int, keys: _F
     from .freeform import freeform_surface
 
     try:
-        surface = freeform_surface(_region_workpiece(workpiece, idx, labels, r, triangle_label), keys)
+        surface = freeform_surface(_region_workpiece(workpiece, idx, labels, r, triangle_label), keys, part=workpiece)
     except BadInput:
         return None
     P = np.asarray(workpiece.points_mm, float)[idx]
