@@ -76,13 +76,15 @@ def _segment(settings: FacesSettings, workpiece) -> Segmentation:
 
 def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: SegmentSettings) -> Segmentation:
     """The faces of a STEP part: plane, sphere and cylinder B-rep faces exactly (``camtool.part.step``), the
-    others' points segmented by RANSAC. Each workpiece point belongs to the B-rep face of its nearest triangle."""
+    others as free-form faces, B-rep faces meeting tangentially joined (``step_freeform``; RANSAC takes the points
+    of those that give none). Each workpiece point belongs to the B-rep face of its nearest triangle."""
     import trimesh
 
     from .fit import cylinder_surface, plane_surface, sphere_patch
     from .sampling import MIN_FACE_SAMPLES
     from .segment import area_mm2, boundaries_on_edges, boundary_on_points
     from .step import read_step_faces, step_mesh
+    from .step_freeform import BrepMesh, freeform_step_faces
     from .surface import FitStats
     from .workpiece import Workpiece
 
@@ -123,8 +125,12 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
             make = lambda st, Q=Q, NQ=NQ, c=c, a=a, r=r: cylinder_surface(Q, NQ, c, a, r, st, bkw)  # noqa: E731
         stats = FitStats(len(idx) / len(P), float(np.sqrt(np.mean(res ** 2))), float(res.max()), len(P), len(idx))
         built.append((boundary_on_points(make(stats), Q), idx))
-    dropped = 0
-    if rest:  # the other faces: RANSAC on their points
+    dropped, free = 0, []
+    if rest and settings.freeform_faces:   # the other faces: free-form faces, tangent ones joined
+        other = np.array([k for k, f in enumerate(step_faces) if f.model == "other"], np.int64)
+        free, rest = freeform_step_faces(BrepMesh(mesh.vertices.view(np.ndarray), tris, owner), other,
+                                         lambda k: by_face[starts[k]:starts[k + 1]], workpiece, settings)
+    if rest:  # the other faces that gave no free-form face: RANSAC on their points
         idx_rest = np.concatenate(rest)
         if len(idx_rest) >= 4 * MIN_FACE_SAMPLES:
             # the B-rep's other faces by RANSAC, as planes, spheres and cylinders only (their free-form charts
@@ -137,6 +143,7 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     if kept:  # the B-rep faces' exact surfaces meet exactly: their boundaries go onto those edges
         moved = boundaries_on_edges([s for s, _ in kept], [idx for _, idx in kept], workpiece, settings.threshold_mm)
         kept = [(s, idx) for s, (_, idx) in zip(moved, kept)]
+    kept += free   # (a free-form face's boundary is its own triangles': on its B-rep edges already)
     areas = [area_mm2(s) for s, _ in kept]
     order = sorted(range(len(kept)), key=lambda k: (-round(areas[k], 6), k))
     faces = tuple(Face(i, kept[k][0], kept[k][1], areas[k]) for i, k in enumerate(order))

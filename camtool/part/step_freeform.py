@@ -1,0 +1,131 @@
+"""A STEP part's free-form B-rep faces as free-form faces (issue #46).
+
+``faces.step_segmentation`` takes a STEP part's plane, sphere and cylinder B-rep faces exactly. Every
+other face (B-spline, Bezier, revolution, extrusion, offset, cone, torus: ``model == "other"``) is a
+free-form face here, made as the mesh path makes one (``freeform_faces.mesh_region_faces``:
+``freeform.freeform_surface`` on the face's own OCP tessellation, ``step.DEFLECTION_MM`` from the B-rep,
+so its points lie on the part's own triangles; a region one height field cannot hold is cut into charts).
+
+**Tangent B-rep faces are one face.** A car panel or a blade is exported as several patches meeting
+tangentially (G1); a process engineer picks the panel, not its patches. Two non-analytic B-rep faces
+are one region where they meet across tessellation edges whose dihedral angle (unsigned, as
+``creases`` takes it) is at most ``faces.sharp_edge_deg`` (median over their shared edges): the crease
+key of the mesh path. A sharp edge keeps them apart. Analytic faces are not joined to them: they keep
+exactly what they had (their exact surface and their boundary on the B-rep edges).
+
+A free-form face's boundary is the material of its own triangles, so it ends on the B-rep edges that
+bound its patches. Where the region gives no free-form face (too few points, a region no chart holds),
+its B-rep faces are tried one by one, and what still gives none goes to RANSAC, as before.
+
+The shared edges are found on the tessellation: OCP tessellates each edge once for both of its faces,
+so their nodes coincide; nodes within ``MERGE_MM`` are merged (by hand: a union of the pairs a KD-tree
+finds, since trimesh merges only to its own fixed digits).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+MERGE_MM = 1e-3   # tessellation nodes of two B-rep faces this close are one node of their shared edge
+
+
+@dataclass(frozen=True)
+class BrepMesh:
+    """The placed tessellation of a STEP part: vertices (mm, world), triangles, each triangle's B-rep face."""
+
+    vertices_mm: np.ndarray
+    triangles: np.ndarray
+    owner: np.ndarray
+
+
+def _merged(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """``F`` with nodes closer than ``MERGE_MM`` renumbered to one (the lowest index of their cluster)."""
+    used = np.unique(F)
+    pairs = cKDTree(V[used]).query_pairs(MERGE_MM, output_type="ndarray")
+    n = len(used)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, comp = connected_components(graph, directed=False)
+    first = np.full(int(comp.max()) + 1, n, np.int64)
+    np.minimum.at(first, comp, np.arange(n))
+    canon = np.zeros(int(V.shape[0]), np.int64)
+    canon[used] = used[first[comp]]
+    return canon[F]
+
+
+def tangent_groups(mesh: BrepMesh, faces: np.ndarray, sharp_edge_deg: float) -> list[np.ndarray]:
+    """The B-rep faces ``faces`` (indices) in groups that meet tangentially (module docstring), each group
+    ascending, the groups by their first face."""
+    import trimesh
+
+    faces = np.asarray(faces, np.int64)
+    if len(faces) < 2:
+        return [faces] if len(faces) else []
+    tri = np.flatnonzero(np.isin(mesh.owner, faces))
+    F = _merged(mesh.vertices_mm, mesh.triangles[tri])
+    tm = trimesh.Trimesh(mesh.vertices_mm, F, process=False, validate=False)
+    pairs = np.asarray(tm.face_adjacency, np.int64).reshape(-1, 2)
+    angle = np.degrees(np.asarray(tm.face_adjacency_angles, float))
+    angle = np.minimum(angle, 180.0 - angle)
+    a, b = mesh.owner[tri[pairs[:, 0]]], mesh.owner[tri[pairs[:, 1]]]
+    cross = (a != b) & np.isfinite(angle)
+    slot = {int(f): k for k, f in enumerate(faces)}
+    lo = np.array([slot[int(x)] for x in np.minimum(a[cross], b[cross])], np.int64)
+    hi = np.array([slot[int(x)] for x in np.maximum(a[cross], b[cross])], np.int64)
+    joined_lo, joined_hi = [], []
+    if len(lo):
+        key = lo * len(faces) + hi
+        order = np.argsort(key, kind="stable")
+        key, ang = key[order], angle[cross][order]
+        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        for s, e in zip(starts, np.r_[starts[1:], len(key)]):
+            if float(np.median(ang[s:e])) <= sharp_edge_deg:
+                joined_lo.append(int(key[s] // len(faces)))
+                joined_hi.append(int(key[s] % len(faces)))
+    n = len(faces)
+    graph = coo_matrix((np.ones(len(joined_lo)), (joined_lo, joined_hi)), shape=(n, n))
+    _, comp = connected_components(graph, directed=False)
+    groups = [faces[comp == c] for c in range(int(comp.max()) + 1)]
+    return sorted(groups, key=lambda g: int(g[0]))
+
+
+def _group_faces(mesh: BrepMesh, group: np.ndarray, idx: np.ndarray, workpiece, settings) -> list:
+    """The free-form faces ``(surface, inliers)`` of one group of B-rep faces whose points are ``idx``."""
+    from .freeform_faces import mesh_region_faces
+    from .sampling import MIN_FACE_SAMPLES
+    from .workpiece import Workpiece
+
+    if len(idx) < max(MIN_FACE_SAMPLES, 100):
+        return []
+    F = mesh.triangles[np.isin(mesh.owner, group)]
+    region = Workpiece(np.asarray(workpiece.points_mm, float)[idx], np.asarray(workpiece.normals, float)[idx], F,
+                       workpiece.source, workpiece.units, (), mesh.vertices_mm)
+    built = mesh_region_faces(region, settings.threshold_mm, settings.close_gaps_mm)
+    return [(s, idx[local]) for s, local, area in built
+            if area >= settings.min_area_mm2 and len(local) >= MIN_FACE_SAMPLES]
+
+
+def freeform_step_faces(mesh: BrepMesh, other: np.ndarray, points_of, workpiece, settings) -> tuple[list, list]:
+    """The free-form faces ``(surface, inliers)`` of the non-analytic B-rep faces ``other``, and the points
+    (index arrays) of those that gave none (for RANSAC). ``points_of(k)``: the workpiece points of B-rep face k.
+    ``settings``: ``SegmentSettings``."""
+    built, rest = [], []
+    for group in tangent_groups(mesh, other, settings.sharp_edge_deg):
+        idx = np.sort(np.concatenate([points_of(int(k)) for k in group]))
+        faces = _group_faces(mesh, group, idx, workpiece, settings)
+        held = sum(len(i) for _, i in faces)
+        if len(group) > 1 and held < 0.5 * len(idx):   # the region gives no face: its B-rep faces one by one
+            faces = []
+            for k in group:
+                mine = points_of(int(k))
+                one = _group_faces(mesh, np.array([k]), mine, workpiece, settings)
+                faces += one
+                if not one:
+                    rest.append(mine)
+        elif not faces:
+            rest.append(idx)
+        built += faces
+    return built, rest
