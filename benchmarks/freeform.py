@@ -87,7 +87,14 @@ PARTS = {
                            "9a3d44f42faf03ff0146bcdfd6ec17a7dedefcd3bba8c9037796f59580e656f2", 25.0, 10.0),
     "vito_door_cad": ("vito_door_cad.obj", "cad",
                       "06fa5f6f2e7863640626baf3313974160c0aa04de72003a5bfc54b3d94212eeb", 25.0, 10.0),
+    # STEP parts (their B-rep faces; the job selects its free-form face, `[faces] select = "freeform"`): the mesh
+    # measured against is the part's own OCP tessellation (camtool.part.step); sha None: generated here
+    "step_wavy_panel": ("step_wavy_panel.step", "cad", None, 15.0, 5.0),
 }
+# generated parts: name -> a function writing the file (tests/test_step_freeform.py's four tangent B-spline patches
+# and a planar flange at a sharp edge, by OCP)
+GENERATED = {"step_wavy_panel": "test_step_freeform:wavy_panel_step"}
+STEP_SUFFIXES = (".step", ".stp")
 # parts not kept in this repository (their licence is copyleft, or the source asks that they be fetched): put the
 # file at PARTS_DIR / its name, as LICENSES.md says, byte for byte (the SHA-256 is checked); absent, the part is skipped
 FETCH = {"vito_door_cad": "github.com/sento86/kuka_idf at f87be0aeead24ac3c93c02b700918f504c2e6bc1, "
@@ -118,6 +125,8 @@ def job_text(name, file: Path, T: np.ndarray, step: float, pitch: float, scale: 
     rpy = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
     f = lambda v: "[" + ", ".join(f"{x:.6f}" for x in v) + "]"   # noqa: E731
     units = {1000.0: "m", 1.0: "mm"}.get(scale)
+    step_part = Path(file).suffix.lower() in STEP_SUFFIXES
+    face = '[faces]\nselect = "freeform"\n\n' if step_part else '[fit]\nmodel = "freeform"\n\n'
     if units is None:      # a file without units: scaled into a copy in mm beside the job
         import trimesh
         m = trimesh.load(str(file), force="mesh", process=False)
@@ -126,12 +135,34 @@ def job_text(name, file: Path, T: np.ndarray, step: float, pitch: float, scale: 
         m.export(file)
         units = "mm"
     return (f'# benchmarks/freeform.py: {name}\n[workpiece]\nfile = "{file}"\nunits = "{units}"\n\n'
-            f'[fit]\nmodel = "freeform"\n\n'
-            f'[raster]\nstep_over_mm = {step}\npitch_mm = {pitch}\nlead_mm = 15.0\ntool_x_world = [0.0, 0.0, 1.0]\n\n'
+            f'{face}[raster]\nstep_over_mm = {step}\npitch_mm = {pitch}\nlead_mm = 15.0\ntool_x_world = [0.0, 0.0, 1.0]\n\n'
             f'[robot]\nname = "irb2400"\n\n'
             f'[cell]\nworkpiece_xyz_mm = {f(T[:3, 3])}\nworkpiece_rpy_deg = {f(rpy)}\n\n'
             f'[tool]\nname = "polisher"\ntcp_xyz_mm = [0.0, 0.0, {TCP_MM}]\nmass_kg = 2.0\n\n'
             f'[post]\nformats = ["rapid", "csv"]\nprogram_name = "FREEFORM"\n')
+
+
+def generated_part(name: str, out: Path) -> Path:
+    """The generated part's file, written into ``out`` (GENERATED)."""
+    import importlib
+
+    sys.path[:0] = [str(ROOT), str(ROOT / "tests")]   # (the test imports this checkout's camtool)
+    module, func = GENERATED[name].split(":")
+    return getattr(importlib.import_module(module), func)(out / PARTS[name][0])
+
+
+def step_part_mesh(path: Path):
+    """A STEP part's own tessellation (camtool.part.step: OCP at DEFLECTION_MM), its B-rep faces' shared nodes
+    merged (trimesh: the face's connectivity for the geodesic steps)."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from camtool.part.step import step_mesh
+
+    V, F, _ = step_mesh(path)
+    m = trimesh.Trimesh(V, F, process=True)
+    m.update_faces(m.nondegenerate_faces(height=1e-9))
+    m.remove_unreferenced_vertices()
+    return m
 
 
 # --- camtool, as a user runs it ---------------------------------------------------------------
@@ -237,13 +268,15 @@ def verdict(fig: fm.Figures, kind: str, step: float) -> str:
 def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: list[str] = ()) -> None:
     fname, kind, sha, step, pitch = PARTS[name]
     path = PARTS_DIR / fname
+    if name in GENERATED:
+        path = generated_part(name, out)
     if name in FETCH and not path.exists():
         print(f"\n== {name}: skipped, {path.relative_to(ROOT)} is not here (fetch it: {FETCH[name]})")
         return
-    if hashlib.sha256(path.read_bytes()).hexdigest() != sha:
+    if sha is not None and hashlib.sha256(path.read_bytes()).hexdigest() != sha:
         raise SystemExit(f"{path} is not the file LICENSES.md records")
-    scale = SCALE.get(name, 1000.0)
-    mesh = fm.load_mesh(path, scale)
+    scale = SCALE.get(name, 1.0 if path.suffix.lower() in STEP_SUFFIXES else 1000.0)
+    mesh = step_part_mesh(path) if path.suffix.lower() in STEP_SUFFIXES else fm.load_mesh(path, scale)
     _, _, vt = np.linalg.svd(mesh.vertices - mesh.vertices.mean(0), full_matrices=False)
     region = fm.face_region(mesh, up=vt[2], max_tilt_deg=60.0)
     face = mesh.submesh([np.flatnonzero(region)], append=True)
