@@ -9,7 +9,7 @@ import pytest
 from camtool.part.faces import FacesSettings, segment_faces, select_faces
 from camtool.part.segment import SegmentSettings
 from camtool.part.step import read_step_faces, step_mesh
-from camtool.part.step_freeform import BrepMesh, tangent_groups
+from camtool.part.step_freeform import BrepMesh, reversed_faces, tangent_groups
 from camtool.part.workpiece import load_workpiece
 
 X_MM, Y_MM, FLANGE_Z_MM = 150.0, 100.0, -40.0   # the sheet spans |x| <= X, |y| <= Y; the flange x = X down to Z
@@ -135,3 +135,15 @@ def test_select_works_on_the_freeform_face(panel):
     assert [f.index for f in select_faces(seg, {"nearest_mm": [0.0, 0.0, 0.0]}, wp)] == [0]
     assert [f.index for f in select_faces(seg, {"nearest_mm": [X_MM, 0.0, -30.0]}, wp)] == [1]
     assert [f.index for f in select_faces(seg, [1], wp)] == [1]
+
+
+def test_a_patch_wound_the_other_way_is_turned_to_agree(panel):
+    """An open shell's patches need not agree on a side: one wound the other way is found across the tangent
+    seams (and the flange, across a sharp edge, tells nothing)."""
+    V, F, owner = step_mesh(panel[0])
+    assert reversed_faces(BrepMesh(V, F, owner), np.arange(4)).tolist() == []
+    for k in (1, 3):
+        G = np.where((owner == k)[:, None], F[:, ::-1], F)
+        assert reversed_faces(BrepMesh(V, G, owner), np.arange(4)).tolist() == [k]
+        others = [i for i in range(4) if i != k]
+        assert reversed_faces(BrepMesh(V, G, owner), np.array([k, *others])).tolist() == others   # from face k

@@ -128,7 +128,7 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     dropped, free = 0, []
     if rest and settings.freeform_faces:   # the other faces: free-form faces, tangent ones joined
         other = np.array([k for k, f in enumerate(step_faces) if f.model == "other"], np.int64)
-        free, rest = freeform_step_faces(BrepMesh(mesh.vertices.view(np.ndarray), tris, owner), other,
+        free, rest = freeform_step_faces(BrepMesh(mesh.vertices.view(np.ndarray), tris, owner), other, label,
                                          lambda k: by_face[starts[k]:starts[k + 1]], workpiece, settings)
     if rest:  # the other faces that gave no free-form face: RANSAC on their points
         idx_rest = np.concatenate(rest)
