@@ -125,11 +125,14 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
             make = lambda st, Q=Q, NQ=NQ, c=c, a=a, r=r: cylinder_surface(Q, NQ, c, a, r, st, bkw)  # noqa: E731
         stats = FitStats(len(idx) / len(P), float(np.sqrt(np.mean(res ** 2))), float(res.max()), len(P), len(idx))
         built.append((boundary_on_points(make(stats), Q), idx))
-    dropped, free = 0, []
+    dropped, free, held = 0, [], None
     if rest and settings.freeform_faces:   # the other faces: free-form faces, tangent ones joined
         other = np.array([k for k, f in enumerate(step_faces) if f.model == "other"], np.int64)
         free, rest = freeform_step_faces(BrepMesh(mesh.vertices.view(np.ndarray), tris, owner), other, label,
                                          lambda k: by_face[starts[k]:starts[k + 1]], workpiece, settings)
+        # the points of the B-rep faces made free-form (on a face or not) are no analytic face's extent
+        made = np.concatenate([by_face[starts[k]:starts[k + 1]] for k in other])
+        held = np.setdiff1d(made, np.concatenate(rest)) if rest else made
     if rest:  # the other faces that gave no free-form face: RANSAC on their points
         idx_rest = np.concatenate(rest)
         if len(idx_rest) >= 4 * MIN_FACE_SAMPLES:
@@ -141,7 +144,8 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     kept = [(s, idx) for s, idx in built if area_mm2(s) >= settings.min_area_mm2]
     dropped += len(built) - len(kept)
     if kept:  # the B-rep faces' exact surfaces meet exactly: their boundaries go onto those edges
-        moved = boundaries_on_edges([s for s, _ in kept], [idx for _, idx in kept], workpiece, settings.threshold_mm)
+        moved = boundaries_on_edges([s for s, _ in kept], [idx for _, idx in kept], workpiece, settings.threshold_mm,
+                                    held)
         kept = [(s, idx) for s, (_, idx) in zip(moved, kept)]
     kept += free   # (a free-form face's boundary is its own triangles': on its B-rep edges already)
     areas = [area_mm2(s) for s, _ in kept]
