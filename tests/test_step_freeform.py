@@ -147,3 +147,13 @@ def test_a_patch_wound_the_other_way_is_turned_to_agree(panel):
         assert reversed_faces(BrepMesh(V, G, owner), np.arange(4)).tolist() == [k]
         others = [i for i in range(4) if i != k]
         assert reversed_faces(BrepMesh(V, G, owner), np.array([k, *others])).tolist() == others   # from face k
+
+
+def test_the_flange_keeps_its_brep_area(panel):
+    """The analytic flange's boundary stays on its B-rep edges: its area is its own triangles' (the sheet's points
+    beside it are the free-form face's, never the plane's extent)."""
+    path, _, seg = panel
+    V, F, owner = step_mesh(path)
+    T = V[F[owner == 4]]
+    brep_area = 0.5 * np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1).sum()
+    assert abs(seg.faces[1].area_mm2 - brep_area) < 0.01 * brep_area
