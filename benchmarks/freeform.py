@@ -11,6 +11,11 @@ For each part:
   ``points.csv`` (zone ``work``, one row per segment) and put through an independent forward
   kinematics: the vendored ROS-Industrial URDF in Pinocchio, ``tool0`` then the job's TCP (the
   TCP's position must agree with points.csv's within 0.01 mm, or the benchmark stops);
+- **a STEP part** (``.step``/``.stp``): the mesh measured against is the part's own OCP tessellation
+  (camtool.part.step, 0.05 mm from the B-rep) and the job selects its free-form face (``[faces] select =
+  "freeform"``: its non-analytic B-rep faces, tangent ones joined, camtool.part.step_freeform); a generated part
+  (GENERATED: tests/test_step_freeform.py's four tangent B-spline patches with a planar flange) is written first,
+  a part too large for the cell is worked as a scaled copy (STEP_SCALE: the ship's hull at 1:300);
 - **the anchor**: noether's PlaneSlicerRasterPlanner rebuilt (freeform_metrics.plane_slicer) on
   the face, its planes ``step_over_mm`` apart and its points ``pitch_mm`` apart, the tool axis
   along the vertex normals it interpolates;
