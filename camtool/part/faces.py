@@ -138,9 +138,13 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
         if len(idx_rest) >= 4 * MIN_FACE_SAMPLES:
             # the B-rep's other faces by RANSAC, as planes, spheres and cylinders only (their free-form charts
             # do not take the B-rep edges' boundary pass)
-            sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)), replace(settings, freeform_faces=False))
-            built += [(f.surface, idx_rest[f.inliers]) for f in sub.faces]
-            dropped += sub.dropped_faces
+            try:   # (the leftovers of free-form groups, small strips: RANSAC may find nothing; they stay on no face)
+                sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)),
+                              replace(settings, freeform_faces=False))
+            except BadInput:
+                sub = None
+            built += [(f.surface, idx_rest[f.inliers]) for f in sub.faces] if sub is not None else []
+            dropped += sub.dropped_faces if sub is not None else 0
     kept = [(s, idx) for s, idx in built if area_mm2(s) >= settings.min_area_mm2]
     dropped += len(built) - len(kept)
     if kept:  # the B-rep faces' exact surfaces meet exactly: their boundaries go onto those edges
