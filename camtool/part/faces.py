@@ -86,7 +86,6 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     from .step import read_step_faces, step_mesh
     from .step_freeform import BrepMesh, freeform_step_faces
     from .surface import FitStats
-    from .workpiece import Workpiece
 
     R, t = T_mm[:3, :3], T_mm[:3, 3]
     scale = float(np.cbrt(np.linalg.det(R)))
@@ -134,17 +133,8 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
         made = np.concatenate([by_face[starts[k]:starts[k + 1]] for k in other])
         held = np.setdiff1d(made, np.concatenate(rest)) if rest else made
     if rest:  # the other faces that gave no free-form face: RANSAC on their points
-        idx_rest = np.concatenate(rest)
-        if len(idx_rest) >= 4 * MIN_FACE_SAMPLES:
-            # the B-rep's other faces by RANSAC, as planes, spheres and cylinders only (their free-form charts
-            # do not take the B-rep edges' boundary pass)
-            try:   # (the leftovers of free-form groups, small strips: RANSAC may find nothing; they stay on no face)
-                sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)),
-                              replace(settings, freeform_faces=False))
-            except BadInput:
-                sub = None
-            built += [(f.surface, idx_rest[f.inliers]) for f in sub.faces] if sub is not None else []
-            dropped += sub.dropped_faces if sub is not None else 0
+        found, dropped = _ransac_faces(P, N, np.concatenate(rest), file, settings)
+        built += found
     kept = [(s, idx) for s, idx in built if area_mm2(s) >= settings.min_area_mm2]
     dropped += len(built) - len(kept)
     if kept:  # the B-rep faces' exact surfaces meet exactly: their boundaries go onto those edges
@@ -156,6 +146,23 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
     order = sorted(range(len(kept)), key=lambda k: (-round(areas[k], 6), k))
     faces = tuple(Face(i, kept[k][0], kept[k][1], areas[k]) for i, k in enumerate(order))
     return Segmentation(faces, len(P), len(P) - sum(len(f.inliers) for f in faces), dropped)
+
+
+def _ransac_faces(P: np.ndarray, N: np.ndarray, idx: np.ndarray, file: Path, settings: SegmentSettings):
+    """(the ``(surface, inliers)`` RANSAC finds on the points ``idx`` as planes, spheres and cylinders only, the
+    faces it dropped): a STEP part's other B-rep faces that gave no free-form face. Their free-form charts would not
+    take the B-rep edges' boundary pass. Too few points, or none found (the leftovers of free-form groups, small
+    strips): none, the points on no face."""
+    from .sampling import MIN_FACE_SAMPLES
+    from .workpiece import Workpiece
+
+    if len(idx) < 4 * MIN_FACE_SAMPLES:
+        return [], 0
+    try:
+        sub = segment(Workpiece(P[idx], N[idx], source=str(file)), replace(settings, freeform_faces=False))
+    except BadInput:
+        return [], 0
+    return [(f.surface, idx[f.inliers]) for f in sub.faces], sub.dropped_faces
 
 
 ON_MESH_MM = 1e-7       # a point this near a triangle lies on the mesh (sampled from it)
