@@ -11,14 +11,16 @@ tangentially (G1); a process engineer picks the panel, not its patches. Two non-
 are one region where they meet across tessellation edges whose dihedral angle (unsigned, as
 ``creases`` takes it) is at most ``faces.sharp_edge_deg`` (median over their shared edges): the crease
 key of the mesh path. A sharp edge keeps them apart. Analytic faces are not joined to them: they keep
-exactly what they had (their exact surface and their boundary on the B-rep edges).
+their exact surface and their boundary on the B-rep edges (the edge pass counts the points of the B-rep
+faces made free-form as another face's, never an analytic face's extent).
 
 The patches of an open shell need not agree on a side: a group's faces are wound as its first face
 (``reversed_faces``: across a seam whose normals turn past 90 deg the neighbour is wound the other way).
 
 A free-form face's boundary is the material of its own triangles, so it ends on the B-rep edges that
-bound its patches. Where the region gives no free-form face (too few points, a region no chart holds),
-its B-rep faces are tried one by one, and what still gives none goes to RANSAC, as before.
+bound its patches. Where the region's faces hold less than ``MIN_HELD_SHARE`` of its points (too few
+points, a region no chart holds), its B-rep faces are tried one by one, and what still gives none goes to
+RANSAC, as before (where RANSAC finds nothing in those leftovers, they stay on no face).
 
 The shared edges are found on the tessellation: OCP tessellates each edge once for both of its faces,
 so their nodes coincide; nodes within ``MERGE_MM`` are merged (by hand: a union of the pairs a KD-tree
@@ -35,6 +37,7 @@ from scipy.spatial import cKDTree
 
 MERGE_MM = 1e-3   # tessellation nodes of two B-rep faces this close are one node of their shared edge
 ORIENT_SEAM_DEG = 45.0   # a seam tells two faces' sides only when their normals are within this of (anti)parallel
+MIN_HELD_SHARE = 0.5     # a tangent group whose free-form faces hold less of its points is tried face by face
 
 
 @dataclass(frozen=True)
@@ -150,7 +153,7 @@ def freeform_step_faces(mesh: BrepMesh, other: np.ndarray, point_face: np.ndarra
         idx = np.sort(np.concatenate([points_of(int(k)) for k in group]))
         faces = _group_faces(mesh, group, idx, point_face, workpiece, settings)
         held = sum(len(i) for _, i in faces)
-        if len(group) > 1 and held < 0.5 * len(idx):   # the region gives no face: its B-rep faces one by one
+        if len(group) > 1 and held < MIN_HELD_SHARE * len(idx):   # the region gives no face: its B-rep faces one by one
             faces = []
             for k in group:
                 mine = points_of(int(k))
