@@ -11,6 +11,11 @@ For each part:
   ``points.csv`` (zone ``work``, one row per segment) and put through an independent forward
   kinematics: the vendored ROS-Industrial URDF in Pinocchio, ``tool0`` then the job's TCP (the
   TCP's position must agree with points.csv's within 0.01 mm, or the benchmark stops);
+- **a STEP part** (``.step``/``.stp``): the mesh measured against is the part's own OCP tessellation
+  (camtool.part.step, 0.05 mm from the B-rep) and the job selects its free-form face (``[faces] select =
+  "freeform"``: its non-analytic B-rep faces, tangent ones joined, camtool.part.step_freeform); a generated part
+  (GENERATED: tests/test_step_freeform.py's four tangent B-spline patches with a planar flange) is written first,
+  a part too large for the cell is worked as a scaled copy (STEP_SCALE: the ship's hull at 1:300);
 - **the anchor**: noether's PlaneSlicerRasterPlanner rebuilt (freeform_metrics.plane_slicer) on
   the face, its planes ``step_over_mm`` apart and its points ``pitch_mm`` apart, the tool axis
   along the vertex normals it interpolates;
@@ -87,7 +92,18 @@ PARTS = {
                            "9a3d44f42faf03ff0146bcdfd6ec17a7dedefcd3bba8c9037796f59580e656f2", 25.0, 10.0),
     "vito_door_cad": ("vito_door_cad.obj", "cad",
                       "06fa5f6f2e7863640626baf3313974160c0aa04de72003a5bfc54b3d94212eeb", 25.0, 10.0),
+    # STEP parts (their B-rep faces; the job selects its free-form face, `[faces] select = "freeform"`): the mesh
+    # measured against is the part's own OCP tessellation (camtool.part.step); sha None: generated here
+    "step_wavy_panel": ("step_wavy_panel.step", "cad", None, 15.0, 5.0),
+    "optiwise_hull": ("optiwise_hull.step", "cad",
+                      "c7e1416899b8be060fd2e52ae0f09e207bfb1f2b80869dc6505920fe4044a1bd", 10.0, 5.0),
 }
+# STEP parts worked at a scale (a 290 m ship's hull as a 1:300 model, 0.97 m): OpenCASCADE writes a scaled copy
+STEP_SCALE = {"optiwise_hull": 1.0 / 300.0}
+# generated parts: name -> a function writing the file (tests/test_step_freeform.py's four tangent B-spline patches
+# and a planar flange at a sharp edge, by OCP)
+GENERATED = {"step_wavy_panel": "test_step_freeform:wavy_panel_step"}
+STEP_SUFFIXES = (".step", ".stp")
 # parts not kept in this repository (their licence is copyleft, or the source asks that they be fetched): put the
 # file at PARTS_DIR / its name, as LICENSES.md says, byte for byte (the SHA-256 is checked); absent, the part is skipped
 FETCH = {"vito_door_cad": "github.com/sento86/kuka_idf at f87be0aeead24ac3c93c02b700918f504c2e6bc1, "
@@ -118,6 +134,8 @@ def job_text(name, file: Path, T: np.ndarray, step: float, pitch: float, scale: 
     rpy = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
     f = lambda v: "[" + ", ".join(f"{x:.6f}" for x in v) + "]"   # noqa: E731
     units = {1000.0: "m", 1.0: "mm"}.get(scale)
+    step_part = Path(file).suffix.lower() in STEP_SUFFIXES
+    face = '[faces]\nselect = "freeform"\n\n' if step_part else '[fit]\nmodel = "freeform"\n\n'
     if units is None:      # a file without units: scaled into a copy in mm beside the job
         import trimesh
         m = trimesh.load(str(file), force="mesh", process=False)
@@ -126,12 +144,52 @@ def job_text(name, file: Path, T: np.ndarray, step: float, pitch: float, scale: 
         m.export(file)
         units = "mm"
     return (f'# benchmarks/freeform.py: {name}\n[workpiece]\nfile = "{file}"\nunits = "{units}"\n\n'
-            f'[fit]\nmodel = "freeform"\n\n'
-            f'[raster]\nstep_over_mm = {step}\npitch_mm = {pitch}\nlead_mm = 15.0\ntool_x_world = [0.0, 0.0, 1.0]\n\n'
+            f'{face}[raster]\nstep_over_mm = {step}\npitch_mm = {pitch}\nlead_mm = 15.0\ntool_x_world = [0.0, 0.0, 1.0]\n\n'
             f'[robot]\nname = "irb2400"\n\n'
             f'[cell]\nworkpiece_xyz_mm = {f(T[:3, 3])}\nworkpiece_rpy_deg = {f(rpy)}\n\n'
             f'[tool]\nname = "polisher"\ntcp_xyz_mm = [0.0, 0.0, {TCP_MM}]\nmass_kg = 2.0\n\n'
             f'[post]\nformats = ["rapid", "csv"]\nprogram_name = "FREEFORM"\n')
+
+
+def generated_part(name: str, out: Path) -> Path:
+    """The generated part's file, written into ``out`` (GENERATED)."""
+    import importlib
+
+    sys.path[:0] = [str(ROOT), str(ROOT / "tests")]   # (the test imports this checkout's camtool)
+    module, func = GENERATED[name].split(":")
+    return getattr(importlib.import_module(module), func)(out / PARTS[name][0])
+
+
+def scaled_step(path: Path, scale: float, out: Path) -> Path:
+    """A copy of the STEP part scaled by ``scale`` about the origin (OpenCASCADE: read, transform, write)."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
+    from OCP.gp import gp_Pnt, gp_Trsf
+    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Reader, STEPControl_Writer
+
+    reader = STEPControl_Reader()
+    reader.ReadFile(str(path))
+    reader.TransferRoots()
+    trsf = gp_Trsf()
+    trsf.SetScale(gp_Pnt(0.0, 0.0, 0.0), scale)
+    writer = STEPControl_Writer()
+    writer.Transfer(BRepBuilderAPI_Transform(reader.OneShape(), trsf, True).Shape(), STEPControl_AsIs)
+    copy = out / f"{path.stem}_scaled.step"
+    writer.Write(str(copy))
+    return copy
+
+
+def step_part_mesh(path: Path):
+    """A STEP part's own tessellation (camtool.part.step: OCP at DEFLECTION_MM), its B-rep faces' shared nodes
+    merged (trimesh: the face's connectivity for the geodesic steps)."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from camtool.part.step import step_mesh
+
+    V, F, _ = step_mesh(path)
+    m = trimesh.Trimesh(V, F, process=True)
+    m.update_faces(m.nondegenerate_faces(height=1e-9))
+    m.remove_unreferenced_vertices()
+    return m
 
 
 # --- camtool, as a user runs it ---------------------------------------------------------------
@@ -237,13 +295,17 @@ def verdict(fig: fm.Figures, kind: str, step: float) -> str:
 def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: list[str] = ()) -> None:
     fname, kind, sha, step, pitch = PARTS[name]
     path = PARTS_DIR / fname
+    if name in GENERATED:
+        path = generated_part(name, out)
     if name in FETCH and not path.exists():
         print(f"\n== {name}: skipped, {path.relative_to(ROOT)} is not here (fetch it: {FETCH[name]})")
         return
-    if hashlib.sha256(path.read_bytes()).hexdigest() != sha:
+    if sha is not None and hashlib.sha256(path.read_bytes()).hexdigest() != sha:
         raise SystemExit(f"{path} is not the file LICENSES.md records")
-    scale = SCALE.get(name, 1000.0)
-    mesh = fm.load_mesh(path, scale)
+    if name in STEP_SCALE:
+        path = scaled_step(path, STEP_SCALE[name], out)
+    scale = SCALE.get(name, 1.0 if path.suffix.lower() in STEP_SUFFIXES else 1000.0)
+    mesh = step_part_mesh(path) if path.suffix.lower() in STEP_SUFFIXES else fm.load_mesh(path, scale)
     _, _, vt = np.linalg.svd(mesh.vertices - mesh.vertices.mean(0), full_matrices=False)
     region = fm.face_region(mesh, up=vt[2], max_tilt_deg=60.0)
     face = mesh.submesh([np.flatnonzero(region)], append=True)

@@ -76,15 +76,16 @@ def _segment(settings: FacesSettings, workpiece) -> Segmentation:
 
 def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: SegmentSettings) -> Segmentation:
     """The faces of a STEP part: plane, sphere and cylinder B-rep faces exactly (``camtool.part.step``), the
-    others' points segmented by RANSAC. Each workpiece point belongs to the B-rep face of its nearest triangle."""
+    others as free-form faces, B-rep faces meeting tangentially joined (``step_freeform``; RANSAC takes the points
+    of those that give none). Each workpiece point belongs to the B-rep face of its nearest triangle."""
     import trimesh
 
     from .fit import cylinder_surface, plane_surface, sphere_patch
     from .sampling import MIN_FACE_SAMPLES
     from .segment import area_mm2, boundaries_on_edges, boundary_on_points
     from .step import read_step_faces, step_mesh
+    from .step_freeform import BrepMesh, freeform_step_faces
     from .surface import FitStats
-    from .workpiece import Workpiece
 
     R, t = T_mm[:3, :3], T_mm[:3, 3]
     scale = float(np.cbrt(np.linalg.det(R)))
@@ -123,24 +124,45 @@ def step_segmentation(file: Path, workpiece, T_mm: np.ndarray, settings: Segment
             make = lambda st, Q=Q, NQ=NQ, c=c, a=a, r=r: cylinder_surface(Q, NQ, c, a, r, st, bkw)  # noqa: E731
         stats = FitStats(len(idx) / len(P), float(np.sqrt(np.mean(res ** 2))), float(res.max()), len(P), len(idx))
         built.append((boundary_on_points(make(stats), Q), idx))
-    dropped = 0
-    if rest:  # the other faces: RANSAC on their points
-        idx_rest = np.concatenate(rest)
-        if len(idx_rest) >= 4 * MIN_FACE_SAMPLES:
-            # the B-rep's other faces by RANSAC, as planes, spheres and cylinders only (their free-form charts
-            # do not take the B-rep edges' boundary pass)
-            sub = segment(Workpiece(P[idx_rest], N[idx_rest], source=str(file)), replace(settings, freeform_faces=False))
-            built += [(f.surface, idx_rest[f.inliers]) for f in sub.faces]
-            dropped += sub.dropped_faces
+    dropped, free, held = 0, [], None
+    if rest and settings.freeform_faces:   # the other faces: free-form faces, tangent ones joined
+        other = np.array([k for k, f in enumerate(step_faces) if f.model == "other"], np.int64)
+        free, rest = freeform_step_faces(BrepMesh(mesh.vertices.view(np.ndarray), tris, owner), other, label,
+                                         lambda k: by_face[starts[k]:starts[k + 1]], workpiece, settings)
+        # the points of the B-rep faces made free-form (on a face or not) are no analytic face's extent
+        made = np.concatenate([by_face[starts[k]:starts[k + 1]] for k in other])
+        held = np.setdiff1d(made, np.concatenate(rest)) if rest else made
+    if rest:  # the other faces that gave no free-form face: RANSAC on their points
+        found, dropped = _ransac_faces(P, N, np.concatenate(rest), file, settings)
+        built += found
     kept = [(s, idx) for s, idx in built if area_mm2(s) >= settings.min_area_mm2]
     dropped += len(built) - len(kept)
     if kept:  # the B-rep faces' exact surfaces meet exactly: their boundaries go onto those edges
-        moved = boundaries_on_edges([s for s, _ in kept], [idx for _, idx in kept], workpiece, settings.threshold_mm)
+        moved = boundaries_on_edges([s for s, _ in kept], [idx for _, idx in kept], workpiece, settings.threshold_mm,
+                                    held)
         kept = [(s, idx) for s, (_, idx) in zip(moved, kept)]
+    kept += free   # (a free-form face's boundary is its own triangles': on its B-rep edges already)
     areas = [area_mm2(s) for s, _ in kept]
     order = sorted(range(len(kept)), key=lambda k: (-round(areas[k], 6), k))
     faces = tuple(Face(i, kept[k][0], kept[k][1], areas[k]) for i, k in enumerate(order))
     return Segmentation(faces, len(P), len(P) - sum(len(f.inliers) for f in faces), dropped)
+
+
+def _ransac_faces(P: np.ndarray, N: np.ndarray, idx: np.ndarray, file: Path, settings: SegmentSettings):
+    """(the ``(surface, inliers)`` RANSAC finds on the points ``idx`` as planes, spheres and cylinders only, the
+    faces it dropped): a STEP part's other B-rep faces that gave no free-form face. Their free-form charts would not
+    take the B-rep edges' boundary pass. Too few points, or none found (the leftovers of free-form groups, small
+    strips): none, the points on no face."""
+    from .sampling import MIN_FACE_SAMPLES
+    from .workpiece import Workpiece
+
+    if len(idx) < 4 * MIN_FACE_SAMPLES:
+        return [], 0
+    try:
+        sub = segment(Workpiece(P[idx], N[idx], source=str(file)), replace(settings, freeform_faces=False))
+    except BadInput:
+        return [], 0
+    return [(f.surface, idx[f.inliers]) for f in sub.faces], sub.dropped_faces
 
 
 ON_MESH_MM = 1e-7       # a point this near a triangle lies on the mesh (sampled from it)

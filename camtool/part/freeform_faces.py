@@ -483,3 +483,18 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
     out = tuple(make_face(i, built[k][0], built[k][1], built[k][2]) for i, k in enumerate(order))
     assigned = sum(len(f.inliers) for f in out)
     return type(seg)(out, n, n - assigned, dropped) if seg is not None else (out, n, n - assigned, dropped)
+
+
+def mesh_region_faces(region, threshold_mm: float, close_gaps_mm: float) -> list:
+    """The free-form faces ``(surface, inliers, area mm^2)`` of one smooth region given as its own mesh workpiece
+    (all its points and triangles; a STEP part's tangent B-rep faces, ``step_freeform``): one height field, or its
+    charts when one leaves too much off (``_region_faces``). ``inliers`` index the region's points."""
+    P = np.asarray(region.points_mm, float)
+    n = len(P)
+    pick = _sample(n)
+    tree = cKDTree(P[pick])
+    sample = _RegionSample(P[pick], np.asarray(region.normals, float)[pick], tree, np.zeros(len(pick), np.int64),
+                           tree.query(P)[1], True)
+    keys = _FitKeys(float(threshold_mm), float(close_gaps_mm))
+    faces = _region_faces(region, np.arange(n), np.zeros(n, np.int64), 0, keys, sample)
+    return [f for f in faces if f is not None]

@@ -540,15 +540,19 @@ def _on_edges(surfaces, P_world, workpiece, threshold_mm):
     return [(s, m, idx) for s, (_, m, idx) in zip(moved, surfaces)]
 
 
-def boundaries_on_edges(surfaces: list, inliers: list[np.ndarray], workpiece, threshold_mm: float) -> list:
+def boundaries_on_edges(surfaces: list, inliers: list[np.ndarray], workpiece, threshold_mm: float,
+                        held_elsewhere: np.ndarray | None = None) -> list:
     """The faces' surfaces with their boundaries moved onto the part's edges (``face_edges.on_edges``):
     neighbours' intersections and seams, the mesh's free edges when the workpiece is a mesh, else the
-    points' extent. ``inliers[k]``: face k's indices into the workpiece's points."""
+    points' extent. ``inliers[k]``: face k's indices into the workpiece's points. ``held_elsewhere``: points
+    of faces not among these (a STEP part's free-form faces): no face's extent, though no neighbour either."""
     P_world = np.asarray(workpiece.points_mm, float)
     free = FreeEdges.of_mesh(getattr(workpiece, "vertices_mm", None), getattr(workpiece, "faces", None))
     points = [P_world[idx if len(idx) <= BOUNDARY_POINTS else
                       idx[np.linspace(0, len(idx) - 1, BOUNDARY_POINTS).astype(int)]] for idx in inliers]
     owner = np.full(len(P_world), -1)
+    if held_elsewhere is not None:
+        owner[held_elsewhere] = len(inliers)
     for k, idx in enumerate(inliers):
         owner[idx] = k
     return on_edges(list(surfaces), points, P_world, owner, threshold_mm, free)
