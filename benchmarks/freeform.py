@@ -53,7 +53,6 @@ from __future__ import annotations
 import argparse
 import csv
 import hashlib
-import math
 import os
 import re
 import subprocess
