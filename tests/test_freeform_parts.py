@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,3 +51,16 @@ def test_fetched_part_is_ignored_by_git(name):
     assert r.returncode == 0, f"{path.relative_to(ROOT)} is not ignored: a local copy could be committed"
     tracked = subprocess.run(["git", "-C", str(ROOT), "ls-files", "--error-unmatch", str(path)], capture_output=True)
     assert tracked.returncode != 0, f"{path.relative_to(ROOT)} is tracked"
+
+
+def test_contour_runs_are_camtool_s_labels_not_a_guess_from_the_edge(tmp_path):
+    # a raster whose last row runs a third of a step from the face's edge, then a contour run: only the run camtool
+    # labels contour is one (a guess from the edge dropped such rows on the noether panel: their neighbours
+    # measured two step-overs apart)
+    seg = np.repeat(np.arange(4), 5)
+    contour = seg == 3
+    np.savez(tmp_path / "path.npz", segment=seg, contour=contour)
+    assert fb.contour_labels(tmp_path / "path.npz", np.array([0, 1, 2, 3])).tolist() == [False, False, False, True]
+    assert fb.contour_labels(tmp_path / "path.npz", np.array([1, 3])).tolist() == [False, True]
+    np.savez(tmp_path / "rows.npz", segment=seg)          # a raster without a contour run
+    assert not fb.contour_labels(tmp_path / "rows.npz", np.array([0, 1, 2, 3])).any()
