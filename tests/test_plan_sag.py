@@ -131,3 +131,60 @@ def test_a_leads_dip_is_split_down_to_a_least_step_and_a_step_over_a_hole_keeps_
     assert np.linalg.norm(Tb[1, :3, 3] - Ta[1, :3, 3]) <= DIP_STEP_MM and sag[1] == 0.0
     assert np.allclose(T[1, :3, 3], [4.7, 0.0, -0.94]) and sag_arc[1] == 0.0      # onto it, but no further split
     assert np.allclose(T[2], T_arc[2]) and sag[2] == sag_arc[2]
+
+
+class _PoseSolver:
+    """An arm whose joints are the pose itself (12 values: R and p): every pose solves, and the joint midpoint's TCP
+    is the chord's midpoint (no bow), so a step is split only for what ``_split_steps`` itself asks."""
+
+    lo, hi = np.full(12, -np.inf), np.full(12, np.inf)
+
+    def solve(self, T, q0, clamp=False):
+        from types import SimpleNamespace
+        return SimpleNamespace(converged=True, q=np.asarray(T, float)[:3, :].ravel())
+
+    def tcp_pose(self, q):
+        T = np.eye(4)
+        T[:3, :] = np.asarray(q, float).reshape(3, 4)
+        return T
+
+
+def _fillet_pose(angle_rad, radius_mm):
+    """A pose on a fillet (a cylinder of axis y through the origin), the tool axis into the surface."""
+    out = np.array([np.sin(angle_rad), 0.0, np.cos(angle_rad)])
+    T = np.eye(4)
+    T[:3, 1], T[:3, 2], T[:3, 3] = [0.0, 1.0, 0.0], -out, radius_mm * out
+    T[:3, 0] = np.cross(T[:3, 1], T[:3, 2])
+    return T
+
+
+def test_a_step_round_a_tight_fillet_is_split_until_the_tool_axis_turns_at_most_the_limit():
+    """Issue #46 ("no turn of more than 5 deg between neighbouring work poses"): a 5 mm step round a 10 mm fillet
+    turns the tool axis 28.6 deg; its sag alone (0.31 mm, tolerance 0.05) splits it into four of 7.2 deg; the turn
+    splits it into eight of 3.6 deg, each midpose on the fillet (closed form)."""
+    from camtool.plan.sag import TURN_SPLIT_DEG, _split_steps
+
+    R = 10.0
+
+    def project(p, continued=False):
+        p = np.asarray(p, float)
+        r = np.linalg.norm(p[:, [0, 2]], axis=1)
+        out = p.copy()
+        out[:, [0, 2]] *= (R / r)[:, None]
+        return out
+
+    theta = 5.0 / R
+    Ta, Tb = _fillet_pose(0.0, R)[None], _fillet_pose(theta, R)[None]
+    solver = _PoseSolver()
+    qa, qb = Ta[:, :3, :].reshape(1, 12), Tb[:, :3, :].reshape(1, 12)
+    split = _split_steps(solver, Ta, qa, Tb, qb, 0.05, 0.1, project)
+    poses = [Ta[0], *(solver.tcp_pose(q) for q in split[0]), Tb[0]]
+    axes = np.array([T[:3, 2] for T in poses])
+    turns = np.degrees(np.arccos(np.clip(np.einsum("ki,ki->k", axes[:-1], axes[1:]), -1, 1)))
+    assert len(poses) == 9 and turns.max() <= TURN_SPLIT_DEG
+    np.testing.assert_allclose(turns, np.degrees(theta) / 8, atol=1e-9)
+    pts = np.array([T[:3, 3] for T in poses])
+    np.testing.assert_allclose(np.linalg.norm(pts[:, [0, 2]], axis=1), R, atol=1e-9)   # on the fillet
+    # off the face (the projector NaN) the turn is the arc's business, not split for it
+    split = _split_steps(solver, Ta, qa, Tb, qb, 0.05, 0.1, lambda p, continued=False: np.full_like(p, np.nan))
+    assert len(split[0]) == 3   # the arc's sag alone: four pieces of 7.2 deg

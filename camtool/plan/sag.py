@@ -26,6 +26,9 @@ A step on the face whose midpoint has no face under it (over a hole: ``project``
 dip is split only down to ``DIP_STEP_MM``: a lead-out of the Vito door ran under the surface continued all the
 way to its pose, so every half dipped again and the halves shrank to 0.19 mm next to its next 5.9 mm step; the
 time law's cubic spline through knots so uneven, at a kink, looped 10 mm and 5.45 mm into the door.
+A step on a free-form face whose tool axis turns by more than ``TURN_SPLIT_DEG`` is halved as well, whatever
+its sag (a bend sharper than the pitch: a mould's fillet, a door's rolled rim), so neighbouring work poses turn
+by at most that; its midpose is slerped and taken onto the face.
 """
 from __future__ import annotations
 
@@ -44,6 +47,8 @@ MAX_SPLITS = 3  # a step is halved at most this many times for its sag (8 pieces
 ON_FACE_MM = 0.01      # a step whose poses both lie this close to a free-form face is on it (its midposes too)
 DIP_STEP_MM = 1.0      # a lead step whose chord dips under a free-form face is halved down to this, no further
                        # (on the Vito door at 2 mm three 0.1-0.16 mm bows of the spline were left, at 1 mm one)
+TURN_SPLIT_DEG = 5.0   # a step on a free-form face whose tool axis turns more than this is halved too (issue #46:
+                       # neighbouring work poses turn at most 5 deg; a fillet of 10 mm at a 5 mm pitch turns 29)
 SAG_SCREEN_MM = 1e-6   # the batched screen leaves a step to its own test unless this much within the tolerance
                        # (arccos near parallel tool axes is good to ~1e-8 rad: ~1e-7 mm of sag on a 100 mm step)
 
@@ -115,6 +120,21 @@ def _surface_midposes(Ta, Tb, T_arc, sag_arc, project):
     return T, sag
 
 
+def turns_on_face(Ta: np.ndarray, Tb: np.ndarray, project) -> np.ndarray:
+    """(K,) whether each step lies on a free-form face (both poses within ``ON_FACE_MM`` of it) and its tool
+    axis turns by more than ``TURN_SPLIT_DEG``: such a step is halved (its midpose slerped, on the face)."""
+    cos = np.einsum("ki,ki->k", Ta[:, :3, 2], Tb[:, :3, 2])
+    turning = cos < np.cos(np.radians(TURN_SPLIT_DEG))
+    if not turning.any():
+        return turning
+    pa, pb = Ta[turning, :3, 3], Tb[turning, :3, 3]
+    with np.errstate(invalid="ignore"):
+        on = (np.linalg.norm(project(pa) - pa, axis=1) <= ON_FACE_MM) \
+            & (np.linalg.norm(project(pb) - pb, axis=1) <= ON_FACE_MM)
+    turning[turning] = on
+    return turning
+
+
 def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> dict[int, np.ndarray]:
     """{step: inserted q (k, dof) in order} for the steps (Ta[i], qa[i]) -> (Tb[i], qb[i]) (base frame).
 
@@ -127,11 +147,13 @@ def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> di
     """
     def sagging(depth, Ta, qa, Tb, qb, q_mid):
         T_mid, sag = _arc_midposes(Ta, Tb)
+        turning = np.zeros(len(Ta), bool)
         if project is not None:
             T_mid, sag = _surface_midposes(Ta, Tb, T_mid, sag, project)
+            turning = turns_on_face(Ta, Tb, project)
         wanted = []
         for i in range(len(Ta)):
-            if sag[i] <= tol_mm:
+            if sag[i] <= tol_mm and not turning[i]:
                 if depth == 0:
                     continue
                 chord_mid = 0.5 * (Ta[i, :3, 3] + Tb[i, :3, 3])
@@ -171,6 +193,7 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
         if base_project is not None:
             T_arc = np.broadcast_to(np.eye(4), Ta.shape).copy()
             sags = _surface_midposes(Ta, Tb, T_arc, sags, base_project)[1]
+            sags[turns_on_face(Ta, Tb, base_project)] = np.inf   # split for its turn whatever its sag
         steps = steps[sags > tol - SAG_SCREEN_MM]   # the rest: each step's own test below
     inserts = {}
     if len(steps):
