@@ -23,7 +23,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .arcs import arc_point, circle_through
+from .arcs import arc_point, circle_through, cross3
 from .candidates import RETRACT, runs, span_shares
 from .moveplan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, MovePlan
 
@@ -139,7 +139,7 @@ def _on_circle(P0, Pv, P1, X, tol):
     P1 and in its order along it; the arc's sweep."""
     c, rad, n, r0, sweep, ok = circle_through(P0[None], Pv[None], P1[None])
     chord = P1 - P0
-    bow = np.linalg.norm(np.cross(Pv - P0, chord)) / max(float(np.linalg.norm(chord)), 1e-12)
+    bow = np.linalg.norm(cross3(Pv - P0, chord)) / max(float(np.linalg.norm(chord)), 1e-12)
     if not ok[0] or rad[0] > 1e6 or bow < MIN_ARC_BOW_MM:
         return False, 0.0, None   # an arc that written to 0.001 mm may read back as a line: lines there
     c, n, r0, sw, R = c[0], n[0], r0[0], sweep[0], rad[0]
@@ -147,7 +147,7 @@ def _on_circle(P0, Pv, P1, X, tol):
     h = rel @ n
     inplane = rel - h[:, None] * n
     dist = np.hypot(h, np.linalg.norm(inplane, axis=1) - R)
-    ang = np.arctan2(np.cross(r0, inplane) @ n, inplane @ r0) % (2 * np.pi)
+    ang = np.arctan2(cross3(r0, inplane) @ n, inplane @ r0) % (2 * np.pi)
     ang = np.where(ang > sw + 0.5 * (2 * np.pi - sw), ang - 2 * np.pi, ang)  # just before the start: negative
     fits = bool(np.all(dist <= tol)) and bool(np.all(np.diff(ang) >= -1e-9)) and ang[0] >= -1e-6 \
         and ang[-1] <= sw + 1e-6
