@@ -328,3 +328,30 @@ def test_missing_obstacle_mesh_is_named_at_load(tmp_path):
     job.write_text('[workpiece]\nfile = "part.stl"\n[[cell.obstacles]]\nname = "fix"\nmesh = "nothere.stl"\n')
     with pytest.raises(BadInput, match=r"cell\.obstacles\[0\] \(fix\)\.mesh: file .*nothere\.stl not found"):
         load_job(job)
+
+
+def test_sampled_motion_kept_distances_give_the_fresh_report(robot):
+    """A program simulated again (the post stage's closer rounds) looks its unchanged samples' distances up
+    (``cell_check._MEASURED``): its report is the one measured from nothing, whether the motion is the same,
+    or changed in a stretch that now runs into a wall."""
+    from camtool.motion import cell_check
+
+    q = np.array([Q0 + f * np.r_[600.0, np.zeros(7)] for f in np.linspace(-0.5, 0.5, 3001)])
+    moved = q.copy()
+    moved[1400:1600, 1] += np.radians(25.0) * np.sin(np.linspace(0.0, np.pi, 200))   # into the ball there
+    was, now = robot.fk_tcp(q[1500])[:3, 3], robot.fk_tcp(moved[1500])[:3, 3]
+    w = CollisionWorld(robot, CellSettings(obstacles=(sphere_at("ball", now, 0.3 * np.linalg.norm(now - was)),)))
+
+    def fresh(x):
+        cell_check.forget_measured()
+        return check_sampled_motion(w, x)
+
+    for first, again in ((q, q), (q, moved), (moved, q)):
+        expected = fresh(again)
+        check_sampled_motion(w, first)   # kept: its distances
+        got = check_sampled_motion(w, again)
+        assert got.evaluations == expected.evaluations
+        assert [c[:4] for c in got.collisions] == [c[:4] for c in expected.collisions]
+        assert all(np.array_equal(a[4], b[4]) for a, b in zip(got.collisions, expected.collisions))
+    assert fresh(moved).collisions and not fresh(q).collisions   # the stretch changed meets the ball
+    cell_check.forget_measured()

@@ -199,3 +199,31 @@ def test_arcs_in_a_span_written_closer_keep_to_its_share(planned):
     assert any(in_row0(a) and a[1] > ARC_SHARE * 0.1 * 0.02 for a in arcs(free))   # the span made a difference
     assert all(a[1] <= ARC_SHARE * 0.1 * 0.02 + 1e-9 for a in arcs(close) if in_row0(a))
     assert [a for a in arcs(close) if not in_row0(a)] == [a for a in arcs(free) if not in_row0(a)]
+
+
+def test_fit_arcs_kept_tests_give_the_fresh_plan(planned):
+    """The arc fit keeps its tests from one writing to the next (``steps.FITTED``): a second writing, the same or
+    with a span written closer (the post stage's next round), is the plan fitted from nothing, to the bit."""
+    from dataclasses import fields, replace
+
+    from camtool.program.steps import FITTED, forget_fitted
+
+    plan, ctx, _r = planned
+    rows = [plan.t[plan.row == k] for k in range(plan.rows)]
+    closer = replace(ctx, closer_s=((rows[0][0], rows[0][-1], 0.02),))
+
+    def fresh(c):
+        forget_fitted()
+        return FitArcs(max_sweep_deg=120.0).apply(plan, c)
+
+    for first, again in ((ctx, ctx), (ctx, closer), (closer, ctx)):
+        expected = fresh(again)
+        FitArcs(max_sweep_deg=120.0).apply(plan, first)
+        assert len(FITTED) > 0
+        got = FitArcs(max_sweep_deg=120.0).apply(plan, again)
+        for f in fields(got):
+            a, b = getattr(got, f.name), getattr(expected, f.name)
+            assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f") if isinstance(a, np.ndarray) else a == b, f.name
+    assert (fresh(closer).kind == "C").sum() != (fresh(ctx).kind == "C").sum() or \
+        not np.array_equal(fresh(closer).P, fresh(ctx).P)   # the span changes the fit: the keys tell them apart
+    forget_fitted()

@@ -129,3 +129,37 @@ def test_the_verdict_is_remembered_for_the_same_mesh_and_only_for_it(monkeypatch
     W[0, 0] += 1e-3
     rough.mesh_is_scan(W, "auto", F)
     assert len(calls) == 3
+
+
+@pytest.mark.parametrize("noise_mm", [0.0, 0.05])
+def test_the_verdict_handed_to_the_motion_check_gives_its_band(monkeypatch, noise_mm):
+    """The run hands the motion check the verdict its plan made (``stages.with_scan_verdict``: workpiece.scan "yes"
+    or "no"); the check's noise band from it is the band judged from nothing ("auto"), a CAD mesh's without judging
+    it again; a mesh this process never judged keeps "auto" (the check judges it)."""
+    from dataclasses import dataclass
+    from types import SimpleNamespace
+
+    import camtool.part.roughness as rough
+    from camtool.run.stages import scanned_mesh_band_mm, with_scan_verdict
+    from camtool.settings import WorkpieceSettings
+
+    @dataclass(frozen=True)
+    class Settings:
+        workpiece: WorkpieceSettings
+
+    monkeypatch.setattr(rough, "_VERDICTS", {})
+    V = sheet(noise_mm)
+    F = np.array([[0, 1, 60], [1, 61, 60]])
+    wp = SimpleNamespace(vertices_mm=V, faces=F)
+    settings = Settings(WorkpieceSettings(file="sheet.stl", units="mm", sample_points=0, normal_neighbours=30,
+                                          drop_nonfinite=True))
+    assert with_scan_verdict(settings, wp) is settings
+    fresh = scanned_mesh_band_mm(wp, 0.0, "auto")
+    assert rough.mesh_is_scan(V, "auto", F) == (noise_mm > 0)
+    handed = with_scan_verdict(settings, wp).workpiece.scan
+    assert handed == ("yes" if noise_mm > 0 else "no")
+    calls = []
+    real = rough._judged
+    monkeypatch.setattr(rough, "_judged", lambda *a: calls.append(a[1]) or real(*a))
+    assert scanned_mesh_band_mm(wp, 0.0, handed) == fresh and (fresh > 0) == (noise_mm > 0)
+    assert calls == (["yes"] if noise_mm > 0 else [])   # a scan's band needs its residuals; CAD: nothing

@@ -155,6 +155,10 @@ class CellPass:
             return d, None
         return d, (self.res.getNearestPoint1().copy(), self.res.getNearestPoint2().copy())
 
+    def _evaluated(self, n: int, pair, j: int, frames_at, best: float):
+        """``_distance_at`` pair n at sample j (its frames ``frames_at(j)``)."""
+        return self._distance_at(pair, *frames_at(j), best)
+
     def _at_fraction(self, pair, s: float, best: float):
         fkb = self.fk(self.q_at(np.array([s], float)), frames=True)
         return self._distance_at(pair, fkb.joint_R[0], fkb.joint_origins[0], best)
@@ -175,7 +179,7 @@ class CellPass:
                 continue
             cp = self._pair_bound(n)
             while j < c1:
-                d, pts = self._distance_at(pair, *frames_at(j), st.best)
+                d, pts = self._evaluated(n, pair, j, frames_at, st.best)
                 st.evaluations += 1
                 if st.k >= 0 and j > st.k:
                     lb_prev = st.d - (cp[j - 1] - cp[st.k])
@@ -248,9 +252,16 @@ def check_sampled_motion(world, q: np.ndarray, threshold_mm: float = 0.0) -> Sam
     S = len(q)
     fk = BatchFK(world.robot)
 
-    cp = CellPass(world, fk, between_rows(lambda k: q[k], S), motion_bounds(world, q), threshold_mm,
-                  track_minimum=False)
-    cp.feed_frames(0, S, _FramesAt(world.robot, q))
+    cp = _SampledPass(world, fk, between_rows(lambda k: q[k], S), motion_bounds(world, q), threshold_mm,
+                      track_minimum=False)
+    cp.measured, cp.q = _measured_in(world), q
+    frames = _FramesAt(world.robot, q)
+    # a block of samples at a time, every pair through it: the frames of a sample several pairs land on are
+    # made once (pair after pair through every sample, the kept frames were gone before the next pair came:
+    # the hood's program made 28 k frames for 28 k evaluations). Each pair's evaluations are the same either way
+    for c0 in range(0, S, _FramesAt.KEEP):
+        frames.forget()
+        cp.feed_frames(c0, min(c0 + _FramesAt.KEEP, S), frames)
     collisions = []
     for pair, st in zip(world.pairs, cp.states()):
         if st.fails:   # the closest evaluated sample is the pair's worst
@@ -275,6 +286,10 @@ class _FramesAt:
         self._base = np.asarray(robot.base_T_mm, float)
         self._memo: dict = {}
 
+    def forget(self) -> None:
+        """Drop the frames kept."""
+        self._memo.clear()
+
     def __call__(self, j: int):
         hit = self._memo.get(j)
         if hit is None:
@@ -283,3 +298,39 @@ class _FramesAt:
             F = self._base @ self._frames(self._robot, self._q[j], self._data)
             hit = self._memo[j] = (F[:, :3, :3], F[:, :3, 3])
         return hit
+
+
+# The pair distances measured at sampled joint values of the last world asked: the post stage writes a program
+# again closer to the plan (``camtool.program.post``' rounds) and simulates it again; its samples away from the
+# stretches written again are the same joint values, whose distances are looked up, not measured again (the same
+# numbers: coal's distance of the same shapes at the same frames; 0.7 s of the hood's 0.8 s second pass).
+_MEASURED: dict = {"world": None, "distances": {}}
+MEASURED_KEEP = 200_000   # distances kept at most (about 100 MB): then the memo starts again
+
+
+def forget_measured() -> None:
+    """Drop the distances kept (the post stage, when a format is done)."""
+    _MEASURED["world"], _MEASURED["distances"] = None, {}
+
+
+def _measured_in(world) -> dict:
+    """The distances kept for ``world`` (a new world: none)."""
+    if _MEASURED["world"] is not world or len(_MEASURED["distances"]) > MEASURED_KEEP:
+        _MEASURED["world"], _MEASURED["distances"] = world, {}
+    return _MEASURED["distances"]
+
+
+class _SampledPass(CellPass):
+    """The cell pass over sampled joint values (``check_sampled_motion``): each pair's distance at a sample looked
+    up by the sample's exact joint values (``measured``, the rows ``q``) before it is measured."""
+
+    measured: dict
+    q: np.ndarray
+
+    def _evaluated(self, n: int, pair, j: int, frames_at, best: float):
+        key = (n, self.q[j].tobytes())
+        hit = self.measured.get(key)
+        if hit is None:   # measured with its nearest points whatever ``best``: a later pass may need them
+            hit = self.measured[key] = self._distance_at(pair, *frames_at(j), np.inf)
+        d, pts = hit
+        return d, (pts if d < best else None)

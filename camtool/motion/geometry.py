@@ -129,7 +129,8 @@ class PartGeometry:
         return self
 
     def _build_mesh(self, V, F, hint_p, hint_d):
-        import open3d as o3d
+        from ..part.open3d_import import import_open3d
+        o3d = import_open3d()
         import trimesh
 
         m = trimesh.Trimesh(V, F, process=False, validate=False)
@@ -297,7 +298,8 @@ class PartGeometry:
             out = (z, z, np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0, bool))
             return out + (z,) if with_normal else out
         if self.kind == "mesh":
-            import open3d as o3d
+            from ..part.open3d_import import import_open3d
+            o3d = import_open3d()
 
             ans = self._scene.compute_closest_points(o3d.core.Tensor(p.astype(np.float32)))
             c = ans["points"].numpy().astype(float)
@@ -610,7 +612,9 @@ def part_from_path(workpiece, path, **kwargs) -> PartGeometry:
 def import_part_libraries() -> None:
     """Import open3d, which the mesh query needs, and load the grid bounds' compiled loops (seconds): a
     process made ready ahead of the check (``camtool.alongside.Standby``) does it while the run still plans."""
-    import open3d  # noqa: F401
+    from ..part.open3d_import import import_open3d
+
+    import_open3d()
 
     from .grid_bounds import load_compiled
 

@@ -72,7 +72,8 @@ class ChartMesh:
 
     def _hit(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
         """The index of the top-most triangle over each point (-1: none), cast down the chart normal."""
-        import open3d as o3d
+        from .open3d_import import import_open3d
+        o3d = import_open3d()
 
         if not self._scene:
             scene = o3d.t.geometry.RaycastingScene()

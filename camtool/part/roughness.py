@@ -107,12 +107,21 @@ def coplanar_share(vertices_mm: np.ndarray, faces: np.ndarray) -> float:
 _VERDICTS: dict = {}   # the last few meshes' verdicts by their bytes: a run asks once per plan (lead sizing: 4+ times)
 
 
+def _verdict_key(vertices_mm, scan: str, faces) -> tuple:
+    V = np.ascontiguousarray(vertices_mm, float)
+    F = np.ascontiguousarray(faces if faces is not None else np.zeros((0, 3), np.int64))
+    return hashlib.sha256(V.tobytes() + F.tobytes()).hexdigest(), V.shape, F.shape, str(F.dtype), scan
+
+
+def judged_before(vertices_mm: np.ndarray, scan: str = "auto", faces: np.ndarray | None = None) -> bool | None:
+    """``mesh_is_scan``'s verdict when this process has judged the mesh already, else None (nothing judged now)."""
+    return _VERDICTS.get(_verdict_key(vertices_mm, scan, faces))
+
+
 def mesh_is_scan(vertices_mm: np.ndarray, scan: str = "auto", faces: np.ndarray | None = None) -> bool:
     """Whether a mesh is judged as a scan (``mesh_roughness``'s verdict, without its noise band); remembered for
     the same vertices, faces and ``scan`` (the judgement costs a second on a 200 k-vertex scan)."""
-    V = np.ascontiguousarray(vertices_mm, float)
-    F = np.ascontiguousarray(faces if faces is not None else np.zeros((0, 3), np.int64))
-    key = (hashlib.sha256(V.tobytes() + F.tobytes()).hexdigest(), V.shape, F.shape, str(F.dtype), scan)
+    key = _verdict_key(vertices_mm, scan, faces)
     if key not in _VERDICTS:
         if len(_VERDICTS) >= 4:
             _VERDICTS.clear()

@@ -190,7 +190,8 @@ def _library_output_to_log() -> Iterator[None]:
 @contextmanager
 def _open3d_quiet() -> Iterator[None]:
     """open3d prints its warnings on stdout; errors only while camtool calls it (our checks speak)."""
-    import open3d as o3d
+    from .open3d_import import import_open3d
+    o3d = import_open3d()
 
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
         yield
@@ -773,7 +774,8 @@ def _pcd_layout(path: Path, h: dict) -> tuple[list[str], list[int], int, str]:
 
 @register_loader(".pcd")
 def _load_pcd(path: Path) -> _Raw:
-    import open3d as o3d
+    from .open3d_import import import_open3d
+    o3d = import_open3d()
 
     data = _read_checked(path)
     h = _pcd_header(path, data)
@@ -1051,7 +1053,8 @@ def _cloud_normals(pts_mm: np.ndarray, normals: np.ndarray | None, k: int) -> np
             return normals / length[:, None]
     if len(pts_mm) < 3:
         return np.zeros_like(pts_mm)
-    import open3d as o3d
+    from .open3d_import import import_open3d
+    o3d = import_open3d()
 
     pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts_mm))
     with _open3d_quiet():

@@ -310,12 +310,17 @@ class _Once(logging.Filter):
 
 def _rewritten_programs(fmt, post, trajectory, robot, folders: tuple[Path, Path], process, reference, world=None):
     """``_format_programs``' rounds: the first writing, the joint-move rounds, then the closer rounds."""
+    from ..motion.cell_check import forget_measured
+    from .steps import forget_fitted
+
     args = (fmt, post, trajectory, robot, folders, process, reference, world)
     last = (process,) + _write_checked(fmt, post, trajectory, robot, folders, process, process, reference, world)
     last = _joint_move_rounds(*args, last)
     files, found, figures = _closer_rounds(*args, last)
     post.plugin.forget()   # what a format kept of its own files (a dense job's: hundreds of MB)
     forget_solved()
+    forget_measured()   # the cell pass's distances, kept from round to round
+    forget_fitted()     # the arc fit's tests, too
     return files, found, figures
 
 

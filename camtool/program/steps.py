@@ -23,13 +23,20 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .arcs import arc_point, circle_through
+from .arcs import arc_point, circle_through, cross3
 from .candidates import RETRACT, runs, span_shares
 from .moveplan import KIND_CIRCULAR, KIND_JOINT, KIND_LINEAR, MovePlan
+from .remembered import Remembered
 
 ARC_SHARE = 0.4     # share of the path tolerance the circle may leave the planned path by
 BLEND_SHARE = 0.4   # share of the tolerance a corner next to a circular move may cut
 MIN_ARC_MOVES = 2   # a circular move replaces at least this many linear ones
+FITTED = Remembered(200_000)   # the arc fit's tests by their inputs: a program written again tests most of them again
+
+
+def forget_fitted() -> None:
+    """Drop the arc fit's tests kept (the post stage, when a format is done)."""
+    FITTED.forget()
 
 
 @dataclass(frozen=True)
@@ -139,7 +146,7 @@ def _on_circle(P0, Pv, P1, X, tol):
     P1 and in its order along it; the arc's sweep."""
     c, rad, n, r0, sweep, ok = circle_through(P0[None], Pv[None], P1[None])
     chord = P1 - P0
-    bow = np.linalg.norm(np.cross(Pv - P0, chord)) / max(float(np.linalg.norm(chord)), 1e-12)
+    bow = np.linalg.norm(cross3(Pv - P0, chord)) / max(float(np.linalg.norm(chord)), 1e-12)
     if not ok[0] or rad[0] > 1e6 or bow < MIN_ARC_BOW_MM:
         return False, 0.0, None   # an arc that written to 0.001 mm may read back as a line: lines there
     c, n, r0, sw, R = c[0], n[0], r0[0], sweep[0], rad[0]
@@ -147,11 +154,21 @@ def _on_circle(P0, Pv, P1, X, tol):
     h = rel @ n
     inplane = rel - h[:, None] * n
     dist = np.hypot(h, np.linalg.norm(inplane, axis=1) - R)
-    ang = np.arctan2(np.cross(r0, inplane) @ n, inplane @ r0) % (2 * np.pi)
+    ang = np.arctan2(cross3(r0, inplane) @ n, inplane @ r0) % (2 * np.pi)
     ang = np.where(ang > sw + 0.5 * (2 * np.pi - sw), ang - 2 * np.pi, ang)  # just before the start: negative
     fits = bool(np.all(dist <= tol)) and bool(np.all(np.diff(ang) >= -1e-9)) and ang[0] >= -1e-6 \
         and ang[-1] <= sw + 1e-6
     return fits, sw, (c, n, r0, sw, ang)
+
+
+def _planned_key(ctx: StepContext) -> bytes:
+    """The planned motion ``_arc_follows_plan`` measures against (its waypoints and midpoints), as a digest."""
+    import hashlib
+
+    h = hashlib.sha256(f"{np.shape(ctx.waypoint_P)} {np.shape(ctx.waypoint_mid_P)}".encode())
+    h.update(np.ascontiguousarray(ctx.waypoint_P, float).tobytes())
+    h.update(np.ascontiguousarray(ctx.waypoint_mid_P, float).tobytes())
+    return h.digest()
 
 
 def _waypoints_between(plan: MovePlan, a: int, b: int, ctx: StepContext) -> np.ndarray:
@@ -241,8 +258,8 @@ class FitArcs(MoveStep):
         tol_at = ARC_SHARE * ctx.path_tol_mm * share
         ori_tol = np.radians(ctx.ori_tol_deg)
         max_sweep = np.radians(self.max_sweep_deg)
-        WP = ctx.waypoint_P
-        P, R, wp = plan.P, plan.R, plan.wp
+        planned = _planned_key(ctx)
+        P, R = plan.P, plan.R
         # a move k may join an arc when it is linear, inside one row, and no row starts at it
         joinable = (kind == KIND_LINEAR) & (plan.row >= 0) & ~plan.row_start
         joinable &= np.r_[False, plan.row[1:] == plan.row[:-1]]
@@ -262,15 +279,19 @@ class FitArcs(MoveStep):
                     b += 1
                     continue
                 tol = float(tol_at[a:b + 1].min())
-                fits, sweep, geo = _on_circle(P[a], P[m], P[b], P[a:b + 1], tol)
+                ends = (P[a], P[m], P[b])
+                fits, sweep, geo = FITTED.value("on_circle", ends + (P[a:b + 1], tol),
+                                                lambda: _on_circle(*ends, P[a:b + 1], tol))
                 if not fits or sweep > max_sweep:
                     break
                 # the planned path between the targets (every waypoint) and its orientation
                 w = _waypoints_between(plan, a, b, ctx)
-                if len(w) and not _arc_follows_plan(P[a], P[m], P[b], w, ctx, tol):
+                if len(w) and not FITTED.value("follows", ends + (w, tol, planned),
+                                               lambda: _arc_follows_plan(*ends, w, ctx, tol)):
                     break
                 s = geo[4][1:-1] / sweep if sweep > 0 else np.zeros(0)
-                if len(s) and np.max(rotation_angles_rad(_slerp(R[a], R[b], s), R[a + 1:b])) > ori_tol:
+                if len(s) and FITTED.value("turn", (R[a], R[b], s, R[a + 1:b]), lambda: np.max(
+                        rotation_angles_rad(_slerp(R[a], R[b], s), R[a + 1:b]))) > ori_tol:
                     break
                 best = (a, m, b)
                 b += 1
@@ -341,15 +362,21 @@ class FitArcs(MoveStep):
         for k in corners:
             if plan.kind[k + 1] == KIND_JOINT or plan.kind[k] == KIND_JOINT:
                 continue
-            P_in, P_out = self._path(plan, k), self._path(plan, k + 1)
-            lv = int(level[k])
             floor = ctx.min_level_on_surface if plan.row[k] >= 0 else 0
-            while lv > floor and _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget[k]:
-                lv -= 1
-            if _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget[k]:
+            inputs = (plan.kind[k:k + 2], plan.P[k - 1:k + 2], plan.via_P[k:k + 2], level[k], floor, budget[k], levels)
+            level[k], too_far = FITTED.value("corner", inputs,
+                                             lambda: self._corner_level(plan, k, int(level[k]), floor, levels, budget[k]))
+            if too_far:
                 bad.append(int(k))
-            level[k] = lv
         return level, bad
+
+    def _corner_level(self, plan: MovePlan, k: int, lv: int, floor: int, levels: np.ndarray, budget: float):
+        """(the corner k's level: the largest from ``lv`` down to ``floor`` whose blend cuts at most ``budget``,
+        whether even the last cuts more)."""
+        P_in, P_out = self._path(plan, k), self._path(plan, k + 1)
+        while lv > floor and _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget:
+            lv -= 1
+        return lv, _blend_deviation(P_in, plan.P[k], P_out, levels[lv]) > budget
 
 
 def program_steps(*, arcs_max_sweep_deg: float | None, arc_start_linear: bool = False) -> CompoundStep:

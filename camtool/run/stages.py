@@ -52,7 +52,7 @@ from ..report.html import write_run_html
 from ..robots import get_robot
 from ..settings import PlannerSettings, RasterSettings, TimingSettings
 from .job_settings import JobSettings
-from ..part.roughness import mesh_is_scan, mesh_roughness
+from ..part.roughness import judged_before, mesh_is_scan, mesh_roughness
 from ..part.surface import FaceSet
 from ..timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
 from ..path.toolpath import row_segments
@@ -483,10 +483,23 @@ def scanned_mesh_band_mm(workpiece, smoothing_mm: float = 0.0, scan: str = "auto
     "auto" and its vertices are rough, ``part.roughness``), else 0 (a CAD mesh keeps the strict check). The TCP's tolerances on work, leads and contacts
     grow by it, as a cloud's do by its noise; the tool's and the links' capsules keep the strict penetration and
     clearance rules."""
-    if workpiece.faces is None or workpiece.vertices_mm is None:
+    if workpiece.faces is None or workpiece.vertices_mm is None or scan == "no":
         return 0.0
     rough = mesh_roughness(workpiece.vertices_mm, smoothing_mm, scan, workpiece.faces)
     return rough.band_mm if rough.is_scan else 0.0
+
+
+def with_scan_verdict(settings: JobSettings, workpiece) -> JobSettings:
+    """``settings`` with ``workpiece.scan`` "yes" or "no" where this process has judged the mesh already
+    (``face_projector``, "auto"): the motion check, in its own process, takes that verdict for its noise band
+    (``scanned_mesh_band_mm``) instead of judging the mesh again (a second on a 200 k-vertex scan)."""
+    if settings.workpiece.scan != "auto" or workpiece is None or workpiece.faces is None \
+            or workpiece.vertices_mm is None:
+        return settings
+    verdict = judged_before(workpiece.vertices_mm, "auto", workpiece.faces)
+    if verdict is None:
+        return settings
+    return replace(settings, workpiece=replace(settings.workpiece, scan="yes" if verdict else "no"))
 
 
 def motion_check_part(settings: JobSettings, workpiece, path, surface=None):

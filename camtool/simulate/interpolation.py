@@ -66,9 +66,10 @@ class _Targets:
         """TCP points at fractions ``s`` of Cartesian moves ``k`` (a line, or its arc)."""
         P_t, arc = self.P, self.arc
         pts = P_t[k - 1] + s[:, None] * (P_t[k] - P_t[k - 1])
-        for i in np.flatnonzero(np.isin(k, list(arc))) if arc else ():
-            c_, n_, r0_, sw_ = arc[int(k[i])]
-            pts[i] = arc_point(c_[None], n_[None], r0_[None], np.array([sw_]), s[i:i + 1])[0]
+        on_arc = np.flatnonzero(np.isin(k, list(arc))) if arc else ()
+        if len(on_arc):   # every point on an arc at once: row by row the same numbers (arc_point works by row)
+            c_, n_, r0_, sw_ = (np.array(x) for x in zip(*(arc[int(k[i])] for i in on_arc)))
+            pts[on_arc] = arc_point(c_, n_, r0_, sw_, s[on_arc])
         return pts
 
 

@@ -42,7 +42,7 @@ from ...timing import sampled_for
 from ...timing.pathlaw import remembered_runs
 from ..stages import (RunResult, StageLog, clearance_part, finish_run, leads_into_part, motion_check, shaped_for_part,
                       motion_check_part, part_for_checks, plan_and_time, plan_with_sized_leads, post_checked, report_failure, report_unreachable,
-                      run_report, time_for_job)
+                      run_report, time_for_job, with_scan_verdict)
 
 
 _log = logging.getLogger("camtool.run")
@@ -355,7 +355,8 @@ def _rastered(r: RasterRun) -> tuple[RasterRun, Rastered]:
 
 def _hand_check(r: RasterRun, made: Rastered, checking: Standby, path, trajectory) -> None:
     """Hand ``trajectory`` (of ``path``) to the independent motion check, alongside the rest of the run."""
-    checking.then(partial(_timed_check, r.settings, trajectory, r.robot, made.wp, path, made.surface))
+    checking.then(partial(_timed_check, with_scan_verdict(r.settings, made.wp), trajectory, r.robot, made.wp, path,
+                          made.surface))
 
 
 def _hand_plots(r: RasterRun, figures: Standby, path, trajectory) -> None:
