@@ -466,6 +466,16 @@ def load_job(path: str | Path, overrides: list[str] = ()) -> Job:
     return job
 
 
+def job_for_part(path: str | Path, units: str = "mm", overrides: list[str] = ()) -> Job:
+    """A job of defaults around a bare mesh or point cloud (``camtool faces PART``): the part in its own frame,
+    in ``units``; ``overrides`` as on a job file (e.g. ``faces.sharp_edge_deg=20``)."""
+    p = Path(path)
+    data = {"workpiece": {"file": str(p.resolve()), "units": units}}
+    job = Job(p, validate(data, str(p), overrides))
+    _check_cross(job)
+    return job
+
+
 def _check_cross(job: Job) -> None:
     """Checks that involve more than one key or the file system."""
     from .robots import BUILTIN_ROBOTS

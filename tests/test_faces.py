@@ -191,3 +191,23 @@ def test_fit_stage_file_of_a_face_resumes_the_raster(tmp_path):
     direct = run_camtool("raster", job, "--json")
     assert resumed.returncode == 0 and direct.returncode == 0
     assert json.loads(resumed.stdout) == json.loads(direct.stdout)
+
+
+def test_cli_faces_of_a_bare_part_file_in_its_units(tmp_path):
+    """`camtool faces PART` (a mesh, not a job file; issue #46: a new user's first command): the part's faces in
+    its own frame, the same as a job's around it; a copy in metres with --units m gives the same faces in mm."""
+    import trimesh
+
+    metres = tmp_path / "pipe_half_m.stl"
+    trimesh.load(SAMPLES / "pipe_half.stl", force="mesh").apply_scale(0.001).export(metres)
+    job = run_camtool("faces", write_job(tmp_path, ""), "--json", "--set", "faces.select=all")
+    assert job.returncode == 0, job.stderr
+    want = json.loads(job.stdout)["faces"]
+    for part, units in ((SAMPLES / "pipe_half.stl", "mm"), (metres, "m")):
+        r = run_camtool("faces", part, "--units", units, "--json", "--set", "workpiece.sample_points=30000")
+        assert r.returncode == 0 and r.stderr == "", r.stderr
+        got = json.loads(r.stdout)["faces"]
+        assert [f["model"] for f in got] == [f["model"] for f in want] == ["cylinder", "cylinder"] + ["plane"] * 4
+        for g, w in zip(got, want):
+            assert g["area_mm2"] == pytest.approx(w["area_mm2"], rel=0.01)
+            assert np.allclose(g["center_mm"], w["center_mm"], atol=0.5)

@@ -1,23 +1,27 @@
-"""``camtool faces JOB``: split the job's placed workpiece into faces, number them, picture them."""
+"""``camtool faces JOB|PART``: split the job's placed workpiece (or a bare part file, in its own frame) into faces,
+number them, picture them."""
 from pathlib import Path
 
 import click
 
 from ..console import echo_json
-from ..job import load_job
+from ..job import job_for_part, load_job
 
 PNG_FILE = "faces.png"
 
 
 @click.command("faces")
-@click.argument("job_file", metavar="JOB", type=click.Path(path_type=Path))
+@click.argument("job_file", metavar="JOB|PART", type=click.Path(path_type=Path))
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
               help="Override a job-file key, e.g. --set faces.normal_tol_deg=15 (repeatable).")
+@click.option("--units", type=click.Choice(["mm", "m", "in"]), default="mm", show_default=True,
+              help="Length unit of a PART file (a job file says its own: workpiece.units).")
 @click.option("-o", "--outdir", type=click.Path(path_type=Path), default=None,
               help=f"Write the picture OUTDIR/{PNG_FILE} (the points coloured and numbered by face).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON for scripts.")
-def command(job_file: Path, overrides: tuple[str, ...], outdir: Path | None, as_json: bool) -> None:
-    """List the faces of a JOB's workpiece (planes, spheres, cylinders, free-form), numbered largest first.
+def command(job_file: Path, overrides: tuple[str, ...], units: str, outdir: Path | None, as_json: bool) -> None:
+    """List the faces of a JOB's workpiece (planes, spheres, cylinders, free-form), numbered largest first;
+    or of a PART file (mesh, STEP or point cloud, not .toml) in its own frame, with every key at its default.
 
     The numbers are what [faces] select = [indices] names. Each face: its
     model, area, normal (plane; a free-form face's mean normal) or axis
@@ -28,7 +32,8 @@ def command(job_file: Path, overrides: tuple[str, ...], outdir: Path | None, as_
     """
     from ..part.step import read_ahead
 
-    job = load_job(job_file, list(overrides))
+    is_job = job_file.suffix.lower() == ".toml"
+    job = load_job(job_file, list(overrides)) if is_job else job_for_part(job_file, units, list(overrides))
     step = job.resolve(job.workpiece.file)
     if step.suffix.lower() in (".step", ".stp"):
         read_ahead(step)   # OpenCASCADE reads and tessellates it in a child while the segmentation is imported
