@@ -89,6 +89,12 @@ PARTS = {
                           "cfc0fa0eb3e4e47c954c7d8f52daa5b5a6d405469e9f3ca7f8ec824b53300cc7", 10.0, 5.0),
     "noether_panel_scan": ("noether_panel_scan.ply", "scan",
                            "9a3d44f42faf03ff0146bcdfd6ec17a7dedefcd3bba8c9037796f59580e656f2", 25.0, 10.0),
+    "reach_demo_part": ("reach_demo_part.ply", "scan",
+                        "19df4f6bff6bd270605bfafcb80e65b5b47872bcdc248c466f2fefbeba26db83", 25.0, 10.0),
+    "bezier_ocean_cad": ("bezier_ocean_cad.ply", "cad",
+                         "09f0387a2f285ac23bee2c600f3139f86eced0c014fb10297ae5f7ae39c34212", 15.0, 5.0),
+    "bezier_complex_shape_cad": ("bezier_complex_shape_cad.ply", "cad",
+                                 "0b85d12d260a1edb45875f176287c37eefeb82c0a0feb1dbe9615dab59c5f839", 15.0, 5.0),
     "vito_door_cad": ("vito_door_cad.obj", "cad",
                       "06fa5f6f2e7863640626baf3313974160c0aa04de72003a5bfc54b3d94212eeb", 25.0, 10.0),
     # STEP parts (their B-rep faces; the job selects its free-form face, `[faces] select = "freeform"`): the mesh
