@@ -1,4 +1,6 @@
 """Reconfigure off the surface: Cartesian lifts, reconfiguration at a clearance, collision-checked connectors."""
+import re
+
 import numpy as np
 import pytest
 
@@ -141,3 +143,32 @@ def test_a_lift_the_tool_axis_blocks_leaves_along_the_mean_normal():
     assert all(valid(q) for q in rows)
     plain = lift_and_reconfigure(solver, robot, T0, q0, T0, q0, s, None, away)[1]
     assert "lift_along" not in plain     # the tool axis first, as before, wherever it is free
+
+
+def test_every_connector_that_cannot_be_lifted_is_named_with_its_poses(forced):
+    """A lift refused everywhere (a stretch end at the edge of reach): the first connector's message as before, and
+    report.json's ``unliftable_path_indices`` the two poses it joins; with ``every_failure`` (a partial plan, which
+    then leaves those poses out) every reconfiguring connector's, each one the end of a run and the next one's start."""
+    from camtool.collision.stage import collision_world
+    from camtool.errors import PlanInfeasible
+    from camtool.plan.connectors import lift_reconfigurations
+    from camtool.plan.strategy import plan_path
+
+    robot, settings, _surface, path, jp, _wp = forced
+    raw = plan_path(path, robot, settings.planner, collision_world(settings, robot))
+    solver = CwlnSolver(robot, IkSettings(max_iterations=300), free_spin=path.free_spin)
+    s = LiftSettings(settings.planner.lift_mm, 1, settings.planner.reconfigure_threshold_rad,   # one step: quick
+                     settings.planner.reconfigure_threshold_mm, settings.planner.track_scale_mm, 0)
+    with pytest.raises(PlanInfeasible, match="the arm still touches the part") as first:
+        lift_reconfigurations(raw, path, robot, s, solver, lambda q: False)
+    assert "more connector" not in str(first.value)
+    a, b = first.value.report["unliftable_path_indices"]
+    assert path.segment[b] == path.segment[a] + 1 and a + 1 <= b
+    with pytest.raises(PlanInfeasible) as every:
+        lift_reconfigurations(raw, path, robot, s, solver, lambda q: False, every_failure=True)
+    ends = every.value.report["unliftable_path_indices"]
+    more = re.search(r"\(and (\d+) more connector\(s\)\)$", str(every.value))
+    assert more and len(ends) == 2 * (int(more.group(1)) + 1) >= 2 * len(jp.events["lifted_connectors"]) - 4
+    assert str(every.value).startswith(str(first.value)) and ends[:2] == [a, b]
+    assert np.all(np.diff(ends) > 0)   # pairs, in path order: a run's last pose, the next one's first (a retract's
+    assert np.all(path.segment[ends[1::2]] - path.segment[ends[::2]] <= 1)   # two runs are in one segment)

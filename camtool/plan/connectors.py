@@ -171,7 +171,8 @@ def _world_hit(world, rows) -> str | None:
 
 
 def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, settings: LiftSettings,
-                          solver: CwlnSolver, valid=None, touch_points: bool = False) -> JointPath:
+                          solver: CwlnSolver, valid=None, touch_points: bool = False,
+                          every_failure: bool = False) -> JointPath:
     """``joint_path`` with every reconfiguring connector between runs replaced by lift-reconfigure-descend rows.
 
     A connector is the stretch of non-surface rows between the last row of one
@@ -179,6 +180,11 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
     a contact of its own (seed 002's targets and its start point): the tool
     lifts between any two of them. Inserted rows have path_index -1 and zone
     'self_motion'. The joint path's events get ``lifted_connectors``.
+
+    A connector that cannot be lifted raises ``PlanInfeasible`` naming it; its report's
+    ``unliftable_path_indices`` holds the path indices of the two poses it joins. With ``every_failure`` every
+    connector is tried first and the report holds those of each one that fails (a partial plan leaves them
+    out, ``run/tasks/raster.py``).
     """
     jp = joint_path
     seg = np.asarray(path.segment)
@@ -186,6 +192,7 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
     away = _mean_outward(path, base_inv)
     keep = np.ones(len(jp.q), bool)
     inserts: dict[int, tuple[np.ndarray, dict]] = {}
+    failed: list[tuple[str, int, int]] = []   # (message, path index before, path index after)
     for r0, r1 in _connectors(jp, seg, touch_points):
         # two runs with no connector poses between them (a row cut at unreachable poses, --allow-partial)
         # are joined off the part too: a direct move between two surface points cuts through a convex part
@@ -196,12 +203,19 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
         try:
             new, info = lift_and_reconfigure(solver, robot, Ta, jp.q[r0], Tb, jp.q[r1], settings, valid, away)
         except PlanInfeasible as exc:
-            raise PlanInfeasible(f"reconfiguration before {path.segment_text(int(jp.path_index[r1]))}: {exc}") from None
+            failed.append((f"reconfiguration before {path.segment_text(int(jp.path_index[r1]))}: {exc}",
+                           int(jp.path_index[r0]), int(jp.path_index[r1])))
+            if every_failure:
+                continue
+            break
         keep[r0 + 1:r1] = False
         info["retract"] = bool(np.any(jp.retract[r0 + 1:r1]))  # a strategy retract, re-planned here
         info.update(segment=int(seg[jp.path_index[r1]]), joint_change_deg=round(float(np.degrees(
             np.max(np.abs(jp.q[r1] - jp.q[r0])[~robot.prismatic], initial=0.0))), 3))
         inserts[int(r0)] = (new, info)
+    if failed:
+        raise PlanInfeasible(failed[0][0] + (f" (and {len(failed) - 1} more connector(s))" if len(failed) > 1 else ""),
+                             report={"unliftable_path_indices": sorted({i for _, a, b in failed for i in (a, b)})})
     if not inserts:
         return replace(jp, events={**jp.events, "lifted_connectors": []})
     return _spliced(jp, keep, inserts)

@@ -177,8 +177,9 @@ def free_move_checker(workpiece, robot, contact_xyz_mm=None, radius_mm: float = 
 
 def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_path, every: bool = False,
                     link_radius_mm: float | None = None, clearance_mm: float = 0.0, solver: CwlnSolver | None = None,
-                    world=None, tip_exempt_mm: float = 0.0):
-    """Every reconfiguring connector between runs made a lift - reconfigure - descend (``plan/connectors.py``).
+                    world=None, tip_exempt_mm: float = 0.0, every_failure: bool = False):
+    """Every reconfiguring connector between runs made a lift - reconfigure - descend (``plan/connectors.py``;
+    ``every_failure``: its ``lift_reconfigurations``'s).
 
     The reconfiguration at the lift height is checked against the placed
     workpiece (link capsules) and re-planned by RRT-Connect where needed.
@@ -195,7 +196,8 @@ def lift_connectors(settings: PlannerSettings, workpiece, path, robot, joint_pat
         workpiece, robot, radius_mm=radius, path=path, clearance_mm=clearance_mm, world=world,
         tip_exempt_mm=tip_exempt_mm)
     solver = solver or CwlnSolver(robot, ik_settings(settings), free_spin=path.free_spin)
-    return lift_reconfigurations(joint_path, path, robot, lift, solver, valid, touch_points=every)
+    return lift_reconfigurations(joint_path, path, robot, lift, solver, valid, touch_points=every,
+                                 every_failure=every_failure)
 
 
 def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path, world=None):
@@ -239,8 +241,9 @@ def face_projector(settings: JobSettings, surface, workpiece):
 
 
 def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str | None = None, planned=None,
-                 surface=None):
+                 surface=None, every_failure: bool = False):
     """Plan ``path`` with the job's planner (or another ``method``), plus home moves when a workpiece is given.
+    ``every_failure``: every connector's lift is tried before one that fails is raised (``lift_connectors``).
 
     ``workpiece``: the part the free motion keeps clear of (``part_for_checks``).
     ``planned``: ``plan_path``'s joint path of this very ``path`` and planner, when the
@@ -256,7 +259,7 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
     joint_path = lift_connectors(planner, workpiece, path, robot, joint_path,
                                  link_radius_mm=settings.check.link_radius_mm,
                                  clearance_mm=settings.check.clearance_mm, solver=solver, world=world,
-                                 tip_exempt_mm=settings.check.tool_contact_exempt_mm)
+                                 tip_exempt_mm=settings.check.tool_contact_exempt_mm, every_failure=every_failure)
     joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm,
                                    face_projector(settings, surface, workpiece))
     joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
@@ -358,10 +361,12 @@ def time_for_job(settings: JobSettings, joint_path, path, robot, before_check: C
     return time_trajectory(joint_path, path, robot, settings.timing, before_check=before_check)
 
 
-def plan_and_time(settings: JobSettings, path, robot, method: str | None = None, workpiece=None, surface=None):
+def plan_and_time(settings: JobSettings, path, robot, method: str | None = None, workpiece=None, surface=None,
+                  every_failure: bool = False):
     """(joint path, trajectory) of ``path``: ``plan_for_job`` then ``time_for_job``. ``surface``: the face rastered
-    (a CAD mesh's free-form face takes the sag's midposes onto itself, ``face_projector``)."""
-    joint_path = plan_for_job(settings, path, robot, workpiece, method, surface=surface)
+    (a CAD mesh's free-form face takes the sag's midposes onto itself, ``face_projector``); ``every_failure``:
+    ``plan_for_job``'s."""
+    joint_path = plan_for_job(settings, path, robot, workpiece, method, surface=surface, every_failure=every_failure)
     return joint_path, time_for_job(settings, joint_path, path, robot)
 
 

@@ -60,16 +60,42 @@ def check_several_faces(job: Job, settings: JobSettings) -> None:
                        "select one face, or drop the key")
 
 
-def partial_plan_path(path, exc: PlanInfeasible):
-    """(the reachable stretches as a Path, report figures) for ``task.allow_partial``; PlanInfeasible if none."""
+PARTIAL_LIFT_ROUNDS = 3   # a partial plan leaves out the stretch ends it cannot lift off at, then plans again
+
+
+def partial_plan_path(path, exc: PlanInfeasible, unliftable=()):
+    """(the reachable stretches as a Path, each of its poses' index in ``path``, report figures) for
+    ``task.allow_partial``, the ``unliftable`` path indices left out too; PlanInfeasible if none."""
     bad = [u["index"] for u in exc.report["unreachable"]]
+    bad += sorted(set(int(i) for i in unliftable) - set(bad))
     stretches = reachable_stretches(path, bad)
     if not stretches:
         raise exc
     sub, index = partial_path(path, stretches, bad)
     figures = {**partial_summary(path, stretches), "left_out_path_indices": bad,
                "stretch_list": [s.as_dict() for s in stretches]}
-    return sub, figures
+    if unliftable:
+        figures["unliftable_ends_left_out"] = sorted(int(i) for i in unliftable)
+    return sub, index, figures
+
+
+def plan_partial(settings: JobSettings, path, exc: PlanInfeasible, robot, part, surface):
+    """(partial path, joint path, trajectory, figures): the reachable stretches planned and timed. A stretch cut
+    at the edge of reach ends where the arm may not lift off (a lift past a joint limit, into a link): those ends
+    (each connector's two poses, ``lift_reconfigurations``' ``unliftable_path_indices``) are left out as the
+    unreachable poses are, and the rest planned again, ``PARTIAL_LIFT_ROUNDS`` times at most."""
+    unliftable: set[int] = set()
+    for round_ in range(PARTIAL_LIFT_ROUNDS + 1):
+        sub, index, figures = partial_plan_path(path, exc, unliftable)
+        try:
+            joint_path, trajectory = plan_and_time(settings, sub, robot, workpiece=part, surface=surface,
+                                                   every_failure=True)
+            return sub, joint_path, trajectory, figures
+        except PlanInfeasible as again:
+            ends = again.report.get("unliftable_path_indices")
+            if not ends or round_ == PARTIAL_LIFT_ROUNDS:
+                raise
+            unliftable |= {int(index[i]) for i in ends}
 
 
 class MapAhead:
@@ -188,8 +214,7 @@ def planned_and_timed(r: RasterRun, made: Rastered, part, ahead: Ahead | None = 
             except PlanInfeasible as exc:
                 if not (job.task.allow_partial and exc.report.get("unreachable")):
                     raise
-                path, stretches = partial_plan_path(path, exc)
-                joint_path, trajectory = plan_and_time(settings, path, robot, workpiece=part, surface=made.surface)
+                path, joint_path, trajectory, stretches = plan_partial(settings, path, exc, robot, part, made.surface)
                 tell(path, joint_path)
                 log.done("raster", path)  # the part of the raster that is programmed
         except PlanInfeasible as exc:
