@@ -172,3 +172,28 @@ def test_every_connector_that_cannot_be_lifted_is_named_with_its_poses(forced):
     assert str(every.value).startswith(str(first.value)) and ends[:2] == [a, b]
     assert np.all(np.diff(ends) > 0)   # pairs, in path order: a run's last pose, the next one's first (a retract's
     assert np.all(path.segment[ends[1::2]] - path.segment[ends[::2]] <= 1)   # two runs are in one segment)
+
+
+def test_a_lift_refused_only_by_a_joint_limit_says_the_part_is_at_the_edge_of_reach():
+    """The IRB2400 at axis 3 (j2 + j3) 64.9 deg of its 65: every lift along the tool axis goes further past the
+    limit, the higher the further (issue #46's shell, --allow-partial). The advice was 'raise planner.lift_mm',
+    which only makes it worse; a lift that meets the part still gets it."""
+    from camtool.errors import PlanInfeasible
+    from camtool.plan.connectors import _beyond_limits, lift_and_reconfigure
+
+    robot = get_robot("irb2400")
+    solver = CwlnSolver(robot, IkSettings(max_iterations=300))
+    s = LiftSettings(100.0, 4, np.radians(10), 50.0, 500.0, 0)
+    q0 = np.radians([0.0, 40.0, 24.9, 0.0, -60.0, 0.0])
+    T0 = robot.fk_tcp(q0)
+    with pytest.raises(PlanInfeasible) as limit:
+        lift_and_reconfigure(solver, robot, T0, q0, T0, q0, s, lambda q: _beyond_limits(robot, [q]) is None)
+    text = str(limit.value)
+    heights = [float(h) for h in re.findall(r"at (\d+) mm above the surface", text)]
+    values = [float(v) for v in re.findall(r"rax_3 = ([\d.]+) deg", text)]
+    assert heights == [100, 75, 50, 25, 15, 10] and values == sorted(values, reverse=True) and values[-1] > 65.0
+    assert "raise planner.lift_mm" not in text and "edge of the robot's reach" in text
+    q1 = np.radians([0.0, 20.0, 10.0, 0.0, -60.0, 0.0])    # far from the limits, the part in the way: higher may clear it
+    T1 = robot.fk_tcp(q1)
+    with pytest.raises(PlanInfeasible, match="the arm still touches the part; raise planner.lift_mm"):
+        lift_and_reconfigure(solver, robot, T1, q1, T1, q1, s, lambda q: False)

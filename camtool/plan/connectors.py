@@ -97,7 +97,11 @@ def lift_and_reconfigure(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: n
             break
     if chosen is None:
         if touches:
-            raise PlanInfeasible(f"{touches[0]}; raise planner.lift_mm or move the part (camtool place)"
+            # a lift that only ever meets a joint limit is at the edge of reach: a higher one goes further past it
+            advice = ("every lift is past a joint limit: the part is at the edge of the robot's reach; move it "
+                      "closer (camtool place)" if all(BEYOND in t for t in touches)
+                      else "raise planner.lift_mm or move the part (camtool place)")
+            raise PlanInfeasible(f"{touches[0]}; {advice}"
                                  + (f" (lower lifts: {'; '.join(touches[1:])})" if len(touches) > 1 else ""))
         raise PlanInfeasible(f"the tool cannot be lifted {LIFT_FRACTIONS[-1] * settings.clearance_mm:g}-"
                              f"{settings.clearance_mm:g} mm "
@@ -145,6 +149,9 @@ def _first_free_lift(solver, robot, Ta, qa, Tb, qb, settings: LiftSettings, vali
     return None
 
 
+BEYOND = "is beyond its limits"   # _beyond_limits' words (and the controller conventions')
+
+
 def _beyond_limits(robot: Robot, rows) -> str | None:
     """'<axis> = v deg is beyond its limits [..]' for the first row outside the joint or controller limits."""
     for q in rows:
@@ -156,7 +163,7 @@ def _beyond_limits(robot: Robot, rows) -> str | None:
         k = int(np.argmax(np.maximum(robot.limits.lower - q, q - robot.limits.upper)))
         v = robot.q_to_edge(q)[k]
         lo, hi = robot.q_to_edge(robot.limits.lower)[k], robot.q_to_edge(robot.limits.upper)[k]
-        return f"joint {robot.joint_names[k]} = {v:.2f} is beyond its limits [{lo:g}, {hi:g}]"
+        return f"joint {robot.joint_names[k]} = {v:.2f} {BEYOND} [{lo:g}, {hi:g}]"
     return None
 
 
