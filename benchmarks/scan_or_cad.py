@@ -5,7 +5,10 @@ Columns: vertices, the median |residual| of a vertex from the quadric through it
 is rough above ``SCAN_ROUGHNESS_MM``), the share of triangle pairs sharing an edge that are coplanar (a rough
 mesh is CAD at ``CAD_COPLANAR_SHARE`` or more), the verdict, the truth. The sample scans (*_scan.ply, wall.ply)
 are point clouds: always scans, their residuals shown for scale. The last column says whether the verdict is
-right; the script exits 1 if any is not.
+right; the script exits 1 if any is not. A part whose source does not say what it is (``UNKNOWN``: truth "?") is
+shown, not judged. Bezier's two Blender sheets (ocean, complex shape: CAD, 15-22 mm facets on waves and folds) read
+as rough (0.07 mm) with no coplanar pairs: judged scans, as roughness.py's coarse tessellations are meant to be
+unless coplanar facets say CAD; on them the rows still lie on the mesh (benchmarks/freeform.py: TCP p99 0.000 mm).
 
     .venv/bin/python benchmarks/scan_or_cad.py
 """
@@ -23,6 +26,7 @@ from camtool.part.roughness import CAD_COPLANAR_SHARE, SCAN_ROUGHNESS_MM, mesh_r
 
 PARTS = ROOT / "benchmarks" / "parts" / "freeform"
 SCALE = {"noether_wavy_hole.ply": 50.0}    # as benchmarks/freeform.py: 0.05 m a unit; the rest in metres
+UNKNOWN = {"reach_demo_part.ply"}   # its repository does not say whether it is a scan or CAD: shown, not judged
 
 
 def noisy_sheet(noise_mm: float, n: int = 60, spacing_mm: float = 2.0, seed: int = 0):
@@ -40,7 +44,7 @@ def cases():
     for f in sorted([*PARTS.glob("*.ply"), *PARTS.glob("*.obj")]):   # the .obj: the door, when fetched
         m = trimesh.load(f, process=False, force="mesh")
         yield f.name, np.asarray(m.vertices) * SCALE.get(f.name, 1000.0), m.faces, \
-            "scan" if "scan" in f.name else "cad"
+            "?" if f.name in UNKNOWN else "scan" if "scan" in f.name else "cad"
     for f in sorted((ROOT / "samples").glob("*.stl")):
         m = trimesh.load(f, process=False)
         yield "samples/" + f.name, np.asarray(m.vertices), m.faces, "cad"
@@ -61,7 +65,7 @@ def main() -> int:
         r = mesh_roughness(V, faces=F)
         verdict = "scan" if (r.is_scan or F is None) else "cad"
         share = "-" if r.coplanar_share is None else f"{100 * r.coplanar_share:.2f} %"
-        ok = verdict == truth
+        ok = verdict == truth or truth == "?"
         wrong += not ok
         print(f"{name:44s} {len(V):8d} {r.median_mm:10.2e} {share:>9s}  {verdict:7s}  {truth:5s} {'' if ok else 'WRONG'}")
     return 1 if wrong else 0
