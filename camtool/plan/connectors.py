@@ -189,9 +189,9 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
     'self_motion'. The joint path's events get ``lifted_connectors``.
 
     A connector that cannot be lifted raises ``PlanInfeasible`` naming it; its report's
-    ``unliftable_path_indices`` holds the path indices of the two poses it joins. With ``every_failure`` every
-    connector is tried first and the report holds those of each one that fails (a partial plan leaves them
-    out, ``run/tasks/raster.py``).
+    ``unliftable_path_indices`` holds the path indices of the two poses it joins (the end of one run, the start
+    of the next). With ``every_failure`` every connector is tried first and the report holds those pairs of each
+    one that fails, in path order (a partial plan leaves them out, ``run/tasks/raster.py``).
     """
     jp = joint_path
     seg = np.asarray(path.segment)
@@ -222,7 +222,7 @@ def lift_reconfigurations(joint_path: JointPath, path: Path, robot: Robot, setti
         inserts[int(r0)] = (new, info)
     if failed:
         raise PlanInfeasible(failed[0][0] + (f" (and {len(failed) - 1} more connector(s))" if len(failed) > 1 else ""),
-                             report={"unliftable_path_indices": sorted({i for _, a, b in failed for i in (a, b)})})
+                             report={"unliftable_path_indices": [i for _, a, b in failed for i in (a, b)]})
     if not inserts:
         return replace(jp, events={**jp.events, "lifted_connectors": []})
     return _spliced(jp, keep, inserts)

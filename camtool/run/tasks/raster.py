@@ -60,13 +60,13 @@ def check_several_faces(job: Job, settings: JobSettings) -> None:
                        "select one face, or drop the key")
 
 
-PARTIAL_LIFT_ROUNDS = 3   # a partial plan leaves out the stretch ends it cannot lift off at, then plans again
+PARTIAL_LIFT_ROUNDS = 5   # a partial plan leaves out the stretch ends it cannot lift off at, then plans again
 
 
 def partial_plan_path(path, exc: PlanInfeasible, unliftable=()):
     """(the reachable stretches as a Path, each of its poses' index in ``path``, report figures) for
     ``task.allow_partial``, the ``unliftable`` path indices left out too; PlanInfeasible if none."""
-    bad = [u["index"] for u in exc.report["unreachable"]]
+    bad = [u["index"] for u in exc.report.get("unreachable", [])]
     bad += sorted(set(int(i) for i in unliftable) - set(bad))
     stretches = reachable_stretches(path, bad)
     if not stretches:
@@ -81,10 +81,12 @@ def partial_plan_path(path, exc: PlanInfeasible, unliftable=()):
 
 def plan_partial(settings: JobSettings, path, exc: PlanInfeasible, robot, part, surface):
     """(partial path, joint path, trajectory, figures): the reachable stretches planned and timed. A stretch cut
-    at the edge of reach ends where the arm may not lift off (a lift past a joint limit, into a link): those ends
-    (each connector's two poses, ``lift_reconfigurations``' ``unliftable_path_indices``) are left out as the
-    unreachable poses are, and the rest planned again, ``PARTIAL_LIFT_ROUNDS`` times at most."""
-    unliftable: set[int] = set()
+    at the edge of reach ends where the arm may not lift off (a lift past a joint limit, into a link): at each
+    connector that cannot be lifted (``lift_reconfigurations``' ``unliftable_path_indices``: the end of one
+    run, the start of the next) the poses of both sides are left out as the unreachable ones are, 1, 2, 4, ...
+    of them in turn (the edge of reach may lie several poses in), and the rest planned again,
+    ``PARTIAL_LIFT_ROUNDS`` times at most."""
+    unliftable = _trimmed(exc.report.get("unliftable_path_indices", ()), len(path), 1)   # every pose reached
     for round_ in range(PARTIAL_LIFT_ROUNDS + 1):
         sub, index, figures = partial_plan_path(path, exc, unliftable)
         try:
@@ -95,7 +97,15 @@ def plan_partial(settings: JobSettings, path, exc: PlanInfeasible, robot, part, 
             ends = again.report.get("unliftable_path_indices")
             if not ends or round_ == PARTIAL_LIFT_ROUNDS:
                 raise
-            unliftable |= {int(index[i]) for i in ends}
+            unliftable |= _trimmed([int(index[i]) for i in ends], len(path), 2 ** (round_ + 1))
+
+
+def _trimmed(pairs, n: int, depth: int) -> set[int]:
+    """The path indices ``depth`` poses deep into each side of each (end of a run, start of the next) pair."""
+    out: set[int] = set()
+    for a, b in zip(pairs[::2], pairs[1::2]):
+        out |= set(range(max(int(a) - depth + 1, 0), int(a) + 1)) | set(range(int(b), min(int(b) + depth, n)))
+    return out
 
 
 class MapAhead:
@@ -212,7 +222,8 @@ def planned_and_timed(r: RasterRun, made: Rastered, part, ahead: Ahead | None = 
                 if joint_path.events.get("leads", {}).get("lead_mm_used", settings.raster.lead_mm) != settings.raster.lead_mm:
                     log.done("raster", path)  # rastered again with the leads the ramps need
             except PlanInfeasible as exc:
-                if not (job.task.allow_partial and exc.report.get("unreachable")):
+                if not (job.task.allow_partial and (exc.report.get("unreachable")
+                                                    or exc.report.get("unliftable_path_indices"))):
                     raise
                 path, joint_path, trajectory, stretches = plan_partial(settings, path, exc, robot, part, made.surface)
                 tell(path, joint_path)
