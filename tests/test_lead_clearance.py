@@ -110,3 +110,35 @@ def test_a_self_motion_whose_chord_crosses_a_ridge_rises_over_it():
     new = cleared_leads(path, ridge, lead_mm=15.0)
     assert chord_min(new) >= 0.0
     assert np.allclose(new.poses_mm[zone != ZONE_CODE["self_motion"]], path.poses_mm[zone != ZONE_CODE["self_motion"]])
+
+
+def test_a_lead_whose_chord_to_the_work_cuts_a_bent_edge_is_lifted_over_it():
+    """The poses of the first row's lead-out are on the plane, but a 0.3 mm ridge midway between the work's end
+    (x = 100) and the lead's first pose (x = 107.5) is in the way of the chord between them."""
+    from camtool.path.lead_clearance import CHORD_SLACK_MM
+
+    def ridge_sd(P):
+        """mm above the plane z = 0 with a tent 0.3 mm high at x = 103.75 (slope 0.08: the vertical distance)."""
+        P = np.atleast_2d(P)
+        return P[:, 2] - np.maximum(0.0, 0.3 - 0.08 * np.abs(P[:, 0] - 103.75))
+
+    path = two_row_path()
+    P0 = path.poses_mm[:, :3, 3]
+    zone = np.asarray(path.zone)
+    out_first = np.flatnonzero((zone == ZONE_CODE["lead_out"]) & (path.segment == 0))
+    chain = np.r_[out_first[0] - 1, out_first]
+
+    def chord_min(P):
+        f = np.linspace(0.0, 1.0, 201)[:, None]
+        return min(ridge_sd(P[a] + f * (P[b] - P[a])).min() for a, b in zip(chain[:-1], chain[1:]))
+
+    assert ridge_sd(P0[out_first]).min() >= 0.0 and chord_min(P0) < -0.25   # poses on the part, the chord 0.3 in
+    new = cleared_leads(path, ridge_sd, lead_mm=15.0)
+    P = new.poses_mm[:, :3, 3]
+    moved = np.linalg.norm(P - P0, axis=1) > 1e-9
+    assert chord_min(P) >= -CHORD_SLACK_MM - 1e-9
+    assert ridge_sd(P[out_first]).min() >= 0.5 * LEAD_CLEAR_MM
+    in_second = np.flatnonzero((zone == ZONE_CODE["lead_in"]) & (path.segment == 1))   # crosses the ridge too
+    lead = np.isin(zone, [ZONE_CODE["lead_in"], ZONE_CODE["lead_out"]])
+    assert set(np.flatnonzero(moved & lead)) == set(out_first) | set(in_second)
+    assert not moved[zone == ZONE_CODE["work"]].any()

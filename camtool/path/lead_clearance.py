@@ -32,7 +32,8 @@ from .toolpath import ZONE_CODE, Path
 
 LEAD_CLEAR_MM = 1.0   # a lead or self-motion pose closer than this to the part is lifted
 ROUNDS = 8            # rounds of lifting a lead and measuring it again
-CHORD_STEP_MM = 2.0   # a self-motion is measured along its chords at most this far apart
+CHORD_STEP_MM = 2.0   # a lead or self-motion is measured along its chords at most this far apart
+CHORD_SLACK_MM = 0.02  # a lead's chords may come this close to the part's inside (the joint motion bows off them by 0.06 mm more on the door)
 CLEARED_SHARE = 0.5   # a ramp whose poses end this share of clear_mm in front of the part clears it
 MAX_RISE_LEADS = 3.0  # a lead rises by at most this many of its own lengths at its far end
 RAMP_POWERS = (3, 2, 1)  # the lift's power of the lead's share: the cube first (no kink, no jump in curvature)
@@ -63,7 +64,17 @@ def _leads(path: Path) -> list[tuple[np.ndarray, int, np.ndarray]]:
     return sorted(out, key=lambda t: int(t[0][0]))
 
 
-def _rise(sd_of: Callable, p: np.ndarray, up: np.ndarray, shape: np.ndarray, clear_mm: float,
+def _lead_chords(P: np.ndarray, k: np.ndarray, anchor: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(the lead's poses with its work end, in path order; chord index and share of points strictly inside its
+    chords, ``CHORD_STEP_MM`` apart at most): a lead's pose can be in front of the part while the chord to the
+    next one, or to the work's end, cuts a bent edge (the Vito door's lead-ins: 0.16 mm deep)."""
+    chain = np.r_[k, anchor] if anchor > k[-1] else np.r_[anchor, k]
+    q, w = _along_chords(P[chain])
+    inner = w > 0
+    return chain, q[inner], w[inner]
+
+
+def _rise(sd_of: Callable, p: np.ndarray, up: np.ndarray, shape: np.ndarray, clear_mm,
           cap_mm: float) -> tuple[float, bool]:
     """(the smallest ``c`` (mm, at most ``cap_mm``) with every ``p + c * shape * up`` ``clear_mm`` in front, whether
     they are at least ``CLEARED_SHARE`` of that in front with it) (``up``: one direction, or one per point)."""
@@ -74,7 +85,7 @@ def _rise(sd_of: Callable, p: np.ndarray, up: np.ndarray, shape: np.ndarray, cle
         if deficit.max() <= 0 or c >= cap_mm:
             break
         c = min(c + float(np.max(deficit / np.maximum(shape, 1e-3))), cap_mm)
-    return c, bool(sd.min() >= CLEARED_SHARE * clear_mm)
+    return c, bool(np.all(sd >= np.minimum(CLEARED_SHARE * np.asarray(clear_mm), clear_mm)))
 
 
 def cleared_leads(path: Path, signed_distance: Callable[[np.ndarray], np.ndarray], lead_mm: float,
@@ -90,11 +101,19 @@ def cleared_leads(path: Path, signed_distance: Callable[[np.ndarray], np.ndarray
     for k, anchor, away in _leads(path):
         if only is not None and not only[anchor]:
             continue
-        if np.nan_to_num(signed_distance(P[k]), nan=np.inf).min() >= -inside_mm:
+        chain, q, w = _lead_chords(P, k, anchor)
+        C = (1 - w)[:, None] * P[chain][q] + w[:, None] * P[chain][q + 1]
+        if (np.nan_to_num(signed_distance(P[k]), nan=np.inf).min() >= -inside_mm
+                and np.nan_to_num(signed_distance(C), nan=np.inf).min() >= -inside_mm - CHORD_SLACK_MM):
             continue
+        # the poses clear_mm in front, the points on the chords between them (and the work's end) out of the part
+        pts = np.vstack([P[k], C])
+        target = np.r_[np.full(len(k), clear_mm), np.full(len(C), -inside_mm - CHORD_SLACK_MM)]
         for power in RAMP_POWERS:   # the gentlest ramp that clears the part within the cap
             shape = away ** power
-            c, out = _rise(signed_distance, P[k], up[anchor], shape, clear_mm, cap)
+            s_chain = np.r_[shape, 0.0] if anchor > k[-1] else np.r_[0.0, shape]
+            shape_pts = np.r_[shape, (1 - w) * s_chain[q] + w * s_chain[q + 1]]
+            c, out = _rise(signed_distance, pts, up[anchor], shape_pts, target, cap)
             if out and c < cap:
                 break
         extra[k] = (c * shape)[:, None] * up[anchor]
