@@ -24,7 +24,7 @@ from camtool.job import load_job  # noqa: E402
 from camtool.path.raster import raster_path  # noqa: E402
 from camtool.run.job_settings import JobSettings  # noqa: E402
 from camtool.run.part_stages import PartHere  # noqa: E402
-from camtool.run.stages import leads_clear_of_part, motion_check_part, part_for_checks  # noqa: E402
+from camtool.run.stages import motion_check_part, part_for_checks, shaped_for_part  # noqa: E402
 
 
 def _chord_min(geo, P: np.ndarray, zone: np.ndarray) -> float:
@@ -42,7 +42,7 @@ def main() -> None:
     part = PartHere(job)
     wp, surface = part.workpiece(), part.surface()
     before = raster_path(surface, settings.raster)
-    after = leads_clear_of_part(settings, surface, before, part_for_checks(settings, wp, surface))
+    after = shaped_for_part(settings, surface, before, part_for_checks(settings, wp, surface))[0]   # no robot: no tilt
     geo = motion_check_part(settings, wp, before, surface)
     zone = np.array(before.zone_names())
     for name, path in (("before", before), ("after", after)):

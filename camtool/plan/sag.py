@@ -105,9 +105,7 @@ def _surface_midposes(Ta, Tb, T_arc, sag_arc, project):
     as does a step on the face whose midpoint has none under it (``project`` NaN: over a hole)."""
     T, sag = T_arc.copy(), sag_arc.copy()
     pa, pb = Ta[:, :3, 3], Tb[:, :3, 3]
-    with np.errstate(invalid="ignore"):
-        on = (np.linalg.norm(project(pa) - pa, axis=1) <= ON_FACE_MM).astype(int) \
-            + (np.linalg.norm(project(pb) - pb, axis=1) <= ON_FACE_MM)
+    on = _on_face(pa, project).astype(int) + _on_face(pb, project)
     mid = 0.5 * (pa + pb)
     face = np.isfinite(project(mid)).all(axis=1)
     onto = project(mid, continued=True)
@@ -127,12 +125,14 @@ def turns_on_face(Ta: np.ndarray, Tb: np.ndarray, project) -> np.ndarray:
     turning = cos < np.cos(np.radians(TURN_SPLIT_DEG))
     if not turning.any():
         return turning
-    pa, pb = Ta[turning, :3, 3], Tb[turning, :3, 3]
-    with np.errstate(invalid="ignore"):
-        on = (np.linalg.norm(project(pa) - pa, axis=1) <= ON_FACE_MM) \
-            & (np.linalg.norm(project(pb) - pb, axis=1) <= ON_FACE_MM)
-    turning[turning] = on
+    turning[turning] = _on_face(Ta[turning, :3, 3], project) & _on_face(Tb[turning, :3, 3], project)
     return turning
+
+
+def _on_face(p: np.ndarray, project) -> np.ndarray:
+    """(m,) whether each point (m, 3) lies within ``ON_FACE_MM`` of the free-form face (False where it has none)."""
+    with np.errstate(invalid="ignore"):
+        return np.linalg.norm(project(p) - p, axis=1) <= ON_FACE_MM
 
 
 def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> dict[int, np.ndarray]:
@@ -167,6 +167,13 @@ def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> di
     return bisected(solver, Ta, qa, Tb, qb, MAX_SPLITS + 2, sagging)
 
 
+def _in_frame(project, base: np.ndarray):
+    """``project`` (world points onto a face) for points in the frame ``base`` (4x4, world from frame)."""
+    def in_frame(p, **kw):
+        return (project(p @ base[:3, :3].T + base[:3, 3], **kw) - base[:3, 3]) @ base[:3, :3]
+    return in_frame
+
+
 def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver,
                       chord_tol_mm: float, project=None) -> JointPath:
     """``joint_path`` with arc-midpoint rows where a surface step's sag exceeds ``chord_tol_mm / 2``.
@@ -181,11 +188,7 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
     base_inv = np.linalg.inv(robot.base_T_mm)
     on = np.isin(jp.zone, SURFACE_CODES) & (jp.path_index >= 0)
     steps = np.flatnonzero(on[:-1] & on[1:] & (np.diff(jp.path_index) == 1))
-    base_project = None
-    if project is not None:   # the projector in the base frame the solver works in
-        base = np.asarray(robot.base_T_mm, float)
-        def base_project(p, **kw):
-            return (project(p @ base[:3, :3].T + base[:3, 3], **kw) - base[:3, 3]) @ base[:3, :3]
+    base_project = None if project is None else _in_frame(project, np.asarray(robot.base_T_mm, float))
     if len(steps):   # the steps whose sag is within the tolerance are left alone, all at once
         poses = np.einsum("ij,njk->nik", base_inv, path.poses_mm)
         Ta, Tb = poses[jp.path_index[steps]], poses[jp.path_index[steps + 1]]

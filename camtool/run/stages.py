@@ -407,15 +407,16 @@ def _leads_may_meet(settings: JobSettings, part) -> bool:
 
 
 def clearance_part(settings: JobSettings, workpiece, surface):
-    """What ``leads_clear_of_part`` measures against: ``part_for_checks``, or None where the leads cannot meet the
-    part (``_leads_may_meet``; a 1 M-point scan's filtered points cost 2 s for nothing)."""
+    """What ``shaped_for_part`` measures against: ``part_for_checks``, or None where the leads cannot meet the
+    part (``_leads_may_meet``; a 1 M-point scan's filtered points cost 2 s for nothing, its geometry 20 s; the
+    motion check still measures every lead against it)."""
     return part_for_checks(settings, workpiece, surface) if _leads_may_meet(settings, workpiece) else None
 
 
 def shaped_for_part(settings: JobSettings, surface, path, part, robot=None) -> tuple:
     """(``path`` shaped to ``part`` (``part_for_checks``), the tilt's figures for report.json or None): its
     free-form faces' tool axes tilted clear of the part where the tool or the wrist would be in it (with
-    ``robot``: ``_tilted``), then their leads lifted clear of it (``leads_clear_of_part``). A path of no free-form
+    ``robot``: ``_tilted``), then their leads lifted clear of it (``_leads_cleared``). A path of no free-form
     face, or of a part its poses cannot meet (``_leads_may_meet``), comes back as it was."""
     only = _freeform_poses(surface, path)
     if not _leads_may_meet(settings, part) or only is None or not only.any():
@@ -444,21 +445,12 @@ def _tilted(settings: JobSettings, path, geometry, robot, only) -> tuple:
     return path, figures.to_dict()
 
 
-def leads_clear_of_part(settings: JobSettings, surface, path, part):
-    """``path`` with its free-form faces' leads lifted clear of ``part`` (``part_for_checks``; the modifier
-    ``path.lead_clearance``): their straight leads run on past the face's edge, where the part may go on and turn
-    up towards the tool (a door's handle recess, a flange). An analytic face's leads follow its surface (or its
-    tangent, ``raster.lead_path``) and stay as they are, as does every lead already clear, and every lead of a
-    part it cannot meet (``_leads_may_meet``: the geometry of a 1 M-point scan would cost 20 s here for nothing;
-    the motion check still measures every lead against it)."""
-    only = _freeform_poses(surface, path)
-    if not _leads_may_meet(settings, part) or only is None or not only.any():
-        return path
-    return _leads_cleared(settings, surface, path, part_from_path(part, path), only)
-
-
 def _leads_cleared(settings: JobSettings, surface, path, geometry, only):
-    """``leads_clear_of_part`` on the part's geometry made (``part_from_path``)."""
+    """``path`` with its free-form faces' leads (``only``) lifted clear of the part's ``geometry``
+    (``part_from_path``; the modifier ``path.lead_clearance``): their straight leads run on past the face's edge,
+    where the part may go on and turn up towards the tool (a door's handle recess, a flange). An analytic face's
+    leads follow its surface (or its tangent, ``raster.lead_path``) and stay as they are, as does every lead
+    already clear."""
     faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
     band = max((f.lead_band_mm for f in faces if getattr(f, "source_kind", "") == "scan"), default=0.0)
     return cleared_leads(path, geometry.signed_distance, settings.raster.lead_mm, only,
