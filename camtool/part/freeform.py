@@ -27,6 +27,7 @@ from .freeform_grid import Grid, fill, grid_over, normals_of
 from .freeform_rows import row_distance, row_table, seed_row
 from .freeform_sample import chart_frame, cloud_heights, mesh_heights, to_chart
 from .domain import Boundary, FitStats
+from .surface_base import Surface
 
 NORMAL_SMOOTHING_MM = 6.0   # Gaussian sigma of the normals (a tool's footprint of 10-15 mm averages about this)
 SCAN_SMOOTHING_SPACINGS = 2.5  # a scan's positions are smoothed over this many point spacings (at least 2 mm)
@@ -61,7 +62,7 @@ def _unb64(d: dict, dtype: str) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class FreeformSurface:
+class FreeformSurface(Surface):
     """A free-form face: a height field over a chart plane with geodesic row coordinates.
 
     ``origin_mm``, ``frame`` (columns e1, e2, e3; e3 towards the tool): the chart plane. ``grid``: its nodes;
@@ -141,11 +142,19 @@ class FreeformSurface:
         return n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
 
     @property
+    def scanned(self) -> bool:
+        return self.source_kind == "scan"
+
+    @property
+    def on_mesh_facets(self) -> bool:
+        return self.source_kind == "mesh"
+
+    @property
     def lead_band_mm(self) -> float:
         """How far a scan's points scatter off the face (``NOISE_BAND_SIGMAS`` x the fit's RMS), at least
         ``LEAD_LIFT_MIN_MM`` (a scanned mesh's triangles are as rough, with no RMS to show it): the leads rise by it
         past the face's edge, so they do not run into the part's roughness beyond it."""
-        if self.source_kind != "scan" or self.stats is None:
+        if not self.scanned or self.stats is None:
             return LEAD_LIFT_MIN_MM
         return max(NOISE_BAND_SIGMAS * float(self.stats.rms_mm), LEAD_LIFT_MIN_MM)
 

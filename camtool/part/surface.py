@@ -33,10 +33,11 @@ from ..errors import BadInput
 from ..files import output_file
 from .. import safe_io
 from .domain import Boundary, FitStats  # noqa: F401  (the surfaces' parameter domain; re-exported)
+from .surface_base import Surface
 
 
 @dataclass(frozen=True)
-class PlaneSurface:
+class PlaneSurface(Surface):
     """A plane n.x = offset_mm with an in-plane (u, v) frame in mm."""
 
     origin_mm: np.ndarray
@@ -72,6 +73,9 @@ class PlaneSurface:
         """(N, 2) mm per unit of u and of v at uv (1 for a plane)."""
         return np.ones_like(np.atleast_2d(uv), dtype=float)
 
+    def summary_rows(self) -> list[tuple[str, str]]:
+        return [("surface.normal", ", ".join(f"{v:.4f}" for v in self.normal))]
+
     def to_dict(self) -> dict:
         d = {
             "model": "plane",
@@ -87,7 +91,7 @@ class PlaneSurface:
 
 
 @dataclass(frozen=True)
-class SpherePatch:
+class SpherePatch(Surface):
     """A patch of a sphere, parameterised by azimuth u and elevation v (rad).
 
     ``concave``: the material is outside the sphere (a bowl, worked from inside);
@@ -131,6 +135,10 @@ class SpherePatch:
         uv = np.atleast_2d(uv)
         return np.stack([self.radius_mm * np.cos(uv[:, 1]), np.full(len(uv), self.radius_mm)], axis=-1)
 
+    def summary_rows(self) -> list[tuple[str, str]]:
+        return [("surface.radius_mm", f"{self.radius_mm:.6g}"),
+                ("surface.center_mm", ", ".join(f"{v:.1f}" for v in self.center_mm))]
+
     def to_dict(self) -> dict:
         d = {
             "model": "sphere",
@@ -145,7 +153,7 @@ class SpherePatch:
 
 
 @dataclass(frozen=True)
-class Cylinder:
+class Cylinder(Surface):
     """A patch of a circular cylinder, parameterised by angle u (rad) about the axis and axial v (mm).
 
     ``frame``: columns e1 (u = 0, the patch's mean radial direction), e2, e3 (the axis);
@@ -191,6 +199,12 @@ class Cylinder:
         uv = np.atleast_2d(uv)
         return np.stack([np.full(len(uv), self.radius_mm), np.ones(len(uv))], axis=-1)
 
+    def summary_rows(self) -> list[tuple[str, str]]:
+        return [("surface.radius_mm", f"{self.radius_mm:.6g}"),
+                ("surface.axis", ", ".join(f"{v:.4f}" for v in self.axis)),
+                ("surface.center_mm", ", ".join(f"{v:.1f}" for v in self.center_mm)),
+                ("surface.side", "inside (concave)" if self.concave else "outside")]
+
     def to_dict(self) -> dict:
         d = {
             "model": "cylinder",
@@ -204,8 +218,6 @@ class Cylinder:
         }
         return _with_stats(d, self.stats)
 
-
-Surface = PlaneSurface | SpherePatch | Cylinder
 
 
 @dataclass(frozen=True)

@@ -455,7 +455,7 @@ def _with_contour(surface, settings: RasterSettings, chart: _Chart, rows: _Block
     runs = contour_runs(surface.boundary, chart.kx, chart.ky,
                         contour_offset_mm(settings.step_over_mm, settings.pitch_mm),
                         periodic=spans_full_turn(surface), start_xy_mm=rows.uv[-1] * (chart.kx, chart.ky),
-                        round_corners_mm=SCAN_CONTOUR_ROUND_MM if getattr(surface, "source_kind", "") == "scan" else 0.0)
+                        round_corners_mm=SCAN_CONTOUR_ROUND_MM if surface.scanned else 0.0)
     if not runs:
         return rows
     c = contour_blocks(surface, chart.kx, chart.ky, runs, settings.pitch_mm, settings.lead_mm, rows.n_lead)
@@ -473,7 +473,7 @@ def _block_poses(surface, blocks: _Blocks, settings: RasterSettings, tool_x_worl
     orientation of the on-surface samples, the leads lifted."""
     b = blocks
     lift = np.zeros(len(b.seg)) if b.away is None else settings.clearance_mm * b.away ** 3
-    band = float(getattr(surface, "lead_band_mm", 0.0))
+    band = float(surface.lead_band_mm)
     if band > 0 and b.away is not None:
         lift = lift + band * _band_ramp(b.away)
     p = surface.point_mm(b.uv[:, 0], b.uv[:, 1])

@@ -24,6 +24,7 @@ import numpy as np
 from ..collision.plot import obstacle_traces
 from ..errors import BadInput
 from ..robots.dh import MM_TO_M
+from ..part.surface_base import Surface
 from ..path.toolpath import WORK, ZONES
 
 MAX_WORKPIECE_POINTS = 20_000
@@ -367,16 +368,8 @@ def _summary_section(report, robot, surface, path, failing_indices):
     extra = [("robot.dof", str(robot.dof)), ("robot.joints", ", ".join(robot.joint_names))]
     if surface is not None:
         extra.append(("surface.model", str(getattr(surface, "model", type(surface).__name__))))
-        if getattr(surface, "model", "") == "sphere":
-            extra.append(("surface.radius_mm", f"{surface.radius_mm:.6g}"))
-            extra.append(("surface.center_mm", ", ".join(f"{v:.1f}" for v in surface.center_mm)))
-        elif getattr(surface, "model", "") == "plane":
-            extra.append(("surface.normal", ", ".join(f"{v:.4f}" for v in surface.normal)))
-        elif getattr(surface, "model", "") == "cylinder":
-            extra.append(("surface.radius_mm", f"{surface.radius_mm:.6g}"))
-            extra.append(("surface.axis", ", ".join(f"{v:.4f}" for v in surface.axis)))
-            extra.append(("surface.center_mm", ", ".join(f"{v:.1f}" for v in surface.center_mm)))
-            extra.append(("surface.side", "inside (concave)" if surface.concave else "outside"))
+        if isinstance(surface, Surface):
+            extra.extend(surface.summary_rows())
         if getattr(surface, "stats", None) is not None:
             extra.append(("surface.rms_mm", f"{surface.stats.rms_mm:.4g}"))
     if path is not None:

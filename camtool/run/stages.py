@@ -54,6 +54,7 @@ from ..settings import PlannerSettings, RasterSettings, TimingSettings
 from .job_settings import JobSettings
 from ..part.roughness import judged_before, mesh_is_scan, mesh_roughness
 from ..part.surface import FaceSet
+from ..part.surface_base import Surface
 from ..timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
 from ..path.toolpath import row_segments
 from ..transforms import matrix_from_xyz_rpy
@@ -233,7 +234,7 @@ def face_projector(settings: JobSettings, surface, workpiece):
     facets (``FreeformSurface.project_mm``); None for an analytic face, a scan's smoothed surface or a scanned
     mesh (``part.roughness``): taken onto those, the midposes would follow their noise, and the time law slows
     for it (the shell sample's cycle 214 -> 361 s at its former placement), so they stay on the arc through the tool axes."""
-    if getattr(surface, "source_kind", None) != "mesh" or workpiece is None or workpiece.faces is None:
+    if not isinstance(surface, Surface) or not surface.on_mesh_facets or workpiece is None or workpiece.faces is None:
         return None
     if mesh_is_scan(workpiece.vertices_mm, settings.workpiece.scan, workpiece.faces):
         return None
@@ -452,7 +453,7 @@ def _leads_cleared(settings: JobSettings, surface, path, geometry, only):
     leads follow its surface (or its tangent, ``raster.lead_path``) and stay as they are, as does every lead
     already clear."""
     faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
-    band = max((f.lead_band_mm for f in faces if getattr(f, "source_kind", "") == "scan"), default=0.0)
+    band = max((f.lead_band_mm for f in faces if f.scanned), default=0.0)
     return cleared_leads(path, geometry.signed_distance, settings.raster.lead_mm, only,
                          inside_mm=band)   # a scan's leads may run in its noise band, as the motion check allows
 
