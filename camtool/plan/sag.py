@@ -28,7 +28,9 @@ way to its pose, so every half dipped again and the halves shrank to 0.19 mm nex
 time law's cubic spline through knots so uneven, at a kink, looped 10 mm and 5.45 mm into the door.
 A step on a free-form face whose tool axis turns by more than ``TURN_SPLIT_DEG`` is halved as well, whatever
 its sag (a bend sharper than the pitch: a mould's fillet, a door's rolled rim), so neighbouring work poses turn
-by at most that; its midpose is slerped and taken onto the face.
+by at most that; its midpose is slerped and taken onto the face. ``camtool run`` plans a path whose work steps
+are cut so already (``path.turn_split``: here a step with a retract between its poses is no step, and its turn
+stayed); this split serves the paths planned as rastered (the placement search's, rastered without the part).
 """
 from __future__ import annotations
 
@@ -39,6 +41,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from ..robots.model import Robot
 from ..path.toolpath import SURFACE_CODES, WORK, Path
+from ..path.turn_split import MAX_TURN_DEG
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
 from .densify import bisected, slerp_midposes
@@ -47,8 +50,8 @@ MAX_SPLITS = 3  # a step is halved at most this many times for its sag (8 pieces
 ON_FACE_MM = 0.01      # a step whose poses both lie this close to a free-form face is on it (its midposes too)
 DIP_STEP_MM = 1.0      # a lead step whose chord dips under a free-form face is halved down to this, no further
                        # (on the Vito door at 2 mm three 0.1-0.16 mm bows of the spline were left, at 1 mm one)
-TURN_SPLIT_DEG = 5.0   # a step on a free-form face whose tool axis turns more than this is halved too (issue #46:
-                       # neighbouring work poses turn at most 5 deg; a fillet of 10 mm at a 5 mm pitch turns 29)
+TURN_SPLIT_DEG = MAX_TURN_DEG   # a step on a free-form face whose tool axis turns more than this is halved too
+                                # (issue #46; a fillet of 10 mm at a 5 mm pitch turns 29 deg)
 SAG_SCREEN_MM = 1e-6   # the batched screen leaves a step to its own test unless this much within the tolerance
                        # (arccos near parallel tool axes is good to ~1e-8 rad: ~1e-7 mm of sag on a 100 mm step)
 

@@ -38,6 +38,7 @@ from ..collision.stage import collision_world, with_world
 from ..program.post import thin_waypoints
 from .post_inputs import write_job_programs
 from ..path.axis_tilt import AxisTiltSettings, TiltRefused, tilted_axes
+from ..path.turn_split import split_turns
 from ..path.lead_clearance import cleared_leads
 from ..path.raster import raster_path
 from ..report.run_report import (
@@ -417,16 +418,28 @@ def clearance_part(settings: JobSettings, workpiece, surface):
 def shaped_for_part(settings: JobSettings, surface, path, part, robot=None) -> tuple:
     """(``path`` shaped to ``part`` (``part_for_checks``), the tilt's figures for report.json or None): its
     free-form faces' tool axes tilted clear of the part where the tool or the wrist would be in it (with
-    ``robot``: ``_tilted``), then their leads lifted clear of it (``_leads_cleared``). A path of no free-form
-    face, or of a part its poses cannot meet (``_leads_may_meet``), comes back as it was."""
+    ``robot``: ``_tilted``), then their leads lifted clear of it (``_leads_cleared``), then their work steps that
+    turn the tool axis by more than 5 deg cut into pieces on the face (``path.turn_split``, whatever the part). A
+    path of no free-form face comes back as it was, one of a part its poses cannot meet (``_leads_may_meet``)
+    only cut where it turns."""
     only = _freeform_poses(surface, path)
-    if not _leads_may_meet(settings, part) or only is None or not only.any():
+    if only is None or not only.any():
         return path, None
-    geometry = part_from_path(part, path)
     figures = None
-    if robot is not None and settings.raster.axis_tilt_max_rad > 0:
-        path, figures = _tilted(settings, path, geometry, robot, only)
-    return _leads_cleared(settings, surface, path, geometry, only), figures
+    if _leads_may_meet(settings, part):
+        geometry = part_from_path(part, path)
+        if robot is not None and settings.raster.axis_tilt_max_rad > 0:
+            path, figures = _tilted(settings, path, geometry, robot, only)
+        path = _leads_cleared(settings, surface, path, geometry, only)
+    return split_turns(path, _freeform_projectors(surface, path))[0], figures
+
+
+def _freeform_projectors(surface, path) -> list:
+    """(the mask of ``path``'s poses on it, its ``project_mm``) for each free-form face of ``surface``."""
+    if isinstance(surface, FaceSet):
+        return [(path.face == i, f.project_mm) for f, i in zip(surface.surfaces, surface.indices)
+                if getattr(f, "model", "") == "freeform" and path.face is not None]
+    return [(np.ones(len(path), bool), surface.project_mm)] if getattr(surface, "model", "") == "freeform" else []
 
 
 def _tilted(settings: JobSettings, path, geometry, robot, only) -> tuple:

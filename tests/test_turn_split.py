@@ -1,0 +1,126 @@
+"""camtool.path.turn_split: a free-form face's work steps that turn the tool axis by more than 5 deg are cut into
+equal pieces on the face (issue #46: "no turn of more than 5 deg between neighbouring work poses"). Closed forms: a
+roll of radius R rastered across its axis at pitch p turns p / R a step; a step of angle a is cut into
+ceil(a / 5 deg) pieces of a / n, each point on the roll."""
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from camtool.part.fit import fit_surface
+from camtool.path.raster import raster_path
+from camtool.path.toolpath import WORK, ZONE_CODE, Path
+from camtool.path.turn_split import MAX_TURN_DEG, split_turns
+from camtool.settings import RasterSettings
+from test_freeform import FIT, grid_mesh, mesh_workpiece
+
+R_MM = 60.0      # the roll's radius: a 10 mm pitch turns 9.55 deg (the noether panel's pocket rim: 5-10 deg)
+PITCH_MM = 10.0
+
+
+def roll_mesh():
+    """A roll z = sqrt(R^2 - x^2), 100 mm across (+-56 deg) and 80 mm along its axis y, on a 1 mm grid."""
+    return grid_mesh(np.linspace(-50, 50, 101), np.linspace(-40, 40, 41), lambda X, Y: np.sqrt(R_MM ** 2 - X * X))
+
+
+@pytest.fixture(scope="module")
+def roll():
+    V, F = roll_mesh()
+    wp, _ = mesh_workpiece(V, F)
+    return wp, fit_surface(wp, FIT)
+
+
+def work_turns_deg(path: Path) -> np.ndarray:
+    """The tool axis's turn (deg) between neighbouring work poses of one segment."""
+    z = np.asarray(path.poses_mm[:, :3, 2])
+    w = path.is_work
+    step = w[:-1] & w[1:] & (path.segment[1:] == path.segment[:-1])
+    return np.degrees(np.arccos(np.clip(np.einsum("ki,ki->k", z[:-1], z[1:]), -1.0, 1.0)))[step]
+
+
+def on_roll_mm(points: np.ndarray) -> np.ndarray:
+    return np.abs(np.hypot(points[:, 0], points[:, 2]) - R_MM)
+
+
+def onto_cylinder(points):
+    """Points taken onto the cylinder of radius R_MM about y, radially (the exact face)."""
+    p = np.asarray(points, float).copy()
+    p[:, [0, 2]] *= (R_MM / np.hypot(p[:, 0], p[:, 2]))[:, None]
+    return p
+
+
+def pose_on_roll(angle_rad: float) -> np.ndarray:
+    """A pose on the roll at angle_rad from its top, the tool axis into it, x along the row."""
+    out = np.array([math.sin(angle_rad), 0.0, math.cos(angle_rad)])
+    T = np.eye(4)
+    T[:3, 1], T[:3, 2], T[:3, 3] = [0.0, 1.0, 0.0], -out, R_MM * out
+    T[:3, 0] = np.cross(T[:3, 1], T[:3, 2])
+    return T
+
+
+def test_a_step_is_cut_into_the_fewest_equal_pieces_on_the_face():
+    """A 30 mm step on the 60 mm roll turns 28.65 deg: six pieces of 4.77 deg (closed form), each point on the
+    roll; the lead-in before it and a step of another face (its mask False) are left as they were."""
+    a = 30.0 / R_MM
+    poses = np.array([pose_on_roll(-0.2), pose_on_roll(0.0), pose_on_roll(a), pose_on_roll(a + 0.3)])
+    zone = np.array([ZONE_CODE["lead_in"], WORK, WORK, WORK])
+    path = Path(poses, np.zeros(4, int), np.array([0, 1, 2, 3]), zone, face=np.array([3, 3, 3, 5]),
+                contour=np.zeros(4, bool))
+    out, added = split_turns(path, [(path.face == 3, onto_cylinder)])
+    n = math.ceil(math.degrees(a) / MAX_TURN_DEG)
+    assert n == 6 and added == n - 1 and len(out) == len(path) + n - 1
+    turns = work_turns_deg(out)
+    np.testing.assert_allclose(turns[:n], math.degrees(a) / n, atol=1e-9)       # the cut step, evenly
+    assert turns[n] == pytest.approx(math.degrees(0.3))                           # the other face's step: as it was
+    np.testing.assert_allclose(on_roll_mm(out.poses_mm[:, :3, 3]), 0.0, atol=1e-9)
+    np.testing.assert_array_equal(out.point, [0, 1, 2, 3, 4, 5, 6, 7, 8])        # work points numbered along
+    np.testing.assert_array_equal(out.face, [3] * 8 + [5])
+    assert out.zone[0] == ZONE_CODE["lead_in"] and np.array_equal(out.poses_mm[0], poses[0])
+    assert np.array_equal(out.poses_mm[-1], poses[-1]) and np.array_equal(out.poses_mm[1], poses[1])
+
+
+def test_a_path_that_turns_little_comes_back_as_it_was():
+    poses = np.array([pose_on_roll(0.01 * k) for k in range(5)])
+    path = Path(poses, np.zeros(5, int), np.arange(1, 6), np.full(5, WORK))
+    out, added = split_turns(path, [(np.ones(5, bool), onto_cylinder)])
+    assert out is path and added == 0
+    big = Path(np.array([pose_on_roll(0.0), pose_on_roll(0.5)]), np.array([0, 1]), np.array([1, 1]),
+               np.full(2, WORK))
+    assert split_turns(big, [(np.ones(2, bool), onto_cylinder)])[0] is big   # two segments: no step between them
+
+
+def test_a_free_form_roll_rastered_across_its_axis_turns_at_most_5_deg_between_work_poses(roll):
+    """The raster of a free-form roll (a mesh of it) at a 10 mm pitch across its axis turns p / R = 9.55 deg a
+    step (the panel scan's pocket rim turns 5-10 deg a step); cut on the face, every step turns at most 5 deg,
+    half the raster's, and each new point lies on the roll as the raster's own do."""
+    wp, surface = roll
+    path = raster_path(surface, RasterSettings.make(step_over_mm=20.0, pitch_mm=PITCH_MM, lead_mm=5.0))
+    raw = work_turns_deg(path)
+    assert np.median(raw) == pytest.approx(math.degrees(PITCH_MM / R_MM), abs=0.15)
+    out, added = split_turns(path, [(np.ones(len(path), bool), surface.project_mm)])
+    turns = work_turns_deg(out)
+    assert raw.max() > 9.0 and turns.max() <= MAX_TURN_DEG
+    assert added == len(raw) and np.median(turns) == pytest.approx(np.median(raw) / 2, abs=0.05)
+    assert on_roll_mm(out.poses_mm[out.is_work, :3, 3]).max() <= on_roll_mm(path.poses_mm[path.is_work, :3, 3]).max()
+
+
+def test_camtool_shapes_a_free_form_faces_path_with_the_split(roll, tmp_path):
+    """``run.stages.path_for_job`` (what ``camtool run`` and ``camtool raster`` plan, after the axis tilt and the
+    leads) cuts the roll's turning steps: neighbouring work poses turn at most 5 deg."""
+    from camtool.job import load_job
+    from camtool.run.stages import path_for_job, surface_for_job, workpiece_for_job
+
+    V, F = roll_mesh()
+    trimesh.Trimesh(V, F, process=False).export(tmp_path / "roll.stl")
+    (tmp_path / "roll.toml").write_text(
+        '[workpiece]\nfile = "roll.stl"\nunits = "mm"\n\n[fit]\nmodel = "freeform"\n\n'
+        f'[raster]\nstep_over_mm = 20.0\npitch_mm = {PITCH_MM}\nlead_mm = 5.0\nangle_deg = 90.0\n\n[robot]\nname = "irb2400"\n\n'
+        '[cell]\nworkpiece_xyz_mm = [1000.0, 0.0, 900.0]\nworkpiece_rpy_deg = [0.0, -90.0, 0.0]\n\n'
+        '[tool]\nname = "polisher"\ntcp_xyz_mm = [0.0, 0.0, 150.0]\n')
+    job = load_job(tmp_path / "roll.toml")
+    wp = workpiece_for_job(job)
+    surface = surface_for_job(job, wp)
+    raw = work_turns_deg(path_for_job(job, surface))          # no workpiece: the raster as it is
+    turns = work_turns_deg(path_for_job(job, surface, wp))
+    assert raw.max() > 9.0 and turns.max() <= MAX_TURN_DEG
