@@ -105,22 +105,53 @@ def test_a_free_form_roll_rastered_across_its_axis_turns_at_most_5_deg_between_w
     assert on_roll_mm(out.poses_mm[out.is_work, :3, 3]).max() <= on_roll_mm(path.poses_mm[path.is_work, :3, 3]).max()
 
 
-def test_camtool_shapes_a_free_form_faces_path_with_the_split(roll, tmp_path):
-    """``run.stages.path_for_job`` (what ``camtool run`` and ``camtool raster`` plan, after the axis tilt and the
-    leads) cuts the roll's turning steps: neighbouring work poses turn at most 5 deg."""
+@pytest.fixture(scope="module")
+def roll_job(tmp_path_factory):
+    """A job on the roll (an STL, the IRB2400 in front of it), rows across its axis: (job, workpiece, surface)."""
     from camtool.job import load_job
-    from camtool.run.stages import path_for_job, surface_for_job, workpiece_for_job
+    from camtool.run.stages import surface_for_job, workpiece_for_job
 
+    d = tmp_path_factory.mktemp("roll")
     V, F = roll_mesh()
-    trimesh.Trimesh(V, F, process=False).export(tmp_path / "roll.stl")
-    (tmp_path / "roll.toml").write_text(
+    trimesh.Trimesh(V, F, process=False).export(d / "roll.stl")
+    (d / "roll.toml").write_text(
         '[workpiece]\nfile = "roll.stl"\nunits = "mm"\n\n[fit]\nmodel = "freeform"\n\n'
-        f'[raster]\nstep_over_mm = 20.0\npitch_mm = {PITCH_MM}\nlead_mm = 5.0\nangle_deg = 90.0\n\n[robot]\nname = "irb2400"\n\n'
+        f'[raster]\nstep_over_mm = 20.0\npitch_mm = {PITCH_MM}\nlead_mm = 5.0\nangle_deg = 90.0\n\n'
+        '[robot]\nname = "irb2400"\n\n'
         '[cell]\nworkpiece_xyz_mm = [1000.0, 0.0, 900.0]\nworkpiece_rpy_deg = [0.0, -90.0, 0.0]\n\n'
         '[tool]\nname = "polisher"\ntcp_xyz_mm = [0.0, 0.0, 150.0]\n')
-    job = load_job(tmp_path / "roll.toml")
+    job = load_job(d / "roll.toml")
     wp = workpiece_for_job(job)
-    surface = surface_for_job(job, wp)
+    return job, wp, surface_for_job(job, wp)
+
+
+def test_camtool_shapes_a_free_form_faces_path_with_the_split(roll_job):
+    """``run.stages.path_for_job`` (what ``camtool run`` and ``camtool raster`` plan, after the axis tilt and the
+    leads) cuts the roll's turning steps: neighbouring work poses turn at most 5 deg."""
+    from camtool.run.stages import path_for_job
+
+    job, wp, surface = roll_job
     raw = work_turns_deg(path_for_job(job, surface))          # no workpiece: the raster as it is
     turns = work_turns_deg(path_for_job(job, surface, wp))
     assert raw.max() > 9.0 and turns.max() <= MAX_TURN_DEG
+
+
+def test_of_several_faces_only_the_free_form_ones_are_cut(roll_job):
+    """A path over two faces (``FaceSet``), the roll's rows as face 4 (free-form) and again as face 1 (an analytic
+    face): face 4's steps are cut to 5 deg, face 1's keep their 9.6 deg (an analytic face keeps its raster)."""
+    from types import SimpleNamespace
+    from camtool.part.surface import FaceSet
+    from camtool.run.job_settings import JobSettings
+    from camtool.run.stages import shaped_for_part
+
+    job, _, surface = roll_job
+    one = raster_path(surface, RasterSettings.from_section(job.raster))
+    n = len(one)
+    both = Path(np.concatenate([one.poses_mm, one.poses_mm]), np.r_[one.segment, one.segment + one.segment.max() + 1],
+                np.r_[one.point, one.point], np.r_[one.zone, one.zone], face=np.r_[np.full(n, 4), np.full(n, 1)])
+    faces = FaceSet((surface, SimpleNamespace(model="cylinder")), (4, 1), ({}, {}))
+    out, _ = shaped_for_part(JobSettings.from_job(job), faces, both, None)
+    on4, on1 = (Path(out.poses_mm[out.face == f], out.segment[out.face == f], out.point[out.face == f],
+                     out.zone[out.face == f]) for f in (4, 1))
+    assert work_turns_deg(on4).max() <= MAX_TURN_DEG
+    assert len(on1) == n and work_turns_deg(on1).max() == pytest.approx(work_turns_deg(one).max())
