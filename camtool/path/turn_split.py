@@ -8,13 +8,14 @@ step: where the planner lifts the tool off the part between the two poses (a ret
 panel's 3736 steps, up to 10.2 deg) the step is no longer one, and the turn stays. So the path itself is refined
 here, before anything is planned: each such step is cut into the fewest equal pieces that turn at most
 ``MAX_TURN_DEG`` (its orientation slerped, each new point taken onto the face), and the planner then sees the
-turn spread over those poses (on the panel the wrist turns about half as much a step, and the retracts go).
+turn spread over those poses (on the panel the wrist turns about half as much a step, and 8 of its 9 retracts
+go).
 
 Only work steps (both poses work, one segment, one free-form face) are cut; leads, connectors and analytic faces
 keep their poses. A path with no such step comes back as the same object.
 
-Why by hand: scipy's ``Slerp`` gives the orientations; no library refines a tool path where its axis turns
-(noether's tool-path modifiers resample at a fixed spacing).
+Why by hand: scipy's rotations give the slerp; no library refines a tool path where its axis turns
+(noether's tool-path modifiers resample at a uniform spacing, not by the turn).
 """
 from __future__ import annotations
 
