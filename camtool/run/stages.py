@@ -31,6 +31,7 @@ from ..plan.connectors import LiftSettings, lift_reconfigurations
 from ..plan.cwln import CwlnSolver
 from ..plan.densify import densify_work
 from ..plan.sag import add_surface_poses
+from ..plan.spline_bow import SplineDepthSettings, add_spline_poses
 from ..plan.smooth import SmoothSettings, smooth_runs
 from ..plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
 from ..plan.strategy import ik_settings
@@ -261,12 +262,30 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
                                  link_radius_mm=settings.check.link_radius_mm,
                                  clearance_mm=settings.check.clearance_mm, solver=solver, world=world,
                                  tip_exempt_mm=settings.check.tool_contact_exempt_mm, every_failure=every_failure)
-    joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm,
-                                   face_projector(settings, surface, workpiece))
+    project = face_projector(settings, surface, workpiece)
+    joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm, project)
     joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
+    kept_out = _spline_kept_out(settings, surface, path, workpiece)
+    if kept_out is not None:   # the timed spline kept out of the part (its lifted leads bend the runs sharply)
+        joint_path = add_spline_poses(joint_path, path, robot, solver, kept_out[0], kept_out[1], project)
     if workpiece is not None:
         joint_path = add_home_moves(planner, workpiece, path, robot, joint_path, world=world)
     return joint_path
+
+
+def _spline_kept_out(settings: JobSettings, surface, path, workpiece) -> tuple | None:
+    """(``plan.spline_bow``'s settings, the part's signed distance) for a path of free-form faces whose leads may
+    meet ``workpiece`` (``part_for_checks``, as ``shaped_for_part``: their leads are lifted clear of it and bend
+    the runs sharply), or None: an analytic face's leads follow its surface, and a scanned cloud worked as one
+    face is not measured here (its geometry costs seconds; the motion check still measures every lead)."""
+    only = None if surface is None else _freeform_poses(surface, path)
+    if not _leads_may_meet(settings, workpiece) or only is None or not only.any():
+        return None
+    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
+    band = max((f.lead_band_mm for f in faces if getattr(f, "source_kind", "") == "scan"), default=0.0)
+    depth = SplineDepthSettings(depth_tol_mm=settings.planner.chord_tol_mm + band,
+                                feed_mm_s=settings.timing.tcp_speed_mm_s)
+    return depth, part_from_path(workpiece, path).signed_distance
 
 
 LEAD_SIZING_ROUNDS = 2   # re-raster and re-plan at most this many times for longer leads
