@@ -281,9 +281,7 @@ def _spline_kept_out(settings: JobSettings, surface, path, workpiece) -> tuple |
     only = None if surface is None else _freeform_poses(surface, path)
     if not _leads_may_meet(settings, workpiece) or only is None or not only.any():
         return None
-    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
-    band = max((f.lead_band_mm for f in faces if getattr(f, "source_kind", "") == "scan"), default=0.0)
-    depth = SplineDepthSettings(depth_tol_mm=settings.planner.chord_tol_mm + band,
+    depth = SplineDepthSettings(depth_tol_mm=settings.planner.chord_tol_mm + _lead_band_mm(surface),
                                 feed_mm_s=settings.timing.tcp_speed_mm_s)
     return depth, part_from_path(workpiece, path).signed_distance
 
@@ -471,10 +469,15 @@ def _leads_cleared(settings: JobSettings, surface, path, geometry, only):
     where the part may go on and turn up towards the tool (a door's handle recess, a flange). An analytic face's
     leads follow its surface (or its tangent, ``raster.lead_path``) and stay as they are, as does every lead
     already clear."""
-    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
-    band = max((f.lead_band_mm for f in faces if f.scanned), default=0.0)
     return cleared_leads(path, geometry.signed_distance, settings.raster.lead_mm, only,
-                         inside_mm=band)   # a scan's leads may run in its noise band, as the motion check allows
+                         inside_mm=_lead_band_mm(surface))   # a scan's leads may run in its noise band, as the check allows
+
+
+def _lead_band_mm(surface) -> float:
+    """How deep a free-form face's leads may run into the part: a scan's noise band (the motion check allows it),
+    0 on a mesh's facets."""
+    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
+    return max((f.lead_band_mm for f in faces if f.scanned), default=0.0)
 
 
 def _not_alone(P: np.ndarray) -> np.ndarray:
