@@ -142,3 +142,33 @@ def test_a_lead_whose_chord_to_the_work_cuts_a_bent_edge_is_lifted_over_it():
     lead = np.isin(zone, [ZONE_CODE["lead_in"], ZONE_CODE["lead_out"]])
     assert set(np.flatnonzero(moved & lead)) == set(out_first) | set(in_second)
     assert not moved[zone == ZONE_CODE["work"]].any()
+
+
+def test_a_narrow_edge_between_two_millimetre_samples_of_a_lead_chord_is_found():
+    """A tent 0.3 mm high and 1.5 mm wide at x = 101, between the work's end (x = 100) and the chord's next sample
+    2 mm on (the Vito door's lead-in chord ran 0.097 mm into a bent edge between its 2 mm samples): found and
+    lifted over, the chord out of it but for the slack."""
+    from camtool.path.lead_clearance import CHORD_SLACK_MM
+
+    def tent_sd(P):
+        P = np.atleast_2d(P)
+        return P[:, 2] - np.maximum(0.0, 0.3 - 0.4 * np.abs(P[:, 0] - 101.0))
+
+    path = two_row_path()
+    P0 = path.poses_mm[:, :3, 3]
+    zone = np.asarray(path.zone)
+    out_first = np.flatnonzero((zone == ZONE_CODE["lead_out"]) & (path.segment == 0))
+    in_second = np.flatnonzero((zone == ZONE_CODE["lead_in"]) & (path.segment == 1))
+
+    def chord_min(P, chain):
+        f = np.linspace(0.0, 1.0, 3001)[:, None]
+        return min(tent_sd(P[a] + f * (P[b] - P[a])).min() for a, b in zip(chain[:-1], chain[1:]))
+
+    chains = (np.r_[out_first[0] - 1, out_first], np.r_[in_second, in_second[-1] + 1])
+    assert tent_sd(P0).min() >= 0.0 and min(chord_min(P0, c) for c in chains) < -0.25
+    new = cleared_leads(path, tent_sd, lead_mm=15.0)
+    P = new.poses_mm[:, :3, 3]
+    assert min(chord_min(P, c) for c in chains) >= -CHORD_SLACK_MM - 1e-9
+    moved = np.linalg.norm(P - P0, axis=1) > 1e-9
+    lead = np.isin(zone, [ZONE_CODE["lead_in"], ZONE_CODE["lead_out"]])
+    assert set(np.flatnonzero(moved & lead)) == set(out_first) | set(in_second)

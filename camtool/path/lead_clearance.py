@@ -32,7 +32,8 @@ from .toolpath import ZONE_CODE, Path
 
 LEAD_CLEAR_MM = 1.0   # a lead or self-motion pose closer than this to the part is lifted
 ROUNDS = 8            # rounds of lifting a lead and measuring it again
-CHORD_STEP_MM = 2.0   # a lead or self-motion is measured along its chords at most this far apart
+CHORD_STEP_MM = 0.25  # a lead or self-motion is measured along its chords at most this far apart (at 2 mm a chord of
+                      # the Vito door's lead-ins ran 0.097 mm into a bent edge between its samples, at 0.02 mm on them)
 CHORD_SLACK_MM = 0.02  # a lead's chords may come this close to the part's inside (the joint motion bows off them by 0.06 mm more on the door)
 CLEARED_SHARE = 0.5   # a ramp whose poses end this share of clear_mm in front of the part clears it
 MAX_RISE_LEADS = 3.0  # a lead rises by at most this many of its own lengths at its far end

@@ -132,6 +132,14 @@ def turns_on_face(Ta: np.ndarray, Tb: np.ndarray, project) -> np.ndarray:
     return turning
 
 
+def step_midposes(Ta: np.ndarray, Tb: np.ndarray, project=None) -> np.ndarray:
+    """(m, 4, 4) the midposes of the steps Ta[k] -> Tb[k] (base frame) as the sag takes them: on the arc through
+    their tool axes (a lead's straight chord: its midpoint), on a free-form face's surface where the face
+    decides (``_surface_midposes``; ``project``: base-frame points onto the face, None: an analytic face)."""
+    T, sag = _arc_midposes(Ta, Tb)
+    return T if project is None else _surface_midposes(Ta, Tb, T, sag, project)[0]
+
+
 def _on_face(p: np.ndarray, project) -> np.ndarray:
     """(m,) whether each point (m, 3) lies within ``ON_FACE_MM`` of the free-form face (False where it has none)."""
     with np.errstate(invalid="ignore"):
@@ -170,7 +178,7 @@ def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> di
     return bisected(solver, Ta, qa, Tb, qb, MAX_SPLITS + 2, sagging)
 
 
-def _in_frame(project, base: np.ndarray):
+def in_frame(project, base: np.ndarray):
     """``project`` (world points onto a face) for points in the frame ``base`` (4x4, world from frame)."""
     def in_frame(p, **kw):
         return (project(p @ base[:3, :3].T + base[:3, 3], **kw) - base[:3, 3]) @ base[:3, :3]
@@ -191,7 +199,7 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
     base_inv = np.linalg.inv(robot.base_T_mm)
     on = np.isin(jp.zone, SURFACE_CODES) & (jp.path_index >= 0)
     steps = np.flatnonzero(on[:-1] & on[1:] & (np.diff(jp.path_index) == 1))
-    base_project = None if project is None else _in_frame(project, np.asarray(robot.base_T_mm, float))
+    base_project = None if project is None else in_frame(project, np.asarray(robot.base_T_mm, float))
     if len(steps):   # the steps whose sag is within the tolerance are left alone, all at once
         poses = np.einsum("ij,njk->nik", base_inv, path.poses_mm)
         Ta, Tb = poses[jp.path_index[steps]], poses[jp.path_index[steps + 1]]

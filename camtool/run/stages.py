@@ -31,6 +31,7 @@ from ..plan.connectors import LiftSettings, lift_reconfigurations
 from ..plan.cwln import CwlnSolver
 from ..plan.densify import densify_work
 from ..plan.sag import add_surface_poses
+from ..plan.spline_bow import SplineDepthSettings, add_spline_poses
 from ..plan.smooth import SmoothSettings, smooth_runs
 from ..plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
 from ..plan.strategy import ik_settings
@@ -262,12 +263,28 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
                                  link_radius_mm=settings.check.link_radius_mm,
                                  clearance_mm=settings.check.clearance_mm, solver=solver, world=world,
                                  tip_exempt_mm=settings.check.tool_contact_exempt_mm, every_failure=every_failure)
-    joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm,
-                                   face_projector(settings, surface, workpiece))
+    project = face_projector(settings, surface, workpiece)
+    joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm, project)
     joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
+    kept_out = _spline_kept_out(settings, surface, path, workpiece)
+    if kept_out is not None:   # the timed spline kept out of the part (its lifted leads bend the runs sharply)
+        joint_path = add_spline_poses(joint_path, path, robot, solver, kept_out[0], kept_out[1], project)
     if workpiece is not None:
         joint_path = add_home_moves(planner, workpiece, path, robot, joint_path, world=world)
     return joint_path
+
+
+def _spline_kept_out(settings: JobSettings, surface, path, workpiece) -> tuple | None:
+    """(``plan.spline_bow``'s settings, the part's signed distance) for a path of free-form faces whose leads may
+    meet ``workpiece`` (``part_for_checks``, as ``shaped_for_part``: their leads are lifted clear of it and bend
+    the runs sharply), or None: an analytic face's leads follow its surface, and a scanned cloud worked as one
+    face is not measured here (its geometry costs seconds; the motion check still measures every lead)."""
+    only = None if surface is None else _freeform_poses(surface, path)
+    if not _leads_may_meet(settings, workpiece) or only is None or not only.any():
+        return None
+    depth = SplineDepthSettings(depth_tol_mm=settings.planner.chord_tol_mm + _lead_band_mm(surface),
+                                feed_mm_s=settings.timing.tcp_speed_mm_s)
+    return depth, part_from_path(workpiece, path).signed_distance
 
 
 LEAD_SIZING_ROUNDS = 2   # re-raster and re-plan at most this many times for longer leads
@@ -465,10 +482,15 @@ def _leads_cleared(settings: JobSettings, surface, path, geometry, only):
     where the part may go on and turn up towards the tool (a door's handle recess, a flange). An analytic face's
     leads follow its surface (or its tangent, ``raster.lead_path``) and stay as they are, as does every lead
     already clear."""
-    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
-    band = max((f.lead_band_mm for f in faces if f.scanned), default=0.0)
     return cleared_leads(path, geometry.signed_distance, settings.raster.lead_mm, only,
-                         inside_mm=band)   # a scan's leads may run in its noise band, as the motion check allows
+                         inside_mm=_lead_band_mm(surface))   # a scan's leads may run in its noise band, as the check allows
+
+
+def _lead_band_mm(surface) -> float:
+    """How deep a free-form face's leads may run into the part: a scan's noise band (the motion check allows it),
+    0 on a mesh's facets."""
+    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
+    return max((f.lead_band_mm for f in faces if f.scanned), default=0.0)
 
 
 def _not_alone(P: np.ndarray) -> np.ndarray:
