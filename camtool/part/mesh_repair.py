@@ -21,7 +21,7 @@ after its values were checked:
   z-buffer need no manifold; one warning line gives their count.
 
 A mesh has no stored normals to miss: its normals are its triangles'. A point cloud's
-missing normals are estimated by the loader (``workpiece._cloud_normals``), as always.
+missing normals are estimated by the loader (``workpiece._cloud_normals``, ``cloud_normals``), as always.
 """
 from __future__ import annotations
 

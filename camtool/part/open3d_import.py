@@ -13,6 +13,8 @@ from __future__ import annotations
 import importlib
 import sys
 import types
+from contextlib import contextmanager
+from typing import Iterator
 
 VIEWER = "open3d.visualization.draw_plotly"
 VIEWER_NAMES = ("get_plotly_fig", "draw_plotly", "draw_plotly_server")   # what open3d.visualization imports
@@ -54,3 +56,12 @@ def _loading(fn: str):
 
     call.__name__ = fn
     return call
+
+
+@contextmanager
+def open3d_quiet() -> Iterator[None]:
+    """open3d prints its warnings on stdout; errors only while camtool calls it (our checks speak)."""
+    o3d = import_open3d()
+
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        yield

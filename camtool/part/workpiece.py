@@ -8,7 +8,8 @@ registered in ``LOADERS`` (trimesh style), so a new format touches one place.
   area-weighted into points with the face normals (seeded, deterministic).
 - Point clouds (PLY without faces, PCD, XYZ/CSV/TXT/PTS) are read with
   trimesh, open3d or numpy; normals stored in the file are kept, missing ones
-  are estimated with open3d from ``normal_neighbours`` neighbours and oriented
+  are estimated with open3d from ``normal_neighbours`` neighbours (on voxels for
+  a dense cloud: ``camtool.part.cloud_normals``) and oriented
   towards the file's origin (the sensor viewpoint convention of PCD and open3d).
 
 Everything is converted to mm. A model whose size is implausible for the
@@ -185,16 +186,6 @@ def _library_output_to_log() -> Iterator[None]:
             if _trimesh_quiet_depth == 0:
                 tlog.removeHandler(_TO_DEBUG)
                 tlog.propagate = _trimesh_propagate
-
-
-@contextmanager
-def _open3d_quiet() -> Iterator[None]:
-    """open3d prints its warnings on stdout; errors only while camtool calls it (our checks speak)."""
-    from .open3d_import import import_open3d
-    o3d = import_open3d()
-
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
-        yield
 
 
 # --------------------------------------------------------------------------- checks shared by loaders
@@ -774,7 +765,7 @@ def _pcd_layout(path: Path, h: dict) -> tuple[list[str], list[int], int, str]:
 
 @register_loader(".pcd")
 def _load_pcd(path: Path) -> _Raw:
-    from .open3d_import import import_open3d
+    from .open3d_import import import_open3d, open3d_quiet
     o3d = import_open3d()
 
     data = _read_checked(path)
@@ -803,7 +794,7 @@ def _load_pcd(path: Path) -> _Raw:
                            "export it again")
     from ..safe_io import opened_input
 
-    with _open3d_quiet(), opened_input(path, "workpiece") as name:
+    with open3d_quiet(), opened_input(path, "workpiece") as name:
         pc = o3d.io.read_point_cloud(name, format="pcd", remove_nan_points=False,
                                      remove_infinite_points=False)
     pts = np.asarray(pc.points, dtype=float)
@@ -1045,23 +1036,13 @@ def _sample_mesh(verts_mm: np.ndarray, faces: np.ndarray, count: int, rng: np.ra
 
 
 def _cloud_normals(pts_mm: np.ndarray, normals: np.ndarray | None, k: int) -> np.ndarray:
-    """Unit normals: the file's if it has valid ones, else estimated by open3d (k neighbours)."""
+    """Unit normals: the file's if it has valid ones, else estimated (``cloud_normals``: k neighbours, per voxel
+    for a dense cloud), towards the file's origin."""
     if normals is not None:
         normals = np.asarray(normals, dtype=float)
         length = np.linalg.norm(normals, axis=1)
         if np.isfinite(normals).all() and (length > 1e-9).all():
             return normals / length[:, None]
-    if len(pts_mm) < 3:
-        return np.zeros_like(pts_mm)
-    from .open3d_import import import_open3d
-    o3d = import_open3d()
+    from .cloud_normals import cloud_normals
 
-    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts_mm))
-    with _open3d_quiet():
-        pc.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=int(min(k, len(pts_mm)))))
-    n = np.asarray(pc.normals, dtype=float)
-    # Orient towards the file origin (the sensor viewpoint convention); open3d's own
-    # orient_* call does the same but is threaded; this is the one-line numpy form.
-    flip = np.einsum("ij,ij->i", n, -pts_mm) < 0
-    n[flip] *= -1
-    return n
+    return cloud_normals(pts_mm, k)
