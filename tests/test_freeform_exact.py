@@ -178,3 +178,29 @@ def test_projection_past_the_face_edge_is_nan_and_the_points_keep_the_continued_
     assert _off_mesh_mm(top, on[2:]).max() < 1e-6
     c = (P - s.origin_mm) @ s.frame
     assert np.isfinite(s.height_at(c[:, 0], c[:, 1])).all()
+
+
+def test_a_point_is_taken_onto_the_triangles_along_its_own_line_either_way():
+    """``ChartMesh.along``: a plane tilted 74 deg from the chart plane (the hull's bottom against its face's chart),
+    points on either side of it taken along their lines onto it, in float64 (closed form: the line-plane
+    intersection); a line that meets no triangle gives NaN."""
+    from camtool.part.freeform_exact import ChartMesh
+
+    t = np.radians(74.0)
+    n = np.array([np.sin(t), 0.0, np.cos(t)])                    # the plane's normal, 74 deg from the chart's z
+    e1, e2 = np.array([np.cos(t), 0.0, -np.sin(t)]), np.array([0.0, 1.0, 0.0])
+    s = np.linspace(-20.0, 20.0, 11)
+    S, T = np.meshgrid(s, s)
+    V = (S.ravel()[:, None] * e1 + T.ravel()[:, None] * e2)
+    idx = np.arange(121).reshape(11, 11)
+    F = np.concatenate([np.stack([idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel()], 1),
+                        np.stack([idx[:-1, :-1].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()], 1)])
+    mesh = ChartMesh.of(V, F)
+    rng = np.random.default_rng(3)
+    P = rng.uniform(-8, 8, (50, 3))
+    D = n + rng.normal(0, 0.3, (50, 3))
+    D /= np.linalg.norm(D, axis=1)[:, None]
+    on = mesh.along(P, D)
+    lam = -(P @ n) / (D @ n)
+    np.testing.assert_allclose(on, P + lam[:, None] * D, atol=1e-9)
+    assert np.isnan(mesh.along(np.array([[0.0, 0.0, 0.0]]) + 100 * e2, e2[None])).all()   # along the plane, off it

@@ -57,7 +57,7 @@ def test_batched_sags_are_the_midpose_sags():
 
 def _crease_projector(slope=0.2):
     """Onto the facetted surface z = slope * |x| (a crease along y), along z: the free-form face's projection."""
-    def project(p, continued=False):
+    def project(p, continued=False, along=None):   # (the tool axes here are z: along them is along z)
         p = np.array(p, float)
         p[..., 2] = slope * np.abs(p[..., 0])
         return p
@@ -113,7 +113,7 @@ def test_a_leads_dip_is_split_down_to_a_least_step_and_a_step_over_a_hole_keeps_
     from camtool.plan.sag import DIP_STEP_MM, _arc_midposes, _surface_midposes
     ridge = _crease_projector(-0.2)
 
-    def project(p, continued=False):                                   # no face for -1 < x < 0.5 (a hole) and x < -3
+    def project(p, continued=False, along=None):   # no face for -1 < x < 0.5 (a hole) and x < -3 (along z)
         q = ridge(p)
         x = np.asarray(p)[..., 0]
         if not continued:
@@ -166,7 +166,7 @@ def test_a_step_round_a_tight_fillet_is_split_until_the_tool_axis_turns_at_most_
 
     R = 10.0
 
-    def project(p, continued=False):
+    def project(p, continued=False, along=None):   # (along the radius: the midposes' mean tool axes are radial)
         p = np.asarray(p, float)
         r = np.linalg.norm(p[:, [0, 2]], axis=1)
         out = p.copy()
@@ -186,5 +186,43 @@ def test_a_step_round_a_tight_fillet_is_split_until_the_tool_axis_turns_at_most_
     pts = np.array([T[:3, 3] for T in poses])
     np.testing.assert_allclose(np.linalg.norm(pts[:, [0, 2]], axis=1), R, atol=1e-9)   # on the fillet
     # off the face (the projector NaN) the turn is the arc's business, not split for it
-    split = _split_steps(solver, Ta, qa, Tb, qb, 0.05, 0.1, lambda p, continued=False: np.full_like(p, np.nan))
+    split = _split_steps(solver, Ta, qa, Tb, qb, 0.05, 0.1, lambda p, continued=False, along=None: np.full_like(p, np.nan))
     assert len(split[0]) == 3   # the arc's sag alone: four pieces of 7.2 deg
+
+
+def test_a_step_on_a_face_overhanging_its_chart_plane_gets_its_midpose_on_its_own_layer():
+    """Issue #46, the ship hull's stern: a face that curls past 90 deg from its chart plane holds two layers along
+    the chart's normal. Two poses on its lower layer (a cylinder R = 10 about y, at 110 and 150 deg from the top),
+    their smoothed tool axes parallel (the radius at 130 deg: the arc through them has no sag): along the chart's
+    normal they read as off the face (it meets the upper layer first) and the step kept its straight chord,
+    R (1 - cos 20 deg) = 0.60 mm behind the surface; along their tool axes they are on it, and the midpose is taken
+    onto the cylinder at 130 deg (closed form)."""
+    from camtool.plan.sag import _arc_midposes, _surface_midposes
+
+    R = 10.0
+
+    def radial(theta_deg):
+        t = np.radians(theta_deg)
+        return np.array([np.sin(t), 0.0, np.cos(t)])
+
+    def project(p, continued=False, along=None):
+        p = np.array(p, float)
+        if along is None:   # down the chart's normal z: the upper layer
+            p[..., 2] = np.sqrt(np.maximum(R * R - p[..., 0] ** 2, 0.0))
+            return p
+        d = np.broadcast_to(np.asarray(along, float), p.shape)
+        a = d[..., 0] ** 2 + d[..., 2] ** 2
+        b = 2 * (p[..., 0] * d[..., 0] + p[..., 2] * d[..., 2])
+        c = p[..., 0] ** 2 + p[..., 2] ** 2 - R * R
+        root = np.sqrt(b * b - 4 * a * c)
+        t = np.stack([(-b - root) / (2 * a), (-b + root) / (2 * a)])
+        t = np.take_along_axis(t, np.argmin(np.abs(t), axis=0)[None], axis=0)[0]
+        return p + t[..., None] * d
+
+    axis = -radial(130.0)
+    Ta, Tb = _pose_at(R * radial(110.0), axis)[None], _pose_at(R * radial(150.0), axis)[None]
+    T_arc, sag_arc = _arc_midposes(Ta, Tb)
+    assert sag_arc[0] == pytest.approx(0.0, abs=1e-9)
+    T, sag = _surface_midposes(Ta, Tb, T_arc, sag_arc, project)
+    np.testing.assert_allclose(T[0, :3, 3], R * radial(130.0), atol=1e-9)
+    assert sag[0] == pytest.approx(R * (1 - np.cos(np.radians(20.0))), rel=1e-9)

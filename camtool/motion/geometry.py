@@ -48,6 +48,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import BadInput
+from ..part.folds import folded_triangles
 
 DEFAULT_HORIZON_MM = 300.0
 DEFAULT_GRID_NODES = 100_000
@@ -159,6 +160,10 @@ class PartGeometry:
                 flip = agree < 0
             normals[flip] *= -1
             faces[flip] = faces[flip][:, ::-1]
+        # a CAD surface folded over itself: its middle layer faces against the surface it lies on; the side of a
+        # point whose closest triangle it is comes from that surface (``part.folds``)
+        self.folded = folded_triangles(verts, faces)
+        normals[self.folded.mask] *= -1
         self.verts_mm = verts
         self.faces = faces
         self.face_normals = normals

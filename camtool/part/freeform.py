@@ -158,17 +158,31 @@ class FreeformSurface(Surface):
             return LEAD_LIFT_MIN_MM
         return max(NOISE_BAND_SIGMAS * float(self.stats.rms_mm), LEAD_LIFT_MIN_MM)
 
-    def project_mm(self, points_mm: np.ndarray, continued: bool = False) -> np.ndarray:
+    def project_mm(self, points_mm: np.ndarray, continued: bool = False, along: np.ndarray | None = None) -> np.ndarray:
         """Points (..., 3) mm taken onto the surface along the chart's normal e3: onto a CAD mesh face's triangles
         (``triangle_heights``), NaN where it has none under a point (past its edge the height field only continues
         the face; the part there may fall away or turn: issue #46, a Vito door lead's midpose went onto it and the
         joint spline through them looped 5.5 mm into the door); a scan's onto its height field. ``continued``: onto
-        the surface continued (``height_at``) everywhere."""
+        the surface continued (``height_at``) everywhere. ``along`` (..., 3) unit directions (a CAD mesh face, not
+        continued): onto its triangles (then its gaps') along those lines instead (``ChartMesh.along``)."""
+        if along is not None and self.mesh is not None and not continued:
+            return self._along_mm(points_mm, along)
         c = (np.asarray(points_mm, float) - self.origin_mm) @ self.frame
         exact = self.mesh is not None and not continued
         h = self.triangle_heights(c[..., 0], c[..., 1]) if exact else self.height_at(c[..., 0], c[..., 1])
         return self.origin_mm + c[..., 0, None] * self.frame[:, 0] + c[..., 1, None] * self.frame[:, 1] \
             + h[..., None] * self.frame[:, 2]
+
+    def _along_mm(self, points_mm: np.ndarray, along: np.ndarray) -> np.ndarray:
+        """``project_mm`` along the lines ``along``: onto the face's own triangles, else its gaps'; NaN off both."""
+        P = np.asarray(points_mm, float)
+        c = ((P - self.origin_mm) @ self.frame).reshape(-1, 3)
+        d = (np.broadcast_to(np.asarray(along, float), P.shape) @ self.frame).reshape(-1, 3)
+        on = self.mesh.along(c, d)
+        miss = ~np.isfinite(on).all(axis=1)
+        if self.gaps is not None and miss.any():
+            on[miss] = self.gaps.along(c[miss], d[miss])
+        return (self.origin_mm + on @ self.frame.T).reshape(P.shape)
 
     def uv_from_points(self, points_mm: np.ndarray) -> np.ndarray:
         """(N, 2) parameters of points (projected along e3 onto the surface)."""

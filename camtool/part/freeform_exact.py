@@ -70,8 +70,39 @@ class ChartMesh:
         out[ok] = h
         return out
 
-    def _hit(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
-        """The index of the top-most triangle over each point (-1: none), cast down the chart normal."""
+    def along(self, points: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """Points (k, 3) in chart coordinates taken onto the nearest triangle along their lines ``dirs`` (k, 3,
+        unit; either way along them); NaN where neither way meets one. Where the face tilts far from its chart
+        plane (a hull's bilge and bottom: 74 deg) a point moved down the chart normal lands millimetres along the
+        surface from where it was; moved along the surface's own normal it does not. As ``heights``: open3d finds
+        the triangle (float32), the point is taken in float64 on its plane."""
+        from .open3d_import import import_open3d
+        o3d = import_open3d()
+
+        P, D = np.asarray(points, float).reshape(-1, 3), np.asarray(dirs, float).reshape(-1, 3)
+        out = np.full(P.shape, np.nan)
+        if not len(P) or not len(self.faces):
+            return out
+        scene = self._raycasting()
+        best_t, best_tri = np.full(len(P), np.inf), np.full(len(P), -1, np.int64)
+        for sign in (1.0, -1.0):
+            rays = np.hstack([P, sign * D]).astype(np.float32)
+            ans = scene.cast_rays(o3d.core.Tensor(rays))
+            t = ans["t_hit"].numpy().astype(float)
+            prim = ans["primitive_ids"].numpy().astype(np.int64)
+            nearer = np.isfinite(t) & (prim != o3d.t.geometry.RaycastingScene.INVALID_ID) & (t < best_t)
+            best_t[nearer], best_tri[nearer] = t[nearer], prim[nearer]
+        hit = best_tri >= 0
+        T = self.vertices[self.faces[best_tri[hit]]]
+        n = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+        dn = np.einsum("ij,ij->i", D[hit], n)
+        good = np.abs(dn) > 1e-12 * np.maximum(np.linalg.norm(n, axis=1), 1e-300)
+        lam = np.einsum("ij,ij->i", T[:, 0] - P[hit], n) / np.where(good, dn, 1.0)
+        out[np.flatnonzero(hit)[good]] = (P[hit] + lam[:, None] * D[hit])[good]
+        return out
+
+    def _raycasting(self):
+        """open3d's scene of the triangles, made once."""
         from .open3d_import import import_open3d
         o3d = import_open3d()
 
@@ -80,8 +111,15 @@ class ChartMesh:
             scene.add_triangles(o3d.core.Tensor(self.vertices.astype(np.float32)),
                                 o3d.core.Tensor(self.faces.astype(np.uint32)))
             self._scene.append(scene)
+        return self._scene[0]
+
+    def _hit(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+        """The index of the top-most triangle over each point (-1: none), cast down the chart normal."""
+        from .open3d_import import import_open3d
+        o3d = import_open3d()
+
         top = float(self.vertices[:, 2].max()) + 1.0
         rays = np.zeros((len(px), 6), np.float32)
         rays[:, 0], rays[:, 1], rays[:, 2], rays[:, 5] = px, py, top, -1.0
-        prim = self._scene[0].cast_rays(o3d.core.Tensor(rays))["primitive_ids"].numpy().astype(np.int64)
+        prim = self._raycasting().cast_rays(o3d.core.Tensor(rays))["primitive_ids"].numpy().astype(np.int64)
         return np.where(prim == o3d.t.geometry.RaycastingScene.INVALID_ID, -1, prim)

@@ -17,7 +17,10 @@ away from it where they converge (concave). The orientation is slerped halfway.
 
 On a free-form face (a mesh's own facets, or a scan's smoothed height field) the tool axes are normals
 smoothed over several mm, so the arc through them is not the surface: a step's midpose is then put on
-the surface itself (``project``: the chord's midpoint taken onto it along the chart's normal), and the sag
+the surface itself (``project``: the chord's midpoint taken onto it along the step's mean tool axis, the
+surface's normal there; along the chart's normal, a face that tilts far from its chart plane -- the hull's
+stern, an 8.4 mm step whose chord ran 0.32 mm in front of it -- put the midpose 5.8 mm along the surface from
+the chord, and the halves never came near its far end), and the sag
 tested is the chord's own distance from the surface there (issue #46: the wavy sheet's arc midposes lay up to
 0.25 mm off its facets), where both its poses lie on the face (``ON_FACE_MM``); a lead that rises off it past
 its edge keeps the arc (the surface there is only continued), unless its chord runs under the surface where
@@ -101,24 +104,36 @@ def chord_sags_mm(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
 
 def _surface_midposes(Ta, Tb, T_arc, sag_arc, project):
     """``_arc_midposes``' (m, 4, 4) midposes and (m,) sags with a free-form face's where the face decides: a step
-    whose poses both lie on the face (``ON_FACE_MM``) gets the chord's midpoint taken onto the surface, its sag the
-    chord's distance from it there; a step with one pose on it (a lead meeting the face) gets the same where its
-    chord runs under the surface (into the part; the surface continued past the face's edge, ``project(...,
-    continued=True)``), its sag how deep (0 once the step is ``DIP_STEP_MM`` or shorter); the others keep the arc's,
-    as does a step on the face whose midpoint has none under it (``project`` NaN: over a hole)."""
+    whose poses both lie on the face (``ON_FACE_MM``) gets the chord's midpoint taken onto the surface along the
+    step's mean tool axis, its sag the chord's distance from it there; a step with one pose on it (a lead meeting
+    the face) gets the same where its chord runs under the surface (into the part; the surface continued past the
+    face's edge along the chart's normal, ``project(..., continued=True)``), its sag how deep (0 once the step is
+    ``DIP_STEP_MM`` or shorter); the others keep the arc's, as does a step on the face whose midpoint has none under
+    it (``project`` NaN: over a hole) or none within half the step (``_near``)."""
     T, sag = T_arc.copy(), sag_arc.copy()
     pa, pb = Ta[:, :3, 3], Tb[:, :3, 3]
-    on = _on_face(pa, project).astype(int) + _on_face(pb, project)
+    on = _on_face(pa, project, Ta[:, :3, 2]).astype(int) + _on_face(pb, project, Tb[:, :3, 2])
     mid = 0.5 * (pa + pb)
-    face = np.isfinite(project(mid)).all(axis=1)
-    onto = project(mid, continued=True)
+    half = 0.5 * np.linalg.norm(pb - pa, axis=1)
     towards_tool = -(Ta[:, :3, 2] + Tb[:, :3, 2])
+    axis = towards_tool / np.maximum(np.linalg.norm(towards_tool, axis=1), 1e-12)[:, None]
+    on_face = project(mid, along=axis)
+    onto = project(mid, continued=True)
     under = np.einsum("ki,ki->k", onto - mid, towards_tool) > 0.0   # the surface lies between the chord and the tool
-    both, dips = (on == 2) & face, (on == 1) & under
+    both, dips = (on == 2) & _near(on_face, mid, half), (on == 1) & under & _near(onto, mid, half)
+    onto[both] = on_face[both]
     T[both | dips, :3, 3] = onto[both | dips]
     sag[both | dips] = np.linalg.norm(onto - mid, axis=1)[both | dips]
-    sag[dips & (np.linalg.norm(pb - pa, axis=1) <= DIP_STEP_MM)] = 0.0
+    sag[dips & (2.0 * half <= DIP_STEP_MM)] = 0.0
     return T, sag
+
+
+def _near(p: np.ndarray, mid: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Whether each point taken onto the face lies within half its step of the step's midpoint: a face that
+    overhangs its chart plane (the hull's stern curls past 90 deg from it) holds another layer along the chart's
+    normal, 7 mm off a 4 mm step; a midpose there sent the sag's halves back and forth between the layers."""
+    with np.errstate(invalid="ignore"):
+        return np.linalg.norm(p - mid, axis=1) <= half
 
 
 def turns_on_face(Ta: np.ndarray, Tb: np.ndarray, project) -> np.ndarray:
@@ -128,7 +143,8 @@ def turns_on_face(Ta: np.ndarray, Tb: np.ndarray, project) -> np.ndarray:
     turning = cos < np.cos(np.radians(TURN_SPLIT_DEG))
     if not turning.any():
         return turning
-    turning[turning] = _on_face(Ta[turning, :3, 3], project) & _on_face(Tb[turning, :3, 3], project)
+    turning[turning] = _on_face(Ta[turning, :3, 3], project, Ta[turning, :3, 2]) \
+        & _on_face(Tb[turning, :3, 3], project, Tb[turning, :3, 2])
     return turning
 
 
@@ -140,10 +156,12 @@ def step_midposes(Ta: np.ndarray, Tb: np.ndarray, project=None) -> np.ndarray:
     return T if project is None else _surface_midposes(Ta, Tb, T, sag, project)[0]
 
 
-def _on_face(p: np.ndarray, project) -> np.ndarray:
-    """(m,) whether each point (m, 3) lies within ``ON_FACE_MM`` of the free-form face (False where it has none)."""
+def _on_face(p: np.ndarray, project, axis: np.ndarray) -> np.ndarray:
+    """(m,) whether each point (m, 3) lies within ``ON_FACE_MM`` of the free-form face (False where it has none),
+    measured along its tool ``axis`` (m, 3): along the chart's normal a point on a layer of the face under another
+    (a face that overhangs its chart plane) would read as off it."""
     with np.errstate(invalid="ignore"):
-        return np.linalg.norm(project(p) - p, axis=1) <= ON_FACE_MM
+        return np.linalg.norm(project(p, along=axis) - p, axis=1) <= ON_FACE_MM
 
 
 def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> dict[int, np.ndarray]:
@@ -181,6 +199,8 @@ def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> di
 def in_frame(project, base: np.ndarray):
     """``project`` (world points onto a face) for points in the frame ``base`` (4x4, world from frame)."""
     def in_frame(p, **kw):
+        if kw.get("along") is not None:
+            kw["along"] = kw["along"] @ base[:3, :3].T
         return (project(p @ base[:3, :3].T + base[:3, 3], **kw) - base[:3, 3]) @ base[:3, :3]
     return in_frame
 

@@ -1,0 +1,119 @@
+"""Triangles folded back onto the surface beside them (a CAD surface that folds over itself).
+
+A B-spline patch whose control net crosses itself maps a small region of its (u, v) domain back over the
+surface it has just made: the tessellation then holds a Z-fold, three coplanar layers (on, back, on again),
+every triangle wound consistently with its neighbours, the middle layer facing the other way. The ship
+hull of ``benchmarks/parts/freeform/optiwise_hull.step`` has 26 such places (slivers of up to 0.8 mm2,
+up to 7.8 mm long, inside one B-rep face). Nothing there is behind the surface; but a point in front of it
+whose closest triangle is the middle layer reads as behind it (the motion check found the tool 10 and 15 mm
+"in" the hull on self-motions that passed 10 mm in front of it).
+
+A triangle is **folded** when
+- its normal is turned more than ``FOLD_DEG`` from a neighbour's across a shared edge (the fold's crease),
+- its normal is turned more than ``AGAINST_DEG`` from the area-weighted mean normal of the mesh's
+  triangles within ``REACH_MM`` of it (the surface it lies on faces the other way), that mean holding
+  at least ``AGREE_SHARE`` of their area (the surface there has one side: not both faces of a thin wall),
+- and its corners lie within ``ON_MM`` of triangles that face the other way (it lies on that surface: a
+  thin wall's other face, a millimetre behind, is no fold).
+
+Written by hand (trimesh and open3d repair windings, not folds: the fold's windings agree); its
+closest-point test is trimesh's ``triangles.closest_point``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+FOLD_DEG = 120.0      # a crease this sharp between neighbours may be a fold
+AGAINST_DEG = 120.0   # a triangle turned this far from the surface around it faces against it
+REACH_MM = 5.0        # the surface around a triangle: triangles whose centroids lie this near its own
+AGREE_SHARE = 0.5     # that surface has one side when its mean normal holds this share of its area
+ON_MM = 0.01          # a triangle lies on a surface when its corners are this near it
+
+
+@dataclass(frozen=True)
+class Folds:
+    """The triangles folded back onto the surface beside them: a mask, and their largest area (mm2)."""
+
+    mask: np.ndarray
+    largest_mm2: float
+
+    @property
+    def count(self) -> int:
+        return int(self.mask.sum())
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+
+
+def _neighbours(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(a, b): the pairs of triangles that share an edge."""
+    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    tri = np.tile(np.arange(len(F)), 3)
+    key = e[:, 0] * np.int64(F.max() + 1) + e[:, 1]
+    order = np.argsort(key, kind="stable")
+    key, tri = key[order], tri[order]
+    pair = np.flatnonzero(key[1:] == key[:-1])
+    return tri[pair], tri[pair + 1]
+
+
+class _Surround:
+    """The tests of one triangle against the surface around it (module docstring)."""
+
+    def __init__(self, tri: np.ndarray, area: np.ndarray, N: np.ndarray):
+        self.tri, self.area, self.N = tri, area, N
+        self.centroid = tri.mean(axis=1)
+        self.tree = cKDTree(self.centroid)
+        self.cos_against = np.cos(np.radians(AGAINST_DEG))
+
+    def folded(self, t: int) -> bool:
+        """Whether triangle ``t`` faces against the one-sided surface around it and lies on it."""
+        import trimesh
+
+        near = np.asarray([k for k in self.tree.query_ball_point(self.centroid[t], REACH_MM) if k != t], np.int64)
+        if not len(near) or self.area[t] <= 0:
+            return False
+        summed = (self.area[near, None] * self.N[near]).sum(axis=0)
+        held = np.linalg.norm(summed)
+        if held < AGREE_SHARE * self.area[near].sum() or self.N[t] @ summed > self.cos_against * held:
+            return False
+        other = near[self.N[near] @ self.N[t] < self.cos_against]
+        if not len(other):
+            return False
+        d = [np.linalg.norm(trimesh.triangles.closest_point(self.tri[other], np.repeat(c[None], len(other), axis=0))
+                            - c, axis=1).min() for c in self.tri[t]]
+        return max(d) <= ON_MM
+
+
+def folded_triangles(verts_mm: np.ndarray, faces: np.ndarray) -> Folds:
+    """The triangles of a mesh folded back onto the surface beside them (module docstring): those at a crease
+    first, then, across smooth edges, the rest of the layer they start (each tested as they were)."""
+    V, F = np.asarray(verts_mm, float), np.asarray(faces, np.int64)
+    mask = np.zeros(len(F), bool)
+    if len(F) < 3:
+        return Folds(mask, 0.0)
+    tri = V[F]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    N = _unit(cross)
+    a, b = _neighbours(F)
+    sharp = np.einsum("ij,ij->i", N[a], N[b]) < np.cos(np.radians(FOLD_DEG))
+    if not sharp.any():
+        return Folds(mask, 0.0)
+    surround = _Surround(tri, area, N)
+    tested = np.zeros(len(F), bool)
+    todo = np.unique(np.r_[a[sharp], b[sharp]])
+    smooth_a, smooth_b = np.r_[a[~sharp], b[~sharp]], np.r_[b[~sharp], a[~sharp]]
+    order = np.argsort(smooth_a, kind="stable")
+    smooth_a, smooth_b = smooth_a[order], smooth_b[order]
+    while len(todo):
+        tested[todo] = True
+        found = np.asarray([t for t in todo if surround.folded(int(t))], np.int64)
+        mask[found] = True
+        lo, hi = np.searchsorted(smooth_a, found), np.searchsorted(smooth_a, found, side="right")
+        nxt = np.concatenate([smooth_b[i:j] for i, j in zip(lo, hi)]) if len(found) else np.zeros(0, np.int64)
+        todo = np.unique(nxt[~tested[nxt]])
+    return Folds(mask, float(area[mask].max()) if mask.any() else 0.0)
