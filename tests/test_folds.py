@@ -61,3 +61,19 @@ def test_the_motion_check_reads_a_point_in_front_of_a_fold_as_in_front():
     part = PartGeometry.from_workpiece(wp, np.array([[5.0, 2.0, 0.0], [35.0, 2.0, 0.0]]), np.array([[0, 0, 1.0]] * 2))
     sd = part.signed_distance(np.array([[18.5, 2.0, 10.0], [18.5, 2.0, -10.0], [5.0, 2.0, 10.0]]))
     np.testing.assert_allclose(sd, [10.0 - 1e-3, -10.0, 10.0], atol=2e-3)
+
+
+def test_a_mesh_that_folds_over_itself_loads_with_one_warning_line(tmp_path):
+    """The loader says so in one line (the count and the largest); a mesh without folds says nothing of them."""
+    import trimesh
+
+    from camtool.part.workpiece import load_workpiece
+
+    V, F = _z_fold()
+    trimesh.Trimesh(V, F, process=False).export(tmp_path / "fold.ply")
+    wp = load_workpiece(tmp_path / "fold.ply", units="mm")
+    lines = [w for w in wp.warnings if "folds back onto itself" in w]
+    assert len(lines) == 1 and "at 6 triangles" in lines[0]
+    V, F = _strip(np.arange(0.0, 21.0), np.zeros(21))
+    trimesh.Trimesh(V, F, process=False).export(tmp_path / "flat.ply")
+    assert not any("folds" in w for w in load_workpiece(tmp_path / "flat.ply", units="mm").warnings)

@@ -923,11 +923,25 @@ def _workpiece_from_raw(raw: _Raw, path: Path, units: str, sample_points: int, n
         verts_mm, faces, repairs = repaired_mesh(points * scale, faces, str(path), path.suffix.lower() in INDEXED)
         if path.suffix.lower() not in (".step", ".stp"):  # camtool's own tessellation: its slivers are no damage
             warnings = tuple(warnings) + repairs
+        warnings = tuple(warnings) + _fold_warning(verts_mm, faces, path)
         pts_mm, face_normals = _sample_mesh(verts_mm, faces, sample_points, rng, path)
         return Workpiece(pts_mm, face_normals, faces, str(path), units, warnings, verts_mm)
     pts_mm = points * scale
     normals = _cloud_normals(pts_mm, normals, normal_neighbours)
     return Workpiece(pts_mm, normals, None, str(path), units, warnings, None)
+
+
+def _fold_warning(verts_mm: np.ndarray, faces: np.ndarray, path: Path) -> tuple[str, ...]:
+    """One warning line where the mesh's surface folds back onto itself (``part.folds``: a CAD surface folded over
+    itself, kept as it is; the motion check reads those triangles as the surface they lie on), else none."""
+    from .folds import folded_triangles
+
+    folds = folded_triangles(verts_mm, faces)
+    if not folds.count:
+        return ()
+    return (f"{path}: the surface folds back onto itself at {folds.count} triangles (the largest "
+            f"{folds.largest_mm2:.2g} mm2; a CAD surface folded over itself): the checks take them as the surface "
+            "they lie on",)
 
 
 def _checked_faces(faces, n_vertices: int, path: Path) -> np.ndarray:
