@@ -61,7 +61,7 @@ def _neighbours(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _Surround:
-    """The tests of one triangle against the surface around it (module docstring)."""
+    """The tests of triangles against the surface around them (module docstring)."""
 
     def __init__(self, tri: np.ndarray, area: np.ndarray, N: np.ndarray):
         self.tri, self.area, self.N = tri, area, N
@@ -69,23 +69,38 @@ class _Surround:
         self.tree = cKDTree(self.centroid)
         self.cos_against = np.cos(np.radians(AGAINST_DEG))
 
-    def folded(self, t: int) -> bool:
-        """Whether triangle ``t`` faces against the one-sided surface around it and lies on it."""
+    def folded(self, ts: np.ndarray) -> np.ndarray:
+        """Which of the triangles ``ts`` face against the one-sided surface around them and lie on it: the mean
+        normals of all at once (a sparse sum over the pairs within ``REACH_MM``), the closest points of the few
+        left one by one."""
+        ts = np.asarray(ts, np.int64)
+        pairs = self.tree.sparse_distance_matrix(cKDTree(self.centroid[ts]), REACH_MM, output_type="ndarray")
+        k, j = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
+        other = k != ts[j]
+        k, j = k[other], j[other]
+        w = self.area[k]
+        summed = np.stack([np.bincount(j, w * self.N[k, c], minlength=len(ts)) for c in range(3)], axis=1)
+        held = np.linalg.norm(summed, axis=1)
+        against = (held >= AGREE_SHARE * np.bincount(j, w, minlength=len(ts))) & (held > 0) \
+            & (np.einsum("ij,ij->i", self.N[ts], summed) <= self.cos_against * held) & (self.area[ts] > 0)
+        out = np.zeros(len(ts), bool)
+        for i in np.flatnonzero(against):
+            out[i] = self._lies_on_against(int(ts[i]), k[j == i])
+        return out
+
+    def _lies_on_against(self, t: int, near: np.ndarray) -> bool:
+        """Whether triangle ``t``'s corners lie within ``ON_MM`` of triangles among ``near`` that face against it
+        (trimesh's closest points)."""
         import trimesh
 
-        near = np.asarray([k for k in self.tree.query_ball_point(self.centroid[t], REACH_MM) if k != t], np.int64)
-        if not len(near) or self.area[t] <= 0:
-            return False
-        summed = (self.area[near, None] * self.N[near]).sum(axis=0)
-        held = np.linalg.norm(summed)
-        if held < AGREE_SHARE * self.area[near].sum() or self.N[t] @ summed > self.cos_against * held:
-            return False
         other = near[self.N[near] @ self.N[t] < self.cos_against]
-        if not len(other):
-            return False
-        d = [np.linalg.norm(trimesh.triangles.closest_point(self.tri[other], np.repeat(c[None], len(other), axis=0))
-                            - c, axis=1).min() for c in self.tri[t]]
-        return max(d) <= ON_MM
+        size = np.linalg.norm(self.tri[other] - self.centroid[other][:, None], axis=2).max(axis=1)
+        for c in self.tri[t]:   # each corner against the triangles whose reach holds it
+            o = other[np.linalg.norm(self.centroid[other] - c, axis=1) <= size + ON_MM]
+            if not len(o) or np.linalg.norm(trimesh.triangles.closest_point(
+                    self.tri[o], np.repeat(c[None], len(o), axis=0)) - c, axis=1).min() > ON_MM:
+                return False
+        return True
 
 
 def folded_triangles(verts_mm: np.ndarray, faces: np.ndarray) -> Folds:
@@ -111,7 +126,7 @@ def folded_triangles(verts_mm: np.ndarray, faces: np.ndarray) -> Folds:
     smooth_a, smooth_b = smooth_a[order], smooth_b[order]
     while len(todo):
         tested[todo] = True
-        found = np.asarray([t for t in todo if surround.folded(int(t))], np.int64)
+        found = todo[surround.folded(todo)]
         mask[found] = True
         lo, hi = np.searchsorted(smooth_a, found), np.searchsorted(smooth_a, found, side="right")
         nxt = np.concatenate([smooth_b[i:j] for i, j in zip(lo, hi)]) if len(found) else np.zeros(0, np.int64)
