@@ -43,11 +43,21 @@ def on_roll_mm(points: np.ndarray) -> np.ndarray:
     return np.abs(np.hypot(points[:, 0], points[:, 2]) - R_MM)
 
 
-def onto_cylinder(points):
-    """Points taken onto the cylinder of radius R_MM about y, radially (the exact face)."""
+def onto_cylinder(points, along=None):
+    """Points taken onto the cylinder of radius R_MM about y, radially (the exact face), or along the lines
+    ``along`` (the nearest meeting either way)."""
     p = np.asarray(points, float).copy()
-    p[:, [0, 2]] *= (R_MM / np.hypot(p[:, 0], p[:, 2]))[:, None]
-    return p
+    if along is None:
+        p[:, [0, 2]] *= (R_MM / np.hypot(p[:, 0], p[:, 2]))[:, None]
+        return p
+    d = np.asarray(along, float)
+    a = d[:, 0] ** 2 + d[:, 2] ** 2
+    b = 2 * (p[:, 0] * d[:, 0] + p[:, 2] * d[:, 2])
+    c = p[:, 0] ** 2 + p[:, 2] ** 2 - R_MM ** 2
+    root = np.sqrt(b * b - 4 * a * c)
+    t = np.stack([(-b - root) / (2 * a), (-b + root) / (2 * a)])
+    t = np.take_along_axis(t, np.argmin(np.abs(t), axis=0)[None], axis=0)[0]
+    return p + t[:, None] * d
 
 
 def pose_on_roll(angle_rad: float) -> np.ndarray:
@@ -155,3 +165,22 @@ def test_of_several_faces_only_the_free_form_ones_are_cut(roll_job):
                      out.zone[out.face == f]) for f in (4, 1))
     assert work_turns_deg(on4).max() <= MAX_TURN_DEG
     assert len(on1) == n and work_turns_deg(on1).max() == pytest.approx(work_turns_deg(one).max())
+
+
+def test_a_step_where_the_chart_has_no_face_under_it_is_cut_onto_the_face_along_the_tool_axes():
+    """Issue #46, the ship hull's bilge: where the face stands steep to its chart plane the chart holds no face
+    under a chord point (here past 60 deg from the top of the roll, along z: NaN) and a new pose stayed on the
+    chord, inside the part by its sag (the hull: 0.45 mm). Along its own tool axis it meets the face: a 30 mm
+    step from 60 deg on the 60 mm roll is cut into six, every point on the roll (closed form)."""
+    def chart_blind(points, along=None):
+        onto = onto_cylinder(points, along)
+        if along is None:
+            onto[np.abs(np.asarray(points)[:, 0]) > R_MM * math.sin(math.radians(60.0))] = np.nan
+        return onto
+
+    a0, a = math.radians(60.0), 30.0 / R_MM
+    poses = np.array([pose_on_roll(a0), pose_on_roll(a0 + a)])
+    path = Path(poses, np.zeros(2, int), np.array([1, 2]), np.full(2, WORK))
+    out, added = split_turns(path, [(np.ones(2, bool), chart_blind)])
+    assert added == 5
+    np.testing.assert_allclose(on_roll_mm(out.poses_mm[:, :3, 3]), 0.0, atol=1e-9)

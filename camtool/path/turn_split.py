@@ -72,12 +72,25 @@ def split_turns(path: Path, faces: Sequence[tuple[np.ndarray, Projector]],
     new[:, :3, :3] = (Ra[src] * Rotation.from_rotvec(f[:, None] * rel[src])).as_matrix()
     chord = P[k[src], :3, 3] + f[:, None] * (P[k[src] + 1, :3, 3] - P[k[src], :3, 3])
     new[:, :3, 3] = chord
+    half = 0.5 * np.linalg.norm(P[k[src] + 1, :3, 3] - P[k[src], :3, 3], axis=1)
     for i, (_, project) in enumerate(faces):
         on = which[src] == i
         if on.any():
-            onto = project(chord[on])
-            new[on, :3, 3] = np.where(np.isfinite(onto).all(axis=1)[:, None], onto, chord[on])
+            new[on, :3, 3] = _onto_face(project, chord[on], new[on, :3, 2], half[on])
     return _with_poses(path, k[src], f, new), len(src)
+
+
+def _onto_face(project, chord: np.ndarray, axis: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """The chord's points taken onto the face along their own tool axes (the surface's normal: the ship hull's
+    bilge, 74 deg from its chart plane, had no face under a point along the chart's normal and a pose stayed on
+    the chord, 0.45 mm inside the hull) where that meets it within half the step; else along the chart's normal
+    (``project``'s default); else kept on the chord."""
+    onto = project(chord, along=axis)
+    with np.errstate(invalid="ignore"):
+        far = ~(np.linalg.norm(onto - chord, axis=1) <= half)
+    if far.any():
+        onto[far] = project(chord[far])
+    return np.where(np.isfinite(onto).all(axis=1)[:, None], onto, chord)
 
 
 def _with_poses(path: Path, after: np.ndarray, f: np.ndarray, poses: np.ndarray) -> Path:
