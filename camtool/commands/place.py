@@ -21,7 +21,7 @@ def _verified_dict(v: dict | None) -> dict | None:
     if v is None:
         return None
     keep = ("ok", "unreachable", "cycle_s", "reverse_plans", "retracts", "limit_findings", "penalty", "penalty_from",
-            "plan_penalty", "cost", "reason", "margins", "seconds")
+            "plan_penalty", "cost", "reason", "margins", "seconds", "feed_mm_s", "feed_min_mm_s", "feed_share")
     out = {k: v[k] for k in keep if k in v}
     if not math.isfinite(out.get("cost", 0.0)):
         out["cost"] = None
@@ -57,6 +57,9 @@ def _entry(study, job, r, rank=None) -> dict:
               help="Goal of the reach margin (percent of the arm's reach); less is penalised.")
 @click.option("--joint-margin", type=float, default=10.0, show_default=True,
               help="Goal of the joint-limit margin (percent of each joint's range); less is penalised.")
+@click.option("--feed-weight", type=float, default=1.0, show_default=True,
+              help="Weight of the work feed in the cost: a placement whose work is expected at a share f of "
+                   "timing.tcp_speed_mm_s costs 1 + weight x (1 - f) times more (0: the feed is not weighed).")
 @click.option("--top", type=int, default=10, show_default=True, help="Length of the ranked list.")
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
               help="Override a job-file key, e.g. --set raster.step_over_mm=20 (repeatable).")
@@ -64,7 +67,7 @@ def _entry(study, job, r, rank=None) -> dict:
               help="Output folder (default: out/<job file name>_place).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary (placement.json) as JSON.")
 def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_max: int, verify: int, max_checks: int,
-            reach_margin: float, joint_margin: float, top: int, overrides: tuple[str, ...], outdir: Path | None,
+            reach_margin: float, joint_margin: float, feed_weight: float, top: int, overrides: tuple[str, ...], outdir: Path | None,
             as_json: bool) -> None:
     """Find where to put JOB's workpiece: offsets of cell.workpiece_xyz_mm and a yaw added to
     cell.workpiece_rpy_deg, within the --vary bounds.
@@ -74,7 +77,8 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
     scores a raster of placements and refines round the best; the best few
     are then planned and timed in full. Cost: estimated work time x (1 +
     penalty on joint-limit, reach and singularity margins below their goals)
-    x (1 + 2 % per metre moved); see docs/placement.md.
+    x (1 + 2 % per metre moved) x (1 + --feed-weight x the share of the
+    feed the work is expected to lose); see docs/placement.md.
 
     Writes OUTDIR/placed_job.toml (`camtool run` accepts it),
     OUTDIR/feasible_region.png and OUTDIR/placement.json. Exit 3 when no
@@ -94,6 +98,8 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
     for name, value in (("--reach-margin", reach_margin), ("--joint-margin", joint_margin)):
         if not 0.0 < value < 50.0:
             raise BadInput(f"{name}: expected a percentage in (0, 50), found {value:g}")
+    if not (math.isfinite(feed_weight) and 0.0 <= feed_weight <= 100.0):
+        raise BadInput(f"--feed-weight: expected a weight in [0, 100], found {feed_weight:g}")
     variables = [parse_vary(v) for v in (vary or DEFAULT_VARY)]
     job = load_job(job_file, list(overrides))
     outdir = outdir or Path("out") / f"{job_file.stem}_place"
@@ -111,7 +117,7 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
     st = JobSettings.from_job(job, robot)
     settings = ScreenSettings(joint_margin_goal=joint_margin / 100.0, reach_margin_goal=reach_margin / 100.0,
                               orientation_mm=st.planner.orientation_weight_mm, track_scale_mm=st.planner.track_scale_mm,
-                              tcp_speed_mm_s=st.timing.tcp_speed_mm_s)
+                              tcp_speed_mm_s=st.timing.tcp_speed_mm_s, feed_weight=feed_weight)
     with PlacementProblem(job, variables, jobs, settings) as problem:
         study = problem.run(seed, verify, max_checks, grid_max, on_progress)
     user = (0.0, 0.0, 0.0, 0.0)
@@ -125,8 +131,10 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
                       "workpiece_rpy_deg": list(job.cell.workpiece_rpy_deg)},
         "variables": {v.name: [v.lower, v.upper] for v in study.variables},
         "units": {"x": "mm", "y": "mm", "z": "mm", "yaw": "deg"},
-        "cost": {"formula": "est_work_s * (1 + penalty) * (1 + move_per_m * (|d| / 1 m + |yaw| / 90 deg)); planned: "
-                            "cycle_s in place of est_work_s, margins of the planned run",
+        "cost": {"formula": "est_work_s * (1 + penalty) * (1 + move_per_m * (|d| / 1 m + |yaw| / 90 deg)) * "
+                            "(1 + feed_weight * (1 - feed_share)); planned: cycle_s in place of est_work_s, "
+                            "feed_share of the planned run's median work feed",
+                 "feed_weight": settings.feed_weight, "tcp_speed_mm_s": settings.tcp_speed_mm_s,
                  "joint_margin_goal": settings.joint_margin_goal, "reach_margin_goal": settings.reach_margin_goal,
                  "dexterity_goal": settings.dexterity_goal, "move_per_m": settings.move_per_m},
         "screen": {"poses": study.n_poses, "ik_poses": study.n_ik_poses, "grid": grid,
@@ -157,8 +165,9 @@ def _fmt_screen(s: dict) -> str:
         where = {"bound": "beyond the wrist-centre reach", "ik": "outside the joint limits (IK subsample)",
                  "full": "outside the joint limits"}[s["stage"]]
         return f"INFEASIBLE in the screen: {s['unreachable']} of {s['checked']} poses {where}"
+    feed = "" if s.get("feed_mm_s") is None else f", expected work feed {s['feed_mm_s']:.0f} mm/s"
     return (f"screen cost {s['cost']:.1f} s, joint margin {100 * s['joint_margin']:.1f} % ({s['joint_margin_joint']}), "
-            f"reach used {100 * s['reach_used']:.1f} %, dexterity {s['dexterity']:.3f}")
+            f"reach used {100 * s['reach_used']:.1f} %, dexterity {s['dexterity']:.3f}{feed}")
 
 
 def _fmt_planned(v: dict | None) -> str:
@@ -171,7 +180,11 @@ def _fmt_planned(v: dict | None) -> str:
     jl = m["joint_limit"]
     return (f"plans: 0 unreachable, cycle {v['cycle_s']:.1f} s, {v['reverse_plans']} reverse plans, "
             f"{v['retracts']} retracts, joint margin {100 * jl['min_share']:.1f} % ({jl['joint']}){reach}, "
-            f"cost {v['cost']:.1f}")
+            f"{_fmt_feed(v)}cost {v['cost']:.1f}")
+
+
+def _fmt_feed(v: dict) -> str:
+    return "" if v.get("feed_mm_s") is None else f"median work feed {v['feed_mm_s']:.1f} mm/s, "
 
 
 def _print_summary(s: dict, study, job, format_offset, placement_of, outdir) -> None:
@@ -186,15 +199,16 @@ def _print_summary(s: dict, study, job, format_offset, placement_of, outdir) -> 
     click.echo(f"searched         {ranges}: {sc['grid_placements']} grid ({' x '.join(map(str, sc['grid']))}) + "
                f"{sc['placements'] - sc['grid_placements']} more placements, {sc['feasible']} feasible, "
                f"{sc['seconds']:.1f} s screen + {s['plan_seconds']:.1f} s planning, {s['processes']} process(es)")
-    click.echo(" rank    dx mm    dy mm    dz mm  yaw deg  cost s  joint %  reach %  dexter  planned")
+    click.echo(" rank    dx mm    dy mm    dz mm  yaw deg  cost s  joint %  reach %  dexter  feed mm/s  planned")
     for e in s["ranked"]:
         o, r, v = e["offset"], e["screen"], e["planned"]
         if r["feasible"]:
+            feed = "-" if r.get("feed_mm_s") is None else f"{r['feed_mm_s']:.0f}"
             figs = (f"{r['cost']:7.1f}  {100 * r['joint_margin']:7.1f}  {100 * r['reach_used']:7.1f}  "
-                    f"{r['dexterity']:6.3f}")
+                    f"{r['dexterity']:6.3f}  {feed:>9}")
         else:
-            figs = f"{'-':>7}  {'-':>7}  {100 * r['reach_used']:7.1f}  {'-':>6}"
-        plan = "-" if v is None else (f"ok, cycle {v['cycle_s']:.1f} s, cost {v['cost']:.1f}" if v["ok"]
+            figs = f"{'-':>7}  {'-':>7}  {100 * r['reach_used']:7.1f}  {'-':>6}  {'-':>9}"
+        plan = "-" if v is None else (f"ok, cycle {v['cycle_s']:.1f} s, {_fmt_feed(v)}cost {v['cost']:.1f}" if v["ok"]
                                       else f"fails ({v.get('unreachable', 0)} unreachable)")
         click.echo(f" {e['rank']:4d} {o['dx_mm']:8.1f} {o['dy_mm']:8.1f} {o['dz_mm']:8.1f} {o['dyaw_deg']:8.1f} "
                    f"{figs}  {plan}")

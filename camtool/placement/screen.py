@@ -33,15 +33,22 @@ A placement that passes gets its figures and cost:
 - ``speed_ratio``: the largest joint speed over its limit that the least-norm
   joint motion needs for the nominal TCP speed along the path;
 - ``est_work_s``: the work-zone time at the nominal TCP speed, each pose's
-  share stretched by ``max(1, speed ratio)`` (where limits slow the TCP).
+  share stretched by ``max(1, speed ratio)`` (where limits slow the TCP);
+- ``feed_mm_s``: the work feed the timing is expected to hold (``feed.py``: the
+  speed, acceleration and jerk limits on stencils of 4 poses along the rows, each
+  row at its slowest; the median over the work length), ``feed_share`` its share
+  of the nominal TCP speed.
 
-    cost = est_work_s * (1 + penalty) * (1 + move_per_m * move)
+    cost = est_work_s * (1 + penalty) * (1 + move_per_m * move) * (1 + feed_weight * (1 - feed_share))
     penalty = sum over (joint margin, reach margin, dexterity) of max(0, 1 - value / goal)^2
     move = |d| / 1 m + |yaw| / 90 deg
 
 so a margin at zero doubles the cost per margin, margins above their goals
 cost nothing, and of two equally good placements the one nearer the user's
-wins. Infeasible placements cost ``inf``.
+wins; a placement whose rows hold a quarter of the feed costs 1.75 times one
+that holds it (``feed_weight`` 1): grinding and painting need the constant
+feed (removal and film depend on it), and the cycle time alone does not see it
+before the plan. Infeasible placements cost ``inf``.
 """
 from __future__ import annotations
 
@@ -52,6 +59,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..path.toolpath import WORK, Path
+from .feed import FeedStencils, expected_feed
 from .kinematics import ClosedForm, dexterity
 
 AXES = ("x", "y", "z", "yaw")
@@ -70,6 +78,8 @@ class ScreenSettings:
     orientation_mm: float = 200.0     # planner.orientation_weight_mm
     track_scale_mm: float = 500.0     # planner.track_scale_mm
     tcp_speed_mm_s: float = 100.0     # timing.tcp_speed_mm_s
+    feed_weight: float = 1.0          # cost share per share of the feed the work is expected to lose
+    feed_stencils: int = 256          # stencils of 4 work poses the feed is estimated on (feed.py)
 
     def penalty(self, joint_margin, reach_used, dex) -> float:
         """The margin penalty (module doc); a missing figure counts as meeting its goal."""
@@ -86,8 +96,15 @@ class ScreenSettings:
         """The move measure of an offset (dx, dy, dz mm, dyaw deg): |d| / 1 m + |yaw| / 90 deg."""
         return float(np.linalg.norm(offset[:3]) / 1000.0 + abs(offset[3]) / 90.0)
 
-    def cost(self, time_s: float, penalty: float, offset) -> float:
-        return float(time_s * (1.0 + penalty) * (1.0 + self.move_per_m * self.move(offset)))
+    def feed_factor(self, feed_share) -> float:
+        """The feed term: 1 + feed_weight * (1 - feed_share); 1 without a figure."""
+        if feed_share is None:
+            return 1.0
+        return 1.0 + self.feed_weight * max(0.0, 1.0 - float(feed_share))
+
+    def cost(self, time_s: float, penalty: float, offset, feed_share=None) -> float:
+        return float(time_s * (1.0 + penalty) * (1.0 + self.move_per_m * self.move(offset))
+                     * self.feed_factor(feed_share))
 
 
 def placement_matrix(offset, pivot_mm) -> np.ndarray:
@@ -166,6 +183,7 @@ class PathGeometry:
     work_length_mm: float
     base_inv: np.ndarray
     pivot_mm: np.ndarray
+    stencils: FeedStencils | None = None   # the feed's stencils along the rows (feed.py)
     n_poses: int = field(init=False)
 
     def __post_init__(self):
@@ -187,7 +205,9 @@ class PathGeometry:
         steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
         on_work = (path.zone[1:] == WORK) & (path.zone[:-1] == WORK) & (path.segment[1:] == path.segment[:-1])
         length = float(steps[on_work].sum()) if len(work) > 1 else 0.0
-        return cls(P, W, sub, work_sub, tw, length, np.linalg.inv(robot.base_T_mm), np.asarray(pivot_mm, float))
+        stencils = FeedStencils.build(path, settings.feed_stencils) if settings.feed_stencils > 0 else None
+        return cls(P, W, sub, work_sub, tw, length, np.linalg.inv(robot.base_T_mm), np.asarray(pivot_mm, float),
+                   stencils)
 
     def base_transform(self, offset) -> np.ndarray:
         """World pose of the path at the job's placement -> robot base frame at ``offset``."""
@@ -212,11 +232,15 @@ class ScreenResult:
     penalty: float | None = None
     cost: float = math.inf
     full_checked: bool = False
+    feed_mm_s: float | None = None         # expected work feed (median over the work length)
+    feed_min_mm_s: float | None = None     # expected feed of the slowest row
+    feed_share: float | None = None
 
     def as_dict(self) -> dict:
         d = asdict(self)
         d["offset"] = [round(float(v), 3) for v in self.offset]
-        for k in ("reach_used", "joint_margin", "dexterity", "speed_ratio", "est_work_s", "penalty", "cost"):
+        for k in ("reach_used", "joint_margin", "dexterity", "speed_ratio", "est_work_s", "penalty", "cost",
+                  "feed_mm_s", "feed_min_mm_s", "feed_share"):
             if d[k] is not None:
                 d[k] = None if not math.isfinite(d[k]) else round(float(d[k]), 5)
         return d
@@ -286,5 +310,11 @@ def _figures(model, geom, settings, off, B, used_max, idx, q, m, full) -> Screen
         time_s = geom.work_length_mm / settings.tcp_speed_mm_s * float(np.mean(np.maximum(ratio, 1.0)))
     jm = float(m.min())
     pen = settings.penalty(jm, used_max, dex)
+    feed = None
+    if geom.stencils is not None and len(geom.stencils):
+        feed = expected_feed(model, geom.stencils, geom.poses_mm, B, settings.tcp_speed_mm_s)
+    share = None if feed is None else feed.share
     return ScreenResult(off, True, "ok", 0, len(idx), used_max, jm, joint, dex, speed, time_s, pen,
-                        settings.cost(time_s, pen, off), full_checked=full)
+                        settings.cost(time_s, pen, off, share), full_checked=full,
+                        feed_mm_s=None if feed is None else feed.median_mm_s,
+                        feed_min_mm_s=None if feed is None else feed.min_mm_s, feed_share=share)

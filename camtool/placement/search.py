@@ -190,7 +190,7 @@ def verify_placement(job: Job, offset, settings: ScreenSettings) -> dict:
     (``PlacementProblem.planned_cost``).
     """
     from ..run import stages
-    from ..timing import limit_findings
+    from ..timing import feed_profile, feed_statistics, limit_findings, sampled_for
     from ..timing.pathlaw import remembered_runs
 
     t0 = time.perf_counter()
@@ -219,6 +219,13 @@ def verify_placement(job: Job, offset, settings: ScreenSettings) -> dict:
     dex = m["manipulability"]["dexterity_min"] if m["manipulability"] else None
     pen = settings.penalty(jm, used, dex)
     ok = not findings
+    feed = float(getattr(tr, "tcp_speed_mm_s", 0.0) or 0.0)
+    if ok and feed > 0:   # the work feed the timed run holds, as report.json's work_feed
+        wf = feed_statistics(feed_profile(tr, sampled_for(tr, robot, st.timing.check_dt_s)), feed)
+        if wf.get("median_work_feed_mm_s") is not None:
+            out.update(feed_mm_s=round(float(wf["median_work_feed_mm_s"]), 3),
+                       feed_min_mm_s=round(float(wf["min_work_feed_mm_s"]), 3),
+                       feed_share=round(float(wf["median_work_feed_mm_s"]) / feed, 5))
     out.update(ok=ok, unreachable=0, cycle_s=round(tr.duration_s, 3),
                reverse_plans=len(jp.events.get("reverse_plans", [])), retracts=len(jp.events.get("retracts", [])),
                limit_findings=len(findings), margins=m, plan_penalty=round(pen, 5), cost=math.inf,
@@ -441,7 +448,8 @@ class PlacementProblem:
         return study
 
     def planned_cost(self, study: PlacementStudy, offset, v: dict) -> dict:
-        """The planned cost of a placement: cycle time x (1 + the placement's margin penalty) x (1 + move term).
+        """The planned cost of a placement: cycle time x (1 + the placement's margin penalty) x (1 + move term)
+        x (1 + the feed term of the planned run's median work feed).
 
         The penalty is the screen's on every pose (the placement's own margins: the
         best closed-form solution per pose); where the screen did not pass (the
@@ -458,7 +466,7 @@ class PlacementProblem:
             v["penalty"], v["penalty_from"] = round(r.penalty, 5), "screen"
         else:
             v["penalty"], v["penalty_from"] = v["plan_penalty"], "plan"
-        v["cost"] = round(self.settings.cost(v["cycle_s"], v["penalty"], offset), 3)
+        v["cost"] = round(self.settings.cost(v["cycle_s"], v["penalty"], offset, v.get("feed_share")), 3)
         return v
 
     def _tops(self, study: PlacementStudy, n: int) -> list[ScreenResult]:

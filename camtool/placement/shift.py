@@ -84,10 +84,10 @@ def nearest_feasible_shift(job, settings, robot, path, search: ShiftSearch = Shi
     model = screen_model(robot, settings, path.free_spin)
     if model is None or len(path) == 0:
         return None
-    st = ScreenSettings()
+    st = ScreenSettings(feed_stencils=0)   # reach and margins only: the feed does not decide a shift
     if settings is not None:
         st = ScreenSettings(orientation_mm=settings.planner.orientation_weight_mm,
-                            track_scale_mm=settings.planner.track_scale_mm)
+                            track_scale_mm=settings.planner.track_scale_mm, feed_stencils=0)
     pivot = np.asarray(job.cell.workpiece_xyz_mm, float)
     screens = _Screens(model, PathGeometry.build(path, model, robot, pivot, st), st, search)
     here = screens([(0.0, 0.0, 0.0, 0.0)])[0]
