@@ -46,6 +46,10 @@ def test_place_finds_a_feasible_placement(placed):
     assert c["workpiece_xyz_mm"] == pytest.approx([1000 + c["offset"]["dx_mm"], 0, 250 + c["offset"]["dz_mm"]])
     assert d["ranked"] and d["ranked"][0]["rank"] == 1 and d["screen"]["feasible"] > 0
     assert d["screen"]["grid_placements"] <= 64
+    # the work feed: expected by the screen, held by the planned run (its timing's median), weighed in the cost
+    assert 0 < c["screen"]["feed_mm_s"] <= 100.0 and 0 < c["planned"]["feed_mm_s"] <= 100.0 * 1.001
+    assert c["planned"]["feed_share"] == pytest.approx(c["planned"]["feed_mm_s"] / 100.0, abs=1e-4)
+    assert d["cost"]["feed_weight"] == 1.0
     for name in ("placed_job.toml", "feasible_region.png", "placement.json"):
         assert (out / name).stat().st_size > 0
     assert (out / "feasible_region.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -66,7 +70,8 @@ def test_placed_job_plans_with_every_pose_reachable(placed):
 
 
 @pytest.mark.parametrize("args", [("--vary", "w=0:1"), ("--vary", "x=5:1"), ("--vary", "x=0:1", "--vary", "x=1:2"),
-                                  ("-j", "0"), ("--reach-margin", "0")])
+                                  ("-j", "0"), ("--reach-margin", "0"), ("--feed-weight", "-1"),
+                                  ("--feed-weight", "nan")])
 def test_bad_options_exit_2(args):
     r = invoke("place", SAMPLES / "sphere.toml", *args)
     assert r.exit_code == 2
