@@ -140,3 +140,22 @@ def test_the_feed_term_moves_the_plate_off_the_wrist_singularity(singular_plate)
     assert a.feed_mm_s == pytest.approx(np.median(slow), rel=0.15)  # the estimate against the time law's median
     est = expected_feed(model, geom.stencils, geom.poses_mm, geom.base_transform(here), FEED)
     assert est.median_mm_s == pytest.approx(a.feed_mm_s)
+
+
+def test_a_rows_sharpest_bend_gets_a_stencil():
+    """Stencils go where the TCP pose bends most in each row (the joints' jerk peaks there), whatever the spread."""
+    from scipy.spatial.transform import Rotation
+
+    n = 200
+    poses = np.repeat(np.eye(4)[None], n, axis=0)
+    poses[:, 0, 3] = 5.0 * np.arange(n)
+    bend = 137                                            # one pose tilted by 2 deg: the row's sharpest spot
+    poses[bend, :3, :3] = Rotation.from_rotvec([0.0, np.radians(2.0), 0.0]).as_matrix()
+    path = Path(poses, np.zeros(n, int), np.arange(n), np.full(n, WORK))
+    st = FeedStencils.build(path, 8)
+    assert len(st) <= 8
+    assert (np.abs(st.index - bend) <= 2).any(axis=1).sum() >= 4     # the 4 stencils holding the bent pose
+    straight = poses.copy()
+    straight[bend, :3, :3] = np.eye(3)
+    spread = FeedStencils.build(Path(straight, np.zeros(n, int), np.arange(n), np.full(n, WORK)), 8)
+    assert not (np.abs(spread.index - bend) <= 2).any()  # unbent, they spread evenly and miss it

@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..path.toolpath import WORK, Path
 from ..timing.pathlaw import speed_bounds
@@ -38,6 +39,7 @@ from ..timing.quintic import MARGIN
 from .kinematics import best_of
 
 STENCIL = 4          # poses per stencil: i-1, i, i+1, i+2 (a cubic's 4 coefficients)
+ORIENTATION_MM = 200.0   # 1 rad of tool turn weighs as this many mm of travel in picking stencils (the planner's)
 
 
 @dataclass(frozen=True)
@@ -62,15 +64,45 @@ class FeedStencils:
         length = np.bincount(inverse[:-1], weights=np.where(same, step, 0.0), minlength=len(rows))
         centre = np.arange(1, n - 2) if n >= STENCIL else np.zeros(0, int)
         centre = centre[same[centre - 1] & same[centre] & same[centre + 1]]   # pieces i-1 .. i+2 on one row
-        if count < len(centre):
-            centre = centre[np.unique(np.round(np.linspace(0, len(centre) - 1, max(count, 1))).astype(int))]
-        index = centre[:, None] + np.arange(-1, STENCIL - 1)[None, :]
         cum = np.concatenate([[0.0], np.cumsum(step)])
+        if count < len(centre):
+            centre = _pick(centre, inverse[centre], _turning(path.poses_mm, centre, cum), count)
+        index = centre[:, None] + np.arange(-1, STENCIL - 1)[None, :]
         s = cum[index] - cum[centre][:, None]
         return cls(index.astype(int), s, inverse[centre].astype(int), length)
 
     def __len__(self) -> int:
         return len(self.index)
+
+
+def _turning(poses_mm: np.ndarray, centre: np.ndarray, cum: np.ndarray) -> np.ndarray:
+    """Per stencil centre, how sharply the TCP pose bends there: the third derivative of the cubic through the 4 poses' positions
+    and rotation vectors (from the centre's orientation, x ORIENTATION_MM), a placement-independent proxy of the
+    joints' jerk."""
+    index = centre[:, None] + np.arange(-1, STENCIL - 1)[None, :]
+    P = np.asarray(poses_mm, float)[index]                               # (K, 4, 4, 4)
+    rel = np.einsum("kji,kmjl->kmil", P[:, 1, :3, :3], P[:, :, :3, :3])
+    rv = Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec().reshape(len(centre), STENCIL, 3)
+    x = np.concatenate([P[:, :, :3, 3], ORIENTATION_MM * rv], axis=-1)    # (K, 4, 6)
+    s = cum[index] - cum[centre][:, None]
+    V = s[:, :, None] ** np.arange(STENCIL)[None, None, :]
+    good = np.abs(np.linalg.det(V)) > 0.0                                  # not where poses repeat
+    out = np.zeros(len(centre))
+    out[good] = np.linalg.norm(np.linalg.solve(V[good], x[good])[:, 3], axis=-1)
+    return out
+
+
+def _pick(centre: np.ndarray, row: np.ndarray, score: np.ndarray, count: int) -> np.ndarray:
+    """``count`` stencil centres: in each row its sharpest bends (half the budget, shared evenly by the rows: a
+    row slows at its slowest spot) and the rest spread evenly over the work."""
+    rows = np.unique(row)
+    per_row = max(1, (count // 2) // max(len(rows), 1))
+    order = np.lexsort((-score, row))                                    # by row, sharpest first, stable
+    rank = np.arange(len(order)) - np.searchsorted(row[order], row[order])
+    sharp = order[rank < per_row]
+    rest = max(count - len(sharp), 1)
+    even = np.unique(np.round(np.linspace(0, len(centre) - 1, rest)).astype(int))
+    return centre[np.union1d(sharp, even)]
 
 
 @dataclass(frozen=True)
