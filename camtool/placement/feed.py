@@ -12,8 +12,9 @@ the free-form sheets: j4's jerk on nearly every row). The screen's least-norm jo
 see neither the jerk nor the rows between its poses, so this module estimates the feed itself:
 
 - ``FeedStencils.build``: up to ``count`` stencils of 4 consecutive work poses of one row (path
-  indices i-1 .. i+2), spread evenly over the work poses (a row of 100 poses of 7,500 gets 3 of the
-  default 256), and each row's work length;
+  indices i-1 .. i+2): half the budget at each row's sharpest bends of the TCP pose (the third
+  derivative of its position and rotation along the row, which the placement does not change: the
+  joints' jerk peaks there), the rest spread evenly over the work; and each row's work length;
 - ``expected_feed``: at one placement, closed-form IK of the stencils (the centre pose's solution with
   the most joint-limit margin, its neighbours the candidates nearest it: one continuous motion), a
   cubic in s through each stencil's joints (q', q'', q''' at its centre), the bound above per stencil,
