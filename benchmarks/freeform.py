@@ -23,7 +23,8 @@ For each part:
   coverage (area within 0.6 x step-over of a work TCP), distance of the work TCPs to the mesh
   (p50 / p99), tool axis against the 12.5 mm mean normal (p95), the largest turn between
   neighbouring work poses, and the step between neighbouring rows on the surface (p5-p95, in %
-  of step_over_mm), with each side's wall time.
+  of step_over_mm), with each side's wall time; for camtool also the run's TCP feed on work (report.json's
+  ``work_feed``: median and least, against the commanded feed).
 
 First a control: the same chain on samples/irb2400_plate.toml, a plane camtool works today (its
 figures must be near perfect: the FK, the frames and the metrics read camtool right).
@@ -360,7 +361,21 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
     fig = fm.measure(mesh, region, rows, step, geo=geo, samples=samples,
                      step_rows=[p for (p, _), c in zip(rows, contour) if not c])
     print(f"  camtool  {fig.row(step)}  {wall:6.2f} s  [{verdict(fig, kind, step)}]  "
-          f"({int(contour.sum())} contour runs; FK gap {gap:.1e} mm)")
+          f"({int(contour.sum())} contour runs; FK gap {gap:.1e} mm){work_feed(out / name)}")
+
+
+def work_feed(run_dir: Path) -> str:
+    """The run's TCP feed on work from its report.json (``work_feed``: median and least, of the commanded)."""
+    import json
+
+    try:
+        w = json.loads((run_dir / "report.json").read_text()).get("work_feed") or {}
+    except (OSError, ValueError):
+        return ""
+    if w.get("median_work_feed_mm_s") is None:
+        return ""
+    return (f"; work feed p50 {w['median_work_feed_mm_s']:.1f} min {w['min_work_feed_mm_s']:.1f} of "
+            f"{w['commanded_feed_mm_s']:g} mm/s")
 
 
 REACH_WORDS = ("out of reach", "edge of the robot's reach", "move it closer", "cell.workpiece_xyz_mm =")
