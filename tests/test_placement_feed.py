@@ -140,6 +140,9 @@ def test_the_feed_term_moves_the_plate_off_the_wrist_singularity(singular_plate)
     assert a.feed_mm_s == pytest.approx(np.median(slow), rel=0.15)  # the estimate against the time law's median
     est = expected_feed(model, geom.stencils, geom.poses_mm, geom.base_transform(here), FEED)
     assert est.median_mm_s == pytest.approx(a.feed_mm_s)
+    # the finalists' check of every pose times every run by the time law itself
+    a_full, b_full = screen_batch(model, geom, [here, AWAY], ScreenSettings(tcp_speed_mm_s=FEED), full=True)
+    assert a_full.feed_mm_s == pytest.approx(np.median(slow), rel=1e-6) and b_full.feed_mm_s == pytest.approx(FEED)
 
 
 def test_a_rows_sharpest_bend_gets_a_stencil():

@@ -24,6 +24,11 @@ see neither the jerk nor the rows between its poses, so this module estimates th
   On a plate whose rows miss the IRB2400's wrist singularity by 7.5 mm it reads 48 mm/s where the timing
   holds 44 (tests/test_placement_feed.py); a row's slowest spot between its stencils is not seen.
 
+- ``timed_feed``: for the search's few finalists (every pose solved anyway), the timing's own time law
+  (``timing.runs.time_runs``) on every run through every pose, one continuous IK branch per run. On
+  ``bezier_ocean_cad`` it orders placements as their planned runs do (57-72 mm/s where those hold
+  22.7-33.6: the planner's sag midposes slow every row alike, docs/placement.md).
+
 Hand-written because no library times a path from closed-form IK branches; the bound is the timing's
 own (``pathlaw.speed_bounds``) on a cubic fitted to 4 poses instead of the spline through all of them.
 """
@@ -34,8 +39,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..path.toolpath import WORK, Path
+from ..errors import CamtoolError
+from ..path.toolpath import SURFACE_CODES, WORK, Path
 from ..timing.pathlaw import speed_bounds
+from ..timing.runs import time_runs
 from ..timing.quintic import MARGIN
 from .kinematics import best_of
 
@@ -185,3 +192,49 @@ def weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
     order = np.argsort(values, kind="stable")
     cum = np.cumsum(np.asarray(weights, float)[order])
     return float(np.asarray(values, float)[order][np.searchsorted(cum, 0.5 * cum[-1])])
+
+
+def timed_feed(model, path_zone: np.ndarray, path_segment: np.ndarray, T_base: np.ndarray,
+               feed_mm_s: float) -> FeedEstimate | None:
+    """The work feed of every pose of the path (``T_base`` (N, 4, 4), base frame), timed by the timing's own
+    time law (``timing.runs.time_runs``: each run, its leads and work, a spline through every pose): the finer
+    figure the search takes for its few finalists. One continuous IK branch per run: the first pose's
+    solution with the most margin, each next the candidate nearest the one before; a run that branch takes
+    past a joint limit (the planner turns it round with a reverse plan or a retract) is left out. None where a
+    pose has no solution inside the limits or no run is timed."""
+    surface = np.isin(path_zone, SURFACE_CODES)
+    seg = np.asarray(path_segment)
+    start = surface & np.r_[True, (seg[1:] != seg[:-1]) | ~surface[:-1]]
+    run = np.cumsum(start) - 1
+    keep = np.flatnonzero(surface)
+    if not len(keep) or feed_mm_s <= 0:
+        return None
+    T = np.asarray(T_base, float)[keep]
+    cands = model.candidates(T)
+    q, m, _ = best_of(cands, model.lower, model.upper, model.revolute, model.controller_ok)
+    if not np.isfinite(m).all():
+        return None
+    r = run[keep]
+    first = np.r_[True, r[1:] != r[:-1]]
+    for i in np.flatnonzero(~first):          # sequential by nature: each pose follows the one before
+        q[i] = _nearest(cands[:, i:i + 1], q[i - 1:i], model.revolute)[0]
+    step = np.linalg.norm(np.diff(T[:, :3, 3], axis=0), axis=1)
+    zone = np.asarray(path_zone)[keep]
+    starts = np.flatnonzero(first)
+    feeds, length = [], []
+    for a, b in zip(starts, np.r_[starts[1:], len(keep)]):
+        work = (zone[a:b - 1] == WORK) & (zone[a + 1:b] == WORK)
+        if b - a < 2 or not work.any():
+            continue
+        one = np.zeros(b - a, bool)
+        try:   # one run at a time: a run the planner takes with a reverse plan or a retract is left out
+            law = time_runs(q[a:b], step[a:b - 1], np.r_[True, one[1:]], np.r_[one[1:], True], np.zeros(b - a, int),
+                            zone[a:b], model.robot.limits, feed_mm_s)
+        except CamtoolError:
+            continue
+        feeds.append(min(float(law.run_feed_mm_s[0]), feed_mm_s))
+        length.append(float(step[a:b - 1][work].sum()))
+    if not feeds:
+        return None
+    median = weighted_median(np.array(feeds), np.array(length))
+    return FeedEstimate(median, min(feeds), median / float(feed_mm_s))

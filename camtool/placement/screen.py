@@ -36,7 +36,8 @@ A placement that passes gets its figures and cost:
   share stretched by ``max(1, speed ratio)`` (where limits slow the TCP);
 - ``feed_mm_s``: the work feed the timing is expected to hold (``feed.py``: the
   speed, acceleration and jerk limits on stencils of 4 poses along the rows, each
-  row at its slowest; the median over the work length), ``feed_share`` its share
+  row at its slowest; the median over the work length; with ``full=True`` the
+  timing's own time law on every run through every pose), ``feed_share`` its share
   of the nominal TCP speed.
 
     cost = est_work_s * (1 + penalty) * (1 + move_per_m * move) * (1 + feed_weight * (1 - feed_share))
@@ -59,7 +60,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..path.toolpath import WORK, Path
-from .feed import FeedStencils, expected_feed
+from .feed import FeedStencils, expected_feed, timed_feed
 from .kinematics import ClosedForm, dexterity
 
 AXES = ("x", "y", "z", "yaw")
@@ -184,6 +185,8 @@ class PathGeometry:
     base_inv: np.ndarray
     pivot_mm: np.ndarray
     stencils: FeedStencils | None = None   # the feed's stencils along the rows (feed.py)
+    zone: np.ndarray | None = None         # the path's zones and segments (the finalists' timed feed)
+    segment: np.ndarray | None = None
     n_poses: int = field(init=False)
 
     def __post_init__(self):
@@ -207,7 +210,7 @@ class PathGeometry:
         length = float(steps[on_work].sum()) if len(work) > 1 else 0.0
         stencils = FeedStencils.build(path, settings.feed_stencils) if settings.feed_stencils > 0 else None
         return cls(P, W, sub, work_sub, tw, length, np.linalg.inv(robot.base_T_mm), np.asarray(pivot_mm, float),
-                   stencils)
+                   stencils, np.asarray(path.zone), np.asarray(path.segment))
 
     def base_transform(self, offset) -> np.ndarray:
         """World pose of the path at the job's placement -> robot base frame at ``offset``."""
@@ -311,7 +314,10 @@ def _figures(model, geom, settings, off, B, used_max, idx, q, m, full) -> Screen
     jm = float(m.min())
     pen = settings.penalty(jm, used_max, dex)
     feed = None
-    if geom.stencils is not None and len(geom.stencils):
+    if geom.stencils is not None and full:   # every pose solved: the time law on every run, as the timing will
+        T = np.einsum("ij,njk->nik", B, geom.poses_mm)
+        feed = timed_feed(model, geom.zone, geom.segment, T, settings.tcp_speed_mm_s)
+    if feed is None and geom.stencils is not None and len(geom.stencils):
         feed = expected_feed(model, geom.stencils, geom.poses_mm, B, settings.tcp_speed_mm_s)
     share = None if feed is None else feed.share
     return ScreenResult(off, True, "ok", 0, len(idx), used_max, jm, joint, dex, speed, time_s, pen,

@@ -3,7 +3,7 @@
     job -> robot, workpiece, surface, path (once, at the job's placement)
         -> raster screen over the user's bounds (every placement: the path moved rigidly)
         -> local refinement round the best
-        -> full closed-form check (every pose) of the best few
+        -> full closed-form check (every pose) of the best few, their work feed by the time law; reranked
         -> full planning and timing of the best few (the real pipeline on the placed job)
         -> the chosen placement, the ranked list, placed_job.toml, the feasible-region PNG
 
@@ -421,19 +421,19 @@ class PlacementProblem:
         t1 = time.perf_counter()
         feasible = [r for r in sorted(study.results.values(), key=rank_key) if r.feasible]
         picked = distinct(feasible, V, study.grid_step / 2.0, max_checks)
-        for a in range(0, len(picked), max(verify, 1)):
-            group = picked[a:a + max(verify, 1)]
-            full = self.screen([r.offset for r in group], full=True)
-            for r in full:
-                study.results[r.offset] = r
-            passed = [r for r in full if r.feasible]
-            study.finalists += passed
-            batch = [r.offset for r in passed] + ([user] if user not in study.verified else [])
+        full = self.screen([r.offset for r in picked], full=True)   # every pose, the feed by the time law
+        for r in full:
+            study.results[r.offset] = r
+        passed = sorted((r for r in full if r.feasible), key=rank_key)
+        say(f"checked {len(picked)} of the best placements on every pose: {len(passed)} pass")
+        for a in range(0, len(passed), max(verify, 1)):
+            group = passed[a:a + max(verify, 1)]
+            study.finalists += group
+            batch = [r.offset for r in group] + ([user] if user not in study.verified else [])
             for o, v in zip(batch, self.verify(batch)):
                 study.verified[o] = self.planned_cost(study, o, v)
             n_ok = sum(v["ok"] for o, v in study.verified.items() if o != user)
-            say(f"checked {a + len(group)} of the best placements on every pose ({len(study.finalists)} pass), "
-                f"planned {len(study.verified)}: {n_ok} plan with 0 unreachable poses")
+            say(f"planned {len(study.verified)}: {n_ok} plan with 0 unreachable poses")
             if n_ok:
                 break
         if user not in study.verified:  # nothing passed the screen: still plan the user's placement
