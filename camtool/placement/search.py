@@ -42,6 +42,7 @@ REFINE_TOP = 5           # best placements refined round
 REFINE_ROUNDS = 3        # each halves the step
 REFINE_RANDOM = 4        # random neighbours per placement and round (seeded)
 CHUNK = 24               # placements per process task
+FULL_CHECKS = 12         # best placements checked on every pose (their feed timed) before the best of them are planned
 KEEP_USER_WITHIN = 0.01  # your placement stays when it plans and costs at most 1 % more than the best
 
 
@@ -420,12 +421,12 @@ class PlacementProblem:
         # the best few: closed-form check of every pose, then the real pipeline
         t1 = time.perf_counter()
         feasible = [r for r in sorted(study.results.values(), key=rank_key) if r.feasible]
-        picked = distinct(feasible, V, study.grid_step / 2.0, max_checks)
+        picked = distinct(feasible, V, study.grid_step / 2.0, max(max_checks, FULL_CHECKS))
         full = self.screen([r.offset for r in picked], full=True)   # every pose, the feed by the time law
         for r in full:
             study.results[r.offset] = r
-        passed = sorted((r for r in full if r.feasible), key=rank_key)
-        say(f"checked {len(picked)} of the best placements on every pose: {len(passed)} pass")
+        passed = sorted((r for r in full if r.feasible), key=rank_key)[:max_checks]
+        say(f"checked {len(picked)} of the best placements on every pose: {len(passed)} to plan")
         for a in range(0, len(passed), max(verify, 1)):
             group = passed[a:a + max(verify, 1)]
             study.finalists += group
