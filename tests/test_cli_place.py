@@ -49,7 +49,7 @@ def test_place_finds_a_feasible_placement(placed):
     # the work feed: expected by the screen, held by the planned run (its timing's median), weighed in the cost
     assert 0 < c["screen"]["feed_mm_s"] <= 100.0 and 0 < c["planned"]["feed_mm_s"] <= 100.0 * 1.001
     assert c["planned"]["feed_share"] == pytest.approx(c["planned"]["feed_mm_s"] / 100.0, abs=1e-4)
-    assert d["cost"]["feed_weight"] == 1.0
+    assert d["cost"]["feed_weight"] == 3.0
     for name in ("placed_job.toml", "feasible_region.png", "placement.json"):
         assert (out / name).stat().st_size > 0
     assert (out / "feasible_region.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -129,13 +129,13 @@ def test_the_feed_term_moves_the_plate_off_the_wrist_singularity(singular_plate)
     assert np.median(slow) < 0.6 * FEED and slow.max() >= 0.99 * FEED and held.min() >= 0.99 * FEED
     # the screen, its own singularity margin (dexterity) set aside so that the feed term alone decides
     costs = {}
-    for weight in (0.0, 1.0):
+    for weight in (0.0, ScreenSettings().feed_weight):
         st = ScreenSettings(feed_weight=weight, dexterity_goal=1e-9, tcp_speed_mm_s=FEED)
         a, b = screen_batch(model, PathGeometry.build(path, model, robot, S[:3, 3], st), [here, AWAY], st)
         assert a.feasible and b.feasible
         costs[weight] = (a.cost, b.cost)
     assert costs[0.0][0] < costs[0.0][1]                  # without the term the part stays on the singularity
-    assert costs[1.0][1] < costs[1.0][0]                  # with it, it moves aside
+    assert costs[weight][1] < costs[weight][0]            # with it (the default weight), it moves aside
     assert b.feed_mm_s == pytest.approx(FEED)
     assert a.feed_mm_s == pytest.approx(np.median(slow), rel=0.15)  # the estimate against the time law's median
     est = expected_feed(model, geom.stencils, geom.poses_mm, geom.base_transform(here), FEED)

@@ -57,7 +57,7 @@ def _entry(study, job, r, rank=None) -> dict:
               help="Goal of the reach margin (percent of the arm's reach); less is penalised.")
 @click.option("--joint-margin", type=float, default=10.0, show_default=True,
               help="Goal of the joint-limit margin (percent of each joint's range); less is penalised.")
-@click.option("--feed-weight", type=float, default=1.0, show_default=True,
+@click.option("--feed-weight", type=float, default=3.0, show_default=True,
               help="Weight of the work feed in the cost: a placement whose work is expected at a share f of "
                    "timing.tcp_speed_mm_s costs 1 + weight x (1 - f) times more (0: the feed is not weighed).")
 @click.option("--top", type=int, default=10, show_default=True, help="Length of the ranked list.")

@@ -46,8 +46,8 @@ A placement that passes gets its figures and cost:
 
 so a margin at zero doubles the cost per margin, margins above their goals
 cost nothing, and of two equally good placements the one nearer the user's
-wins; a placement whose rows hold a quarter of the feed costs 1.75 times one
-that holds it (``feed_weight`` 1): grinding and painting need the constant
+wins; a placement whose rows hold two thirds of the feed costs twice one that
+holds it (``feed_weight`` 3, as a joint margin at zero does): grinding and painting need the constant
 feed (removal and film depend on it), and the cycle time alone does not see it
 before the plan. Infeasible placements cost ``inf``.
 """
@@ -79,7 +79,7 @@ class ScreenSettings:
     orientation_mm: float = 200.0     # planner.orientation_weight_mm
     track_scale_mm: float = 500.0     # planner.track_scale_mm
     tcp_speed_mm_s: float = 100.0     # timing.tcp_speed_mm_s
-    feed_weight: float = 1.0          # cost share per share of the feed the work is expected to lose
+    feed_weight: float = 3.0          # cost share per share of the feed the work is expected to lose
     feed_stencils: int = 256          # stencils of 4 work poses the feed is estimated on (feed.py)
 
     def penalty(self, joint_margin, reach_used, dex) -> float:
