@@ -86,6 +86,12 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
                  if leads.get("lead_mm_used", 0) > leads.get("lead_mm_set", 0) else "")
         click.echo(f"feed on work: {100 * feed['work_share_within_1pct']:.1f}% of {feed['work_length_mm'] / 1000:.1f} m "
                    f"within 1% of {feed['commanded_feed_mm_s']:g} mm/s, min {feed['min_work_feed_mm_s']:.1f} mm/s{sized}")
+    part = report.get("partial")
+    if part:   # --allow-partial: how much was programmed, and what was left out where the motion check failed
+        left = part.get("check_left_out")
+        click.echo(f"partial: {part['work_poses_kept']} of {part['work_poses_total']} work poses programmed "
+                   f"({part['work_kept_pct']:.1f}%) in {part['stretches']} stretches"
+                   + (f"; {left['summary']}" if left else ""))
     for w in report.get("faces", {}).get("worked", []):  # a job of several faces: each one, in working order
         wf = w.get("work_feed") or {}
         mc = w.get("motion_check") or {}

@@ -117,10 +117,15 @@ class MotionReport:
     cell_pairs: tuple[dict, ...] = ()   # per pair of bodies (link x obstacle, link x link): min distance, where
     cell: dict | None = None            # the collision world's bodies and the cell pass's figures
     by_index: tuple[dict, ...] = ()     # per caller's index (e.g. segment): its samples' worst figures
+    # every failing sample against the part, as (kind, body, waypoint before, waypoint after) once each (the two
+    # equal for a sample at a waypoint): where a partial plan leaves poses out (not in report.json: ``to_dict``)
+    failing_intervals: tuple[tuple[str, str, int, int], ...] = ()
 
     def to_dict(self) -> dict:
         d = {}
         for k, v in self.__dict__.items():
+            if k == "failing_intervals":
+                continue
             if isinstance(v, Place):
                 v = v.to_dict()
             elif isinstance(v, MotionCheckSettings):
@@ -283,7 +288,7 @@ def check_motion(t_s, q, zone, robot, part: PartGeometry, settings: MotionCheckS
         duration_s=float(t_s[-1] - t_s[0]), **tally.figures(place),
         max_joint_step_deg_per_mm=step_rev, max_joint_step_at=step_rev_at,
         max_track_step_mm_per_mm=step_pri, max_track_step_at=step_pri_at,
-        findings=tuple(cell_lines + tally.finding_lines(place)),
+        findings=tuple(cell_lines + tally.finding_lines(place)), failing_intervals=tally.failing_intervals(samples),
         part=part.describe(), settings=s, check_seconds=time.perf_counter() - clock, horizon_mm=part.horizon_mm,
         cell_pairs=cell_pairs, cell=cell_figures)
 
@@ -414,6 +419,21 @@ class _Tally:
     def passed(self) -> bool:
         """True when no sample failed against the part."""
         return not any(self.fails[k][i][0].size for k in self.fails for i in range(len(self.fails[k])))
+
+    def failing_intervals(self, samples: _Samples) -> tuple[tuple[str, str, int, int], ...]:
+        """(kind, body, waypoint before, waypoint after) of every failing sample, once each, sorted."""
+        out = set()
+        for kind, parts in self.fails.items():
+            for k, body, _value in parts:
+                k = np.asarray(k, np.int64)
+                if not len(k):
+                    continue
+                before = np.where(samples.at_wp[k], samples.wp[k], samples.wp[k] - 1)
+                body = np.asarray(body, dtype=object)
+                for b in dict.fromkeys(body.tolist()):
+                    pairs = np.unique(np.stack([before, samples.wp[k]], axis=1)[body == b], axis=0)
+                    out |= {(kind, str(b), int(w0), int(w1)) for w0, w1 in pairs}
+        return tuple(sorted(out))
 
     def finding_lines(self, place: _Placer) -> list[str]:
         """The finding lines against the part: penetration, clearance, deviation."""

@@ -57,6 +57,7 @@ from .job_settings import JobSettings
 from ..part.roughness import judged_before, mesh_is_scan, mesh_roughness
 from ..part.surface import FaceSet
 from ..part.surface_base import Surface
+from .check_left_out import failing_path_poses
 from ..timing import lead_needed_mm, limit_findings, sampled_for, time_trajectory, timing_report
 from ..path.toolpath import row_segments
 from ..transforms import matrix_from_xyz_rpy
@@ -542,7 +543,8 @@ def motion_check_part(settings: JobSettings, workpiece, path, surface=None):
     return part_from_path(part_for_checks(settings, workpiece, surface), path)
 
 
-def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surface=None, part=None) -> dict:
+def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surface=None, part=None,
+                 locate: bool = False) -> dict:
     """The independent motion check of what the controller will run; its figures for report.json.
 
     The program's waypoints (thinned as the post-processors write them) are
@@ -551,7 +553,8 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
     steps per mm (``camtool.motion``, which shares no code with the planner).
     ``part``: ``motion_check_part``'s, when made ahead. PlanInfeasible (exit 3)
     naming the first finding when anything fails; the figures are in the
-    exception's report.
+    exception's report, with ``locate`` also ``failing_path_poses`` (``check_left_out``:
+    where each failing sample lies on ``path``).
     """
     c = settings.check
     noise = 0.0
@@ -574,9 +577,12 @@ def motion_check(settings: JobSettings, trajectory, robot, workpiece, path, surf
     if noise > 0 or band > 0:
         figures["scan_noise_band_mm"] = round(noise or band, 4)
     if not report.ok:
+        failed = {"motion_check": figures}
+        if locate:
+            failed["failing_path_poses"] = failing_path_poses(program.path_index, report.failing_intervals)
         raise PlanInfeasible(f"the motion check failed ({len(report.findings)} finding(s)); first: "
                              f"{report.findings[0]}; no program written{_lead_hint(settings, report.findings)}",
-                             report={"motion_check": figures})
+                             report=failed)
     return figures
 
 

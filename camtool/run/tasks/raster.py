@@ -33,6 +33,7 @@ from ...report.figures import (
     sweep_ahead,
 )
 from ...placement.partial import partial_path, partial_summary, reachable_stretches
+from ..check_left_out import CheckLeftOut
 from ...plan.kernel import load_compiled
 from ..reach_hint import NOWHERE, planned_shift
 from ...placement.shift import ShiftSearch
@@ -63,11 +64,12 @@ def check_several_faces(job: Job, settings: JobSettings) -> None:
 PARTIAL_LIFT_ROUNDS = 5   # a partial plan leaves out the stretch ends it cannot lift off at, then plans again
 
 
-def partial_plan_path(path, exc: PlanInfeasible, unliftable=()):
+def partial_plan_path(path, exc: PlanInfeasible, unliftable=(), check_left_out=()):
     """(the reachable stretches as a Path, each of its poses' index in ``path``, report figures) for
-    ``task.allow_partial``, the ``unliftable`` path indices left out too; PlanInfeasible if none."""
+    ``task.allow_partial``, the ``unliftable`` path indices left out too, and those ``check_left_out`` (where the
+    motion check failed); PlanInfeasible if none."""
     bad = [u["index"] for u in exc.report.get("unreachable", [])]
-    bad += sorted(set(int(i) for i in unliftable) - set(bad))
+    bad += sorted((set(int(i) for i in unliftable) | set(int(i) for i in check_left_out)) - set(bad))
     stretches = reachable_stretches(path, bad)
     if not stretches:
         raise exc
@@ -79,20 +81,25 @@ def partial_plan_path(path, exc: PlanInfeasible, unliftable=()):
     return sub, index, figures
 
 
-def plan_partial(settings: JobSettings, path, exc: PlanInfeasible, robot, part, surface):
-    """(partial path, joint path, trajectory, figures): the reachable stretches planned and timed. A stretch cut
+def plan_partial(settings: JobSettings, path, exc: PlanInfeasible, robot, part, surface, again=None):
+    """(partial path, joint path, trajectory, figures, each partial pose's index in ``path``, the unliftable path
+    indices left out): the reachable stretches planned and timed; ``again`` (a ``_Replan``): planned again with
+    its poses left out for the motion check, from its unliftable ends. A stretch cut
     at the edge of reach ends where the arm may not lift off (a lift past a joint limit, into a link): at each
     connector that cannot be lifted (``lift_reconfigurations``' ``unliftable_path_indices``: the end of one
     run, the start of the next) the poses of both sides are left out as the unreachable ones are, 1, 2, 4, ...
     of them in turn (the edge of reach may lie several poses in), and the rest planned again,
     ``PARTIAL_LIFT_ROUNDS`` times at most."""
     unliftable = _trimmed(exc.report.get("unliftable_path_indices", ()), len(path), 1)   # every pose reached
+    left = ()
+    if again is not None:
+        unliftable, left = set(again.unliftable), again.left.indices
     for round_ in range(PARTIAL_LIFT_ROUNDS + 1):
-        sub, index, figures = partial_plan_path(path, exc, unliftable)
+        sub, index, figures = partial_plan_path(path, exc, unliftable, left)
         try:
             joint_path, trajectory = plan_and_time(settings, sub, robot, workpiece=part, surface=surface,
                                                    every_failure=True)
-            return sub, joint_path, trajectory, figures
+            return sub, joint_path, trajectory, figures, index, frozenset(unliftable)
         except PlanInfeasible as again:
             ends = again.report.get("unliftable_path_indices")
             if not ends or round_ == PARTIAL_LIFT_ROUNDS:
@@ -175,6 +182,7 @@ class RasterRun:
     compare: bool
     part: JobPart
     leads_retried: str | None = None
+    again: "_Replan | None" = None   # planned again with poses left out for the motion check (allow_partial)
 
     def figure_inputs(self, trajectories: dict) -> FigureInputs:
         """What the figures of these trajectories are drawn from."""
@@ -198,18 +206,47 @@ class Rastered:
         return isinstance(self.surface, FaceSet)
 
 
+@dataclass(frozen=True)
+class _Replan:
+    """Where a raster run planned again with poses left out for the motion check (``check_left_out``) starts:
+    the path its poses are indexed in (as the first plan rastered it), that plan's refusal (its unreachable
+    poses; an empty one when every pose was reached), the stretch ends left out as unliftable, and the poses
+    left out for the check so far."""
+
+    path: object
+    refusal: PlanInfeasible
+    unliftable: frozenset
+    left: CheckLeftOut
+
+
+@dataclass(frozen=True)
+class _Origin:
+    """What a plan was made of: the raster path, the programmed path's index in it (None: the raster itself),
+    the first plan's refusal (None: every pose reached) and the unliftable ends left out."""
+
+    path: object
+    index: object = None
+    refusal: PlanInfeasible | None = None
+    unliftable: frozenset = frozenset()
+
+
 def planned_and_timed(r: RasterRun, made: Rastered, part, ahead: Ahead | None = None):
-    """(path, joint path, trajectory, partial figures or None): the plan and time stages of a raster job.
+    """(path, joint path, trajectory, partial figures or None, ``_Origin``): the plan and time stages of a raster
+    job.
 
     ``ahead.mapping.planned(path, joint_path)`` is told the plan before the time stage, ``ahead.timed(path,
     trajectory)`` the trajectory before the time stage's 4 ms check (not a partial plan's).
     Leads grow to what the ramps need (``plan_with_sized_leads``; each run's time law is planned once,
     ``remembered_runs``); with ``task.allow_partial`` the reachable stretches are planned when some poses
     are not. An unreachable plan writes its report (and the nearest shift that would fit) and is raised.
-    ``made.wp`` the workpiece as loaded, ``part`` what the checks measure against (``part_for_checks``)."""
+    ``made.wp`` the workpiece as loaded, ``part`` what the checks measure against (``part_for_checks``).
+    ``r.again``: planned again, straight to the partial plan with the poses it leaves out."""
     job, settings, robot, log = r.job, r.settings, r.robot, r.log
     path, stretches = made.path, None
     tell = ahead.mapping.planned if ahead is not None else (lambda path_, joint_path_: None)
+    if r.again is not None:
+        return _planned_again(r, made, part, tell)
+    origin = _Origin(path)
     with remembered_runs():  # lead sizing plans each run's time law; the time stage takes it
         try:
             try:
@@ -221,11 +258,15 @@ def planned_and_timed(r: RasterRun, made: Rastered, part, ahead: Ahead | None = 
                                               before_check=None if ahead is None else partial(ahead.timed, path))
                 if joint_path.events.get("leads", {}).get("lead_mm_used", settings.raster.lead_mm) != settings.raster.lead_mm:
                     log.done("raster", path)  # rastered again with the leads the ramps need
+                origin = _Origin(path)
             except PlanInfeasible as exc:
                 if not (job.task.allow_partial and (exc.report.get("unreachable")
                                                     or exc.report.get("unliftable_path_indices"))):
                     raise
-                path, joint_path, trajectory, stretches = plan_partial(settings, path, exc, robot, part, made.surface)
+                sub, joint_path, trajectory, stretches, index, unliftable = plan_partial(
+                    settings, path, exc, robot, part, made.surface)
+                origin = _Origin(path, index, exc, unliftable)
+                path = sub
                 tell(path, joint_path)
                 log.done("raster", path)  # the part of the raster that is programmed
         except PlanInfeasible as exc:
@@ -241,7 +282,25 @@ def planned_and_timed(r: RasterRun, made: Rastered, part, ahead: Ahead | None = 
             if shift is None and exc.report.get("unreachable"):
                 raise PlanInfeasible(f"{exc}; {NOWHERE.format(mm=ShiftSearch().max_mm)}", report=exc.report) from None
             raise
-    return path, joint_path, trajectory, stretches
+    return path, joint_path, trajectory, stretches, origin
+
+
+def _planned_again(r: RasterRun, made: Rastered, part, tell):
+    """``planned_and_timed`` of a run planned again with poses left out for the motion check (``r.again``): the
+    partial plan of the first plan's path, from its unreachable poses and unliftable ends; a refusal is the run's
+    (report.json names what was left out)."""
+    again = r.again
+    try:
+        with remembered_runs(), r.log.clock("plan"):
+            sub, joint_path, trajectory, stretches, index, unliftable = plan_partial(
+                r.settings, again.path, again.refusal, r.robot, part, made.surface, again=again)
+    except PlanInfeasible as exc:
+        report_unreachable(exc, again.path, r.robot, r.job, r.outdir, made.wp, made.surface,
+                           world=collision_world(r.settings, r.robot))
+        raise PlanInfeasible(f"{exc}; planned again with {again.left.line(again.path)}", report=exc.report) from None
+    tell(sub, joint_path)
+    r.log.done("raster", sub)  # the part of the raster that is programmed
+    return sub, joint_path, trajectory, stretches, _Origin(again.path, index, again.refusal, unliftable)
 
 
 def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, compare: bool = False, *,
@@ -253,14 +312,27 @@ def run(job: Job, settings: JobSettings, robot, outdir: Path, log: StageLog, com
                        f"not {job.task.kind!r} jobs")
     given = RasterRun(job, settings, robot, Path(outdir), log, compare, part)
     try:
-        return _helped_run(given)
+        return _left_out_rounds(given)
     except _LeadsIntoPart as first:
         # first make the motion work: leads lifted clear of the row's tangent, planned again (a neighbouring
         # face that goes on tangentially, a dome on a cylinder); its failure, if it fails too, is the run's
         _log.warning("camtool: the motion check found the tool in the part in a lead (%s); planned again with the "
                      "leads lifted clear of the rows' tangents (raster.lead_path = \"tangent\")", first.finding)
         tangent = replace(settings, raster=replace(settings.raster, lead_path="tangent"))
-        return _helped_run(replace(given, settings=tangent, leads_retried=first.finding))
+        return _left_out_rounds(replace(given, settings=tangent, leads_retried=first.finding))
+
+
+def _left_out_rounds(r: RasterRun) -> RunResult:
+    """``_helped_run``; with ``task.allow_partial``, planned again while the motion check fails at poses the partial
+    plan can leave out (``check_left_out``: ``CHECK_LEFT_OUT_ROUNDS`` at most; the last failure is the run's)."""
+    while True:
+        try:
+            return _helped_run(r)
+        except _CheckLeftOutAgain as failed:
+            again = failed.again
+            _log.warning("camtool: the motion check failed (%s); planned again with %s (--allow-partial)",
+                         again.left.firsts[-1], again.left.line(again.path))
+            r = replace(r, again=again)
 
 
 def _helped_run(r: RasterRun) -> RunResult:
@@ -325,6 +397,7 @@ class _Planned:
     dwell: object
     part: object
     handed_ahead: bool
+    origin: _Origin | None = None
 
 
 def _check_part(settings: JobSettings, wp, path, surface, _prepared=None):
@@ -332,9 +405,10 @@ def _check_part(settings: JobSettings, wp, path, surface, _prepared=None):
     return motion_check_part(settings, wp, path, surface)
 
 
-def _timed_check(settings: JobSettings, trajectory, robot, wp, path, surface, part):
-    """``stages.motion_check`` on the part made ahead, with its (wall, CPU) seconds."""
-    return timed(partial(motion_check, settings, trajectory, robot, wp, path, surface, part=part))
+def _timed_check(settings: JobSettings, trajectory, robot, wp, path, surface, part, locate: bool = False):
+    """``stages.motion_check`` on the part made ahead, with its (wall, CPU) seconds; ``locate``: a failure names
+    the path poses of its samples (``task.allow_partial``)."""
+    return timed(partial(motion_check, settings, trajectory, robot, wp, path, surface, part=part, locate=locate))
 
 
 def _drawn_map(ahead: MapAhead):
@@ -392,7 +466,7 @@ def _rastered(r: RasterRun) -> tuple[RasterRun, Rastered]:
 def _hand_check(r: RasterRun, made: Rastered, checking: Standby, path, trajectory) -> None:
     """Hand ``trajectory`` (of ``path``) to the independent motion check, alongside the rest of the run."""
     checking.then(partial(_timed_check, with_scan_verdict(r.settings, made.wp), trajectory, r.robot, made.wp, path,
-                          made.surface))
+                          made.surface, locate=r.job.task.allow_partial))
 
 
 def _hand_plots(r: RasterRun, figures: Standby, path, trajectory) -> None:
@@ -408,7 +482,7 @@ def _planned(r: RasterRun, made: Rastered, along: _Alongside) -> _Planned:
     # a target removal map times the trajectory again: then the helpers take that one, after the time stage
     handed = Ahead(along.mapping, () if target_removal(r.settings) else (check,) + (() if r.compare else (plots,)))
     part = part_for_checks(r.settings, made.wp, made.surface)
-    path, joint_path, trajectory, partial_figures = planned_and_timed(r, made, part, handed)
+    path, joint_path, trajectory, partial_figures, origin = planned_and_timed(r, made, part, handed)
     r.log.done("plan", joint_path)
     retimed, dwell = retime_for_target(r.job, r.settings, made.surface, path, joint_path, r.robot)  # a target map
     trajectory = trajectory if retimed is None else retimed
@@ -418,7 +492,8 @@ def _planned(r: RasterRun, made: Rastered, along: _Alongside) -> _Planned:
         check(path, trajectory)
     elif handed.timed_trajectory is not trajectory:
         raise RuntimeError("the helpers were handed another trajectory than the one programmed")
-    return _Planned(path, joint_path, trajectory, partial_figures, dwell, part, handed.timed_trajectory is not None)
+    return _Planned(path, joint_path, trajectory, partial_figures, dwell, part, handed.timed_trajectory is not None,
+                    origin)
 
 
 def _compared(r: RasterRun, planned: _Planned, surface) -> tuple[dict, dict | None]:
@@ -468,12 +543,45 @@ def _posted(r: RasterRun, made: Rastered, along: _Alongside, planned: _Planned):
         if not isinstance(failed, PlanInfeasible):
             raise
         along.figures.failure()   # the plots finish: none half-written
+        failing = failed.report.pop("failing_path_poses", None)   # with task.allow_partial (``check_left_out``)
         if r.leads_retried is None and leads_into_part(r.settings, failed):
             raise _LeadsIntoPart(str(failed.report["motion_check"]["findings"][0])) from None
+        again = _left_out_again(r, planned, failed, failing)
+        if again is not None:
+            raise _CheckLeftOutAgain(again) from None
+        if r.again is not None:   # what the partial plan left out before this check failed too
+            failed.report["check_left_out"] = r.again.left.figures(r.again.path)
+            failed = PlanInfeasible(f"{failed}; planned again with {r.again.left.line(r.again.path)}",
+                                    report=failed.report)
         report_failure(failed, path, joint_path, r.robot, r.job, r.outdir, made.wp, made.surface, world=along.world,
                        redundancy=_drawn_map(along.mapping))
         raise failed from None
     return programs, simulated, rendered.get("html")
+
+
+def _left_out_again(r: RasterRun, planned: _Planned, failed: PlanInfeasible, failing) -> "_Replan | None":
+    """With ``task.allow_partial``, what the run plans again from after its motion check failed at ``failing``
+    (``check_left_out.failing_path_poses``): the poses there left out as well; None when none more would be
+    (nothing located, out of rounds: the failure is the run's)."""
+    origin = planned.origin
+    if not (r.job.task.allow_partial and failing and origin is not None):
+        return None
+    left = r.again.left if r.again is not None else CheckLeftOut()
+    first = str(failed.report["motion_check"]["findings"][0])
+    grown = left.grown(origin.path, planned.path, origin.index, [tuple(f) for f in failing], first)
+    if grown is None:
+        return None
+    refusal = origin.refusal if origin.refusal is not None else PlanInfeasible("every pose reached")
+    return _Replan(origin.path, refusal, origin.unliftable, grown)
+
+
+class _CheckLeftOutAgain(Exception):
+    """The motion check failed at poses a partial plan can leave out (``task.allow_partial``): the run plans
+    again from ``again`` (a ``_Replan``)."""
+
+    def __init__(self, again: _Replan):
+        super().__init__(again.left.firsts[-1])
+        self.again = again
 
 
 def _plan_events(joint_path) -> dict:
@@ -499,6 +607,9 @@ def _run_report(r: RasterRun, made: Rastered, planned: _Planned, simulated: dict
         report["leads_retried"] = {"lead_path": "tangent", "because": r.leads_retried}
     if planned.partial_figures is not None:
         report["partial"] = planned.partial_figures
+        if r.again is not None:   # what was left out where the motion check failed, and a line that says so
+            report["partial"]["check_left_out"] = {**r.again.left.figures(r.again.path),
+                                                   "summary": r.again.left.line(r.again.path)}
     report["motion_check"] = motion
     report["programs_simulated"] = simulated
     tilt = (planned.joint_path.events.get("leads") or {}).get("axis_tilt", made.axis_tilt)
