@@ -54,6 +54,7 @@ from __future__ import annotations
 import argparse
 import csv
 import hashlib
+import json
 import os
 import re
 import subprocess
@@ -305,7 +306,8 @@ def verdict(fig: fm.Figures, kind: str, step: float) -> str:
     return "meets every target" if not bad else "misses: " + ", ".join(bad)
 
 
-def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: list[str] = ()) -> None:
+def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: list[str] = (),
+               partial: bool = False) -> None:
     fname, kind, sha, step, pitch = PARTS[name]
     path = PARTS_DIR / fname
     if name in GENERATED:
@@ -347,6 +349,8 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
             print(f"  placed   {how}")
             bench_raster(name, out / f"{name}.toml", placement(mesh, region, name in LONG_SIDE_UP), mesh, region,
                          geo, samples, kind, step, tree, out)
+            if partial:
+                bench_partial(name, out / f"{name}.toml", T, mesh, samples, step, tree, out, extra, fk)
             return
         print(f"  placed   {how}: workpiece at {job_placement(job)[0]} mm, rpy {job_placement(job)[1]} deg")
         wall, rc, so, se = camtool(["run", str(job), "-o", str(out / name), *extra], tree)
@@ -376,6 +380,29 @@ def work_feed(run_dir: Path) -> str:
         return ""
     return (f"; work feed p50 {w['median_work_feed_mm_s']:.1f} min {w['min_work_feed_mm_s']:.1f} of "
             f"{w['commanded_feed_mm_s']:g} mm/s")
+
+
+def bench_partial(name, job, T, mesh, samples, step, tree, out, extra, fk) -> None:
+    """``camtool run --allow-partial`` at the generic placement: the share of the work poses programmed, the
+    coverage of the face by them (``freeform_metrics.coverage``, as ``measure`` takes it), the motion check's figures and what was
+    left out where it failed (report.json's ``partial``)."""
+    wall, rc, so, se = camtool(["run", str(job), "--allow-partial", "-o", str(out / f"{name}_partial"), *extra], tree,
+                               timeout=3600.0)
+    if rc != 0:
+        print(f"  partial  refused (exit {rc}, {wall:.1f} s): {first_line(se or so)}")
+        return
+    report = json.loads((out / f"{name}_partial" / "report.json").read_text())
+    p, mc = report["partial"], report["motion_check"]
+    rows, _gap = work_rows(out / f"{name}_partial" / "points.csv", fk, T)
+    covered = fm.coverage(samples, np.vstack([r[0] for r in rows]), fm.COVER_FACTOR * step)
+    left = p.get("check_left_out")
+    print(f"  partial  {p['work_poses_kept']} of {p['work_poses_total']} work poses programmed ({p['work_kept_pct']:.1f} %)"
+          f" in {p['stretches']} stretches, cov {100 * covered:.2f} %; motion check "
+          f"{'passed' if mc['ok'] else 'FAILED'} (max penetration {mc['max_penetration_mm']:.3f} mm, deviation "
+          f"{mc['work_deviation_mm']:.3f} mm, min clearance {mc['min_clearance_mm']:.1f} mm), limits "
+          f"{'ok' if report['limits_ok'] else 'FAILED'}; {wall:.0f} s")
+    if left:
+        print(f"           {left['summary']}")
 
 
 REACH_WORDS = ("out of reach", "edge of the robot's reach", "move it closer", "cell.workpiece_xyz_mm =")
@@ -587,6 +614,8 @@ def main(argv=None) -> int:
     ap.add_argument("--camtool-tree", type=Path, default=ROOT, help="the camtool checkout to run")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="passed to each part's camtool run (e.g. fit.model=auto: camtool before free-form faces)")
+    ap.add_argument("--allow-partial", action="store_true",
+                    help="a part no placement plans: also `camtool run --allow-partial` at the generic placement")
     ap.add_argument("--keep", type=Path, default=None, metavar="DIR",
                     help="write the jobs and camtool's output folders to DIR (kept) instead of a temporary folder")
     a = ap.parse_args(argv)
@@ -601,7 +630,7 @@ def main(argv=None) -> int:
         if tree is not None:
             bench_control(tree, out)
         for name in [s for s in a.parts.split(",") if s]:
-            bench_part(name, tree, fk, out, a.set)
+            bench_part(name, tree, fk, out, a.set, partial=a.allow_partial)
         if tree is not None and not a.no_samples:
             bench_samples(tree, fk, out)
         if tree is not None and not a.no_speed:
