@@ -297,7 +297,8 @@ def _planned_again(r: RasterRun, made: Rastered, part, tell):
     except PlanInfeasible as exc:
         report_unreachable(exc, again.path, r.robot, r.job, r.outdir, made.wp, made.surface,
                            world=collision_world(r.settings, r.robot))
-        raise PlanInfeasible(f"{exc}; planned again with {again.left.line(again.path)}", report=exc.report) from None
+        why = "no stretch is left to program" if exc is again.refusal else str(exc)   # (partial_plan_path)
+        raise PlanInfeasible(f"{why}; planned again with {again.left.line(again.path)}", report=exc.report) from None
     tell(sub, joint_path)
     r.log.done("raster", sub)  # the part of the raster that is programmed
     return sub, joint_path, trajectory, stretches, _Origin(again.path, index, again.refusal, unliftable)
@@ -571,7 +572,7 @@ def _left_out_again(r: RasterRun, planned: _Planned, failed: PlanInfeasible, fai
     grown = left.grown(origin.path, planned.path, origin.index, [tuple(f) for f in failing], first)
     if grown is None:
         return None
-    refusal = origin.refusal if origin.refusal is not None else PlanInfeasible("every pose reached")
+    refusal = origin.refusal if origin.refusal is not None else PlanInfeasible("every pose reached", report={})
     return _Replan(origin.path, refusal, origin.unliftable, grown)
 
 
