@@ -81,9 +81,9 @@ def partial_plan_path(path, exc: PlanInfeasible, unliftable=(), check_left_out=(
     return sub, index, figures
 
 
-def plan_partial(settings: JobSettings, path, exc: PlanInfeasible, robot, part, surface, again=None):
+def plan_partial(settings: JobSettings, path, exc: PlanInfeasible, robot, part, surface, replan=None):
     """(partial path, joint path, trajectory, figures, each partial pose's index in ``path``, the unliftable path
-    indices left out): the reachable stretches planned and timed; ``again`` (a ``_Replan``): planned again with
+    indices left out): the reachable stretches planned and timed; ``replan`` (a ``_Replan``): planned again with
     its poses left out for the motion check, from its unliftable ends. A stretch cut
     at the edge of reach ends where the arm may not lift off (a lift past a joint limit, into a link): at each
     connector that cannot be lifted (``lift_reconfigurations``' ``unliftable_path_indices``: the end of one
@@ -92,8 +92,8 @@ def plan_partial(settings: JobSettings, path, exc: PlanInfeasible, robot, part, 
     ``PARTIAL_LIFT_ROUNDS`` times at most."""
     unliftable = _trimmed(exc.report.get("unliftable_path_indices", ()), len(path), 1)   # every pose reached
     left = ()
-    if again is not None:
-        unliftable, left = set(again.unliftable), again.left.indices
+    if replan is not None:
+        unliftable, left = set(replan.unliftable), replan.left.indices
     for round_ in range(PARTIAL_LIFT_ROUNDS + 1):
         sub, index, figures = partial_plan_path(path, exc, unliftable, left)
         try:
@@ -293,7 +293,7 @@ def _planned_again(r: RasterRun, made: Rastered, part, tell):
     try:
         with remembered_runs(), r.log.clock("plan"):
             sub, joint_path, trajectory, stretches, index, unliftable = plan_partial(
-                r.settings, again.path, again.refusal, r.robot, part, made.surface, again=again)
+                r.settings, again.path, again.refusal, r.robot, part, made.surface, replan=again)
     except PlanInfeasible as exc:
         report_unreachable(exc, again.path, r.robot, r.job, r.outdir, made.wp, made.surface,
                            world=collision_world(r.settings, r.robot))
