@@ -350,7 +350,8 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
             bench_raster(name, out / f"{name}.toml", placement(mesh, region, name in LONG_SIDE_UP), mesh, region,
                          geo, samples, kind, step, tree, out)
             if partial:
-                bench_partial(name, out / f"{name}.toml", T, mesh, samples, step, tree, out, extra, fk)
+                bench_partial(name, out / f"{name}.toml", placement(mesh, region, name in LONG_SIDE_UP), mesh, samples,
+                              step, tree, out, extra, fk)
             return
         print(f"  placed   {how}: workpiece at {job_placement(job)[0]} mm, rpy {job_placement(job)[1]} deg")
         wall, rc, so, se = camtool(["run", str(job), "-o", str(out / name), *extra], tree)
