@@ -456,8 +456,8 @@ def _freeform_projectors(surface, path) -> list:
     """(the mask of ``path``'s poses on it, its ``project_mm``) for each free-form face of ``surface``."""
     if isinstance(surface, FaceSet):
         return [(path.face == i, f.project_mm) for f, i in zip(surface.surfaces, surface.indices)
-                if getattr(f, "model", "") == "freeform" and path.face is not None]
-    return [(np.ones(len(path), bool), surface.project_mm)] if getattr(surface, "model", "") == "freeform" else []
+                if f.model == "freeform" and path.face is not None]
+    return [(np.ones(len(path), bool), surface.project_mm)] if surface.model == "freeform" else []
 
 
 def _tilted(settings: JobSettings, path, geometry, robot, only) -> tuple:
