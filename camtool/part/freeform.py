@@ -24,6 +24,7 @@ import numpy as np
 from ..errors import BadInput
 from .freeform_exact import ChartMesh
 from .freeform_grid import Grid, fill, grid_over, normals_of
+from .freeform_normals import surface_normals
 from .freeform_rows import row_distance, row_table, seed_row
 from .freeform_sample import chart_frame, cloud_heights, mesh_heights, to_chart
 from .domain import Boundary, FitStats
@@ -587,7 +588,7 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     if not is_mesh:
         normal_smoothing_mm = _scan_normal_sigma(res, int(keep.sum()), float(material.sum()) * g * g, sigma,
                                                  normal_smoothing_mm)
-    normals = normals_of(height, g, frame, normal_smoothing_mm, reliable)
+    normals = (normals_of if is_mesh else surface_normals)(height, g, frame, normal_smoothing_mm, reliable)  # scan: on it
     material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
     stats = _fit_stats(res, len(P), float(settings.threshold_mm))
     close_px = int(math.ceil(float(settings.close_gaps_mm) / g))

@@ -1,0 +1,113 @@
+"""A free-form face's normals averaged over a window measured on the surface, not in its chart plane.
+
+``freeform_grid.normals_of`` averages the height field's normals with a Gaussian of the
+chart plane: fast (separable), and right where the face is near level. Where it tilts by
+theta from the chart plane, a chart distance d is d / cos(theta) along the surface, so the
+chart's window is that much longer across the slope: on the noether panel's rolled rim
+(56-80 deg from the chart) a 9.9 mm chart sigma averaged 20-30 mm of the surface, most of it
+the flatter face inside, and a 1 M-point scan's tool axes stood 12 deg (p95) off the
+panel's normal averaged over 12.5 mm (issue #46).
+
+``surface_normals`` keeps the chart's average where the face is level and, where it tilts
+(from ``STEEP_FROM_DEG``, fully from ``STEEP_FULL_DEG``), averages the height field's own
+normals with a Gaussian of the 3-D distance between the nodes' surface points, each node
+weighted by its cell's area on the surface (g^2 / cos(tilt)): the window of the part's own
+normal, a disc on the surface. scipy's filters take one kernel for the whole grid, so the
+varying window is summed here by hand, offset by offset, over the tilted nodes only.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .freeform_grid import normals_of
+
+STEEP_FROM_DEG = 15.0   # below this tilt from the chart plane the chart's window is the surface's (cos 15 = 0.97)
+STEEP_FULL_DEG = 25.0   # from this tilt on the surface's window alone (between: blended, no seam)
+LATTICE_SIGMAS = 2.5    # the surface's window is evaluated every sigma / this nodes (at least 1) and interpolated
+
+
+def raw_normals(h: np.ndarray, g: float, frame: np.ndarray) -> np.ndarray:
+    """(ny, nx, 3) unit normals (world) of the height field's central differences, unaveraged."""
+    return normals_of(h, g, frame, 0.0)
+
+
+def surface_normals(h: np.ndarray, g: float, frame: np.ndarray, sigma_mm: float,
+                    known: np.ndarray | None = None) -> np.ndarray:
+    """(ny, nx, 3) unit normals (world, towards the tool) of the height field ``h`` averaged by a Gaussian of
+    ``sigma_mm`` along the surface over the nodes with data (``known``); see the module doc."""
+    from scipy.ndimage import binary_dilation, distance_transform_edt
+
+    chart = normals_of(h, g, frame, sigma_mm, known)
+    if sigma_mm <= 0:
+        return chart
+    have = np.ones(h.shape, bool) if known is None else np.asarray(known, bool)
+    r = int(math.ceil(3.0 * sigma_mm / g))
+    tilt_deg = np.degrees(np.arccos(np.clip(chart @ frame[:, 2], -1.0, 1.0)))
+    blend = np.clip((tilt_deg - STEEP_FROM_DEG) / (STEEP_FULL_DEG - STEEP_FROM_DEG), 0.0, 1.0)
+    blend[distance_transform_edt(~have) > r] = 0.0          # no data within the window: the chart's (fallback)
+    steep = blend > 0
+    if not steep.any():
+        return chart
+    step = max(1, int(sigma_mm / (LATTICE_SIGMAS * g)))    # the lattice's nodes and the window's offsets
+    lattice = np.zeros(h.shape, bool)
+    lattice[::step, ::step] = True
+    js, is_ = np.nonzero(lattice & binary_dilation(steep, iterations=2 * step))
+    coarse = chart[::step, ::step].copy()
+    coarse[js // step, is_ // step] = _surface_average(h, g, frame, sigma_mm, have, js, is_, step)
+    jj, ii = np.nonzero(steep)
+    own = _bilinear(coarse, jj / step, ii / step)
+    b = blend[jj, ii, None]
+    mixed = (1 - b) * chart[jj, ii] + b * own
+    out = chart.copy()
+    out[jj, ii] = mixed / np.linalg.norm(mixed, axis=-1, keepdims=True)
+    return out
+
+
+def _bilinear(arr: np.ndarray, fj: np.ndarray, fi: np.ndarray) -> np.ndarray:
+    """``arr`` (ny, nx, k) at fractional node indices (fj, fi), clamped to the array."""
+    ny, nx = arr.shape[:2]
+    fj = np.clip(fj, 0, ny - 1)
+    fi = np.clip(fi, 0, nx - 1)
+    j = np.minimum(np.floor(fj).astype(np.int64), max(ny - 2, 0))
+    i = np.minimum(np.floor(fi).astype(np.int64), max(nx - 2, 0))
+    b, a = (fj - j)[:, None], (fi - i)[:, None]
+    j1, i1 = np.minimum(j + 1, ny - 1), np.minimum(i + 1, nx - 1)
+    return (1 - a) * (1 - b) * arr[j, i] + a * (1 - b) * arr[j, i1] + (1 - a) * b * arr[j1, i] + a * b * arr[j1, i1]
+
+
+def _surface_average(h, g, frame, sigma_mm, have, js, is_, step: int) -> np.ndarray:
+    """(len(js), 3) unit normals at nodes (js, is_): the area-weighted mean of the raw normals of the nodes with
+    data within 3 sigma, each weighted by the Gaussian of its 3-D distance (chart offset and height difference).
+    The window is summed every ``step`` nodes over the raw normals pre-averaged over ``step`` / 2 nodes (a
+    Gaussian of sigma >= 2.5 steps is summed as well so, and the noise of the raw normals averages as before)."""
+    from .freeform_grid import gaussian
+
+    raw = raw_normals(h, g, frame)
+    area = np.where(have, 1.0 / np.maximum(raw @ frame[:, 2], 0.05), 0.0)   # the cell's area on the surface / g^2
+    pre = 0.5 * step if step > 1 else 0.0
+    NA, AA = gaussian(raw * area[..., None], pre), gaussian(area, pre)
+    r = step * int(math.ceil(3.0 * sigma_mm / (g * step)))
+    pad = ((r, r), (r, r))
+    H = np.pad(h, pad, mode="edge")
+    A = np.pad(AA, pad)                                     # padding: no data, weight 0
+    N = np.pad(NA, pad + ((0, 0),))
+    jc, ic = js + r, is_ + r
+    h0 = H[jc, ic]
+    num = np.zeros((len(js), 3))
+    den = np.zeros(len(js))
+    inv = 0.5 / (sigma_mm * sigma_mm)
+    for dj in range(-r, r + 1, step):
+        for di in range(-r, r + 1, step):
+            d2 = (di * di + dj * dj) * g * g
+            if d2 > 9.0 * sigma_mm * sigma_mm:
+                continue
+            j2, i2 = jc + dj, ic + di
+            dh = H[j2, i2] - h0
+            w = np.exp(-(d2 + dh * dh) * inv)
+            num += w[:, None] * N[j2, i2]
+            den += w * A[j2, i2]
+    fallback = raw[js, is_]
+    avg = np.where((den > 1e-9)[:, None], num, fallback)
+    return avg / np.linalg.norm(avg, axis=-1, keepdims=True)
