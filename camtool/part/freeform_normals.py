@@ -25,12 +25,33 @@ from .freeform_grid import normals_of
 
 STEEP_FROM_DEG = 15.0   # below this tilt from the chart plane the chart's window is the surface's (cos 15 = 0.97)
 STEEP_FULL_DEG = 25.0   # from this tilt on the surface's window alone (between: blended, no seam)
+AGREE_DEG = 1.0         # a scan's wide window is kept where it agrees with the footprint's within this (its noise: 0.3)
 LATTICE_SIGMAS = 2.5    # the surface's window is evaluated every sigma / this nodes (at least 1) and interpolated
 
 
 def raw_normals(h: np.ndarray, g: float, frame: np.ndarray) -> np.ndarray:
     """(ny, nx, 3) unit normals (world) of the height field's central differences, unaveraged."""
     return normals_of(h, g, frame, 0.0)
+
+
+def scan_normals(h: np.ndarray, g: float, frame: np.ndarray, sigma_mm: float, footprint_mm: float,
+                 known: np.ndarray | None = None) -> np.ndarray:
+    """(ny, nx, 3) a scan's normals: ``surface_normals`` over ``sigma_mm`` (wide enough that the scan's noise does not
+    wobble them) where they agree with those over the tool's footprint ``footprint_mm`` within ``AGREE_DEG``, the
+    footprint's where they differ by twice that (blended between, the blend spread over a footprint: no seam). Where
+    the part turns under the wide window its mean is not the footprint's: the panel's curl into its rim, 10-20 mm
+    inside its edge, stood 4.3 deg (p95) off the part's normal over 12.5 mm at 9.9 mm, 1.5 deg at 6 mm."""
+    from .freeform_grid import gaussian
+
+    wide = surface_normals(h, g, frame, sigma_mm, known)
+    if sigma_mm <= footprint_mm:
+        return wide
+    narrow = surface_normals(h, g, frame, footprint_mm, known)
+    apart_deg = np.degrees(np.arccos(np.clip(np.einsum("...k,...k", wide, narrow), -1.0, 1.0)))
+    t = np.clip(apart_deg / AGREE_DEG - 1.0, 0.0, 1.0)
+    t = np.maximum(t, gaussian(t, footprint_mm / g))[..., None]
+    mixed = (1 - t) * wide + t * narrow
+    return mixed / np.linalg.norm(mixed, axis=-1, keepdims=True)
 
 
 def surface_normals(h: np.ndarray, g: float, frame: np.ndarray, sigma_mm: float,
