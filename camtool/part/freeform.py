@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import BadInput
 from .freeform_exact import ChartMesh
 from .freeform_grid import Grid, fill, grid_over, normals_of
-from .freeform_normals import scan_normals
+from .freeform_normals import point_normals, scan_normals
 from .freeform_rows import row_distance, row_table, seed_row
 from .freeform_sample import chart_frame, cloud_heights, mesh_heights, to_chart
 from .domain import Boundary, FitStats
@@ -36,8 +36,6 @@ SCAN_SMOOTHING_MIN_MM = 2.0
 MAX_NODES = 300_000         # the grid's nodes at most (the spacing grows for a large face)
 MIN_CELL_MM = 1.0           # ... and at least this spacing
 MAX_SLOPE_DEG = 80.0        # a node steeper than this from the chart plane is no material (a wall of a closed part)
-SCAN_MAX_SLOPE_DEG = 70.0   # ... of a scan's: its heights' noise is 1 / cos(tilt) its points' (2.9x at 70 deg), and the
-                            # 1 M-point panel's rim at 70-80 deg had tool axes 9.7 deg (p95) off the part's normal
 KNOWN_WEIGHT_SHARE = 0.2    # a scan's node has a height where its window holds this share of the typical weight
 NOISE_BAND_SIGMAS = 3.0     # a scan's noise band in RMS residuals (the motion check's scan tolerance, run/stages.py)
 LEAD_LIFT_MIN_MM = 1.0      # a free-form face's leads rise at least this far (a scanned mesh's roughness)
@@ -474,22 +472,15 @@ def _scan_normal_sigma(residuals_mm, n_points: int, area_mm2: float, smoothing_m
     return scan_normal_smoothing_mm(noise, n_points / max(area_mm2, 1e-9), smoothing_mm, floor_mm)
 
 
-def _scan_normals(height, grid: Grid, frame, res, n_points: int, material, reliable, sigma_mm: float,
-                  footprint_mm: float, source: str, warnings: list) -> tuple[np.ndarray, float, np.ndarray]:
+def _scan_normals(height, grid: Grid, frame, xyh, res, n_points: int, material, reliable, sigma_mm: float,
+                  footprint_mm: float) -> tuple[np.ndarray, float, np.ndarray]:
     """A scan's (normals, their smoothing sigma, material): normals averaged along its surface (``scan_normals``),
-    the material cut where they tilt more than ``SCAN_MAX_SLOPE_DEG`` from the chart (a warning gives the area)."""
+    its steep nodes' from its points (``point_normals``), the material cut where they pass ``MAX_SLOPE_DEG``."""
     g = grid.g
     smoothing = _scan_normal_sigma(res, n_points, float(material.sum()) * g * g, sigma_mm, footprint_mm)
-    normals = scan_normals(height, g, frame, smoothing, footprint_mm, reliable)
-    cos = normals @ frame[:, 2]
-    wall, held = math.cos(math.radians(MAX_SLOPE_DEG)), math.cos(math.radians(SCAN_MAX_SLOPE_DEG))
-    steep = material & (cos >= wall) & (cos < held)
-    if steep.any():
-        area = float((g * g / np.maximum(cos, 0.05))[steep].sum())
-        warnings.append(f"{source}: {area:.0f} mm^2 of the scan tilt more than {SCAN_MAX_SLOPE_DEG:g} deg from its "
-                        "chart plane (a rim turning away) and are left out of the face (its height field does not "
-                        "hold their normals)")
-    return normals, smoothing, material & (cos >= held)
+    normals = point_normals(scan_normals(height, g, frame, smoothing, footprint_mm, reliable), height, grid, frame,
+                            xyh, footprint_mm, material)
+    return normals, smoothing, material & ((normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG)))
 
 
 def _fit_stats(residuals_mm, n_points: int, threshold_mm: float) -> FitStats:
@@ -608,8 +599,8 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
         normals = normals_of(height, g, frame, normal_smoothing_mm, reliable)
         material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
     else:
-        normals, normal_smoothing_mm, material = _scan_normals(height, grid, frame, res, int(keep.sum()), material,
-                                                               reliable, sigma, normal_smoothing_mm, source, warnings)
+        normals, normal_smoothing_mm, material = _scan_normals(height, grid, frame, xyh[keep], res, int(keep.sum()),
+                                                               material, reliable, sigma, normal_smoothing_mm)
     stats = _fit_stats(res, len(P), float(settings.threshold_mm))
     close_px = int(math.ceil(float(settings.close_gaps_mm) / g))
     mesh, gaps = _face_meshes(workpiece, part, V, origin, frame, grid, height, material) if is_mesh else (None, None)
