@@ -83,7 +83,8 @@ def test_surface_window_is_the_direct_sum_over_the_nodes_and_the_chart_window_wh
 def test_steep_nodes_take_the_normal_of_their_points():
     """Points on a cylinder of R 80 mm (axis along y) to 80 deg of tilt, its height field exact but its normals
     the chart's (far off where steep): ``point_normals`` gives its nodes over ``POINTS_FULL_DEG`` the radial normal
-    through their surface point within 0.5 deg (its lattice interpolated), and leaves the nodes under ``POINTS_FROM_DEG`` as they were."""
+    through their surface point within 0.5 deg (its lattice interpolated), and leaves the nodes under
+    ``POINTS_FROM_DEG`` as they were."""
     g, R, foot = 1.0, 80.0, 6.0
     grid = Grid(-78.0, -40.0, g, 157, 81)
     X = grid.node_xy()[..., 0]

@@ -25,7 +25,8 @@ from .freeform_grid import normals_of
 
 STEEP_FROM_DEG = 15.0   # below this tilt from the chart plane the chart's window is the surface's (cos 15 = 0.97)
 STEEP_FULL_DEG = 25.0   # from this tilt on the surface's window alone (between: blended, no seam)
-AGREE_DEG = 1.0         # a scan's wide window is kept where it agrees with the footprint's within this (its noise: 0.3)
+AGREE_DEG = 1.0         # a scan's wide window is kept where it agrees with the footprint's within this (1.5: the
+                        # 1 M panel's axes 2.76 deg p95, the shell scan's cycle 160 s; 1.0: 2.37 deg, 167 s)
 POINTS_FROM_DEG = 55.0  # a scan's node this steep starts to take its normal from its points (point_normals) ...
 POINTS_FULL_DEG = 65.0  # ... and from this tilt on only from them
 POINT_WINDOW_SIGMAS = 2.5  # the points' window reaches this many footprints (Gaussian sigmas)
@@ -44,9 +45,10 @@ def scan_normals(h: np.ndarray, g: float, frame: np.ndarray, sigma_mm: float, fo
                  known: np.ndarray | None = None) -> np.ndarray:
     """(ny, nx, 3) a scan's normals: ``surface_normals`` over ``sigma_mm`` (wide enough that the scan's noise does not
     wobble them) where they agree with those over the tool's footprint ``footprint_mm`` within ``AGREE_DEG``, the
-    footprint's where they differ by twice that (blended between, the blend spread over a footprint: no seam). Where
-    the part turns under the wide window its mean is not the footprint's: the panel's curl into its rim, 10-20 mm
-    inside its edge, stood 4.3 deg (p95) off the part's normal over 12.5 mm at 9.9 mm, 1.5 deg at 6 mm."""
+    footprint's where they differ by twice that, the blend averaged over the wide window (a blend switching node by
+    node with the noise wobbled the shell scan's axes: its cycle 157 -> 188 s). Where the part turns under the wide
+    window its mean is not the footprint's: the panel's curl into its rim, 10-20 mm inside its edge, stood 4.3 deg
+    (p95) off the part's normal over 12.5 mm at 9.9 mm, 1.5 deg at 6 mm."""
     from .freeform_grid import gaussian
 
     wide = surface_normals(h, g, frame, sigma_mm, known)
@@ -55,7 +57,7 @@ def scan_normals(h: np.ndarray, g: float, frame: np.ndarray, sigma_mm: float, fo
     narrow = surface_normals(h, g, frame, footprint_mm, known)
     apart_deg = np.degrees(np.arccos(np.clip(np.einsum("...k,...k", wide, narrow), -1.0, 1.0)))
     t = np.clip(apart_deg / AGREE_DEG - 1.0, 0.0, 1.0)
-    t = np.maximum(t, gaussian(t, footprint_mm / g))[..., None]
+    t = gaussian(t, sigma_mm / g)[..., None]
     mixed = (1 - t) * wide + t * narrow
     return mixed / np.linalg.norm(mixed, axis=-1, keepdims=True)
 
