@@ -129,3 +129,25 @@ def test_a_cloud_checks_tolerance_grows_by_its_noisiest_faces_rms():
 
     assert _fit_rms_mm(face(0.1)) == 0.1 and _fit_rms_mm(face(None)) == 0.0
     assert _fit_rms_mm(FaceSet((face(0.1), face(0.25), face(None)), (0, 1, 2), ({}, {}, {}))) == 0.25
+
+
+def test_the_spline_is_measured_against_a_scanned_meshs_noise_band_as_the_motion_check_measures_it():
+    """A scanned mesh's spline depth allows the band the motion check allows its TCP (``scanned_mesh_band_mm``);
+    a CAD mesh's and a cloud's allow none (0.05 mm against a scan's bumps split 830 steps of the bezier dac scan)."""
+    from dataclasses import replace
+
+    from camtool.part.workpiece import Workpiece
+    from camtool.run.stages import _scanned_mesh_band, scanned_mesh_band_mm
+    from test_roughness import _triangulated, sheet
+
+    settings = _job()[0]
+    noisy, smooth = sheet(0.05), sheet(0.0)
+    faces = _triangulated(noisy)
+    scan = Workpiece(noisy, np.tile([0.0, 0, 1], (len(noisy), 1)), faces, "scan.ply", "mm", (), noisy)
+    cad = replace(scan, points_mm=smooth, vertices_mm=smooth, source="cad.ply")
+    band = _scanned_mesh_band(settings, scan)
+    assert band == scanned_mesh_band_mm(scan) and 0.05 < band < 0.2    # the 0.05 mm noise's own quantile
+    assert _scanned_mesh_band(settings, cad) == 0.0
+    assert _scanned_mesh_band(settings, replace(scan, faces=None, vertices_mm=None)) == 0.0
+    told_cad = replace(settings, workpiece=replace(settings.workpiece, scan="no"))
+    assert _scanned_mesh_band(told_cad, scan) == 0.0
