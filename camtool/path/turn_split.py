@@ -86,11 +86,17 @@ def _onto_face(project, chord: np.ndarray, axis: np.ndarray, half: np.ndarray) -
     the chord, 0.45 mm inside the hull) where that meets it within half the step; else along the chart's normal
     (``project``'s default); else kept on the chord."""
     onto = project(chord, along=axis)
-    with np.errstate(invalid="ignore"):
-        far = ~(np.linalg.norm(onto - chord, axis=1) <= half)
+    far = ~within_mm(onto, chord, half)
     if far.any():
         onto[far] = project(chord[far])
     return np.where(np.isfinite(onto).all(axis=1)[:, None], onto, chord)
+
+
+def within_mm(p: np.ndarray, ref: np.ndarray, radius_mm: np.ndarray) -> np.ndarray:
+    """(m,) whether each point taken onto a face lies within ``radius_mm`` of its reference point (False where it
+    has none: NaN). A face that overhangs its chart plane holds another layer farther off (the hull's stern)."""
+    with np.errstate(invalid="ignore"):
+        return np.linalg.norm(p - ref, axis=1) <= radius_mm
 
 
 def _with_poses(path: Path, after: np.ndarray, f: np.ndarray, poses: np.ndarray) -> Path:

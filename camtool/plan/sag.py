@@ -44,7 +44,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from ..robots.model import Robot
 from ..path.toolpath import SURFACE_CODES, WORK, Path
-from ..path.turn_split import MAX_TURN_DEG
+from ..path.turn_split import MAX_TURN_DEG, within_mm
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
 from .densify import bisected, slerp_midposes
@@ -109,7 +109,9 @@ def _surface_midposes(Ta, Tb, T_arc, sag_arc, project):
     the face) gets the same where its chord runs under the surface (into the part; the surface continued past the
     face's edge along the chart's normal, ``project(..., continued=True)``), its sag how deep (0 once the step is
     ``DIP_STEP_MM`` or shorter); the others keep the arc's, as does a step on the face whose midpoint has none under
-    it (``project`` NaN: over a hole) or none within half the step (``_near``)."""
+    it (``project`` NaN: over a hole) or none within half the step (``within_mm``: a face that overhangs its
+    chart plane, the hull's stern curled past 90 deg from it, holds another layer 7 mm off a 4 mm step; a midpose
+    there sent the sag's halves back and forth between the layers)."""
     T, sag = T_arc.copy(), sag_arc.copy()
     pa, pb = Ta[:, :3, 3], Tb[:, :3, 3]
     on = _on_face(pa, project, Ta[:, :3, 2]).astype(int) + _on_face(pb, project, Tb[:, :3, 2])
@@ -120,20 +122,12 @@ def _surface_midposes(Ta, Tb, T_arc, sag_arc, project):
     on_face = project(mid, along=axis)
     onto = project(mid, continued=True)
     under = np.einsum("ki,ki->k", onto - mid, towards_tool) > 0.0   # the surface lies between the chord and the tool
-    both, dips = (on == 2) & _near(on_face, mid, half), (on == 1) & under & _near(onto, mid, half)
+    both, dips = (on == 2) & within_mm(on_face, mid, half), (on == 1) & under & within_mm(onto, mid, half)
     onto[both] = on_face[both]
     T[both | dips, :3, 3] = onto[both | dips]
     sag[both | dips] = np.linalg.norm(onto - mid, axis=1)[both | dips]
     sag[dips & (2.0 * half <= DIP_STEP_MM)] = 0.0
     return T, sag
-
-
-def _near(p: np.ndarray, mid: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """Whether each point taken onto the face lies within half its step of the step's midpoint: a face that
-    overhangs its chart plane (the hull's stern curls past 90 deg from it) holds another layer along the chart's
-    normal, 7 mm off a 4 mm step; a midpose there sent the sag's halves back and forth between the layers."""
-    with np.errstate(invalid="ignore"):
-        return np.linalg.norm(p - mid, axis=1) <= half
 
 
 def turns_on_face(Ta: np.ndarray, Tb: np.ndarray, project) -> np.ndarray:

@@ -64,9 +64,16 @@ def spline_depths_mm(joint_path: JointPath, path: Path, robot: Robot, feed_mm_s:
     """(rows r, depth (mm) of each): every surface step r -> r + 1 of ``joint_path`` and how deep the time stage's
     spline of its run goes into the part there (``DEPTH_SHARES`` of the step; <= 0: in front of it).
     ``signed_distance(points_mm)``: world points' distance in front of the part (+) or inside it (-)."""
+    rows, depth, _ = _spline_steps(joint_path, path, robot, feed_mm_s, signed_distance)
+    return rows, depth
+
+
+def _spline_steps(joint_path: JointPath, path: Path, robot: Robot, feed_mm_s: float,
+                  signed_distance: Callable) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``spline_depths_mm``'s rows and depths, and each step's TCP chord (mm)."""
     q = np.asarray(joint_path.q, float)
     pos = tcp_positions_mm(joint_path, path, robot)
-    rows, qs = [], []
+    rows, qs, steps = [], [], []
     for a, b in run_layout(joint_path, path).runs():
         if b == a:
             continue
@@ -75,10 +82,11 @@ def spline_depths_mm(joint_path: JointPath, path: Path, robot: Robot, feed_mm_s:
         x = (s[:-1, None] + DEPTH_SHARES[None] * np.diff(s)[:, None]).ravel()
         qs.append(PathSpline(s, q[a:b + 1]).derivatives(x)[0])
         rows.append(np.arange(a, b))
+        steps.append(step)
     if not rows:
-        return np.zeros(0, int), np.zeros(0)
+        return np.zeros(0, int), np.zeros(0), np.zeros(0)
     sd = np.nan_to_num(signed_distance(tcp_positions_world(robot, np.vstack(qs))), nan=np.inf)
-    return np.concatenate(rows), -sd.reshape(-1, len(DEPTH_SHARES)).min(axis=1)
+    return np.concatenate(rows), -sd.reshape(-1, len(DEPTH_SHARES)).min(axis=1), np.concatenate(steps)
 
 
 def _step_poses(joint_path: JointPath, path: Path, solver: CwlnSolver, rows: np.ndarray, base_inv) -> np.ndarray:
@@ -100,21 +108,12 @@ def _midpose_q(solver: CwlnSolver, T_mid: np.ndarray, qa: np.ndarray, qb: np.nda
     return res.q
 
 
-def _splittable(joint_path: JointPath, path: Path, robot: Robot, rows: np.ndarray) -> np.ndarray:
-    """(len(rows),) whether each surface step r -> r + 1 may get a midpose: a lead's step always, a work step (both
-    poses work) of ``WORK_STEP_MM`` or longer (module doc)."""
+def _splittable(joint_path: JointPath, rows: np.ndarray, step_mm: np.ndarray) -> np.ndarray:
+    """(len(rows),) whether each surface step r -> r + 1 (its TCP chord ``step_mm``) may get a midpose: a lead's
+    step always, a work step (both poses work) of ``WORK_STEP_MM`` or longer (module doc)."""
     zone = np.asarray(joint_path.zone)
     work = (zone[rows] == WORK) & (zone[rows + 1] == WORK)
-    if not work.any():
-        return np.ones(len(rows), bool)
-    ends = np.r_[rows[work], rows[work] + 1]
-    pidx = np.asarray(joint_path.path_index)[ends]
-    pos = np.asarray(path.poses_mm)[np.maximum(pidx, 0), :3, 3]
-    for i in np.flatnonzero(pidx < 0):   # an inserted pose: its TCP by forward kinematics
-        pos[i] = (robot.base_T_mm @ robot.fk_tcp(np.asarray(joint_path.q, float)[ends[i]]))[:3, 3]
-    out = np.ones(len(rows), bool)
-    out[work] = np.linalg.norm(pos[work.sum():] - pos[:work.sum()], axis=1) >= WORK_STEP_MM
-    return out
+    return ~work | (step_mm >= WORK_STEP_MM)
 
 
 def add_spline_poses(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver,
@@ -130,9 +129,9 @@ def add_spline_poses(joint_path: JointPath, path: Path, robot: Robot, solver: Cw
     base_project = None if project is None else in_frame(project, np.asarray(robot.base_T_mm, float))
     tol = settings.depth_tol_mm
     rounds = inserted = 0
-    rows, depth = spline_depths_mm(jp, path, robot, settings.feed_mm_s, signed_distance)
+    rows, depth, step_mm = _spline_steps(jp, path, robot, settings.feed_mm_s, signed_distance)
     while rounds < MAX_ROUNDS and (depth > tol).any():
-        split = rows[(depth > tol) & _splittable(jp, path, robot, rows)]
+        split = rows[(depth > tol) & _splittable(jp, rows, step_mm)]
         if not len(split):
             break
         q = np.asarray(jp.q, float)
@@ -149,7 +148,7 @@ def add_spline_poses(joint_path: JointPath, path: Path, robot: Robot, solver: Cw
         step_zone = {r: (zone[r + 1] if zone[r] == WORK else zone[r]) for r in inserts}
         jp = jp.with_rows_inserted(inserts, step_zone, jp.events)
         rounds, inserted = rounds + 1, inserted + len(inserts)
-        rows, depth = spline_depths_mm(jp, path, robot, settings.feed_mm_s, signed_distance)
+        rows, depth, step_mm = _spline_steps(jp, path, robot, settings.feed_mm_s, signed_distance)
     events = {**jp.events, "spline_steps": {"rows": inserted, "rounds": rounds, "depth_tol_mm": tol,
                                             "max_depth_mm": round(max(float(depth.max(initial=0.0)), 0.0), 4)}}
     return replace(jp, events=events)
