@@ -16,6 +16,9 @@ For each part:
   "freeform"``: its non-analytic B-rep faces, tangent ones joined, camtool.part.step_freeform); a generated part
   (GENERATED: tests/test_step_freeform.py's four tangent B-spline patches with a planar flange) is written first,
   a part too large for the cell is worked as a scaled copy (STEP_SCALE: the ship's hull at 1:300);
+- **a cavity** (CAVITY: a mould's trough): the face is the trough (``cavity_region``: the triangles facing the way it
+  opens, under the rim) and the job selects its free-form face (``[faces] select = "freeform"``), as a process
+  engineer picks it; the whole block as one height field (``fit.model = "freeform"``) has the pocket's upright walls;
 - **the anchor**: noether's PlaneSlicerRasterPlanner rebuilt (freeform_metrics.plane_slicer) on
   the face, its planes ``step_over_mm`` apart and its points ``pitch_mm`` apart, the tool axis
   along the vertex normals it interpolates;
@@ -76,9 +79,9 @@ PARTS_DIR = HERE / "parts" / "freeform"
 URDF = ROOT / "camtool" / "robots" / "data" / "ros-industrial" / "abb_irb2400_support" / "urdf" / "irb2400.urdf"
 TCP_MM = 150.0
 PLACE_MM = np.array([1000.0, 0.0, 1030.0])   # the face's centre, upright in front of the robot
-# name: (file, kind, sha256, step_over_mm, pitch_mm); every file in metres but noether_wavy_hole,
-# which has no unit (a 10.5 x 10.5 sheet in noether's tests): taken as 0.05 m a unit (a 525 mm sheet)
-SCALE = {"noether_wavy_hole": 50.0}
+# name: (file, kind, sha256, step_over_mm, pitch_mm); every file in metres but bladex_blade_upper (mm) and
+# noether_wavy_hole, which has no unit (a 10.5 x 10.5 sheet in noether's tests): taken as 0.05 m a unit (a 525 mm sheet)
+SCALE = {"noether_wavy_hole": 50.0, "bladex_blade_upper": 1.0}
 LONG_SIDE_UP = {"bezier_dac_cad", "bezier_dac_scan"}   # curved across their long side
 PARTS = {
     "snp_dome_scan": ("snp_dome_scan.ply", "scan",
@@ -97,6 +100,10 @@ PARTS = {
                          "09f0387a2f285ac23bee2c600f3139f86eced0c014fb10297ae5f7ae39c34212", 15.0, 5.0),
     "bezier_complex_shape_cad": ("bezier_complex_shape_cad.ply", "cad",
                                  "0b85d12d260a1edb45875f176287c37eefeb82c0a0feb1dbe9615dab59c5f839", 15.0, 5.0),
+    "tooling4g_polishing_mold": ("tooling4g_polishing_mold.stl", "cad",
+                                 "18a2a0b7b2012787f0c90f4d867988f824992ef5d97a23f9996ac9ccd48e270a", 10.0, 5.0),
+    "bladex_blade_upper": ("bladex_blade_upper.stl", "cad",
+                           "b5cae54365370e4a8d81881e3a5981a82843107f0e82a75333897d165e8e1cee", 5.0, 2.5),
     "vito_door_cad": ("vito_door_cad.obj", "cad",
                       "06fa5f6f2e7863640626baf3313974160c0aa04de72003a5bfc54b3d94212eeb", 25.0, 10.0),
     # STEP parts (their B-rep faces; the job selects its free-form face, `[faces] select = "freeform"`): the mesh
@@ -105,6 +112,10 @@ PARTS = {
     "optiwise_hull": ("optiwise_hull.step", "cad",
                       "c7e1416899b8be060fd2e52ae0f09e207bfb1f2b80869dc6505920fe4044a1bd", 10.0, 5.0),
 }
+# cavities (a mould's trough): the face is the trough, the up-facing triangles (within 60 deg of the way it opens,
+# the file's frame) more than 1 mm below the rim, their largest connected piece; the job selects its free-form face
+# (`[faces] select = "freeform"`), as a process engineer picks the trough, not the whole block
+CAVITY = {"tooling4g_polishing_mold": (0.0, 0.0, 1.0)}
 # STEP parts worked at a scale (a 290 m ship's hull as a 1:300 model, 0.97 m): OpenCASCADE writes a scaled copy
 STEP_SCALE = {"optiwise_hull": 1.0 / 300.0}
 # generated parts: name -> a function writing the file (tests/test_step_freeform.py's four tangent B-spline patches
@@ -137,11 +148,29 @@ def placement(mesh, region, long_side_up: bool = False) -> np.ndarray:
     return T
 
 
+def cavity_region(mesh, opens, max_tilt_deg: float = 60.0, below_mm: float = 1.0) -> np.ndarray:
+    """Mask of a cavity's triangles (CAVITY): facing the way it opens within max_tilt_deg, more than below_mm under
+    the rim (the part's highest level that way) and above its bottom; their largest connected piece."""
+    up = np.asarray(opens, float) / np.linalg.norm(opens)
+    h = mesh.triangles_center @ up
+    top, bottom = float((mesh.vertices @ up).max()), float((mesh.vertices @ up).min())
+    keep = (mesh.face_normals @ up >= np.cos(np.radians(max_tilt_deg))) & (h < top - below_mm) & (h > bottom + below_mm)
+    adj = mesh.face_adjacency
+    adj = adj[keep[adj[:, 0]] & keep[adj[:, 1]]]
+    from scipy import sparse
+    from scipy.sparse import csgraph
+
+    _, lab = csgraph.connected_components(sparse.coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])),
+                                                            shape=(len(keep),) * 2), directed=False)
+    area = np.bincount(lab[keep], weights=mesh.area_faces[keep], minlength=lab.max() + 1)
+    return keep & (lab == int(np.argmax(area)))
+
+
 def job_text(name, file: Path, T: np.ndarray, step: float, pitch: float, scale: float = 1000.0) -> str:
     rpy = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
     f = lambda v: "[" + ", ".join(f"{x:.6f}" for x in v) + "]"   # noqa: E731
     units = {1000.0: "m", 1.0: "mm"}.get(scale)
-    step_part = Path(file).suffix.lower() in STEP_SUFFIXES
+    step_part = Path(file).suffix.lower() in STEP_SUFFIXES or name in CAVITY
     face = '[faces]\nselect = "freeform"\n\n' if step_part else '[fit]\nmodel = "freeform"\n\n'
     if units is None:      # a file without units: scaled into a copy in mm beside the job
         import trimesh
@@ -322,7 +351,7 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
     scale = SCALE.get(name, 1.0 if path.suffix.lower() in STEP_SUFFIXES else 1000.0)
     mesh = step_part_mesh(path) if path.suffix.lower() in STEP_SUFFIXES else fm.load_mesh(path, scale)
     _, _, vt = np.linalg.svd(mesh.vertices - mesh.vertices.mean(0), full_matrices=False)
-    region = fm.face_region(mesh, up=vt[2], max_tilt_deg=60.0)
+    region = cavity_region(mesh, CAVITY[name]) if name in CAVITY else fm.face_region(mesh, up=vt[2], max_tilt_deg=60.0)
     face = mesh.submesh([np.flatnonzero(region)], append=True)
     samples = fm.surface_samples(mesh, region, spacing_mm=max(1.0, step / 5))
     geo = fm.SurfaceGeodesic(mesh)

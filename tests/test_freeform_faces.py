@@ -147,3 +147,41 @@ def test_an_analytic_part_keeps_its_faces(monkeypatch):
     seg = segment(wp, SegmentSettings())
     assert seen == [True]
     assert [f.model for f in seg.faces] == ["plane"] * 6
+
+
+def wall_trough_mesh():
+    """A trough (sheet, mm) whose right wall is a cylinder (R 150 mm, axis along y) tangent to its free-form floor
+    and creased 40 deg into the rim at x = 80; its ends are planes rising at 60 deg, creased into the trough. As the
+    TOOLING4G mould's trough (benchmarks/parts/freeform/tooling4g_polishing_mold.stl): a curved wall the trough
+    runs into."""
+    R, xc = 150.0, 80.0 - 150.0 * np.sin(np.radians(40.0))
+    zc = np.sqrt(R ** 2 - (80.0 - xc) ** 2)
+
+    def z_of(X, Y):
+        cyl = zc - np.sqrt(R ** 2 - (np.minimum(X, 80.0) - xc) ** 2)
+        floor = cyl + np.where(X < 20.0, ((20.0 - X) / 60.0) ** 2 * (10.0 + 6.0 * np.sin(Y / 35.0)), 0.0)
+        ends = -np.tan(np.radians(60.0)) * (150.0 - np.abs(Y))
+        return np.minimum(np.where(X < 80.0, np.maximum(floor, ends), 0.0), 0.0)
+
+    return grid_mesh(np.arange(-80.0, 110.01, 2.5), np.arange(-170.0, 170.01, 2.5), z_of)
+
+
+def test_a_curved_wall_the_trough_runs_into_is_part_of_its_face():
+    """The cylinder wall meets the floor tangentially along as long a line as it creases into the rim and the ends:
+    judged on its border inside the trough's smooth region (all smooth), it is a fragment of the trough, not a face
+    of its own (judged on its whole border, 0.4 smooth, it stayed a cylinder face and the trough came in two)."""
+    V, F = wall_trough_mesh()
+    wp, mesh = mesh_workpiece(V, F, n=40000)
+    seg = segment(wp, SegmentSettings())
+    models = [f.model for f in seg.faces]
+    assert models.count("freeform") == 1 and "cylinder" not in models
+    ff = next(f for f in seg.faces if f.model == "freeform")
+    Q = wp.points_mm
+    trough = (Q[:, 0] < 78.0) & (np.abs(Q[:, 1]) < 118.0) & (Q[:, 2] < -1.0)
+    wall = trough & (Q[:, 0] > 22.0)
+    assert np.isin(np.flatnonzero(wall), ff.inliers).mean() > 0.97
+    assert np.isin(np.flatnonzero(trough), ff.inliers).mean() > 0.97
+    # the face is the trough's own triangles (not the end planes' nor the rim's): its area against the mesh's
+    c, n = mesh.triangles_center, mesh.face_normals
+    inner = (c[:, 0] < 80.0) & (c[:, 2] < -0.5) & (np.abs(n[:, 1]) < 0.7)
+    assert abs(ff.area_mm2 - mesh.area_faces[inner].sum()) < 0.05 * mesh.area_faces[inner].sum()

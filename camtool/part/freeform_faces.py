@@ -33,8 +33,9 @@ where the analytic faces really hold it:
    it are dropped, unless one holds ``KEEP_SHARE`` of the region solidly (``SOLID_SHARE``
    of its points' neighbours its own: a plane a trough runs into, not a sphere speckled
    over a noisy scan) and less than ``SMOOTH_BORDER_SHARE`` of its border with the other
-   analytic faces is a smooth seam (a fragment is surrounded by fragments it meets
-   tangentially; a plane the trough's rim creases into is not), and its points (those the kept analytic faces do
+   analytic faces inside the region is a smooth seam (a fragment is surrounded by fragments it meets
+   tangentially; a plane the trough's rim creases into is not; the border across the region's own sharp
+   edges does not count: a mould's curved wall creased into the rim is still the trough's), and its points (those the kept analytic faces do
    not hold) become one
    ``FreeformSurface`` (``freeform.freeform_surface``, a mesh's own triangles of the
    region sampled exactly, a scan smoothed); its points are those over its material
@@ -214,15 +215,17 @@ def _smooth_groups(idx: np.ndarray, owner_s: np.ndarray, nb: np.ndarray, S: np.n
 
 
 def _smooth_border_share(face, owner_s: np.ndarray, nb: np.ndarray, S: np.ndarray, by_index: dict,
-                         cos_sharp: float) -> float:
-    """The share of the face's border (its points' neighbours on other analytic faces) where the two models' normals
-    agree within the sharp-edge angle: about 1 for a fragment tiling a smooth surface with others, small for a face
-    bounded by creases."""
+                         cos_sharp: float, in_region: np.ndarray) -> float:
+    """The share of the face's border inside its smooth region (its points' neighbours on other analytic faces, both
+    in the region: ``in_region`` of the sample) where the two models' normals agree within the sharp-edge angle:
+    about 1 for a fragment tiling a smooth surface with others, small for a face bounded by creases. The border
+    across the region's own sharp edges says nothing of that: a mould's curved wall, tangent to the trough's floor
+    and creased into the rim along as long a line, had half its border smooth and stayed a face of its own."""
     mine = np.flatnonzero(owner_s == face.index)
     a = np.repeat(mine, nb.shape[1] - 1)
     b = nb[mine, 1:].ravel()
     other = owner_s[b]
-    cross = (other >= 0) & (other != face.index)
+    cross = (other >= 0) & (other != face.index) & in_region[a] & in_region[b]
     a, b, other = a[cross], b[cross], other[cross]
     if len(a) == 0:
         return 0.0
@@ -459,7 +462,7 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
             continue
         solid = float((owner_s[nb[s, 1:]] == f.index).mean())
         if s.sum() >= KEEP_SHARE * (region == r).sum() and solid >= SOLID_SHARE \
-                and _smooth_border_share(f, owner_s, nb, P[pick], by_index, cos_sharp) < SMOOTH_BORDER_SHARE:
+                and _smooth_border_share(f, owner_s, nb, P[pick], by_index, cos_sharp, region == r) < SMOOTH_BORDER_SHARE:
             kept.append(f)
     taken = np.zeros(n, bool)
     for f in kept:
