@@ -366,3 +366,30 @@ def test_the_sag_takes_its_midposes_onto_a_cad_meshs_face_only(saddle_part):
     noisy = replace(wp, vertices_mm=wp.vertices_mm + np.random.default_rng(0).normal(0, 0.05, wp.vertices_mm.shape))
     assert face_projector(auto, s, noisy) is None
     assert face_projector(auto, None, wp) is None
+
+
+def test_a_block_with_a_pocket_as_one_face_is_refused_at_its_upright_wall():
+    """A 200 x 150 mm top with a slot 40 mm deep along y, its walls upright (a height field falling 40 mm between
+    two grid lines 0.1 mm apart at x = +-50): as one free-form face its rows stretch past STEEP_SCALE at the walls; a raster
+    over max_poses is refused with where the face stands upright (on the wall: x = +-50, z between -40 and 0) and
+    what to do (the part's faces); a pocket with 30 deg walls is refused as before, without the note."""
+    from camtool.path.raster import STEEP_SCALE
+
+    def part(wall_mm):
+        x = np.sort(np.concatenate([np.arange(-100.0, 100.01, 2.0), [-50.0 - wall_mm, 50.0 + wall_mm]]))
+        y = np.arange(-75.0, 75.01, 2.0)
+        V, F = grid_mesh(x, y, lambda X, Y: -40.0 * np.clip((50.0 + wall_mm - np.abs(X)) / wall_mm, 0.0, 1.0))
+        return fit_surface(mesh_workpiece(V, F)[0], FIT)
+
+    settings = RasterSettings.make(step_over_mm=5.0, pitch_mm=2.0, max_poses=1000)
+    with pytest.raises(BadInput) as e:
+        raster_path(part(0.1), settings)
+    msg = str(e.value)
+    assert "over raster.max_poses = 1000" in msg and "upright wall" in msg and "[faces] select" in msg
+    k = float(msg.split("rows stretched ")[1].split(" x")[0])
+    assert k > STEEP_SCALE
+    p = np.array([float(v) for v in msg.split("near [")[1].split("]")[0].split(",")])
+    assert abs(abs(p[0]) - 50.0) < 3.0 and -41.0 <= p[2] <= 1.0
+    with pytest.raises(BadInput) as e:
+        raster_path(part(40.0 / np.tan(np.radians(30.0))), settings)
+    assert "over raster.max_poses" in str(e.value) and "upright" not in str(e.value)

@@ -56,6 +56,7 @@ APPROACH_POINTS = 3  # poses in the approach and in the depart zone
 APPROACH_MIN_MM = 10.0  # smallest back-off of approach / depart along the normal
 COVERAGE_TOL_FRACTION = 0.02  # coverage radius tolerance, as a fraction of the step-over
 MAX_POSES = 5_000_000  # refuse rasters larger than this (memory)
+STEEP_SCALE = 10.0  # a free-form face's rows stretched this many times over its chart (a slope past 84 deg): upright
 
 _LEAD_IN, _LEAD_OUT, _WORK = ZONE_CODE["lead_in"], ZONE_CODE["lead_out"], ZONE_CODE["work"]
 _SELF, _APPROACH, _DEPART = ZONE_CODE["self_motion"], ZONE_CODE["approach"], ZONE_CODE["depart"]
@@ -301,7 +302,10 @@ def raster_path(surface, settings: RasterSettings) -> Path:
                        '(docs/process.md); here give a number of mm')
     w = _direction(settings.tool_x_world)
     chart, g_lo = _chart_for(surface, row_angle_rad(surface, settings))
-    runs, sign = _rows_and_runs(surface.boundary, chart, g_lo, settings).in_raster_order()
+    try:
+        runs, sign = _rows_and_runs(surface.boundary, chart, g_lo, settings).in_raster_order()
+    except _TooManyPoses as e:
+        raise BadInput(f"{e}{_upright_note(surface)}") from None
     rows = _row_blocks(surface, chart, g_lo, runs, sign, settings)
     blocks = _with_contour(surface, settings, chart, rows)
     on_surface, normal, lift = _block_poses(surface, blocks, settings, w)
@@ -312,6 +316,29 @@ def raster_path(surface, settings: RasterSettings) -> Path:
                                                  settings.transition_points)
     return Path(poses, segment, pidx, zcode, settings.free_spin, settings.step_over_mm, settings.pitch_mm,
                 contour=None if rows.n_seg == blocks.n_seg else segment >= rows.n_seg)
+
+
+class _TooManyPoses(BadInput):
+    """The raster's estimate is over raster.max_poses (``raster_path`` adds where a free-form face is upright)."""
+
+
+def _upright_note(surface) -> str:
+    """Where a free-form face's rows are stretched past STEEP_SCALE over its chart plane (a height field across an
+    upright wall: the whole of a block with a pocket as one face), with what to do instead; '' where none is. Its
+    chart's largest metric scale sets the raster's estimate: the TOOLING4G mould as one face (its pocket's 45 mm
+    upright walls) was refused for '1.65e+06 poses', and a coarser raster or more poses was no way out."""
+    if surface.model != "freeform":   # an analytic face's u may be an angle: its scale is a radius, not a slope
+        return ""
+    uv = _domain_grid(surface.boundary)
+    k = np.asarray(surface.metric_scale(uv), float).max(axis=1)
+    i = int(np.argmax(k))
+    if not k[i] > STEEP_SCALE:
+        return ""
+    p = np.asarray(surface.point_mm(uv[i:i + 1, 0], uv[i:i + 1, 1]), float).reshape(-1)
+    return (f"; the face stands {math.degrees(math.acos(1.0 / k[i])):.0f} deg to its chart plane near "
+            f"[{p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}] mm (its rows stretched {k[i]:.0f} x there): one height field over "
+            "an upright wall (a pocket, a block's side); work the part's faces instead: [faces] select = "
+            "\"freeform\" or their numbers (`camtool faces JOB` lists them)")
 
 
 @dataclass(frozen=True)
@@ -386,7 +413,7 @@ def _rows_and_runs(boundary, chart: _Chart, g_lo: float, settings: RasterSetting
     estimate = len(rows_t) * ((s_hi - s_lo) / (max(g_lo, 0.5) * pitch) + 2 * (lead / pitch + 1) + m)
     cap = min(int(getattr(settings, "max_poses", MAX_POSES)), MAX_POSES)  # time, then memory: before any work
     if estimate > cap:
-        raise BadInput(f"raster: step_over_mm={step:g} and pitch_mm={pitch:g} would give about {estimate:.3g} poses, "
+        raise _TooManyPoses(f"raster: step_over_mm={step:g} and pitch_mm={pitch:g} would give about {estimate:.3g} poses, "
                        f"over raster.max_poses = {cap}; use a coarser raster (raster.pitch_mm, raster.step_over_mm) "
                        "or raise raster.max_poses")
     run_row, run_a, run_b = _row_runs(boundary, chart, rows_t, e0, e1)
