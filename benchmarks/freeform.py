@@ -104,6 +104,8 @@ PARTS = {
                                  "18a2a0b7b2012787f0c90f4d867988f824992ef5d97a23f9996ac9ccd48e270a", 10.0, 5.0),
     "bladex_blade_upper": ("bladex_blade_upper.stl", "cad",
                            "b5cae54365370e4a8d81881e3a5981a82843107f0e82a75333897d165e8e1cee", 5.0, 2.5),
+    "snp_panel_scan": ("snp_panel_scan.ply", "scan",
+                       "7aea644442d3b183651b2baef79bc8bea4644f7b5e3a641516afae7222a665ec", 20.0, 10.0),
     "vito_door_cad": ("vito_door_cad.obj", "cad",
                       "06fa5f6f2e7863640626baf3313974160c0aa04de72003a5bfc54b3d94212eeb", 25.0, 10.0),
     # STEP parts (their B-rep faces; the job selects its free-form face, `[faces] select = "freeform"`): the mesh
