@@ -14,7 +14,10 @@ from ..job import load_job
 
 
 def _offset_dict(o) -> dict:
-    return {"dx_mm": round(o[0], 3), "dy_mm": round(o[1], 3), "dz_mm": round(o[2], 3), "dyaw_deg": round(o[3], 3)}
+    d = {"dx_mm": round(o[0], 3), "dy_mm": round(o[1], 3), "dz_mm": round(o[2], 3), "dyaw_deg": round(o[3], 3)}
+    if len(o) > 4:   # the tilt stage's (``placement.tilt``)
+        d.update(droll_deg=round(o[4], 3), dpitch_deg=round(o[5], 3))
+    return d
 
 
 def _verified_dict(v: dict | None) -> dict | None:
@@ -31,7 +34,7 @@ def _verified_dict(v: dict | None) -> dict | None:
 def _entry(study, job, r, rank=None) -> dict:
     from ..placement.search import placement_of
 
-    xyz, rpy = placement_of(job, r.offset)
+    xyz, rpy = placement_of(job, r.offset, study.tilt_centre_mm)
     d = {"offset": _offset_dict(r.offset), "workpiece_xyz_mm": xyz, "workpiece_rpy_deg": rpy,
          "screen": {k: v for k, v in r.as_dict().items() if k != "offset"},
          "planned": _verified_dict(study.verified.get(r.offset))}
@@ -42,7 +45,11 @@ def _entry(study, job, r, rank=None) -> dict:
 @click.argument("job_file", metavar="JOB", type=click.Path(path_type=Path))
 @click.option("--vary", "vary", multiple=True, metavar="NAME=LO:HI",
               help="A placement offset to search and its range: x, y, z in mm (world frame), yaw in deg about "
-                   "world z; repeatable (default x=-300:300, y=-300:300, z=-300:300).")
+                   "world z, roll and pitch in deg about world x and y (the part tilted about its work's centre); "
+                   "repeatable (default x=-300:300, y=-300:300, z=-300:300).")
+@click.option("--tilt-max-deg", "tilt_max_deg", type=float, default=30.0, show_default=True,
+              help="When no placement plans with the part as it stands, search its roll and pitch (a tilted "
+                   "fixture) within +-this too; 0 = never tilt.")
 @click.option("-j", "--jobs", type=int, default=1, show_default=True,
               help="Processes that screen and plan in parallel.")
 @click.option("--seed", type=int, default=0, show_default=True,
@@ -66,11 +73,12 @@ def _entry(study, job, r, rank=None) -> dict:
 @click.option("-o", "--outdir", type=click.Path(path_type=Path), default=None,
               help="Output folder (default: out/<job file name>_place).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary (placement.json) as JSON.")
-def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_max: int, verify: int, max_checks: int,
-            reach_margin: float, joint_margin: float, feed_weight: float, top: int, overrides: tuple[str, ...], outdir: Path | None,
+def command(job_file: Path, vary: tuple[str, ...], tilt_max_deg: float, jobs: int, seed: int, grid_max: int, verify: int,
+            max_checks: int, reach_margin: float, joint_margin: float, feed_weight: float, top: int, overrides: tuple[str, ...], outdir: Path | None,
             as_json: bool) -> None:
     """Find where to put JOB's workpiece: offsets of cell.workpiece_xyz_mm and a yaw added to
-    cell.workpiece_rpy_deg, within the --vary bounds.
+    cell.workpiece_rpy_deg, within the --vary bounds; when none plans, the part tilted too (roll and pitch
+    within --tilt-max-deg, about the centre of its work).
 
     Every pose of the raster must be reachable with margin. A fast screen
     (wrist-centre reach bound on every pose, closed-form IK on a subsample)
@@ -88,6 +96,7 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
     from ..placement.screen import ScreenSettings
     from ..placement.search import (DEFAULT_VARY, PlacementProblem, format_offset, parse_vary, placement_of,
                                     write_placed_job)
+    from ..placement.tilt import TiltSettings
     from ..report.run_report import write_json_atomic
     from ..run.job_settings import JobSettings
 
@@ -100,6 +109,7 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
             raise BadInput(f"{name}: expected a percentage in (0, 50), found {value:g}")
     if not (math.isfinite(feed_weight) and 0.0 <= feed_weight <= 100.0):
         raise BadInput(f"--feed-weight: expected a weight in [0, 100], found {feed_weight:g}")
+    tilt = TiltSettings(max_deg=tilt_max_deg)
     variables = [parse_vary(v) for v in (vary or DEFAULT_VARY)]
     job = load_job(job_file, list(overrides))
     outdir = outdir or Path("out") / f"{job_file.stem}_place"
@@ -118,19 +128,21 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
     settings = ScreenSettings(joint_margin_goal=joint_margin / 100.0, reach_margin_goal=reach_margin / 100.0,
                               orientation_mm=st.planner.orientation_weight_mm, track_scale_mm=st.planner.track_scale_mm,
                               tcp_speed_mm_s=st.timing.tcp_speed_mm_s, feed_weight=feed_weight)
-    with PlacementProblem(job, variables, jobs, settings) as problem:
+    with PlacementProblem(job, variables, jobs, settings, tilt) as problem:
         study = problem.run(seed, verify, max_checks, grid_max, on_progress)
-    user = (0.0, 0.0, 0.0, 0.0)
+    user = study.zero
     files = [plot_feasible_region(study, outdir / "feasible_region.png")]
     if study.chosen is not None:
-        files.insert(0, write_placed_job(job, study.chosen, outdir / "placed_job.toml", list(overrides)))
+        files.insert(0, write_placed_job(job, study.chosen, outdir / "placed_job.toml", list(overrides),
+                                         tilt_centre_mm=study.tilt_centre_mm))
     grid = [len(g) for g in study.grid]
     summary = {
         "job": str(job_file), "robot": study.robot_name, "families": study.families, "seed": seed,
         "placement": {"workpiece_xyz_mm": list(job.cell.workpiece_xyz_mm),
                       "workpiece_rpy_deg": list(job.cell.workpiece_rpy_deg)},
         "variables": {v.name: [v.lower, v.upper] for v in study.variables},
-        "units": {"x": "mm", "y": "mm", "z": "mm", "yaw": "deg"},
+        "units": {"x": "mm", "y": "mm", "z": "mm", "yaw": "deg", "roll": "deg", "pitch": "deg"},
+        "tilt": _tilt_dict(study, tilt),
         "cost": {"formula": "est_work_s * (1 + penalty) * (1 + move_per_m * (|d| / 1 m + |yaw| / 90 deg)) * "
                             "(1 + feed_weight * (1 - feed_share)); planned: cycle_s in place of est_work_s, "
                             "feed_share of the planned run's median work feed",
@@ -154,16 +166,41 @@ def command(job_file: Path, vary: tuple[str, ...], jobs: int, seed: int, grid_ma
         _print_summary(summary, study, job, format_offset, placement_of, outdir)
     if study.chosen is None:
         v = study.verified.get(user)
-        raise PlanInfeasible("no placement within the --vary bounds plans with every pose reachable"
+        bound = f" and a tilt within +-{tilt.max_deg:g} deg" if study.upright is not None else ""
+        raise PlanInfeasible(f"no placement within the --vary bounds{bound} plans with every pose reachable"
                              + ("" if study.feasible_count else " (none passes the reach screen)")
+                             + _nearest_text(study)
                              + "; widen the bounds or add a variable (see placement.json and feasible_region.png)"
                              + ("" if v is None or v["ok"] else f"; your placement: {v.get('reason', '')}"))
+
+
+def _tilt_dict(study, tilt) -> dict:
+    """placement.json's ``tilt``: the bound, the pivot and, when the part was tilted, the upright search's figures."""
+    c = study.tilt_centre_mm
+    return {"max_deg": tilt.max_deg, "searched": study.upright is not None,
+            "centre_mm": None if c is None else [round(float(v), 3) for v in c], "upright": study.upright}
+
+
+def _nearest_text(study) -> str:
+    """The refusal's nearest miss: the best screened placement, where it fails."""
+    from ..placement.search import format_offset, rank_key
+
+    if not study.results:
+        return ""
+    r = sorted(study.results.values(), key=rank_key)[0]
+    if r.feasible:
+        return ""
+    where = {"bound": "beyond the wrist-centre reach", "ik": "outside the joint limits or bent into the tool",
+             "full": "outside the joint limits or bent into the tool", "part": "the part in the cell's obstacles"}
+    return (f"; nearest: {format_offset(r.offset)} with {r.unreachable} of {r.checked} screened poses "
+            f"{where.get(r.stage, r.stage)}")
 
 
 def _fmt_screen(s: dict) -> str:
     if not s["feasible"]:
         where = {"bound": "beyond the wrist-centre reach", "ik": "outside the joint limits (IK subsample)",
-                 "full": "outside the joint limits"}[s["stage"]]
+                 "full": "outside the joint limits", "part": "of the part within the cell's clearance of an obstacle"
+                 }[s["stage"]]
         return f"INFEASIBLE in the screen: {s['unreachable']} of {s['checked']} poses {where}"
     feed = "" if s.get("feed_mm_s") is None else f", expected work feed {s['feed_mm_s']:.0f} mm/s"
     return (f"screen cost {s['cost']:.1f} s, joint margin {100 * s['joint_margin']:.1f} % ({s['joint_margin_joint']}), "
@@ -199,7 +236,14 @@ def _print_summary(s: dict, study, job, format_offset, placement_of, outdir) -> 
     click.echo(f"searched         {ranges}: {sc['grid_placements']} grid ({' x '.join(map(str, sc['grid']))}) + "
                f"{sc['placements'] - sc['grid_placements']} more placements, {sc['feasible']} feasible, "
                f"{sc['seconds']:.1f} s screen + {s['plan_seconds']:.1f} s planning, {s['processes']} process(es)")
-    click.echo(" rank    dx mm    dy mm    dz mm  yaw deg  cost s  joint %  reach %  dexter  feed mm/s  planned")
+    tilted = s["tilt"]["searched"]
+    if tilted:
+        up = s["tilt"]["upright"]
+        click.echo(f"upright          none of {up['placements']} placements plans ({up['feasible']} pass the screen, "
+                   f"{up['planned']} planned): the part tilted, roll and pitch within +-{s['tilt']['max_deg']:g} deg "
+                   f"about its work's centre {s['tilt']['centre_mm']} mm")
+    click.echo(" rank    dx mm    dy mm    dz mm  yaw deg" + (" roll deg pitch deg" if tilted else "")
+               + "  cost s  joint %  reach %  dexter  feed mm/s  planned")
     for e in s["ranked"]:
         o, r, v = e["offset"], e["screen"], e["planned"]
         if r["feasible"]:
@@ -210,7 +254,8 @@ def _print_summary(s: dict, study, job, format_offset, placement_of, outdir) -> 
             figs = f"{'-':>7}  {'-':>7}  {100 * r['reach_used']:7.1f}  {'-':>6}  {'-':>9}"
         plan = "-" if v is None else (f"ok, cycle {v['cycle_s']:.1f} s, {_fmt_feed(v)}cost {v['cost']:.1f}" if v["ok"]
                                       else f"fails ({v.get('unreachable', 0)} unreachable)")
-        click.echo(f" {e['rank']:4d} {o['dx_mm']:8.1f} {o['dy_mm']:8.1f} {o['dz_mm']:8.1f} {o['dyaw_deg']:8.1f} "
+        tilt = f" {o['droll_deg']:8.1f} {o['dpitch_deg']:9.1f}" if tilted else ""
+        click.echo(f" {e['rank']:4d} {o['dx_mm']:8.1f} {o['dy_mm']:8.1f} {o['dz_mm']:8.1f} {o['dyaw_deg']:8.1f}{tilt} "
                    f"{figs}  {plan}")
     c = s["chosen"]
     if c is None:

@@ -47,7 +47,7 @@ def plot_feasible_region(study, file: Path) -> Path:
     plt = _plt()
     V = study.variables
     idx = plotted_variables(study)
-    user = (0.0, 0.0, 0.0, 0.0)
+    user = study.zero
     fig, ax = plt.subplots(figsize=(7.2, 5.6))
     label = [f"{V[i].name} offset ({V[i].unit})" for i in idx]
     if len(idx) == 2:

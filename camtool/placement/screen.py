@@ -62,9 +62,10 @@ from scipy.spatial.transform import Rotation
 from ..path.toolpath import WORK, Path
 from .feed import FeedStencils, expected_feed, timed_feed
 from .kinematics import ClosedForm, dexterity
+from .tilt import tilt_matrix, work_centre
 
-AXES = ("x", "y", "z", "yaw")
-UNITS = {"x": "mm", "y": "mm", "z": "mm", "yaw": "deg"}
+AXES = ("x", "y", "z", "yaw", "roll", "pitch")
+UNITS = {"x": "mm", "y": "mm", "z": "mm", "yaw": "deg", "roll": "deg", "pitch": "deg"}
 
 
 @dataclass(frozen=True)
@@ -94,8 +95,10 @@ class ScreenSettings:
         return float(sum(terms))
 
     def move(self, offset) -> float:
-        """The move measure of an offset (dx, dy, dz mm, dyaw deg): |d| / 1 m + |yaw| / 90 deg."""
-        return float(np.linalg.norm(offset[:3]) / 1000.0 + abs(offset[3]) / 90.0)
+        """The move measure of an offset (dx, dy, dz mm, dyaw deg[, droll, dpitch deg]): |d| / 1 m + |yaw| / 90 deg
+        (+ (|roll| + |pitch|) / 90 deg: a tilt turns the part as far as a yaw)."""
+        turn = abs(offset[3]) + sum(abs(float(a)) for a in offset[4:])
+        return float(np.linalg.norm(offset[:3]) / 1000.0 + turn / 90.0)
 
     def feed_factor(self, feed_share) -> float:
         """The feed term: 1 + feed_weight * (1 - feed_share); 1 without a figure."""
@@ -108,14 +111,17 @@ class ScreenSettings:
                      * self.feed_factor(feed_share))
 
 
-def placement_matrix(offset, pivot_mm) -> np.ndarray:
-    """World transform D of an offset (dx, dy, dz mm, dyaw deg): yaw about world z through ``pivot_mm``, then d."""
-    dx, dy, dz, yaw = (float(v) for v in offset)
+def placement_matrix(offset, pivot_mm, tilt_centre_mm=None) -> np.ndarray:
+    """World transform D of an offset (dx, dy, dz mm, dyaw deg[, droll, dpitch deg]): the tilt about
+    ``tilt_centre_mm`` (``placement.tilt``), then yaw about world z through ``pivot_mm``, then d."""
+    dx, dy, dz, yaw = (float(v) for v in offset[:4])
     c, s = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
     D = np.eye(4)
     D[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
     p = np.asarray(pivot_mm, float)
     D[:3, 3] = p + np.array([dx, dy, dz]) - D[:3, :3] @ p
+    if any(float(a) for a in offset[4:]):
+        D = D @ tilt_matrix(*offset[4:6], tilt_centre_mm if tilt_centre_mm is not None else pivot_mm)
     return D
 
 
@@ -187,6 +193,7 @@ class PathGeometry:
     stencils: FeedStencils | None = None   # the feed's stencils along the rows (feed.py)
     zone: np.ndarray | None = None         # the path's zones and segments (the finalists' timed feed)
     segment: np.ndarray | None = None
+    tilt_centre_mm: np.ndarray | None = None   # the tilt's pivot: the work poses' centre (``tilt.work_centre``)
     n_poses: int = field(init=False)
 
     def __post_init__(self):
@@ -210,11 +217,11 @@ class PathGeometry:
         length = float(steps[on_work].sum()) if len(work) > 1 else 0.0
         stencils = FeedStencils.build(path, settings.feed_stencils) if settings.feed_stencils > 0 else None
         return cls(P, W, sub, work_sub, tw, length, np.linalg.inv(robot.base_T_mm), np.asarray(pivot_mm, float),
-                   stencils, np.asarray(path.zone), np.asarray(path.segment))
+                   stencils, np.asarray(path.zone), np.asarray(path.segment), work_centre(path))
 
     def base_transform(self, offset) -> np.ndarray:
         """World pose of the path at the job's placement -> robot base frame at ``offset``."""
-        return self.base_inv @ placement_matrix(offset, self.pivot_mm)
+        return self.base_inv @ placement_matrix(offset, self.pivot_mm, self.tilt_centre_mm)
 
 
 @dataclass

@@ -6,6 +6,7 @@
         -> full closed-form check (every pose) of the best few, their work feed by the time law; reranked
         -> full planning and timing of the best few (the real pipeline on the placed job)
         -> the chosen placement, the ranked list, placed_job.toml, the feasible-region PNG
+        (none plans: the same again with the part's roll and pitch, its tilt on the fixture: ``tilt.py``)
 
 The screen and the cost are in ``screen.py``; the plot in ``plots.py``.
 Everything is deterministic for a seed, whatever the number of processes:
@@ -24,6 +25,7 @@ from pathlib import Path as FsPath
 
 import numpy as np
 
+from ..collision.spec import obstacle_specs
 from ..errors import BadInput, PlanInfeasible
 from ..job import Job, Section
 from ..run.job_settings import JobSettings
@@ -31,12 +33,14 @@ from ..vary import parse_range
 from ..run.stages import path_for_job, robot_for_job, surface_for_job, time_for_job, workpiece_for_job
 from .kinematics import screen_model
 from .margins import reach_margins
-from .screen import AXES, UNITS, PathGeometry, ScreenResult, ScreenSettings, screen_batch
+from .part_clear import PartClearance
+from .screen import AXES, UNITS, PathGeometry, ScreenResult, ScreenSettings, placement_matrix, screen_batch
+from .tilt import TILT_AXES, TiltSettings, is_tilted, placed_pose
 from .. import safe_io
 
 DEFAULT_VARY = ("x=-300:300", "y=-300:300", "z=-300:300")
-DEFAULT_STEP = {"x": 25.0, "y": 25.0, "z": 25.0, "yaw": 5.0}
-RESOLUTION = {"x": 1.0, "y": 1.0, "z": 1.0, "yaw": 0.5}   # placements are rounded to this (mm, deg)
+DEFAULT_STEP = {"x": 25.0, "y": 25.0, "z": 25.0, "yaw": 5.0, "roll": 5.0, "pitch": 5.0}
+RESOLUTION = {"x": 1.0, "y": 1.0, "z": 1.0, "yaw": 0.5, "roll": 0.5, "pitch": 0.5}   # placements rounded to this (mm, deg)
 GRID_MAX = 1000          # grid placements screened at most
 REFINE_TOP = 5           # best placements refined round
 REFINE_ROUNDS = 3        # each halves the step
@@ -48,7 +52,8 @@ KEEP_USER_WITHIN = 0.01  # your placement stays when it plans and costs at most 
 
 @dataclass(frozen=True)
 class Variable:
-    """One placement variable: x, y, z (mm, world frame) or yaw (deg about world z), as an offset range."""
+    """One placement variable: x, y, z (mm, world frame), yaw (deg about world z) or the tilt's roll and pitch
+    (deg about world x and y, ``tilt.py``), as an offset range."""
 
     name: str
     lower: float
@@ -64,12 +69,14 @@ class Variable:
 
 
 def parse_vary(text: str) -> Variable:
-    """``NAME=LO:HI`` with NAME one of x, y, z (mm) or yaw (deg) -> Variable; BadInput otherwise."""
+    """``NAME=LO:HI`` with NAME one of x, y, z (mm), yaw, roll or pitch (deg) -> Variable; BadInput otherwise."""
     name, lo, hi = parse_range(text, ", e.g. z=-300:100 (mm) or yaw=-30:30 (deg)", lambda n: UNITS.get(n, "mm"))
     if name not in AXES:
-        raise BadInput(f"--vary {text!r}: unknown variable {name!r}; use x, y, z (mm) or yaw (deg)")
+        raise BadInput(f"--vary {text!r}: unknown variable {name!r}; use x, y, z (mm), yaw, roll or pitch (deg)")
     if name == "yaw" and hi - lo > 360.0:
         raise BadInput(f"--vary {text!r}: a yaw range wider than 360 deg repeats itself")
+    if name in TILT_AXES and max(abs(lo), abs(hi)) > 90.0:
+        raise BadInput(f"--vary {text!r}: a {name} beyond +-90 deg turns the part away from the robot")
     return Variable(name, lo, hi)
 
 
@@ -85,23 +92,27 @@ def check_variables(variables) -> list[Variable]:
 # --------------------------------------------------------------------------- the placed job
 
 
-def placement_of(job: Job, offset) -> tuple[list[float], list[float]]:
-    """(cell.workpiece_xyz_mm, cell.workpiece_rpy_deg) of ``job`` moved by ``offset`` (dx, dy, dz, dyaw)."""
+def placement_of(job: Job, offset, tilt_centre_mm=None) -> tuple[list[float], list[float]]:
+    """(cell.workpiece_xyz_mm, cell.workpiece_rpy_deg) of ``job`` moved by ``offset`` (dx, dy, dz, dyaw[, droll,
+    dpitch]); a tilt turns the part about ``tilt_centre_mm`` (``tilt.py``: the path's work centre)."""
+    if is_tilted(offset):
+        D = placement_matrix(offset, job.cell.workpiece_xyz_mm, tilt_centre_mm)
+        return placed_pose(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg, D)
     xyz = [float(a) + float(d) for a, d in zip(job.cell.workpiece_xyz_mm, offset[:3])]
     r, p, y = (float(a) for a in job.cell.workpiece_rpy_deg)
     yaw = (y + float(offset[3]) + 180.0) % 360.0 - 180.0
     return [round(v, 6) for v in xyz], [r, p, round(yaw, 6)]
 
 
-def placed_job(job: Job, offset) -> Job:
+def placed_job(job: Job, offset, tilt_centre_mm=None) -> Job:
     """A copy of ``job`` with the workpiece placement moved by ``offset``."""
-    xyz, rpy = placement_of(job, offset)
+    xyz, rpy = placement_of(job, offset, tilt_centre_mm)
     sections = dict(job.sections)
     sections["cell"] = Section({**job.sections["cell"], "workpiece_xyz_mm": xyz, "workpiece_rpy_deg": rpy})
     return dataclasses.replace(job, sections=sections)
 
 
-def write_placed_job(job: Job, offset, file: FsPath, overrides=None, note: str = "") -> FsPath:
+def write_placed_job(job: Job, offset, file: FsPath, overrides=None, note: str = "", tilt_centre_mm=None) -> FsPath:
     """The job with the moved placement, as TOML; `camtool run FILE` runs it.
 
     With ``overrides`` (the ``--set`` texts the job was loaded with, possibly
@@ -115,9 +126,9 @@ def write_placed_job(job: Job, offset, file: FsPath, overrides=None, note: str =
     from ..job import parse_override
     from ..robots import BUILTIN_ROBOTS
 
-    xyz, rpy = placement_of(job, offset)
+    xyz, rpy = placement_of(job, offset, tilt_centre_mm)
     if overrides is None:
-        data = placed_job(job, offset).as_dict()
+        data = placed_job(job, offset, tilt_centre_mm).as_dict()
     else:
         data = safe_io.load_toml(job.path, "job")  # one checked read, never the name by a plain open
         for text in overrides:
@@ -144,9 +155,10 @@ def write_placed_job(job: Job, offset, file: FsPath, overrides=None, note: str =
 
 
 def format_offset(offset) -> str:
-    dx, dy, dz, dyaw = offset
+    dx, dy, dz, dyaw = offset[:4]
     s = f"dx {dx:+g} mm, dy {dy:+g} mm, dz {dz:+g} mm"
-    return s + (f", yaw {dyaw:+g} deg" if dyaw else "")
+    s += f", yaw {dyaw:+g} deg" if dyaw else ""
+    return s + (f", tilted roll {offset[4]:+g} deg, pitch {offset[5]:+g} deg" if is_tilted(offset) else "")
 
 
 # --------------------------------------------------------------------------- worker context
@@ -178,10 +190,10 @@ def _screen_chunk(offsets, full: bool) -> list[ScreenResult]:
 
 def _verify(offset) -> dict:
     ctx = _CTX["ctx"]
-    return verify_placement(ctx.job, offset, ctx.settings)
+    return verify_placement(ctx.job, offset, ctx.settings, ctx.geom.tilt_centre_mm)
 
 
-def verify_placement(job: Job, offset, settings: ScreenSettings) -> dict:
+def verify_placement(job: Job, offset, settings: ScreenSettings, tilt_centre_mm=None) -> dict:
     """The real pipeline on the placed job (fit, raster, plan, time, the independent limit check): what
     `camtool run` does before its motion check and the post stage.
 
@@ -195,7 +207,7 @@ def verify_placement(job: Job, offset, settings: ScreenSettings) -> dict:
     from ..timing.pathlaw import remembered_runs
 
     t0 = time.perf_counter()
-    pj = placed_job(job, offset)
+    pj = placed_job(job, offset, tilt_centre_mm)
     robot = robot_for_job(pj)
     st = JobSettings.from_job(pj, robot)
     wp = workpiece_for_job(pj)
@@ -241,10 +253,10 @@ def verify_placement(job: Job, offset, settings: ScreenSettings) -> dict:
 
 def rank_key(r: ScreenResult):
     """Feasible first by cost (then the smaller move); infeasible by how far they got and how much fails."""
-    move = float(np.linalg.norm(r.offset[:3])) + abs(r.offset[3])
+    move = float(np.linalg.norm(r.offset[:3])) + sum(abs(a) for a in r.offset[3:])
     if r.feasible:
         return (0, round(r.cost, 6), round(move, 6), r.offset)
-    stage = {"full": 1, "ik": 2, "bound": 3}[r.stage]
+    stage = {"full": 1, "ik": 2, "bound": 3, "part": 4}[r.stage]
     return (stage, r.unreachable / max(r.checked, 1), round(r.reach_used, 6), round(move, 6), r.offset)
 
 
@@ -264,8 +276,13 @@ def _snap(name: str, x):
     return np.round(np.asarray(x, float) / r) * r + 0.0
 
 
+def zero_offset(variables: list[Variable]) -> tuple:
+    """The job's own placement: (0, 0, 0, 0), or (0, 0, 0, 0, 0, 0) when the part's tilt is searched."""
+    return (0.0,) * (6 if any(v.name in TILT_AXES for v in variables) else 4)
+
+
 def _full_offset(variables: list[Variable], x) -> tuple:
-    off = [0.0, 0.0, 0.0, 0.0]
+    off = list(zero_offset(variables))
     for v, val in zip(variables, x):
         off[v.axis] = round(float(np.clip(_snap(v.name, val), v.lower, v.upper)), 6)
     return tuple(off)
@@ -292,6 +309,13 @@ class PlacementStudy:
     verify_s: float = 0.0
     wall_s: float = 0.0
     processes: int = 1
+    tilt_centre_mm: np.ndarray | None = None           # the tilt's pivot (tilt.work_centre)
+    upright: dict | None = None                        # the search before the tilt, when it found none
+
+    @property
+    def zero(self) -> tuple:
+        """The job's own placement's offset."""
+        return zero_offset(self.variables)
 
     @property
     def grid_step(self) -> np.ndarray:
@@ -302,7 +326,7 @@ class PlacementStudy:
         """The best screened placements (feasible ones by cost), at most ``top``, each at least one grid step
         (in some variable) from every better one; the chosen and planned placements are always listed."""
         must = [r for r in sorted(self.results.values(), key=rank_key) if r.offset in self.verified
-                and r.offset != (0.0, 0.0, 0.0, 0.0)]
+                and r.offset != zero_offset(self.variables)]
         rest = distinct(sorted(self.results.values(), key=rank_key), self.variables, self.grid_step, top, must)
         return sorted(rest, key=rank_key)[:max(top, len(must))]
 
@@ -314,13 +338,14 @@ class PlacementStudy:
 class PlacementProblem:
     """The placement search of one job (module doc); ``with`` closes its worker processes."""
 
-    def __init__(self, job: Job, variables: list[Variable], jobs: int = 1, settings: ScreenSettings | None = None):
+    def __init__(self, job: Job, variables: list[Variable], jobs: int = 1, settings: ScreenSettings | None = None,
+                 tilt: TiltSettings = TiltSettings()):
         if job.task.kind != "raster":
             raise BadInput(f"{job.path}: task.kind = {job.task.kind!r}: camtool place searches the placement of "
                            "raster jobs only")
         if jobs < 1:
             raise BadInput(f"-j: expected at least 1 process, found {jobs}")
-        self.job, self.variables, self.jobs = job, check_variables(variables), int(jobs)
+        self.job, self.variables, self.jobs, self.tilt = job, check_variables(variables), int(jobs), tilt
         self.robot = robot_for_job(job)
         st = JobSettings.from_job(job, self.robot)
         if st.planner.method == "arm-angle-sqp":
@@ -337,6 +362,7 @@ class PlacementProblem:
                            "arm, a linear track + SRS arm, or a 6R spherical wrist); this robot has none")
         self.geom = PathGeometry.build(self.path, self.model, self.robot, job.cell.workpiece_xyz_mm, self.settings)
         self._ctx = _Context(job, self.path.free_spin, self.geom, self.settings)
+        self.part_clear = PartClearance(self.workpiece, st.cell, obstacle_specs(job.cell.obstacles), self._moved)
         self._pool = None
 
     # -- plumbing --------------------------------------------------------------------------
@@ -356,48 +382,90 @@ class PlacementProblem:
     def __exit__(self, *exc):
         self.close()
 
+    def _moved(self, offset) -> np.ndarray:
+        """The world transform of a placement offset (the part's move from the job's placement)."""
+        return placement_matrix(offset, self.geom.pivot_mm, self.geom.tilt_centre_mm)
+
     def screen(self, offsets, full: bool = False) -> list[ScreenResult]:
-        """Screen placements (in order), in ``jobs`` processes when there are many."""
+        """Screen placements (in order), in ``jobs`` processes when there are many; the part kept clear of the
+        cell's world-fixed obstacles and floor (``part_clear``)."""
         offsets = [tuple(o) for o in offsets]
         if not offsets:
             return []
         if self.jobs == 1 or len(offsets) <= CHUNK // 2 and not full:
-            return screen_batch(self.model, self.geom, offsets, self.settings, full=full)
+            return self.part_clear.refuse(screen_batch(self.model, self.geom, offsets, self.settings, full=full))
         size = 1 if full else CHUNK
         chunks = [offsets[a:a + size] for a in range(0, len(offsets), size)]
         out = []
         for part in self._pool_get().map(_screen_chunk, chunks, [full] * len(chunks)):
             out.extend(part)
-        return out
+        return self.part_clear.refuse(out)
 
     def verify(self, offsets) -> list[dict]:
         """The real pipeline on each placed job (``verify_placement``), in ``jobs`` processes."""
         offsets = [tuple(o) for o in offsets]
         if self.jobs == 1 or len(offsets) == 1:
-            return [verify_placement(self.job, o, self.settings) for o in offsets]
+            return [verify_placement(self.job, o, self.settings, self.geom.tilt_centre_mm) for o in offsets]
         return list(self._pool_get().map(_verify, offsets))
 
     # -- the search ----------------------------------------------------------------------------
     def run(self, seed: int = 0, verify: int = 3, max_checks: int = 9, grid_max: int = GRID_MAX,
             on_progress=None) -> PlacementStudy:
-        """Screen the grid, refine, check and verify the best (module doc)."""
+        """Screen the grid, refine, check and verify the best (module doc); when nothing plans with the part as it
+        stands, the same with its tilt (``tilt.py``)."""
         t0 = time.perf_counter()
         say = on_progress or (lambda msg: None)
         V = self.variables
-        grid = grid_values(V, grid_max)
+        study = self._search(V, grid_values(V, grid_max), seed, verify, max_checks, say)
+        if study.chosen is None and self.tilt.enabled and not any(v.name in TILT_AXES for v in V):
+            study = self._tilted(study, seed, verify, max_checks, say)
+        study.wall_s = time.perf_counter() - t0
+        return study
+
+    def _tilted(self, upright: PlacementStudy, seed: int, verify: int, max_checks: int, say) -> PlacementStudy:
+        """The search again with the part's roll and pitch (``TiltSettings``): the upright search's grid at every
+        tilt of the coarse tilt grid, refined round the best; the job's own placement is not planned twice."""
+        t = self.tilt
+        values = np.unique(_snap("roll", t.values_deg()))
+        V = self.variables + [Variable(a, -t.max_deg, t.max_deg) for a in TILT_AXES]
+        say(f"no placement plans with the part as it stands: tilting it (roll, pitch within +-{t.max_deg:g} deg)")
+        known = upright.verified.get(zero_offset(self.variables))
+        study = self._search(V, list(upright.grid) + [values, values], seed, verify, max_checks, say, known)
+        best = sorted(upright.results.values(), key=rank_key)[0]
+        study.upright = {"placements": len(upright.results), "feasible": upright.feasible_count,
+                         "planned": len(upright.verified), "best": best.as_dict(), "seconds": round(upright.wall_s, 3)}
+        study.screen_s += upright.screen_s
+        study.verify_s += upright.verify_s
+        return study
+
+    def _search(self, V: list[Variable], grid: list[np.ndarray], seed: int, verify: int, max_checks: int, say,
+                known: dict | None = None) -> PlacementStudy:
+        """One search over the variables ``V`` from the grid ``grid`` (module doc); ``known``: the job's own
+        placement, already planned."""
+        t0 = time.perf_counter()
         study = PlacementStudy(self.job, self.robot.name, self.model.families, V, grid, n_poses=len(self.path),
-                               n_ik_poses=len(self.geom.sub), processes=self.jobs)
-        rng = np.random.default_rng(seed)
+                               n_ik_poses=len(self.geom.sub), processes=self.jobs,
+                               tilt_centre_mm=self.geom.tilt_centre_mm)
         mesh = np.meshgrid(*grid, indexing="ij")
         grid_offsets = [_full_offset(V, x) for x in zip(*(m.ravel() for m in mesh))]
-        user = (0.0, 0.0, 0.0, 0.0)
+        user = zero_offset(V)
         todo = list(dict.fromkeys([user, *grid_offsets]))
         for r in self.screen(todo):
             study.results[r.offset] = r
         study.grid_offsets = grid_offsets
         study.user = study.results[user]
+        if known is not None:
+            study.verified[user] = {**known, "offset": list(user)}
         say(f"screened {len(todo)} grid placements: {study.feasible_count} feasible")
-        # local refinement round the best: axis neighbours and seeded random ones, the step halving
+        self._refine(study, np.random.default_rng(seed), say)
+        study.screen_s = time.perf_counter() - t0
+        self._plan_best(study, verify, max_checks, say)
+        study.wall_s = time.perf_counter() - t0
+        return study
+
+    def _refine(self, study: PlacementStudy, rng, say) -> None:
+        """Local refinement round the best: axis neighbours and seeded random ones, the step halving."""
+        V = study.variables
         step = study.grid_step
         for rnd in range(REFINE_ROUNDS):
             step = step / 2.0
@@ -417,9 +485,12 @@ class PlacementProblem:
             for r in self.screen(offs):
                 study.results[r.offset] = r
             say(f"refinement {rnd + 1}: {len(offs)} placements, {study.feasible_count} feasible in all")
-        study.screen_s = time.perf_counter() - t0
-        # the best few: closed-form check of every pose, then the real pipeline
+
+    def _plan_best(self, study: PlacementStudy, verify: int, max_checks: int, say) -> None:
+        """The best few: closed-form check of every pose, then the real pipeline; the chosen placement."""
         t1 = time.perf_counter()
+        V = study.variables
+        user = zero_offset(V)
         feasible = [r for r in sorted(study.results.values(), key=rank_key) if r.feasible]
         picked = distinct(feasible, V, study.grid_step / 2.0, max(max_checks, FULL_CHECKS))
         full = self.screen([r.offset for r in picked], full=True)   # every pose, the feed by the time law
@@ -445,8 +516,6 @@ class PlacementProblem:
         if ok and mine is not None and mine["ok"] and mine["cost"] <= min(ok)[0] * (1.0 + KEEP_USER_WITHIN):
             study.chosen = user  # not worth moving the part for
         study.verify_s = time.perf_counter() - t1
-        study.wall_s = time.perf_counter() - t0
-        return study
 
     def planned_cost(self, study: PlacementStudy, offset, v: dict) -> dict:
         """The planned cost of a placement: cycle time x (1 + the placement's margin penalty) x (1 + move term)
@@ -494,7 +563,8 @@ def distinct(ranked: list[ScreenResult], variables, min_step, n: int, kept=()) -
 
 
 def place_job(job: Job, variables: list[Variable], jobs: int = 1, seed: int = 0, verify: int = 3,
-              max_checks: int = 9, grid_max: int = GRID_MAX, on_progress=None) -> PlacementStudy:
+              max_checks: int = 9, grid_max: int = GRID_MAX, on_progress=None,
+              tilt: TiltSettings = TiltSettings()) -> PlacementStudy:
     """Search ``job``'s workpiece placement over ``variables`` (module doc)."""
-    with PlacementProblem(job, variables, jobs) as problem:
+    with PlacementProblem(job, variables, jobs, tilt=tilt) as problem:
         return problem.run(seed, verify, max_checks, grid_max, on_progress)
