@@ -169,7 +169,7 @@ def command(job_file: Path, vary: tuple[str, ...], tilt_max_deg: float, jobs: in
         bound = f" and a tilt within +-{tilt.max_deg:g} deg" if study.upright is not None else ""
         raise PlanInfeasible(f"no placement within the --vary bounds{bound} plans with every pose reachable"
                              + ("" if study.feasible_count else " (none passes the reach screen)")
-                             + _nearest_text(study)
+                             + _nearest_text(study) + _beyond_text(study)
                              + "; widen the bounds or add a variable (see placement.json and feasible_region.png)"
                              + ("" if v is None or v["ok"] else f"; your placement: {v.get('reason', '')}"))
 
@@ -178,7 +178,8 @@ def _tilt_dict(study, tilt) -> dict:
     """placement.json's ``tilt``: the bound, the pivot and, when the part was tilted, the upright search's figures."""
     c = study.tilt_centre_mm
     return {"max_deg": tilt.max_deg, "searched": study.upright is not None,
-            "centre_mm": None if c is None else [round(float(v), 3) for v in c], "upright": study.upright}
+            "centre_mm": None if c is None else [round(float(v), 3) for v in c], "upright": study.upright,
+            "beyond": study.beyond}
 
 
 def _nearest_text(study) -> str:
@@ -194,6 +195,19 @@ def _nearest_text(study) -> str:
              "full": "outside the joint limits or bent into the tool", "part": "the part in the cell's obstacles"}
     return (f"; nearest: {format_offset(r.offset)} with {r.unreachable} of {r.checked} screened poses "
             f"{where.get(r.stage, r.stage)}")
+
+
+def _beyond_text(study) -> str:
+    """The refusal's 'what would work' past the tilt's bound (``PlacementProblem._beyond``)."""
+    from ..placement.search import format_offset
+
+    b = study.beyond
+    if b is None:
+        return ""
+    if b["offset"] is None:
+        return f"; no tilt within +-{b['max_deg']:g} deg passes the screen either ({b['screened']} placements)"
+    return (f"; a wider tilt passes the closed-form screen (not planned): {format_offset(b['offset'])} "
+            f"(--tilt-max-deg {b['max_deg']:g})")
 
 
 def _fmt_screen(s: dict) -> str:

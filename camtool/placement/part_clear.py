@@ -28,7 +28,8 @@ def _part_geometry(workpiece):
     if workpiece.vertices_mm is not None and workpiece.faces is not None and len(workpiece.faces):
         m = coal.BVHModelOBBRSS()
         m.beginModel(len(workpiece.faces), len(workpiece.vertices_mm))
-        m.addSubModel(np.asarray(workpiece.vertices_mm, float), np.asarray(workpiece.faces, int))
+        m.addVertices(np.asarray(workpiece.vertices_mm, float))
+        m.addTriangles(np.asarray(workpiece.faces, np.int64))
         m.endModel()
         return m, np.asarray(workpiece.vertices_mm, float)
     pts = np.asarray(workpiece.points_mm, float)

@@ -35,7 +35,7 @@ from .kinematics import screen_model
 from .margins import reach_margins
 from .part_clear import PartClearance
 from .screen import AXES, UNITS, PathGeometry, ScreenResult, ScreenSettings, placement_matrix, screen_batch
-from .tilt import TILT_AXES, TiltSettings, is_tilted, placed_pose
+from .tilt import MAX_TILT_DEG, TILT_AXES, TiltSettings, is_tilted, placed_pose
 from .. import safe_io
 
 DEFAULT_VARY = ("x=-300:300", "y=-300:300", "z=-300:300")
@@ -47,6 +47,7 @@ REFINE_ROUNDS = 3        # each halves the step
 REFINE_RANDOM = 4        # random neighbours per placement and round (seeded)
 CHUNK = 24               # placements per process task
 FULL_CHECKS = 12         # best placements checked on every pose (their feed timed) before the best of them are planned
+PROBE_SHARE = 8          # a failed tilt stage probes the tilts beyond its bound on 1/8 of the upright grid
 KEEP_USER_WITHIN = 0.01  # your placement stays when it plans and costs at most 1 % more than the best
 
 
@@ -311,6 +312,7 @@ class PlacementStudy:
     processes: int = 1
     tilt_centre_mm: np.ndarray | None = None           # the tilt's pivot (tilt.work_centre)
     upright: dict | None = None                        # the search before the tilt, when it found none
+    beyond: dict | None = None                         # the tilt found none: the wider tilt's screen (_beyond)
 
     @property
     def zero(self) -> tuple:
@@ -436,7 +438,28 @@ class PlacementProblem:
                          "planned": len(upright.verified), "best": best.as_dict(), "seconds": round(upright.wall_s, 3)}
         study.screen_s += upright.screen_s
         study.verify_s += upright.verify_s
+        if study.chosen is None and t.max_deg < MAX_TILT_DEG:
+            study.beyond = self._beyond(V, grid_values(self.variables, max(8, len(upright.grid_offsets) // PROBE_SHARE)))
         return study
+
+    def _beyond(self, V: list[Variable], grid: list[np.ndarray]) -> dict | None:
+        """What a wider tilt would do: the coarse tilts out to +-90 deg (``TiltSettings(90)``) beyond the bound,
+        screened on a coarser grid (1 / PROBE_SHARE of the upright one); the best that passes the screen (not
+        planned), or None."""
+        t = self.tilt
+        values = TiltSettings(MAX_TILT_DEG).values_deg()
+        tilts = [(r, p) for r in values for p in values if max(abs(r), abs(p)) > t.max_deg + 1e-9]
+        mesh = np.meshgrid(*grid, indexing="ij")
+        offs = []
+        for x in zip(*(m.ravel() for m in mesh)):
+            base = list(_full_offset(V, list(x) + [0.0, 0.0]))   # the tilt set past V's bound below
+            offs += [tuple(base[:4] + [float(r), float(p)]) for r, p in tilts]
+        ok = sorted((r for r in self.screen(offs) if r.feasible), key=rank_key)
+        if not ok:
+            return {"max_deg": MAX_TILT_DEG, "screened": len(offs), "offset": None}
+        o = ok[0].offset
+        return {"max_deg": float(max(abs(o[4]), abs(o[5]))), "screened": len(offs), "offset": list(o),
+                "passing": len(ok)}
 
     def _search(self, V: list[Variable], grid: list[np.ndarray], seed: int, verify: int, max_checks: int, say,
                 known: dict | None = None) -> PlacementStudy:
