@@ -470,16 +470,24 @@ def placed_elsewhere(name: str, job: Path, refusal: str, tree: Path, out: Path, 
         how = "by the reach hint (planned and timed)"
     else:
         # camtool place's default bounds, then wider ones with a turn about world z (a part longer than the
-        # arm's reach along y may fit turned)
-        for wide in ([], [f"--vary={v}" for v in ("x=-500:500", "y=-500:500", "z=-500:500", "yaw=-90:90")]):
+        # arm's reach along y may fit turned); both tilt the part within place's default bound when nothing plans
+        # upright, and when the refusal names a wider tilt that passes its screen, that one is tried (a user's
+        # next step)
+        wide = [f"--vary={v}" for v in ("x=-500:500", "y=-500:500", "z=-500:500", "yaw=-90:90")]
+        tries = [[], wide]
+        while tries:
+            args = tries.pop(0)
             wall, rc, so, se = camtool(["place", str(job), "-o", str(out / f"{name}_place"), "--max-checks", "3",
-                                        *wide, *extra], tree, timeout=1800.0)
+                                        *args, *extra], tree, timeout=3600.0)
             moved = out / f"{name}_place" / "placed_job.toml"
             if rc == 0 and moved.exists():
                 break
+            tilt = re.search(r"\(--tilt-max-deg ([0-9.]+)\)", se or so)
+            if args is wide and tilt:
+                tries.append([*wide, f"--tilt-max-deg={tilt.group(1)}"])
         if rc != 0 or not moved.exists():
             return None, None, f"camtool place found none (exit {rc}, {wall:.1f} s): {first_line(se or so)}"
-        how = f"by camtool place ({wall:.0f} s{', wider bounds' if wide else ''})"
+        how = f"by camtool place ({wall:.0f} s{', wider bounds' if args else ''}{', ' + args[-1][2:] if len(args) > 4 else ''})"
     xyz, rpy = job_placement(moved)
     T = np.eye(4)
     T[:3, :3] = Rotation.from_euler("xyz", rpy, degrees=True).as_matrix()

@@ -212,8 +212,14 @@ def verify_placement(job: Job, offset, settings: ScreenSettings, tilt_centre_mm=
     robot = robot_for_job(pj)
     st = JobSettings.from_job(pj, robot)
     wp = workpiece_for_job(pj)
-    surface = surface_for_job(pj, wp)
-    path = path_for_job(pj, surface)
+    try:
+        surface = surface_for_job(pj, wp)
+        path = path_for_job(pj, surface)
+    except BadInput as exc:   # the part rastered again at another placement (a tilt: a world-dependent raster)
+        if not any(float(v) for v in offset):
+            raise
+        return {"offset": [float(v) for v in offset], "poses": 0, "ok": False, "unreachable": 0, "cost": math.inf,
+                "reason": f"the placed job is refused: {exc}", "seconds": round(time.perf_counter() - t0, 3)}
     part_for_checks = stages.part_for_checks     # as the raster task plans
     part = part_for_checks(st, wp, surface) if part_for_checks is not None else wp
     out = {"offset": [float(v) for v in offset], "poses": len(path)}
