@@ -477,8 +477,10 @@ def placed_elsewhere(name: str, job: Path, refusal: str, tree: Path, out: Path, 
         tries = [[], wide]
         while tries:
             args = tries.pop(0)
-            wall, rc, so, se = camtool(["place", str(job), "-o", str(out / f"{name}_place"), "--max-checks", "3",
-                                        *args, *extra], tree, timeout=3600.0)
+            # the wider tilt takes place's own --max-checks 9 (the folded sheet's 8th candidate is the first that plans)
+            checks = [] if len(args) > 4 else ["--max-checks", "3"]
+            wall, rc, so, se = camtool(["place", str(job), "-o", str(out / f"{name}_place"), *checks, *args, *extra],
+                                       tree, timeout=3600.0)
             moved = out / f"{name}_place" / "placed_job.toml"
             if rc == 0 and moved.exists():
                 break
