@@ -74,15 +74,16 @@ def main() -> None:
             study = problem.run(seed=args.seed)
         wall = time.perf_counter() - t0
         total_s += wall
-        user = study.verified.get((0.0, 0.0, 0.0, 0.0))
+        user = study.verified.get(study.zero)
         u = study.user
         screen = "reachable" if u.feasible else f"{u.unreachable} out of reach"
         chosen = study.verified.get(study.chosen) if study.chosen else None
         found += chosen is not None
         move = "-"
         if study.chosen is not None:
-            dx, dy, dz, yaw = study.chosen
-            move = f"({dx:+.0f}, {dy:+.0f}, {dz:+.0f}" + (f", {yaw:+.1f} deg)" if yaw else ")")
+            dx, dy, dz, yaw = study.chosen[:4]
+            move = f"({dx:+.0f}, {dy:+.0f}, {dz:+.0f}" + (f", {yaw:+.1f} deg" if yaw else "")
+            move += (f", tilt {study.chosen[4]:+.1f}/{study.chosen[5]:+.1f} deg)" if len(study.chosen) > 4 else ")")
         cyc_u = f"{user['cycle_s']:.1f}" if user and user["ok"] else "-"
         cyc_c = f"{chosen['cycle_s']:.1f}" if chosen else "-"
         print(f"{n:>2}  {label:<34} {study.n_poses:>6}  {screen:<16} {'yes' if chosen else 'NO':<5} {wall:>6.1f}  "
