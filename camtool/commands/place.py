@@ -191,10 +191,12 @@ def _nearest_text(study) -> str:
     r = sorted(study.results.values(), key=rank_key)[0]
     if r.feasible:
         return ""
+    if r.stage == "part":
+        return (f"; nearest: {format_offset(r.offset)}, where the part comes nearer than the cell's clearance to "
+                f"{r.unreachable} world-fixed obstacle(s)")
     where = {"bound": "beyond the wrist-centre reach", "ik": "outside the joint limits or bent into the tool",
-             "full": "outside the joint limits or bent into the tool", "part": "the part in the cell's obstacles"}
-    return (f"; nearest: {format_offset(r.offset)} with {r.unreachable} of {r.checked} screened poses "
-            f"{where.get(r.stage, r.stage)}")
+             "full": "outside the joint limits or bent into the tool"}[r.stage]
+    return f"; nearest: {format_offset(r.offset)} with {r.unreachable} of {r.checked} screened poses {where}"
 
 
 def _beyond_text(study) -> str:
@@ -211,10 +213,12 @@ def _beyond_text(study) -> str:
 
 
 def _fmt_screen(s: dict) -> str:
+    if not s["feasible"] and s["stage"] == "part":
+        return (f"INFEASIBLE in the screen: the part comes nearer than the cell's clearance to {s['unreachable']} of "
+                f"the {s['checked']} world-fixed obstacles and floor")
     if not s["feasible"]:
         where = {"bound": "beyond the wrist-centre reach", "ik": "outside the joint limits (IK subsample)",
-                 "full": "outside the joint limits", "part": "of the part within the cell's clearance of an obstacle"
-                 }[s["stage"]]
+                 "full": "outside the joint limits"}[s["stage"]]
         return f"INFEASIBLE in the screen: {s['unreachable']} of {s['checked']} poses {where}"
     feed = "" if s.get("feed_mm_s") is None else f", expected work feed {s['feed_mm_s']:.0f} mm/s"
     return (f"screen cost {s['cost']:.1f} s, joint margin {100 * s['joint_margin']:.1f} % ({s['joint_margin_joint']}), "
