@@ -17,13 +17,14 @@ A triangle is **folded** when
   thin wall's other face, a millimetre behind, is no fold).
 
 Written by hand (trimesh and open3d repair windings, not folds: the fold's windings agree); its
-closest-point test is trimesh's ``triangles.closest_point``.
+neighbours are trimesh's ``graph.face_adjacency``, its closest-point test trimesh's ``triangles.closest_point``.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+import trimesh
 from scipy.spatial import cKDTree
 
 FOLD_DEG = 120.0      # a crease this sharp between neighbours may be a fold
@@ -47,17 +48,6 @@ class Folds:
 
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
-
-
-def _neighbours(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(a, b): the pairs of triangles that share an edge."""
-    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
-    tri = np.tile(np.arange(len(F)), 3)
-    key = e[:, 0] * np.int64(F.max() + 1) + e[:, 1]
-    order = np.argsort(key, kind="stable")
-    key, tri = key[order], tri[order]
-    pair = np.flatnonzero(key[1:] == key[:-1])
-    return tri[pair], tri[pair + 1]
 
 
 class _Surround:
@@ -91,8 +81,6 @@ class _Surround:
     def _lies_on_against(self, t: int, near: np.ndarray) -> bool:
         """Whether triangle ``t``'s corners lie within ``ON_MM`` of triangles among ``near`` that face against it
         (trimesh's closest points)."""
-        import trimesh
-
         other = near[self.N[near] @ self.N[t] < self.cos_against]
         size = np.linalg.norm(self.tri[other] - self.centroid[other][:, None], axis=2).max(axis=1)
         for c in self.tri[t]:   # each corner against the triangles whose reach holds it
@@ -114,7 +102,8 @@ def folded_triangles(verts_mm: np.ndarray, faces: np.ndarray) -> Folds:
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     area = 0.5 * np.linalg.norm(cross, axis=1)
     N = _unit(cross)
-    a, b = _neighbours(F)
+    a, b = trimesh.graph.face_adjacency(F).T   # (its pairs on a non-manifold edge are dropped: a fold's
+    # crease is manifold)
     sharp = np.einsum("ij,ij->i", N[a], N[b]) < np.cos(np.radians(FOLD_DEG))
     if not sharp.any():
         return Folds(mask, 0.0)
