@@ -88,7 +88,7 @@ def surface_normals(h: np.ndarray, g: float, frame: np.ndarray, sigma_mm: float,
     coarse = chart[::step, ::step].copy()
     coarse[js // step, is_ // step] = _surface_average(h, g, frame, sigma_mm, have, js, is_, step)
     jj, ii = np.nonzero(steep)
-    own = _bilinear(coarse, jj / step, ii / step)
+    own = _lattice_at(coarse, step, jj, ii)
     b = blend[jj, ii, None]
     mixed = (1 - b) * chart[jj, ii] + b * own
     out = chart.copy()
@@ -96,16 +96,11 @@ def surface_normals(h: np.ndarray, g: float, frame: np.ndarray, sigma_mm: float,
     return out
 
 
-def _bilinear(arr: np.ndarray, fj: np.ndarray, fi: np.ndarray) -> np.ndarray:
-    """``arr`` (ny, nx, k) at fractional node indices (fj, fi), clamped to the array."""
-    ny, nx = arr.shape[:2]
-    fj = np.clip(fj, 0, ny - 1)
-    fi = np.clip(fi, 0, nx - 1)
-    j = np.minimum(np.floor(fj).astype(np.int64), max(ny - 2, 0))
-    i = np.minimum(np.floor(fi).astype(np.int64), max(nx - 2, 0))
-    b, a = (fj - j)[:, None], (fi - i)[:, None]
-    j1, i1 = np.minimum(j + 1, ny - 1), np.minimum(i + 1, nx - 1)
-    return (1 - a) * (1 - b) * arr[j, i] + a * (1 - b) * arr[j, i1] + (1 - a) * b * arr[j1, i] + a * b * arr[j1, i1]
+def _lattice_at(coarse: np.ndarray, step: int, jj: np.ndarray, ii: np.ndarray) -> np.ndarray:
+    """The lattice's values ``coarse`` (every ``step``-th node) at nodes (jj, ii): bilinear, clamped to it."""
+    from .freeform_grid import Grid
+
+    return Grid(0.0, 0.0, float(step), coarse.shape[1], coarse.shape[0]).interp(coarse, ii, jj, extrapolate=False)
 
 
 def _surface_average(h, g, frame, sigma_mm, have, js, is_, step: int) -> np.ndarray:
@@ -199,7 +194,7 @@ def point_normals(normals: np.ndarray, height: np.ndarray, grid, frame: np.ndarr
     coarse[js // step, is_ // step] = np.where(enough[:, None], axis, own)
     jj, ii = np.nonzero(blend > 0)
     b = blend[jj, ii, None]
-    mixed = (1 - b) * (normals[jj, ii] @ frame) + b * _bilinear(coarse, jj / step, ii / step)
+    mixed = (1 - b) * (normals[jj, ii] @ frame) + b * _lattice_at(coarse, step, jj, ii)
     out = normals.copy()
     out[jj, ii] = (mixed / np.linalg.norm(mixed, axis=1, keepdims=True)) @ frame.T
     return out
