@@ -77,3 +77,39 @@ def test_a_mesh_that_folds_over_itself_loads_with_one_warning_line(tmp_path):
     V, F = _strip(np.arange(0.0, 21.0), np.zeros(21))
     trimesh.Trimesh(V, F, process=False).export(tmp_path / "flat.ply")
     assert not any("folds" in w for w in load_workpiece(tmp_path / "flat.ply", units="mm").warnings)
+
+
+def _turned_over(spacing_mm=50.0, past_mm=5.0):
+    """A flat grid (z = 0, triangles ``spacing_mm`` on a side, wound to face +z) with one inner triangle's corner
+    moved ``past_mm`` across its opposite edge: that triangle alone is turned over (it faces -z), lying flat under
+    its three neighbours, each folded 180 deg back over it (the reach demo shell's two folds, 50-165 mm triangles).
+    (vertices, faces, the turned triangle's index)."""
+    n = 8
+    x, y = np.meshgrid(np.arange(n) * spacing_mm, np.arange(n) * spacing_mm)
+    V = np.c_[x.ravel(), y.ravel(), np.zeros(n * n)]
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1))
+    a = (j * n + i).ravel()
+    F = np.r_[np.c_[a, a + 1, a + n + 1], np.c_[a, a + n + 1, a + n]]
+    t = int(np.flatnonzero((F[:, 0] == 3 * n + 3) & (F[:, 1] == 3 * n + 4))[0])   # corners (3,3), (4,3), (4,4)
+    A, B, C = F[t]
+    mid = 0.5 * (V[A] + V[C])                     # B moved across its opposite edge A-C (the cell's diagonal)
+    out = mid - V[B]
+    V[B] = mid + past_mm * out / np.linalg.norm(out)
+    return V, F, t
+
+
+def test_a_triangle_turned_over_under_its_neighbours_is_a_fold_on_a_coarse_mesh():
+    """Its neighbours' centroids lie 20-30 mm from its own (none within REACH_MM): the surface around it and the
+    triangles it lies on are those of its own size and those sharing its corners."""
+    from camtool.part.folds import REACH_MM, folded_triangles
+
+    V, F, t = _turned_over()
+    tri = V[F]
+    normal_z = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[:, 2]
+    assert np.flatnonzero(normal_z < 0).tolist() == [t]                # the one turned over, as built
+    centroid = tri.mean(axis=1)
+    assert np.sort(np.linalg.norm(centroid - centroid[t], axis=1))[1] > REACH_MM
+    folds = folded_triangles(V, F)
+    assert np.flatnonzero(folds.mask).tolist() == [t]
+    assert folds.largest_mm2 == 0.5 * abs(normal_z[t])
+
