@@ -163,35 +163,3 @@ def test_the_verdict_handed_to_the_motion_check_gives_its_band(monkeypatch, nois
     monkeypatch.setattr(rough, "_judged", lambda *a: calls.append(a[1]) or real(*a))
     assert scanned_mesh_band_mm(wp, 0.0, handed) == fresh and (fresh > 0) == (noise_mm > 0)
     assert calls == (["yes"] if noise_mm > 0 else [])   # a scan's band needs its residuals; CAD: nothing
-
-
-def _wave_mesh(spacing_mm, noise_mm=0.0, jitter=0.0, size_mm=600.0, seed=46):
-    """The wave z = 35 sin(2 pi x / 150) cos(2 pi y / 210) (mm) sampled about ``spacing_mm`` apart (a grid, each
-    node moved up to ``jitter`` spacings, as a mesher's vertices), ``noise_mm`` of Gaussian noise on every
-    coordinate, Delaunay-triangulated in plan: (vertices, faces)."""
-    from scipy.spatial import Delaunay
-
-    rng = np.random.default_rng(seed)
-    x, y = np.meshgrid(np.arange(0.0, size_mm, spacing_mm), np.arange(0.0, size_mm, spacing_mm))
-    x, y = (x.ravel() + rng.uniform(-jitter, jitter, x.size) * spacing_mm,
-            y.ravel() + rng.uniform(-jitter, jitter, x.size) * spacing_mm)
-    V = np.c_[x, y, 35.0 * np.sin(2 * np.pi * x / 150.0) * np.cos(2 * np.pi * y / 210.0)]
-    return V + rng.normal(0.0, noise_mm, V.shape), Delaunay(V[:, :2]).simplices
-
-
-def test_a_coarse_faceted_cad_surface_is_cad_and_a_noisy_scan_of_it_a_scan():
-    """A smooth wave tessellated at 15 mm (facets far coarser than its curvature: rough to the quadric, no two
-    triangles coplanar) is CAD: a quartic takes its residual down, as it does the ocean sheet's; a scan of the same
-    wave (3 mm apart, 0.05 mm of noise) keeps its noise under any fit: a scan."""
-    from scipy.spatial import cKDTree
-
-    from camtool.part.roughness import SMOOTH_DROP, quartic_drop
-
-    V, F = _wave_mesh(15.0, jitter=0.3)
-    r = mesh_roughness(V, faces=F)
-    assert r.median_mm > 10 * SCAN_ROUGHNESS_MM and r.coplanar_share < CAD_COPLANAR_SHARE   # rough, no flat pairs
-    assert not r.is_scan and r.band_mm == 0.0
-    assert quartic_drop(V, cKDTree(V)) < 0.6 * SMOOTH_DROP
-    V, F = _wave_mesh(3.0, noise_mm=0.05, jitter=0.3, size_mm=300.0)
-    r = mesh_roughness(V, faces=F)
-    assert r.is_scan and r.band_mm > 0 and quartic_drop(V, cKDTree(V)) > 1.6 * SMOOTH_DROP

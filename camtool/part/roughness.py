@@ -5,11 +5,9 @@ scanner's noise. Each vertex's residual is its offset, along the local normal, f
 (least squares) to its ``ROUGH_NEIGHBOURS`` nearest other vertices in their own principal frame. On a
 CAD mesh that is the quadric's third-order error (the car hood: median 7e-7 mm, the dac CAD 3e-4 mm);
 on a scan it is the noise (the dac scan 0.009 mm, the panel scan 0.014 mm, the dome scan 0.086 mm). A
-mesh is rough when the median |residual| exceeds ``SCAN_ROUGHNESS_MM``, and a rough mesh is judged as a scan
-unless a tessellator's work shows: ``CAD_COPLANAR_SHARE`` of its triangle pairs coplanar (noether's wavy
-sheet: its cells cut into flat triangles), or a residual that a quartic takes down (``quartic_drop`` at most
-``SMOOTH_DROP``: the vertices lie on a smooth surface tessellated too coarsely for a quadric, Bezier's ocean
-sheet 0.21; a scan's noise stays under any fit, the scans 0.75-0.96).
+mesh is rough -- judged as a scan -- when the median |residual| exceeds ``SCAN_ROUGHNESS_MM``. A
+tessellation too coarse for its curvature (noether's wavy sheet, 9 mm facets on a wave: 0.2 mm) counts
+as rough too: its facets' creases are the bumps the tool meets between poses, as a scan's noise is.
 
 The noise band is measured at the scale the tool meets the scan: each vertex's residual from the quadric
 through its neighbours within two smoothing sigmas (``fit.smoothing_mm``; 0: the free-form surface's own
@@ -37,9 +35,6 @@ from .freeform import SCAN_SMOOTHING_MIN_MM, SCAN_SMOOTHING_SPACINGS
 
 COPLANAR_REL = 1e-5         # two triangles are coplanar when the fourth corner is this share of their edge off the plane
 CAD_COPLANAR_SHARE = 0.005  # a rough mesh with this share of its triangle pairs coplanar is CAD (scans <= 0.16 %, a CAD door 1.62 %)
-SMOOTH_DROP = 0.5           # a rough mesh whose residual a quartic fit takes down to this share is CAD (scans >= 0.75)
-DROP_NEIGHBOURS = (24, 36)  # the quadric's and the quartic's neighbours in that test
-DROP_QUERIES = 5_000        # that test's vertices: at most this many (every k-th; its medians hold to ~2 %)
 ROUGH_NEIGHBOURS = 12       # a vertex's quadric is fitted to this many nearest other vertices
 SCAN_ROUGHNESS_MM = 0.003   # a mesh whose median |residual| exceeds this is rough: judged as a scan
 BAND_QUANTILE = 99.99       # a scan's noise band: this percentile of |residual| (the rows pass over all of them) ...
@@ -60,29 +55,19 @@ class Roughness:
 
 
 def vertex_residuals(vertices_mm: np.ndarray, queries: np.ndarray | None = None,
-                     neighbours: int = ROUGH_NEIGHBOURS, tree: cKDTree | None = None, degree: int = 2) -> np.ndarray:
-    """Each queried vertex's offset (mm, signed) from the quadric (``degree`` > 2: the polynomial of that degree)
-    through its ``neighbours`` nearest others."""
+                     neighbours: int = ROUGH_NEIGHBOURS, tree: cKDTree | None = None) -> np.ndarray:
+    """Each queried vertex's offset (mm, signed) from the quadric through its ``neighbours`` nearest others."""
     V = np.asarray(vertices_mm, float)
     q = np.arange(len(V)) if queries is None else np.asarray(queries)
     k = min(int(neighbours), len(V) - 1)
-    if k < (degree + 1) * (degree + 2) // 2:   # a quadric has six coefficients, a quartic fifteen
+    if k < 6:   # a quadric has six coefficients
         return np.zeros(len(q))
     tree = cKDTree(V) if tree is None else tree
-    return np.concatenate([_residuals(V, q[i:i + CHUNK], k, tree, degree) for i in range(0, len(q), CHUNK)]) \
+    return np.concatenate([_residuals(V, q[i:i + CHUNK], k, tree) for i in range(0, len(q), CHUNK)]) \
         if len(q) else np.zeros(0)
 
 
-def quartic_drop(V: np.ndarray, tree: cKDTree) -> float:
-    """The median |residual| from a quartic over ``DROP_NEIGHBOURS[1]`` neighbours against the quadric's over
-    ``DROP_NEIGHBOURS[0]`` (module doc): a smooth surface's falls, a scan's noise stays (1: too few vertices)."""
-    q = np.arange(0, len(V), max(1, -(-len(V) // DROP_QUERIES)))
-    quadric = np.median(np.abs(vertex_residuals(V, q, DROP_NEIGHBOURS[0], tree)))
-    quartic = np.median(np.abs(vertex_residuals(V, q, DROP_NEIGHBOURS[1], tree, degree=4)))
-    return float(quartic / quadric) if quadric > 0 and len(V) > DROP_NEIGHBOURS[1] else 1.0
-
-
-def _residuals(V, q, k, tree, degree=2):
+def _residuals(V, q, k, tree):
     _, nb = tree.query(V[q], k=k + 1, workers=-1)
     R = V[nb[:, 1:]]
     mid = R.mean(axis=1)
@@ -90,22 +75,13 @@ def _residuals(V, q, k, tree, degree=2):
     vec = np.linalg.eigh(np.einsum("nki,nkj->nij", R, R))[1]   # ascending: the normal first
     local = np.einsum("nki,nij->nkj", R, vec[:, :, ::-1])        # (x, y, height) in the principal frame
     p = np.einsum("ni,nij->nj", V[q] - mid, vec[:, :, ::-1])
-    if degree == 2:
-        def design(x, y):
-            return np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=-1)
 
-        scale = np.einsum("nki,nki->n", R, R)[:, None, None] / k + 1e-12
-    else:   # the quartic in coordinates scaled by the neighbours' RMS radius (its powers stay near 1)
-        s = np.sqrt(np.einsum("nki,nki->n", local[..., :2], local[..., :2]) / k)[:, None] + 1e-12
-        local[..., :2] /= s[..., None]
-        p[:, :2] /= s
+    def design(x, y):
+        return np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=-1)
 
-        def design(x, y):
-            return np.stack([x ** i * y ** (d - i) for d in range(degree + 1) for i in range(d + 1)], axis=-1)
-
-        scale = 1.0
     A = design(local[..., 0], local[..., 1])
-    AtA = np.einsum("nki,nkj->nij", A, A) + 1e-9 * scale * np.eye(A.shape[-1])
+    scale = np.einsum("nki,nki->n", R, R)[:, None, None] / k + 1e-12
+    AtA = np.einsum("nki,nkj->nij", A, A) + 1e-9 * scale * np.eye(6)
     coef = np.linalg.solve(AtA, np.einsum("nki,nk->ni", A, local[..., 2])[..., None])[..., 0]
     return p[:, 2] - np.einsum("ni,ni->n", design(p[:, 0], p[:, 1]), coef)
 
@@ -166,8 +142,7 @@ def _judged(vertices_mm, scan, faces):
     share = None
     if faces is not None and scan == "auto":   # the faces renumbered to the merged vertices
         share = coplanar_share(V, np.asarray(inverse).ravel()[np.asarray(faces)])
-    cad = scan == "auto" and ((share is not None and share >= CAD_COPLANAR_SHARE) or quartic_drop(V, tree) <= SMOOTH_DROP)
-    return not cad, median, share, V, tree, q
+    return not (scan == "auto" and share is not None and share >= CAD_COPLANAR_SHARE), median, share, V, tree, q
 
 
 def mesh_roughness(vertices_mm: np.ndarray, smoothing_mm: float = 0.0, scan: str = "auto",
