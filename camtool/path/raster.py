@@ -101,14 +101,30 @@ def _domain_grid(boundary, n: int = 33) -> np.ndarray:
     return np.stack([U.ravel(), V.ravel()], axis=-1)
 
 
-def _chart_for(surface, angle_rad: float) -> tuple[_Chart, float]:
-    """The metric chart of the surface and the smallest arc-length rate g along rows."""
-    scale = surface.metric_scale(_domain_grid(surface.boundary))
+def _chart_for(surface, angle_rad: float) -> tuple[_Chart, float, float]:
+    """The metric chart of the surface, the smallest arc-length rate g along rows and the largest rate over the
+    face itself (``_face_rate``: the raster's estimate)."""
+    uv = _domain_grid(surface.boundary)
+    scale = surface.metric_scale(uv)
     kx, ky = float(scale[:, 0].max()), float(scale[:, 1].max())
     if not (kx > 0 and ky > 0):
         raise BadInput("surface: degenerate (u, v) parameterisation (zero metric scale)")
     g_lo = float(np.minimum(scale[:, 0] / kx, scale[:, 1] / ky).min())
-    return _Chart(kx, ky, angle_rad), max(g_lo, 0.05)
+    chart = _Chart(kx, ky, angle_rad)
+    return chart, max(g_lo, 0.05), _face_rate(surface.boundary, chart, uv, scale)
+
+
+def _face_rate(boundary, chart: _Chart, uv: np.ndarray, scale: np.ndarray) -> float:
+    """The largest arc length on the surface per mm of chart s (along the rows, <= 1) at the samples inside the
+    face (all of them where none is). The chart's own scale is the largest over the domain's bounding box, whose
+    corners past a free-form face's edge are the height field's continuation: there the geodesic rows may run
+    almost across the chart's x (a 78 x stretch at a corner of the folded sheet's box, 2.6 x within the face, its
+    rows turned 45 deg on it by the placement), and an estimate from it refused a raster of 7 500 poses for
+    "1.49e6" (issue #46)."""
+    inside = np.asarray(boundary.contains(uv), bool)
+    s = np.asarray(scale, float)[inside] if inside.any() else np.asarray(scale, float)
+    rate = np.hypot(s[:, 0] * chart.duv_ds[0], s[:, 1] * chart.duv_ds[1])
+    return float(min(rate.max(), 1.0))
 
 
 # ----------------------------------------------------------------------------- rows and runs
@@ -301,9 +317,9 @@ def raster_path(surface, settings: RasterSettings) -> Path:
         raise BadInput('raster.step_over_mm = "auto" is chosen from the [process] footprint by `camtool run` '
                        '(docs/process.md); here give a number of mm')
     w = _direction(settings.tool_x_world)
-    chart, g_lo = _chart_for(surface, row_angle_rad(surface, settings))
+    chart, g_lo, face_rate = _chart_for(surface, row_angle_rad(surface, settings))
     try:
-        runs, sign = _rows_and_runs(surface.boundary, chart, g_lo, settings).in_raster_order()
+        runs, sign = _rows_and_runs(surface.boundary, chart, face_rate, settings).in_raster_order()
     except _TooManyPoses as e:
         raise BadInput(f"{e}{_upright_note(surface)}") from None
     rows = _row_blocks(surface, chart, g_lo, runs, sign, settings)
@@ -330,6 +346,8 @@ def _upright_note(surface) -> str:
     if surface.model != "freeform":   # an analytic face's u may be an angle: its scale is a radius, not a slope
         return ""
     uv = _domain_grid(surface.boundary)
+    inside = np.asarray(surface.boundary.contains(uv), bool)
+    uv = uv[inside] if inside.any() else uv   # the face's own stretch, not its height field's continuation (#46)
     k = np.asarray(surface.metric_scale(uv), float).max(axis=1)
     i = int(np.argmax(k))
     if not k[i] > STEEP_SCALE:
@@ -393,9 +411,10 @@ class _Poses:
     pos: np.ndarray
 
 
-def _rows_and_runs(boundary, chart: _Chart, g_lo: float, settings: RasterSettings) -> _Runs:
+def _rows_and_runs(boundary, chart: _Chart, face_rate: float, settings: RasterSettings) -> _Runs:
     """The rows across the patch and their runs of material; BadInput for a step-over or pitch larger than the
-    patch, a raster of too many poses or no material."""
+    patch, a raster of too many poses or no material. ``face_rate``: the rows' largest arc length per mm of chart s
+    on the face (``_face_rate``)."""
     step, pitch, lead = settings.step_over_mm, settings.pitch_mm, settings.lead_mm
     m = settings.transition_points
     e0, e1 = _polygon_edges_st(boundary, chart)
@@ -408,9 +427,9 @@ def _rows_and_runs(boundary, chart: _Chart, g_lo: float, settings: RasterSetting
     if pitch > s_hi - s_lo:  # chart s is mm at the largest metric scale: an upper bound of any row's length
         raise BadInput(f"raster.pitch_mm: {pitch:g} mm is longer than the part ({s_hi - s_lo:.1f} mm along the "
                        "rows); use a pitch of a few mm")
-    # the rows' length at half the largest metric scale at least: g_lo is floored at 0.05 for the rows'
-    # spacing, which would make this estimate of the work up to 20 times too large (a free-form chart's rim)
-    estimate = len(rows_t) * ((s_hi - s_lo) / (max(g_lo, 0.5) * pitch) + 2 * (lead / pitch + 1) + m)
+    # a row's work is at most its extent along s at the face's largest arc-length rate (measured on the face, not
+    # on its bounding box: the estimate must not depend on how the placement turns the face's rows, issue #46)
+    estimate = len(rows_t) * ((s_hi - s_lo) * face_rate / pitch + 2 * (lead / pitch + 1) + m)
     cap = min(int(getattr(settings, "max_poses", MAX_POSES)), MAX_POSES)  # time, then memory: before any work
     if estimate > cap:
         raise _TooManyPoses(f"raster: step_over_mm={step:g} and pitch_mm={pitch:g} would give about {estimate:.3g} poses, "
