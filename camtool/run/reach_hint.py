@@ -8,7 +8,9 @@ would) and prints it only if they pass within the joints' limits; else it asks t
 margins (``HINT_MARGINS``), and if none plans, it names no placement (``camtool place`` searches further).
 Where the screen finds no placement at any of those margins, it is asked once more without margins
 (``LAST_MARGINS``: a narrow window, as the IRB2400's wrist bend leaves the noether panel scan), that placement
-planned before it is printed; where it finds none even so, the refusal says so (``NOWHERE``).
+planned before it is printed; where it finds none even so, the refusal says so (``NOWHERE``). Where it names
+no placement, it names ``camtool place`` (``PLACE``), which also tilts the part (``placement/tilt.py``): the
+shift's screen only moves and turns it about z.
 The number of placements tried is fixed (no clock): the same job gives the same hint.
 """
 from __future__ import annotations
@@ -18,6 +20,7 @@ import dataclasses
 from ..errors import CamtoolError
 from ..job import Section
 from ..placement.shift import ShiftSearch, nearest_feasible_shift
+from ..placement.tilt import DEFAULT_MAX_DEG
 from ..timing import limit_findings
 from ..timing.pathlaw import remembered_runs
 from .job_settings import JobSettings
@@ -25,8 +28,9 @@ from .job_settings import JobSettings
 HINT_MARGINS = ((0.02, 0.02), (0.05, 0.05), (0.10, 0.08))  # (reach, joint) margins of the screen, in order
 LAST_MARGINS = (0.0, 0.0)   # where none of those finds a placement: the screen without margins (a narrow window,
                             # as the noether panel's for the IRB2400's wrist bend), planned before it is printed
-NOWHERE = ("no placement within {mm:g} mm (nor turned about z) reaches every pose in the closed-form screen; "
-           "camtool place searches wider (--vary)")
+PLACE = ("camtool place searches wider (--vary) and, where no upright placement plans, tilts the part on its "
+         f"fixture (roll, pitch up to --tilt-max-deg, {DEFAULT_MAX_DEG:g} deg unless given)")
+NOWHERE = "no placement within {mm:g} mm (nor turned about z) reaches every pose in the closed-form screen; " + PLACE
 SCREENED = "reaches every pose in the closed-form screen (camtool place searches further)"
 PLANNED = "plans and times every pose (tried)"
 
@@ -81,6 +85,5 @@ def planned_shift(job, settings, robot, path, margins=HINT_MARGINS) -> dict | No
             return {**shift, "planned": True, "message": shift["message"].replace(SCREENED, PLANNED)}
         last = {**shift, "planned": False, "not_planned": tried[key],
                 "message": f"none of the {len(tried)} nearest placements the closed-form screen reaches plans too "
-                           f"(report.json: nearest_feasible_shift; the last fails: {tried[key]}); camtool place "
-                           "searches placements and plans them"}
+                           f"(report.json: nearest_feasible_shift; the last fails: {tried[key]}); {PLACE}"}
     return last if last is not None else first
