@@ -40,7 +40,6 @@ from ..program.post import thin_waypoints
 from .post_inputs import write_job_programs
 from ..path.axis_tilt import AxisTiltSettings, TiltRefused, tilted_axes
 from ..path.turn_split import split_turns
-from ..path.facet_rows import FacetRowSettings, facet_rows
 from ..path.lead_clearance import cleared_leads
 from ..path.raster import raster_path
 from ..report.run_report import (
@@ -459,36 +458,11 @@ def shaped_for_part(settings: JobSettings, surface, path, part, robot=None) -> t
         return path, None
     figures = None
     if _leads_may_meet(settings, part):
-        path = _on_facet_edges(settings, surface, path, part)
         geometry = part_from_path(part, path)
         if robot is not None and settings.raster.axis_tilt_max_rad > 0:
             path, figures = _tilted(settings, path, geometry, robot, only)
         path = _leads_cleared(settings, surface, path, geometry, only)
     return split_turns(path, _freeform_projectors(surface, path))[0], figures
-
-
-def _on_facet_edges(settings: JobSettings, surface, path, part):
-    """``path`` with the work runs of its CAD mesh's free-form faces sampled again with a pose at every facet edge
-    they cross (``path.facet_rows``: the sag and the timed spline's check then split no step around the kinks, and
-    the feed holds); a scanned mesh's or a cloud's faces keep their poses (their surface is smoothed, not facets)."""
-    if part is None or part.faces is None or part.vertices_mm is None:
-        return path
-    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
-    if not any(getattr(f, "on_mesh_facets", False) for f in faces) or path.pitch_mm <= 0:
-        return path
-    if mesh_is_scan(part.vertices_mm, settings.workpiece.scan, part.faces):
-        return path
-    on = [(m, p) for (m, p), f in zip(_freeform_projectors(surface, path), _freeform_faces(surface, path))
-          if f.on_mesh_facets]
-    rows = FacetRowSettings(pitch_mm=path.pitch_mm, band_mm=0.5 * settings.planner.chord_tol_mm)
-    return facet_rows(path, on, rows)[0]
-
-
-def _freeform_faces(surface, path) -> list:
-    """The free-form faces of ``surface``, in ``_freeform_projectors``' order."""
-    if isinstance(surface, FaceSet):
-        return [f for f in surface.surfaces if f.model == "freeform" and path.face is not None]
-    return [surface] if surface.model == "freeform" else []
 
 
 def _freeform_projectors(surface, path) -> list:

@@ -1,40 +1,56 @@
-"""A CAD mesh face's rows with a pose at every facet edge they cross: a path modifier (issue #46).
+"""Which lever holds the work feed on a free-form face (issue #46): the facets under the rows, or the tool axes?
 
-On a CAD mesh's free-form face the raster's work poses lie on the part's own facets (``FreeformSurface.project_mm``),
-``raster.pitch_mm`` apart. A row's trace on the facets is a polyline that kinks at every facet edge it crosses, and
-with poses at an even pitch those kinks fall inside the steps: the chord of such a step runs behind a crest (or in
-front of a trough) by up to a quarter of the step times the kink (a 5 mm step over a 6 deg kink: 0.13 mm, the sag's
-tolerance is ``planner.chord_tol_mm / 2`` = 0.025 mm). The planner's sag (``plan.sag``) and the timed spline's
-depth check (``plan.spline_bow``) then split those steps down to 0.6-1.25 mm pieces around each kink, and the
-joint jerk of the time law's spline grows as 1 / h^2 there: the bezier ocean sheet (15-22 mm facets) held a
-median work feed of 21.5 of 100 mm/s.
+    PYTHONPATH=. python benchmarks/feed_levers.py JOB.toml [--levers raster,axes_lowpass,facet_knots] [--sigma-mm 10]
 
-Here each work run on such a face is traced on the facets (its steps' chords, sampled every ``trace_step_mm``,
-taken onto the face along the step's mean tool axis), the trace is reduced to the fewest vertices whose chords stay
-within ``band_mm`` of it (Ramer-Douglas-Peucker: the kinks, the facet edges the row crosses), and the run is
-sampled again on that polyline: every vertex a pose, the chord between two vertices cut into the fewest equal
-steps no longer than the pitch, each new point taken onto the face. Every step then lies on one facet (within the
-band), the sag and the spline check find nothing to add, and each kink sits at a pose with steps of up to the
-pitch on both sides: under a band this narrow (a blend of a 6 deg kink within 0.025 mm is 2 mm long) no smooth
-curve through poses a pitch apart turns more gently than that. The tool axes are the raster's own, slerped by the
-distance along the trace (they come from the face's smoothed normals, not from the facets).
+Rasters JOB as ``camtool run`` shapes it (``run.stages.path_for_job`` with its workpiece), plans it with every
+insert (``run.stages.plan_for_job``: the sag's, densify's and the timed spline's midposes), and prints the rows
+each of them inserted and ``feed_budget``'s row feed bounds (every row, and the Path's own poses only) for:
 
-A run whose trace leaves the face (a hole under a step, another layer of a face that overhangs its chart plane)
-keeps its poses. Leads, connectors, analytic faces and scans keep theirs.
+- ``raster``: the path as ``camtool run`` plans it;
+- ``axes_lowpass``: the same with each work run's tool orientations low-passed along the row (a Gaussian of
+  ``--sigma-mm`` over the quaternions; positions kept): what smoother tool axes would give. The axis tolerance of
+  issue #46 (p95 3 deg off the normal averaged over 10-15 mm) is not checked here;
+- ``facet_knots``: each work run of a CAD mesh's face sampled again with a pose at every facet edge it crosses
+  (``facet_rows`` below: every step on one facet, so the sag has nothing to split), its orientations from scipy's
+  C2 ``RotationSpline`` through the raster's own.
 
-Why by hand: no library resamples a tool path at a mesh's facet edges; numpy does the trace and the simplification,
-scipy the slerp, the face's own projector (open3d's ray casting) the points on the facets.
+No time law is planned (``feed_budget``'s bounds; the S-curves' ramps only lower the feed). Measured (main at
+4e6ea6d, irb2400, 100 mm/s, sigma 10 mm) on the noether wavy sheet (9 mm facets, the benchmark's generic placement)
+and the bezier ocean sheet (15-22 mm facets, ``camtool place``'s placement; judged a scan by ``part.roughness``:
+its sag takes the arc through the tool axes, so the facet lever does not apply there):
+
+    part / lever          sag rows  densify rows  spline rows  row bound median: every row / Path's poses only
+    wavy  raster              1117           781           23      20.7 / 52.9 mm/s  (report.json's p50: 20.7)
+    wavy  axes_lowpass        1018           440           47      31.3 / 68.9
+    wavy  facet_knots           13           890           63      21.3 / 45.5   (axes slerped instead: 21.6 / 32.0)
+    ocean raster               869          2155            0      27.9 / 59.2       (report.json's p50: 21.5)
+    ocean axes_lowpass         679          1974            0      35.7 / 47.7
+
+So the facets are not what holds the feed down: the knots at the facet edges take the sag's 1117 midposes away,
+but the joint jerk of j4 still binds where densify's midposes go (the wrist swings: up to 4.6 deg of j4 in a 5 mm
+step, j5 within 15-20 deg on 10 % of the wavy's work), and low-passing the wavy's positions by 10 mm (off the
+facets, tolerance ignored) leaves its Path's-poses bound at 52.9. The tool axes are a lever: low-passed over 10 mm
+they lift the every-row bound by half on the wavy and by 28 % on the ocean. Re-sampling the rows at the facet edges
+with the axes slerped between the old poses lowered the bound (32.0): a slerp kinks the axes at every old pose, and
+new poses near those kinks sharpen them for the time law's cubic spline.
 """
 from __future__ import annotations
 
+import argparse
 import math
+import sys
 from dataclasses import dataclass, replace
+from pathlib import Path as FilePath
 from typing import Callable, Sequence
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.ndimage import gaussian_filter1d
+from scipy.spatial.transform import Rotation, RotationSpline, Slerp
 
-from .toolpath import WORK, Path
+sys.path.insert(0, str(FilePath(__file__).resolve().parent))
+import feed_budget  # noqa: E402
+
+from camtool.path.toolpath import WORK, ZONES, Path  # noqa: E402
 
 Projector = Callable[..., np.ndarray]   # points (m, 3) mm onto a face (``along=`` unit lines; NaN where none)
 
@@ -58,10 +74,6 @@ class FacetRowFigures:
     kept: int = 0
     poses_before: int = 0
     poses_after: int = 0
-
-    def to_dict(self) -> dict:
-        return {"runs": self.runs, "kept": self.kept, "poses_before": self.poses_before,
-                "poses_after": self.poses_after}
 
 
 def work_runs(path: Path, mask: np.ndarray) -> list[tuple[int, int]]:
@@ -172,7 +184,9 @@ def resampled_run(poses: np.ndarray, project: Projector, settings: FacetRowSetti
         points.append(A + f * (B - A))
         s_new.append(s_trace[a] + f[:, 0] * (s_trace[b] - s_trace[a]))
     X, s = np.concatenate(points), np.concatenate(s_new)
-    rot = Slerp(s_trace[at], Rotation.from_matrix(poses[:, :3, :3]))(np.clip(s, 0.0, s_trace[-1])).as_matrix()
+    R = Rotation.from_matrix(poses[:, :3, :3])   # a C2 rotation spline: a slerp kinks the axes at every old pose
+    rot = (RotationSpline(s_trace[at], R) if len(poses) > 2 else Slerp(s_trace[at], R))(
+        np.clip(s, 0.0, s_trace[-1])).as_matrix()
     inner = np.arange(1, len(X) - 1)   # the run's ends stay where they were (its leads start there)
     if len(inner):
         onto = project(X[inner], along=rot[inner, :, 2])
@@ -226,3 +240,72 @@ def _with_runs(path: Path, new: dict) -> Path:
         point[rows] = np.arange(1, rows.sum() + 1)
     return replace(path, poses_mm=np.concatenate(poses), segment=seg, point=point, zone=zone, face=take(path.face),
                    contour=take(path.contour))
+
+
+# --- the levers, measured ----------------------------------------------------------------------------------------
+def axes_lowpassed(path: Path, sigma_mm: float) -> Path:
+    """``path`` with each work run's orientations low-passed along it (a Gaussian of ``sigma_mm`` over the
+    quaternions, the pitch apart; its end poses kept)."""
+    P = np.asarray(path.poses_mm, float).copy()
+    for a, b in work_runs(path, np.ones(len(path), bool)):
+        q = Rotation.from_matrix(P[a:b + 1, :3, :3]).as_quat()
+        q *= np.sign(q @ q[0])[:, None]
+        q = gaussian_filter1d(q, sigma_mm / max(path.pitch_mm, 1e-9), axis=0, mode="nearest")
+        P[a + 1:b, :3, :3] = Rotation.from_quat(q / np.linalg.norm(q, axis=1)[:, None]).as_matrix()[1:-1]
+    return replace(path, poses_mm=P)
+
+
+def on_facet_edges(settings, surface, path: Path) -> Path:
+    """``path`` with its CAD mesh faces' work runs sampled again at the facet edges (``facet_rows``)."""
+    from camtool.part.surface import FaceSet
+
+    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
+    on = [(np.ones(len(path), bool) if not isinstance(surface, FaceSet) else path.face == i, f.project_mm)
+          for i, f in zip(getattr(surface, "indices", [0]), faces) if getattr(f, "on_mesh_facets", False)]
+    return facet_rows(path, on, FacetRowSettings(path.pitch_mm, 0.5 * settings.planner.chord_tol_mm))[0]
+
+
+def measured(name: str, path: Path, job, settings, wp, surface, robot) -> None:
+    """Plan ``path`` with every insert and print the inserts and the row feed bounds."""
+    from camtool.run import stages
+    from camtool.timing.feed import tcp_positions_world
+
+    jp = stages.plan_for_job(settings, path, robot, workpiece=stages.part_for_checks(settings, wp, surface),
+                             surface=surface)
+    rows = {k: jp.events.get(k, {}).get("rows") for k in ("sag_steps", "densified_steps", "spline_steps")}
+    pidx = np.asarray(jp.path_index)
+    q = np.asarray(jp.q, float)
+    d = {"zone": np.array([ZONES[c] for c in jp.zone]), "path_index": pidx, "q": q,
+         "segment": np.asarray(path.segment)[np.maximum.accumulate(np.where(pidx >= 0, pidx, 0))],
+         "xyz": tcp_positions_world(robot, q)}
+    feed = settings.timing.tcp_speed_mm_s
+    r = [feed_budget.budget(d, feed_budget.surface_runs(d), robot.limits, feed, only) for only in (False, True)]
+    print(f"{name:14s} inserted rows: sag {rows['sag_steps']}, densify {rows['densified_steps']}, spline "
+          f"{rows['spline_steps']}; row bound median every row {r[0]['median']:.1f} (least {r[0]['least']:.1f}), "
+          f"Path's poses only {r[1]['median']:.1f} mm/s", flush=True)
+
+
+def main() -> None:
+    from camtool.job import load_job
+    from camtool.run import stages
+    from camtool.run.job_settings import JobSettings
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("job")
+    ap.add_argument("--levers", default="raster,axes_lowpass,facet_knots")
+    ap.add_argument("--sigma-mm", type=float, default=10.0)
+    a = ap.parse_args()
+    job = load_job(a.job, [])
+    wp = stages.workpiece_for_job(job)
+    surface = stages.surface_for_job(job, wp)
+    robot = stages.robot_for_job(job)
+    settings = stages.with_scan_verdict(JobSettings.from_job(job), wp)
+    path = stages.path_for_job(job, surface, wp)
+    levers = {"raster": lambda: path, "axes_lowpass": lambda: axes_lowpassed(path, a.sigma_mm),
+              "facet_knots": lambda: on_facet_edges(settings, surface, path)}
+    for name in a.levers.split(","):
+        measured(name, levers[name](), job, settings, wp, surface, robot)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,15 +1,19 @@
-"""path.facet_rows: a row across a faceted cylinder gets a pose at every facet edge, and every step on one facet.
+"""benchmarks/feed_levers.py's facet_rows: a row across a faceted cylinder gets a pose at every facet edge, and every step on one facet.
 
 The reference is the part's own mesh (trimesh's closest points on the prism's triangles) and the polygon's corners
 in closed form; the projector the module is given is the prism's, by a 2-D line cut written here."""
 from __future__ import annotations
 
 import math
+import sys
+from pathlib import Path as FilePath
 
 import numpy as np
 import trimesh
+from scipy.spatial.transform import Rotation
 
-from camtool.path.facet_rows import FacetRowSettings, facet_rows, simplified, work_runs
+sys.path.insert(0, str(FilePath(__file__).resolve().parents[1] / "benchmarks"))
+from feed_levers import FacetRowSettings, axes_lowpassed, facet_rows, simplified, work_runs  # noqa: E402
 from camtool.path.toolpath import ZONE_CODE, Path
 from camtool.plan.sag import ON_FACE_MM
 
@@ -140,3 +144,21 @@ def test_simplified_keeps_the_kinks_of_a_polyline():
     y = np.where(t < 10, 0.0, np.where(t < 20, 0.2 * (t - 10), 2.0 - 0.1 * (t - 20)))
     keep = simplified(np.c_[t, y, np.zeros_like(t)], 0.01)
     assert list(t[keep]) == [0.0, 10.0, 20.0, 30.0]
+
+
+def test_axes_lowpassed_smooths_the_axes_and_keeps_the_points():
+    rng = np.random.default_rng(3)
+    path = _row_path()
+    w = np.flatnonzero(path.zone == ZONE_CODE["work"])
+    noisy = path.poses_mm.copy()
+    wobble = Rotation.from_rotvec(np.c_[rng.normal(0.0, 0.02, len(w)), np.zeros(len(w)), np.zeros(len(w))])
+    noisy[w, :3, :3] = (Rotation.from_matrix(noisy[w, :3, :3]) * wobble).as_matrix()
+    rough = Path(noisy, path.segment, path.point, path.zone, pitch_mm=PITCH_MM)
+    out = axes_lowpassed(rough, 10.0)
+    assert np.array_equal(out.poses_mm[:, :3, 3], rough.poses_mm[:, :3, 3])
+    assert np.array_equal(out.poses_mm[w[[0, -1]]], rough.poses_mm[w[[0, -1]]])
+
+    def turn_deg(P):   # the largest turn of the tool axis between neighbouring work poses
+        z = P[w, :3, 2]
+        return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", z[:-1], z[1:]), -1, 1))).max()
+    assert turn_deg(out.poses_mm) < 0.5 * turn_deg(rough.poses_mm)
