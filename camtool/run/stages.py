@@ -40,6 +40,7 @@ from ..program.post import thin_waypoints
 from .post_inputs import write_job_programs
 from ..path.axis_tilt import AxisTiltSettings, TiltRefused, tilted_axes
 from ..path.turn_split import split_turns
+from ..path.axis_lowpass import AxisLowpassSettings, lowpassed_axes
 from ..path.lead_clearance import cleared_leads
 from ..path.raster import raster_path
 from ..report.run_report import (
@@ -448,7 +449,8 @@ def clearance_part(settings: JobSettings, workpiece, surface):
 
 def shaped_for_part(settings: JobSettings, surface, path, part, robot=None) -> tuple:
     """(``path`` shaped to ``part`` (``part_for_checks``), the tilt's figures for report.json or None): its
-    free-form faces' tool axes tilted clear of the part where the tool or the wrist would be in it (with
+    free-form faces' tool orientations low-passed along their rows (``path.axis_lowpass``: the wrist's jerk
+    follows their wobble), then their tool axes tilted clear of the part where the tool or the wrist would be in it (with
     ``robot``: ``_tilted``), then their leads lifted clear of it (``_leads_cleared``), then their work steps that
     turn the tool axis by more than 5 deg cut into pieces on the face (``path.turn_split``, whatever the part). A
     path of no free-form face comes back as it was, one of a part its poses cannot meet (``_leads_may_meet``)
@@ -456,6 +458,7 @@ def shaped_for_part(settings: JobSettings, surface, path, part, robot=None) -> t
     only = _freeform_poses(surface, path)
     if only is None or not only.any():
         return path, None
+    path = lowpassed_axes(path, only, AxisLowpassSettings())
     figures = None
     if _leads_may_meet(settings, part):
         geometry = part_from_path(part, path)
