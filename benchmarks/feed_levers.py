@@ -6,18 +6,19 @@ Rasters JOB as ``camtool run`` shapes it (``run.stages.path_for_job`` with its w
 insert (``run.stages.plan_for_job``: the sag's, densify's and the timed spline's midposes), and prints the rows
 each of them inserted and ``feed_budget``'s row feed bounds (every row, and the Path's own poses only) for:
 
-- ``raster``: the path as ``camtool run`` plans it;
-- ``axes_lowpass``: the same with each work run's tool orientations low-passed along the row (a Gaussian of
-  ``--sigma-mm`` over the quaternions; positions kept): what smoother tool axes would give. The axis tolerance of
-  issue #46 (p95 3 deg off the normal averaged over 10-15 mm) is not checked here;
+- ``raster``: the path as ``camtool run`` plans it (since ``path.axis_lowpass``, its orientations low-passed along
+  the rows over 10 mm);
+- ``axes_lowpass``: the same with each work run's tool orientations low-passed (again) along the row (a Gaussian of
+  ``--sigma-mm`` over the quaternions, ends held; positions kept): what smoother tool axes would give. The axis
+  tolerance of issue #46 (p95 3 deg off the normal averaged over 10-15 mm) is not checked here;
 - ``facet_knots``: each work run of a CAD mesh's face sampled again with a pose at every facet edge it crosses
   (``facet_rows`` below: every step on one facet, so the sag has nothing to split), its orientations from scipy's
   C2 ``RotationSpline`` through the raster's own.
 
-No time law is planned (``feed_budget``'s bounds; the S-curves' ramps only lower the feed). Measured (main at
-4e6ea6d, irb2400, 100 mm/s, sigma 10 mm) on the noether wavy sheet (9 mm facets, the benchmark's generic placement)
-and the bezier ocean sheet (15-22 mm facets, ``camtool place``'s placement; judged a scan by ``part.roughness``:
-its sag takes the arc through the tool axes, so the facet lever does not apply there):
+No time law is planned (``feed_budget``'s bounds; the S-curves' ramps only lower the feed). Measured before
+``path.axis_lowpass`` (main at 4e6ea6d, irb2400, 100 mm/s, sigma 10 mm) on the noether wavy sheet (9 mm facets,
+the benchmark's generic placement) and the bezier ocean sheet (15-22 mm facets, ``camtool place``'s placement;
+judged a scan by ``part.roughness``: its sag takes the arc through the tool axes, so the facet lever does not apply):
 
     part / lever          sag rows  densify rows  spline rows  row bound median: every row / Path's poses only
     wavy  raster              1117           781           23      20.7 / 52.9 mm/s  (report.json's p50: 20.7)
@@ -29,10 +30,11 @@ its sag takes the arc through the tool axes, so the facet lever does not apply t
 So the facets are not what holds the feed down: the knots at the facet edges take the sag's 1117 midposes away,
 but the joint jerk of j4 still binds where densify's midposes go (the wrist swings: up to 4.6 deg of j4 in a 5 mm
 step, j5 within 15-20 deg on 10 % of the wavy's work), and low-passing the wavy's positions by 10 mm (off the
-facets, tolerance ignored) leaves its Path's-poses bound at 52.9. The tool axes are a lever: low-passed over 10 mm
-they lift the every-row bound by half on the wavy and by 28 % on the ocean. Re-sampling the rows at the facet edges
-with the axes slerped between the old poses lowered the bound (32.0): a slerp kinks the axes at every old pose, and
-new poses near those kinks sharpen them for the time law's cubic spline.
+facets, tolerance ignored) leaves its Path's-poses bound at 52.9. The tool axes are the lever: low-passed over
+10 mm they lift the every-row bound by half on the wavy, by 28 % on the ocean, and the dome scan's from 30.7 to
+46.1 (``path.axis_lowpass`` does it in ``camtool run`` now). Re-sampling the rows at the facet edges with the axes
+slerped between the old poses lowered the bound (32.0): a slerp kinks the axes at every old pose, and new poses
+near those kinks sharpen them for the time law's cubic spline.
 """
 from __future__ import annotations
 
