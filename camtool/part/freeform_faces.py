@@ -76,7 +76,8 @@ SOLID_NEIGHBOURS = 8      # neighbours of a sample point for the solidity and th
 SMOOTH_BORDER_SHARE = 0.5 # ... and less than this share of its border runs along smooth seams (no fragment)
 SEAM_PAIRS = 200          # neighbouring point pairs a seam's angle is measured on at most
 OFF_SURFACE_THRESHOLDS = 10.0  # a point of a free-form region farther than this many thresholds is not its face's
-MIN_FREE_SHARE = 0.05     # a free-form region holds at least this share of the sample (a scan's thin rim is none)
+MIN_FREE_SHARE = 0.05     # a free-form region holds at least this share of the sample (a scan's thin rim is none) ...
+MIN_FREE_SHARE_MESH = 0.02  # ... of a mesh's, this (no noisy rim: a propeller's blade side, 1/10 of its sides)
 JOIN_PASSES = 3           # passes of edge points joining the regions of their neighbours
 MIN_REGION_SHARE = 0.01   # regions holding less than this share of the sample are not faces of their own
 
@@ -139,13 +140,18 @@ def smooth_regions(P: np.ndarray, N: np.ndarray | None, sharp_edge_deg: float, c
     k = min(EDGE_NEIGHBOURS, n - 1) + 1
     dist, nb = tree.query(P, k=k)
     spacing = max(float(np.median(dist[:, 1])), 1e-9)
+    oriented = N is not None
     N = _pca_normals(P, nb) if N is None else _unit(np.asarray(N, float))
     cos_sharp = math.cos(math.radians(sharp_edge_deg))
-    cos_nb = np.abs(np.einsum("ij,ikj->ik", N, N[nb]))   # unsigned: scans' normals are unoriented
+    signed_nb = np.einsum("ij,ikj->ik", N, N[nb])
+    cos_nb = np.abs(signed_nb)   # unsigned: scans' normals are unoriented
     within = dist <= EDGE_SPACINGS * spacing
     edge = _edge_points(P, dist, cos_nb, cos_sharp, spacing, None if mesh is None else (*mesh, sharp_edge_deg))
+    # a mesh's oriented normals facing apart lie on the two sides of a thin wall (a propeller blade 5 mm thick
+    # sampled 1.7 mm apart), not on one smooth surface: they are no link, and no edge either (unsigned above)
+    cos_link = signed_nb if oriented else cos_nb
     # the smooth points linked to their near neighbours that are smooth too
-    link = within & (dist <= connect_spacings * spacing) & (cos_nb >= cos_sharp) & ~edge[:, None] & ~edge[nb]
+    link = within & (dist <= connect_spacings * spacing) & (cos_link >= cos_sharp) & ~edge[:, None] & ~edge[nb]
     link[:, 0] = False
     rows = np.repeat(np.arange(n), k)[link.ravel()]
     cols = nb.ravel()[link.ravel()]
@@ -158,7 +164,7 @@ def smooth_regions(P: np.ndarray, N: np.ndarray | None, sharp_edge_deg: float, c
         e = np.flatnonzero(label < 0)
         if len(e) == 0:
             break
-        ok = (label[nb[e]] >= 0) & (cos_nb[e] >= cos_sharp) & within[e]
+        ok = (label[nb[e]] >= 0) & (cos_link[e] >= cos_sharp) & within[e]
         first = np.argmax(ok, axis=1)
         has = ok[np.arange(len(e)), first]
         if not has.any():
@@ -278,7 +284,9 @@ def _region_workpiece(workpiece, idx: np.ndarray, point_region: np.ndarray, r: i
         V = np.asarray(V, float)
         F = np.asarray(F)
         if triangle_label is None:
-            _, near = cKDTree(P).query(V[F].mean(axis=1))
+            T = V[F]
+            near = _nearest_facing(cKDTree(P), np.asarray(workpiece.normals, float), T.mean(axis=1),
+                                   np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]))
             triangle_label = point_region[near]
         tris = F[triangle_label == r]
         if len(tris) == 0:
@@ -302,6 +310,22 @@ def _holding_chart(tree: cKDTree, label: np.ndarray, axes: np.ndarray, Q: np.nda
     best = np.argmax(cos, axis=1)
     rows = np.arange(len(Q))
     return np.where(cos[rows, best] >= math.cos(math.radians(MAX_SLOPE_DEG)), cand[rows, best], -1)
+
+
+def _nearest_facing(tree: cKDTree, normals: np.ndarray | None, Q: np.ndarray, NQ: np.ndarray | None) -> np.ndarray:
+    """Index of each query point's nearest tree point whose oriented normal faces its own way (of its
+    ``SOLID_NEIGHBOURS`` nearest; the nearest when none does, or when either has no oriented normals): across a
+    wall thinner than the sample's spacing (a propeller blade's trailing edge) the nearest point lies on the
+    wall's other side."""
+    k = min(SOLID_NEIGHBOURS, tree.n)
+    _, nb = tree.query(Q, k=k)
+    nb = nb.reshape(len(Q), k)
+    if normals is None or NQ is None or k < 2:
+        return nb[:, 0]
+    facing = np.einsum("ij,ikj->ik", _unit(NQ), _unit(normals)[nb]) > 0.0
+    first = np.argmax(facing, axis=1)
+    rows = np.arange(len(Q))
+    return np.where(facing[rows, first], nb[rows, first], nb[:, 0])
 
 
 @dataclass(frozen=True)
@@ -443,12 +467,14 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
     for r in range(int(region.max()) + 1):
         idx = np.flatnonzero(region == r)
         groups[r] = _smooth_groups(idx, owner_s, nb, P[pick], by_index, cos_sharp)
-    free = [r for r in groups if (region == r).sum() >= MIN_FREE_SHARE * len(pick)
+    min_free = MIN_FREE_SHARE_MESH if mesh else MIN_FREE_SHARE
+    free = [r for r in groups if (region == r).sum() >= min_free * len(pick)
             and _is_freeform(np.flatnonzero(region == r), owner_s, groups[r])]
     if not free:
         return seg
     # each workpiece point's region: its nearest sample point's
-    _, near = tree.query(np.where(np.isfinite(P), P, 0.0))
+    near = _nearest_facing(tree, N, np.where(np.isfinite(P), P, 0.0),
+                           np.asarray(workpiece.normals, float) if mesh else None)
     point_region = region[near]
     kept = []
     for f in faces:   # an analytic face that lies mostly in a free-form region is a fragment of it, unless it
