@@ -483,7 +483,8 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
             kept.append(f)
             continue
         r = np.bincount(np.maximum(region[s], 0) if (region[s] >= 0).any() else [0]).argmax()
-        if r not in free or (region[s] == r).mean() <= 0.5:
+        # mostly in free-form regions, if in several: a cylinder over both sides of a thin blade's tip
+        if r not in free or np.isin(region[s], free).mean() <= 0.5:
             kept.append(f)
             continue
         solid = float((owner_s[nb[s, 1:]] == f.index).mean())
