@@ -20,9 +20,11 @@ where the analytic faces really hold it:
    point spacings turn its normal (unsigned) by more. The
    other points, linked to their nearest neighbours closer than ``sampling.CONNECT_SPACINGS``
    spacings, fall into connected regions; an edge point joins the region of its nearest
-   non-edge neighbour whose normal agrees within ``sharp_edge_deg``.
-2. **Analytic or free-form.** A region smaller than ``MIN_FREE_SHARE`` of the sample
-   stays as RANSAC left it (a scan's thin rim). A larger region is analytic when the RANSAC faces hold at least
+   non-edge neighbour whose normal agrees within ``sharp_edge_deg``. A mesh's normals are oriented: neighbours
+   facing apart are the two sides of a thin wall (a propeller blade), no link; each workpiece point then takes
+   the region of its nearest sample point facing its way (``_nearest_facing``).
+2. **Analytic or free-form.** A region smaller than ``MIN_FREE_SHARE`` of the sample (a mesh's:
+   ``MIN_FREE_SHARE_MESH``) stays as RANSAC left it (a scan's thin rim). A larger region is analytic when the RANSAC faces hold at least
    ``COVER_SHARE`` of its points and no more than ``MAX_PIECES`` of them meet one another
    at smooth seams (a dome on a cylinder, a fillet between two planes: two or three
    models meeting along tangent seams; a seam is smooth when the two models' normals at
