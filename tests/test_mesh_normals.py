@@ -96,3 +96,22 @@ def test_a_bilges_normals_are_its_own_averaged_on_the_surface_at_the_tools_scale
     disc = _exact_mean(on, 0.0, disc_mm=2 * NORMAL_SMOOTHING_MM)
     assert np.max(_angle_deg(got, gauss)) < 0.8, _angle_deg(got, gauss)
     assert np.max(_angle_deg(got, disc)) < 4.0, _angle_deg(got, disc)
+
+
+def test_a_closed_slabs_far_skin_is_left_out_and_its_rim_kept():
+    """A closed 100 x 60 x 4 mm slab seen from above: its top's pieces are taken, its bottom's (under the top by 4
+    mm: another layer of the part) are not, its side walls' (steeper than STEEP_KEPT_DEG) are; the pieces' area is
+    the top's and the walls' exactly, and no piece's edge is longer than PIECE_SIGMAS sigma."""
+    from camtool.part.freeform_exact import ChartMesh
+    from camtool.part.mesh_normals import PIECE_SIGMAS, mesh_pieces
+
+    box = trimesh.creation.box(extents=(100.0, 60.0, 4.0))
+    sigma = 6.0
+    cen, nrm, area = mesh_pieces(ChartMesh(np.asarray(box.vertices), np.asarray(box.faces)), sigma)
+    top, bottom = nrm[:, 2] > 0.99, nrm[:, 2] < -0.99
+    walls = np.abs(nrm[:, 2]) < 0.01
+    assert not bottom.any()
+    assert math.isclose(area[top].sum(), 100.0 * 60.0, rel_tol=1e-9)
+    assert math.isclose(area[walls].sum(), 2 * (100.0 + 60.0) * 4.0, rel_tol=1e-9)
+    assert (top | walls).all()
+    assert np.all(np.sqrt(2.0 * area) <= PIECE_SIGMAS * sigma * 1.0001)      # a right triangle's legs bound its area

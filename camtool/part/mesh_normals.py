@@ -27,6 +27,7 @@ WINDOW_SIGMAS = 3.0     # the window is cut at this x sigma in 3-D (the Gaussian
 LATTICE_SIGMAS = 3.0    # the sum is taken every sigma / this along the grid (at least every node)
 PRIOR_SHARE = 0.01      # the chart's normal weighs this share of a full window (it takes over ~2 sigma past the mesh)
 HIDDEN_MM = 0.05        # a piece this far below the top-most triangle over it is another layer (float32 rays)
+STEEP_KEPT_DEG = 80.0   # ... but a piece this steep from the chart is kept (a hull's side rolling under its bilge)
 CHUNK_NODES = 2000      # nodes whose windows are summed at a time (memory)
 
 
@@ -44,7 +45,9 @@ def mesh_pieces(mesh, sigma_mm: float):
     two_area = np.linalg.norm(cross, axis=1)
     cen = T.mean(axis=1)
     top = mesh.heights(cen[:, 0], cen[:, 1])
-    ok = (two_area > 1e-12) & ~(top - cen[:, 2] > HIDDEN_MM)        # NaN (edge-on to the chart): kept
+    n = cross / np.maximum(two_area, 1e-300)[:, None]
+    steep = np.abs(n[:, 2]) < math.cos(math.radians(STEEP_KEPT_DEG))  # a wall rolling past the chart's vertical
+    ok = (two_area > 1e-12) & (steep | ~(top - cen[:, 2] > HIDDEN_MM))   # NaN (edge-on to the chart): kept
     return cen[ok], cross[ok] / two_area[ok, None], 0.5 * two_area[ok]
 
 
