@@ -53,30 +53,53 @@ def mesh_pieces(mesh, sigma_mm: float):
 
 def mesh_normals(chart_normals: np.ndarray, height: np.ndarray, grid, frame: np.ndarray, mesh,
                  sigma_mm: float) -> np.ndarray:
-    """(ny, nx, 3) unit normals (world, towards the tool): the face's triangles (``mesh``: a ``ChartMesh``) averaged over a Gaussian of ``sigma_mm`` of the 3-D distance from each node's surface point
-    (module doc); ``chart_normals`` (the height field's) give each node's side and hold where no triangle is near."""
+    """(ny, nx, 3) unit normals (world, towards the tool): the face's triangles (``mesh``: a ``ChartMesh``) averaged
+    over a Gaussian of ``sigma_mm`` of the 3-D distance from each node's surface point (module doc), where the
+    chart's window holds a node tilted from ``STEEP_FROM_DEG`` (fully from ``STEEP_FULL_DEG``); elsewhere the chart's
+    own (``chart_normals``, which also give each node its side and hold where no triangle is near)."""
+    from scipy.ndimage import binary_dilation, maximum_filter
+
+    from .freeform_normals import STEEP_FROM_DEG, STEEP_FULL_DEG, _bilinear
+
     if sigma_mm <= 0 or not len(mesh.faces):
         return chart_normals
-    from .freeform_normals import _bilinear
-
     g = grid.g
-    cen, nrm, area = mesh_pieces(mesh, sigma_mm)
-    if not len(cen):
+    reach = int(math.ceil(WINDOW_SIGMAS * sigma_mm / g))
+    tilt_deg = np.degrees(np.arccos(np.clip(chart_normals @ frame[:, 2], -1.0, 1.0)))
+    near_tilt = maximum_filter(tilt_deg, size=2 * reach + 1, mode="nearest")
+    blend = np.clip((near_tilt - STEEP_FROM_DEG) / (STEEP_FULL_DEG - STEEP_FROM_DEG), 0.0, 1.0)
+    if not (blend > 0).any():
         return chart_normals
     step = max(1, int(sigma_mm / (LATTICE_SIGMAS * g)))
+    cen, nrm, area = mesh_pieces(_near(mesh, grid, binary_dilation(blend > 0, iterations=reach + 2 * step)), sigma_mm)
     own = chart_normals @ frame                                     # chart coordinates
     coarse = own[::step, ::step].copy()
-    cj, ci = np.indices(coarse.shape[:2])
-    js, is_ = (cj * step).ravel(), (ci * step).ravel()
-    nodes = np.stack([grid.x0 + is_ * g, grid.y0 + js * g, height[js, is_]], axis=1)
-    sums = _window_sums(nodes, own[js, is_], cen, nrm, area, sigma_mm)
-    prior = PRIOR_SHARE * 2.0 * math.pi * sigma_mm ** 2
-    v = sums + prior * own[js, is_]
-    coarse[cj.ravel(), ci.ravel()] = v / np.linalg.norm(v, axis=1, keepdims=True)
-    jj, ii = np.indices(height.shape)
-    fine = _bilinear(coarse, jj.ravel() / step, ii.ravel() / step)
-    fine /= np.linalg.norm(fine, axis=1, keepdims=True)
-    return (fine @ frame.T).reshape(chart_normals.shape)
+    lattice = np.zeros(height.shape, bool)
+    lattice[::step, ::step] = True
+    js, is_ = np.nonzero(lattice & binary_dilation(blend > 0, iterations=2 * step))
+    if len(cen):
+        nodes = np.stack([grid.x0 + is_ * g, grid.y0 + js * g, height[js, is_]], axis=1)
+        v = _window_sums(nodes, own[js, is_], cen, nrm, area, sigma_mm)
+        v += PRIOR_SHARE * 2.0 * math.pi * sigma_mm ** 2 * own[js, is_]
+        coarse[js // step, is_ // step] = v / np.linalg.norm(v, axis=1, keepdims=True)
+    jj, ii = np.nonzero(blend > 0)
+    b = blend[jj, ii, None]
+    mixed = (1 - b) * own[jj, ii] + b * _bilinear(coarse, jj / step, ii / step)
+    out = chart_normals.copy()
+    out[jj, ii] = (mixed / np.linalg.norm(mixed, axis=1, keepdims=True)) @ frame.T
+    return out
+
+
+def _near(mesh, grid, region: np.ndarray):
+    """The ``ChartMesh`` of the triangles with a vertex over the grid's nodes ``region`` (the rest are out of
+    every window that is summed)."""
+    from .freeform_exact import ChartMesh
+
+    V = mesh.vertices
+    i = np.clip(np.rint((V[:, 0] - grid.x0) / grid.g), 0, grid.nx - 1).astype(np.int64)
+    j = np.clip(np.rint((V[:, 1] - grid.y0) / grid.g), 0, grid.ny - 1).astype(np.int64)
+    keep = region[j, i][mesh.faces].any(axis=1)
+    return ChartMesh(V, mesh.faces[keep])
 
 
 def _window_sums(nodes: np.ndarray, sides: np.ndarray, cen: np.ndarray, nrm: np.ndarray, area: np.ndarray,
