@@ -59,7 +59,7 @@ def mesh_normals(chart_normals: np.ndarray, height: np.ndarray, grid, frame: np.
     own (``chart_normals``, which also give each node its side and hold where no triangle is near)."""
     from scipy.ndimage import binary_dilation, maximum_filter
 
-    from .freeform_normals import STEEP_FROM_DEG, STEEP_FULL_DEG, _bilinear
+    from .freeform_normals import STEEP_FROM_DEG, STEEP_FULL_DEG, _lattice_at
 
     if sigma_mm <= 0 or not len(mesh.faces):
         return chart_normals
@@ -84,7 +84,7 @@ def mesh_normals(chart_normals: np.ndarray, height: np.ndarray, grid, frame: np.
         coarse[js // step, is_ // step] = v / np.linalg.norm(v, axis=1, keepdims=True)
     jj, ii = np.nonzero(blend > 0)
     b = blend[jj, ii, None]
-    mixed = (1 - b) * own[jj, ii] + b * _bilinear(coarse, jj / step, ii / step)
+    mixed = (1 - b) * own[jj, ii] + b * _lattice_at(coarse, step, jj, ii)
     out = chart_normals.copy()
     out[jj, ii] = (mixed / np.linalg.norm(mixed, axis=1, keepdims=True)) @ frame.T
     return out
