@@ -25,6 +25,7 @@ from ..errors import BadInput
 from .freeform_exact import ChartMesh
 from .freeform_grid import Grid, fill, grid_over, normals_of
 from .freeform_normals import point_normals, scan_normals
+from .mesh_normals import mesh_normals
 from .freeform_rows import row_distance, row_table, seed_row
 from .freeform_sample import chart_frame, cloud_heights, mesh_heights, to_chart
 from .domain import Boundary, FitStats
@@ -517,13 +518,21 @@ def _gap_mesh(part, own_faces: np.ndarray, origin, frame, grid: Grid, height: np
     return ChartMesh.of(V, other[keep]) if keep.any() else None
 
 
-def _face_meshes(workpiece, part, V_chart: np.ndarray, origin, frame, grid: Grid, height: np.ndarray,
+def _face_meshes(workpiece, part, own: ChartMesh, origin, frame, grid: Grid, height: np.ndarray,
                  material: np.ndarray) -> tuple[ChartMesh, ChartMesh | None]:
     """(a mesh face's own triangles, the part's triangles in its gaps or None) in chart coordinates."""
     gaps = None
     if getattr(part, "faces", None) is not None and getattr(part, "vertices_mm", None) is not None:
         gaps = _gap_mesh(part, workpiece.faces, origin, frame, grid, height, material)
-    return ChartMesh.of(V_chart, workpiece.faces), gaps
+    return own, gaps
+
+
+def _cad_normals(height, grid: Grid, frame, V_chart, faces, sigma_mm: float, reliable) -> tuple[ChartMesh, np.ndarray]:
+    """(the face's own triangles ``faces`` as a ``ChartMesh``, its normals): the triangles averaged on the surface at the tool's scale
+    (``mesh_normals``), the height field's chart-window normals giving each node its side and holding far from them."""
+    own = ChartMesh.of(V_chart, faces)
+    chart = normals_of(height, grid.g, frame, sigma_mm, reliable)
+    return own, mesh_normals(chart, height, grid, frame, own, sigma_mm)
 
 
 def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
@@ -596,13 +605,13 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     height = fill(height, known, g)
     if is_mesh:
         res = xyh[:, 2] - grid.interp(height, xyh[:, 0], xyh[:, 1])
-        normals = normals_of(height, g, frame, normal_smoothing_mm, reliable)
+        own, normals = _cad_normals(height, grid, frame, V, workpiece.faces, normal_smoothing_mm, reliable)
         material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
     else:
         normals, normal_smoothing_mm, material = _scan_normals(height, grid, frame, xyh[keep], res, int(keep.sum()),
                                                                material, reliable, sigma, normal_smoothing_mm)
     stats = _fit_stats(res, len(P), float(settings.threshold_mm))
     close_px = int(math.ceil(float(settings.close_gaps_mm) / g))
-    mesh, gaps = _face_meshes(workpiece, part, V, origin, frame, grid, height, material) if is_mesh else (None, None)
+    mesh, gaps = _face_meshes(workpiece, part, own, origin, frame, grid, height, material) if is_mesh else (None, None)
     return _assembled(origin, frame, grid, height, normals, material, stats, "mesh" if is_mesh else "scan", sigma,
                       normal_smoothing_mm, warnings, close_px, mesh, gaps)
