@@ -151,3 +151,36 @@ def test_the_spline_is_measured_against_a_scanned_meshs_noise_band_as_the_motion
     assert _scanned_mesh_band(settings, replace(scan, faces=None, vertices_mm=None)) == 0.0
     told_cad = replace(settings, workpiece=replace(settings.workpiece, scan="no"))
     assert _scanned_mesh_band(told_cad, scan) == 0.0
+
+
+def test_only_a_cad_meshs_free_form_axes_are_low_passed_and_averaged_on_its_triangles(monkeypatch):
+    """``shaped_for_part`` low-passes the tool orientations of a CAD mesh's free-form faces only, and
+    ``freeform_surface`` averages only a CAD mesh's triangles for its normals (``mesh_normals``): a scanned mesh
+    keeps its fitted axes and its chart normals (both together refused the noether panel scan where its own passed),
+    a cloud has no triangles to judge."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    import camtool.part.freeform as freeform
+    from camtool.part.workpiece import Workpiece
+    from camtool.run.stages import _cad_mesh
+    from test_roughness import _triangulated, sheet
+
+    settings = _job()[0]
+    noisy, smooth = sheet(0.05), sheet(0.0)
+    faces = _triangulated(noisy)
+    scan = Workpiece(noisy, np.tile([0.0, 0, 1], (len(noisy), 1)), faces, "scan.ply", "mm", (), noisy)
+    cad = replace(scan, points_mm=smooth, vertices_mm=smooth, source="cad.ply")
+    fitted, cloud_face = SimpleNamespace(scanned=False), SimpleNamespace(scanned=True)
+    assert _cad_mesh(settings, fitted, cad)
+    assert not _cad_mesh(settings, fitted, scan)
+    assert not _cad_mesh(settings, cloud_face, cad)
+    assert not _cad_mesh(settings, fitted, replace(cad, faces=None, vertices_mm=None))
+    assert not _cad_mesh(settings, fitted, None)
+
+    averaged = []
+    monkeypatch.setattr(freeform, "mesh_normals", lambda chart, *a: averaged.append(1) or chart)
+    freeform.freeform_surface(scan, settings.fit)
+    assert not averaged
+    freeform.freeform_surface(cad, settings.fit)
+    assert averaged

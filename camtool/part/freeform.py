@@ -527,11 +527,19 @@ def _face_meshes(workpiece, part, own: ChartMesh, origin, frame, grid: Grid, hei
     return own, gaps
 
 
-def _cad_normals(height, grid: Grid, frame, V_chart, faces, sigma_mm: float, reliable) -> tuple[ChartMesh, np.ndarray]:
-    """(the face's own triangles ``faces`` as a ``ChartMesh``, its normals): the triangles averaged on the surface at the tool's scale
-    (``mesh_normals``), the height field's chart-window normals giving each node its side and holding far from them."""
-    own = ChartMesh.of(V_chart, faces)
+def _cad_normals(height, grid: Grid, frame, V_chart, sigma_mm: float, reliable, workpiece,
+                 part) -> tuple[ChartMesh, np.ndarray]:
+    """(the face's own triangles (``workpiece.faces``) as a ``ChartMesh``, its normals): the triangles averaged on the surface at the tool's scale
+    (``mesh_normals``), the height field's chart-window normals giving each node its side and holding far from them.
+    A mesh judged a scan (the whole mesh ``part`` the face is of, or ``workpiece``; ``roughness.mesh_is_scan``)
+    keeps the chart-window normals: its triangles carry the sensor's noise, and averaging them on the surface turned the noether panel scan's wrist into the
+    part at its placement (the tilt refused it); its flanks are the scan normals' (``freeform_normals``) to mend."""
+    from .roughness import mesh_is_scan   # here: part.roughness reads this module's scan smoothing
+    whole = part if part is not None and getattr(part, "faces", None) is not None else workpiece
+    own = ChartMesh.of(V_chart, workpiece.faces)
     chart = normals_of(height, grid.g, frame, sigma_mm, reliable)
+    if mesh_is_scan(whole.vertices_mm, "auto", whole.faces):
+        return own, chart
     return own, mesh_normals(chart, height, grid, frame, own, sigma_mm)
 
 
@@ -605,7 +613,7 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     height = fill(height, known, g)
     if is_mesh:
         res = xyh[:, 2] - grid.interp(height, xyh[:, 0], xyh[:, 1])
-        own, normals = _cad_normals(height, grid, frame, V, workpiece.faces, normal_smoothing_mm, reliable)
+        own, normals = _cad_normals(height, grid, frame, V, normal_smoothing_mm, reliable, workpiece, part)
         material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
     else:
         normals, normal_smoothing_mm, material = _scan_normals(height, grid, frame, xyh[keep], res, int(keep.sum()),

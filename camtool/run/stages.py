@@ -433,6 +433,19 @@ def _freeform_poses(surface, path) -> np.ndarray | None:
     return np.ones(len(path), bool) if getattr(surface, "model", "") == "freeform" else None
 
 
+def _cad_mesh(settings: JobSettings, surface, part) -> bool:
+    """Whether the free-form faces lie on a CAD mesh (not a cloud, not a mesh judged a scan): the ones whose tool
+    orientations ``shaped_for_part`` low-passes along their rows. A scan's normals are smoothed over its noise
+    already (``part.freeform_normals``); low-passed too, the noether panel scan's run was refused (its TCP 0.66 mm
+    off the raw scan at a hole's edge, > the 0.6 mm its check allows) where its own axes pass."""
+    if part is None or part.faces is None or getattr(part, "vertices_mm", None) is None:
+        return False
+    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
+    if any(f.scanned for f in faces):
+        return False
+    return not mesh_is_scan(part.vertices_mm, settings.workpiece.scan, part.faces)
+
+
 def _leads_may_meet(settings: JobSettings, part) -> bool:
     """Whether a free-form face's leads may meet ``part`` (the workpiece, or its ``part_for_checks``): a mesh or a
     segmented scan holds more than the face; a scanned cloud worked as one face is checked against its own points
@@ -458,7 +471,8 @@ def shaped_for_part(settings: JobSettings, surface, path, part, robot=None) -> t
     only = _freeform_poses(surface, path)
     if only is None or not only.any():
         return path, None
-    path = lowpassed_axes(path, only, AxisLowpassSettings())
+    if _cad_mesh(settings, surface, part):
+        path = lowpassed_axes(path, only, AxisLowpassSettings())
     figures = None
     if _leads_may_meet(settings, part):
         geometry = part_from_path(part, path)
