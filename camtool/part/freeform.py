@@ -26,14 +26,13 @@ from .freeform_exact import ChartMesh
 from .freeform_grid import Grid, fill, grid_over, normals_of
 from .freeform_normals import point_normals, scan_normals
 from .mesh_normals import mesh_normals
+from .roughness import SCAN_SMOOTHING_MIN_MM, SCAN_SMOOTHING_SPACINGS, mesh_is_scan
 from .freeform_rows import row_distance, row_table, seed_row
 from .freeform_sample import chart_frame, cloud_heights, mesh_heights, to_chart
 from .domain import Boundary, FitStats
 from .surface_base import Surface
 
 NORMAL_SMOOTHING_MM = 6.0   # Gaussian sigma of the normals (a tool's footprint of 10-15 mm averages about this)
-SCAN_SMOOTHING_SPACINGS = 2.5  # a scan's positions are smoothed over this many point spacings (at least 2 mm)
-SCAN_SMOOTHING_MIN_MM = 2.0
 MAX_NODES = 300_000         # the grid's nodes at most (the spacing grows for a large face)
 MIN_CELL_MM = 1.0           # ... and at least this spacing
 MAX_SLOPE_DEG = 80.0        # a node steeper than this from the chart plane is no material (a wall of a closed part)
@@ -534,7 +533,6 @@ def _cad_normals(height, grid: Grid, frame, V_chart, sigma_mm: float, reliable, 
     A mesh judged a scan (the whole mesh ``part`` the face is of, or ``workpiece``; ``roughness.mesh_is_scan``)
     keeps the chart-window normals: its triangles carry the sensor's noise, and averaging them on the surface turned the noether panel scan's wrist into the
     part at its placement (the tilt refused it); its flanks are the scan normals' (``freeform_normals``) to mend."""
-    from .roughness import mesh_is_scan   # here: part.roughness reads this module's scan smoothing
     whole = part if part is not None and getattr(part, "faces", None) is not None else workpiece
     own = ChartMesh.of(V_chart, workpiece.faces)
     chart = normals_of(height, grid.g, frame, sigma_mm, reliable)

@@ -31,8 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .freeform import SCAN_SMOOTHING_MIN_MM, SCAN_SMOOTHING_SPACINGS
 
+SCAN_SMOOTHING_SPACINGS = 2.5  # a scan's positions are smoothed over this many point spacings (at least 2 mm) ...
+SCAN_SMOOTHING_MIN_MM = 2.0    # ... (part.freeform's smoothing of a scan; its noise band is measured over two of it)
 COPLANAR_REL = 1e-5         # two triangles are coplanar when the fourth corner is this share of their edge off the plane
 CAD_COPLANAR_SHARE = 0.005  # a rough mesh with this share of its triangle pairs coplanar is CAD (scans <= 0.16 %, a CAD door 1.62 %)
 ROUGH_NEIGHBOURS = 12       # a vertex's quadric is fitted to this many nearest other vertices
