@@ -87,3 +87,36 @@ def test_work_runs_split_at_segments_faces_and_masks():
     mask = np.ones(len(path), bool)
     mask[20] = False
     assert work_runs(split, mask) == [(1, 9), (10, 14), (15, 19), (21, len(path) - 2)]
+
+
+def test_a_long_run_is_averaged_in_bounded_pieces_as_a_whole():
+    """A run longer than ``CHUNK`` poses is averaged piece by piece over the poses within the weights' reach: the same
+    orientations as one dense matrix of Gaussian weights over the whole run (its far weights are 0.0 in float64)."""
+    from camtool.path import axis_lowpass
+
+    rng = np.random.default_rng(3)
+    n = 3 * axis_lowpass.CHUNK + 17
+    s_mm = np.cumsum(rng.uniform(0.5, 5.0, n)) - 1.0
+    q = Rotation.from_rotvec(rng.normal(0.0, 0.03, (n, 3))).as_quat()
+    sigma = 10.0
+    sig = np.minimum(sigma, np.minimum(s_mm - s_mm[0], s_mm[-1] - s_mm) / 3.0)
+    dense = q.copy()
+    on = sig > 0
+    W = np.exp(-0.5 * ((s_mm[None, :] - s_mm[on, None]) / sig[on, None]) ** 2)
+    dense[on] = W @ q / W.sum(axis=1)[:, None]
+    np.testing.assert_allclose(axis_lowpass._smoothed(q, s_mm, sigma), dense, rtol=0, atol=1e-15)
+
+
+def test_a_run_of_a_hundred_thousand_poses_fits_in_memory():
+    """A 100 000-pose run (one dense matrix of its weights: 80 GB) is averaged within a few MB, and an axis that
+    turns evenly along it keeps its poses (the symmetric window)."""
+    n = 100_000
+    s_mm = np.arange(n, dtype=float)
+    q = Rotation.from_rotvec(np.outer(np.linspace(0.0, 0.5, n), [0.0, 1.0, 0.0])).as_quat()
+    from camtool.path.axis_lowpass import _smoothed
+
+    out = _smoothed(q, s_mm, 10.0)
+    out /= np.linalg.norm(out, axis=1)[:, None]
+    err_rad = (Rotation.from_quat(out) * Rotation.from_quat(q).inv()).magnitude()
+    assert err_rad[100:-100].max() < 1e-9                   # 10 sigmas of poses on both sides: a symmetric window
+    assert err_rad.max() < np.radians(0.05)                 # narrowed to the ends (test_a_smooth_row_keeps_its_axes)

@@ -24,7 +24,9 @@ from scipy.spatial.transform import Rotation
 
 from .toolpath import WORK, Path
 
-MIN_POSES = 5   # a shorter run keeps its orientations (nothing to average over)
+MIN_POSES = 5       # a shorter run keeps its orientations (nothing to average over)
+CHUNK = 256         # poses averaged at a time (their weights' matrix stays small on a run of any length)
+REACH_SIGMAS = 40.0  # past this many sigmas a Gaussian weight is 0.0 in float64 (exp(-800)): the poses summed
 
 
 @dataclass(frozen=True)
@@ -71,7 +73,11 @@ def _smoothed(q: np.ndarray, s_mm: np.ndarray, sigma_mm: float) -> np.ndarray:
     the end poses keep theirs. By hand: scipy's ``gaussian_filter1d`` has one sigma and even spacing."""
     sig = np.minimum(sigma_mm, np.minimum(s_mm - s_mm[0], s_mm[-1] - s_mm) / 3.0)
     out = q.copy()
-    on = sig > 0.0
-    W = np.exp(-0.5 * ((s_mm[None, :] - s_mm[on, None]) / sig[on, None]) ** 2)
-    out[on] = W @ q / W.sum(axis=1)[:, None]
+    on = np.flatnonzero(sig > 0.0)
+    for c in range(0, len(on), CHUNK):   # bounded memory: CHUNK centres by the poses within their weights' reach
+        i = on[c:c + CHUNK]
+        lo = np.searchsorted(s_mm, s_mm[i[0]] - REACH_SIGMAS * sigma_mm, "left")
+        hi = np.searchsorted(s_mm, s_mm[i[-1]] + REACH_SIGMAS * sigma_mm, "right")
+        W = np.exp(-0.5 * ((s_mm[None, lo:hi] - s_mm[i, None]) / sig[i, None]) ** 2)
+        out[i] = W @ q[lo:hi] / W.sum(axis=1)[:, None]
     return out
