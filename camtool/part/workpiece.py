@@ -939,9 +939,10 @@ def _fold_warning(verts_mm: np.ndarray, faces: np.ndarray, path: Path) -> tuple[
     folds = folded_triangles(verts_mm, faces)
     if not folds.count:
         return ()
-    return (f"{path}: the surface folds back onto itself at {folds.count} triangles (the largest "
-            f"{folds.largest_mm2:.2g} mm2; a CAD surface folded over itself): the checks take them as the surface "
-            "they lie on",)
+    them = "them" if folds.count > 1 else "it"
+    return (f"{path}: the surface folds back onto itself at {folds.count} triangle{'s' * (folds.count > 1)} (the "
+            f"largest {folds.largest_mm2:.2g} mm2; a CAD surface folded over itself): the checks take {them} as the "
+            f"surface {'they lie' if folds.count > 1 else 'it lies'} on",)
 
 
 def _checked_faces(faces, n_vertices: int, path: Path) -> np.ndarray:
