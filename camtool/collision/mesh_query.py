@@ -17,6 +17,18 @@ import numpy as np
 from ..errors import BadInput
 
 
+def mesh_bvh(vertices_mm, faces):
+    """coal's OBBRSS tree of a triangle mesh (its vertices' frame, mm)."""
+    V = np.asarray(vertices_mm, float)
+    F = np.asarray(faces, np.int64)
+    tree = coal.BVHModelOBBRSS()
+    tree.beginModel(len(F), len(V))
+    tree.addVertices(V)
+    tree.addTriangles(F)
+    tree.endModel()
+    return tree
+
+
 class MeshQuery:
     """Nearest-point queries against one triangle mesh (mm, the mesh's frame)."""
 
@@ -26,11 +38,7 @@ class MeshQuery:
         if len(F) == 0:
             raise BadInput("the collision check needs a triangle mesh of the workpiece")
         self.mesh = mesh
-        self.tree = coal.BVHModelOBBRSS()
-        self.tree.beginModel(len(F), len(V))
-        self.tree.addVertices(V)
-        self.tree.addTriangles(F)
-        self.tree.endModel()
+        self.tree = mesh_bvh(V, F)
         self._point = coal.Sphere(0.0)
         self._request = coal.DistanceRequest()
         self._result = coal.DistanceResult()

@@ -21,17 +21,11 @@ TOL_MM = 1e-6
 
 def _part_geometry(workpiece):
     """The coal geometry of the placed workpiece (world frame, mm): its mesh as a BVH, else its points' hull."""
-    import coal
-
     from ..collision.body import convex_hull
+    from ..collision.mesh_query import mesh_bvh
 
     if workpiece.vertices_mm is not None and workpiece.faces is not None and len(workpiece.faces):
-        m = coal.BVHModelOBBRSS()
-        m.beginModel(len(workpiece.faces), len(workpiece.vertices_mm))
-        m.addVertices(np.asarray(workpiece.vertices_mm, float))
-        m.addTriangles(np.asarray(workpiece.faces, np.int64))
-        m.endModel()
-        return m, np.asarray(workpiece.vertices_mm, float)
+        return mesh_bvh(workpiece.vertices_mm, workpiece.faces), np.asarray(workpiece.vertices_mm, float)
     pts = np.asarray(workpiece.points_mm, float)
     return convex_hull(pts), pts
 
