@@ -184,3 +184,22 @@ def test_a_step_where_the_chart_has_no_face_under_it_is_cut_onto_the_face_along_
     out, added = split_turns(path, [(np.ones(2, bool), chart_blind)])
     assert added == 5
     np.testing.assert_allclose(on_roll_mm(out.poses_mm[:, :3, 3]), 0.0, atol=1e-9)
+
+
+def test_a_step_across_a_hole_is_cut_onto_the_face_continued_over_it_not_left_on_the_chord():
+    """Issue #46, the noether panel scan at its placement: a row's 10 mm step crossed a 4.5 mm hole and its new pose,
+    with no face under it, stayed on the chord, 0.66 mm above the hole's rim (the motion check allows 0.6). A 20 mm
+    step over a 12 mm hole at the top of the 60 mm roll turns 19.1 deg: cut into four, the three new points (all
+    over the hole) lie on the roll within the face's height field continued over it (< 0.25 mm); on the chord they
+    would be 0.62-0.83 mm off it (closed form: R (1 - cos 9.55 deg) = 0.83 mm at the middle)."""
+    V, F = roll_mesh()
+    wp, _ = mesh_workpiece(V, F, keep=lambda c: np.hypot(c[:, 0], c[:, 1]) > 6.0)
+    surface = fit_surface(wp, FIT)
+    a = 20.0 / R_MM
+    path = Path(np.array([pose_on_roll(-a / 2), pose_on_roll(a / 2)]), np.zeros(2, int), np.array([1, 2]),
+                np.full(2, WORK))
+    new = split_turns(path, [(np.ones(2, bool), surface.project_mm)])[0].poses_mm[1:-1, :3, 3]
+    assert len(new) == 3 and np.abs(new[:, 0]).max() < 6.0                    # all three over the hole
+    assert not np.isfinite(surface.project_mm(new)).all(axis=1).any()         # no face under any of them
+    assert R_MM * (1 - math.cos(a / 2)) == pytest.approx(0.83, abs=0.005)
+    assert on_roll_mm(new).max() < 0.25

@@ -30,7 +30,8 @@ from .toolpath import WORK, Path
 
 MAX_TURN_DEG = 5.0   # issue #46: "no turn of more than 5 deg between neighbouring work poses"
 
-Projector = Callable[[np.ndarray], np.ndarray]   # points (m, 3) mm onto a face (NaN where it has none under one)
+Projector = Callable[..., np.ndarray]   # points (m, 3) mm onto a face (NaN where it has none under one; keywords
+                                        # ``along`` (m, 3) lines, ``continued``: the face continued over its holes)
 
 
 def turning_steps(path: Path, faces: Sequence[tuple[np.ndarray, Projector]],
@@ -84,11 +85,18 @@ def _onto_face(project, chord: np.ndarray, axis: np.ndarray, half: np.ndarray) -
     """The chord's points taken onto the face along their own tool axes (the surface's normal: the ship hull's
     bilge, 74 deg from its chart plane, had no face under a point along the chart's normal and a pose stayed on
     the chord, 0.45 mm inside the hull) where that meets it within half the step; else along the chart's normal
-    (``project``'s default); else kept on the chord."""
+    (``project``'s default); else, over a hole the step crosses, onto the face continued across it
+    (``continued=True``) where that lies within half the step; else kept on the chord. On the chord over a
+    4.5 mm hole of the noether panel scan a pose rode 0.66 mm above the hole's rim, past the 0.6 mm the motion
+    check allows (the rim sags under a 10 mm chord; with its axes low-passed that step was cut in two, not three)."""
     onto = project(chord, along=axis)
     far = ~within_mm(onto, chord, half)
     if far.any():
         onto[far] = project(chord[far])
+    miss = ~np.isfinite(onto).all(axis=1)
+    if miss.any():
+        onto[miss] = project(chord[miss], continued=True)
+        onto[miss & ~within_mm(onto, chord, half)] = np.nan
     return np.where(np.isfinite(onto).all(axis=1)[:, None], onto, chord)
 
 
