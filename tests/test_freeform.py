@@ -169,6 +169,24 @@ def test_stage_file_round_trip_rasters_the_same(saddle_part):
         surface_from_dict(d)
 
 
+def test_a_faces_scan_verdict_is_kept_by_its_stage_file_and_its_turned_rows():
+    """``FreeformSurface.from_scan`` (issue #46: one verdict, made with the face) round-trips through the stage file
+    and ``rows_at``; a file written before it was kept reads a cloud's face as a scan's, a mesh's as CAD."""
+    from test_roughness import _triangulated, sheet
+
+    V = sheet(0.05)
+    s = freeform_surface(Workpiece(V, np.tile([0.0, 0, 1], (len(V), 1)), _triangulated(V), "scan.ply", "mm", (), V),
+                         FIT)
+    assert s.from_scan and s.source_kind == "mesh"
+    d = json.loads(json.dumps(s.to_dict()))
+    assert surface_from_dict(d).from_scan and s.rows_at(0.3).from_scan
+    del d["from_scan"]
+    assert not surface_from_dict(d).from_scan
+    assert surface_from_dict({**d, "source_kind": "scan"}).from_scan
+    with pytest.raises(ValueError):
+        surface_from_dict({**d, "from_scan": "yes"})
+
+
 def test_soup_of_flipped_triangles_warns_and_works():
     V, F = grid_mesh(np.linspace(-60, 60, 31), np.linspace(-50, 50, 26), lambda X, Y: (X ** 2 + Y ** 2) / 800.0)
     F = F.copy()
@@ -355,18 +373,17 @@ def test_scan_normal_smoothing_grows_with_noise_and_stops_at_its_cap():
 
 
 def test_the_sag_takes_its_midposes_onto_a_cad_meshs_face_only(saddle_part):
-    """run.stages.face_projector: a CAD mesh's free-form face projects; the same face judged a scan
-    (workpiece.scan = "yes"), a scan's own vertices (noise) and no surface do not (their midposes stay on the arc)."""
-    from types import SimpleNamespace
+    """run.stages.face_projector reads the face's own verdict (``FreeformSurface.from_scan``): a CAD mesh's free-form
+    face projects; a face of the same mesh called a scan (workpiece.scan = "yes"), a face of a scan's own vertices
+    (noise) and no surface do not (their midposes stay on the arc)."""
     from camtool.run.stages import face_projector
     wp, _, s = saddle_part
-    auto, yes = (SimpleNamespace(workpiece=SimpleNamespace(scan=v)) for v in ("auto", "yes"))
-    assert face_projector(auto, s, wp) == s.project_mm
-    assert face_projector(yes, s, wp) is None
+    assert face_projector(s, wp) == s.project_mm
+    assert face_projector(fit_surface(replace(wp, scan="yes"), FIT), wp) is None
     noisy = replace(wp, vertices_mm=wp.vertices_mm + np.random.default_rng(0).normal(0, 0.05, wp.vertices_mm.shape))
-    assert face_projector(auto, s, noisy) is None
-    assert face_projector(auto, None, wp) is None
-
+    assert face_projector(fit_surface(noisy, FIT), noisy) is None
+    assert face_projector(None, wp) is None
+    assert face_projector(s, None) is None
 
 def test_a_block_with_a_pocket_as_one_face_is_refused_at_its_upright_wall():
     """A 200 x 150 mm top with a slot 40 mm deep along y, its walls upright (a height field falling 40 mm between

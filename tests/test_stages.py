@@ -153,17 +153,19 @@ def test_the_spline_is_measured_against_a_scanned_meshs_noise_band_as_the_motion
     assert _scanned_mesh_band(told_cad, scan) == 0.0
 
 
-def test_only_a_cad_meshs_free_form_axes_are_low_passed_and_averaged_on_its_triangles(monkeypatch):
-    """``shaped_for_part`` low-passes the tool orientations of a CAD mesh's free-form faces only, and
-    ``freeform_surface`` averages only a CAD mesh's triangles for its normals (``mesh_normals``): a scanned mesh
-    keeps its fitted axes and its chart normals (both together refused the noether panel scan where its own passed),
-    a cloud has no triangles to judge."""
+def test_a_scans_free_form_axes_are_low_passed_as_a_cad_meshs_and_only_a_cad_meshs_triangles_averaged(monkeypatch):
+    """One verdict (issue #46): ``freeform_surface`` judges once whether its face is a scan's (``from_scan``) and
+    averages only a CAD mesh's triangles for its normals (``mesh_normals``: a scan's carry the sensor's noise);
+    ``shaped_for_part`` low-passes every free-form face's tool orientations along its rows, a scanned mesh's too
+    (its own axes wobble with its bumps; the noether panel scan passes so since path.turn_split takes a new pose
+    over a hole onto the face, not the chord), and ``face_projector`` reads the face's verdict, judging nothing."""
     from dataclasses import replace
-    from types import SimpleNamespace
 
     import camtool.part.freeform as freeform
+    import camtool.run.stages as stages
     from camtool.part.workpiece import Workpiece
-    from camtool.run.stages import _cad_mesh
+    from camtool.path.raster import raster_path
+    from camtool.settings import RasterSettings
     from test_roughness import _triangulated, sheet
 
     settings = _job()[0]
@@ -171,16 +173,28 @@ def test_only_a_cad_meshs_free_form_axes_are_low_passed_and_averaged_on_its_tria
     faces = _triangulated(noisy)
     scan = Workpiece(noisy, np.tile([0.0, 0, 1], (len(noisy), 1)), faces, "scan.ply", "mm", (), noisy)
     cad = replace(scan, points_mm=smooth, vertices_mm=smooth, source="cad.ply")
-    fitted, cloud_face = SimpleNamespace(scanned=False), SimpleNamespace(scanned=True)
-    assert _cad_mesh(settings, fitted, cad)
-    assert not _cad_mesh(settings, fitted, scan)
-    assert not _cad_mesh(settings, cloud_face, cad)
-    assert not _cad_mesh(settings, fitted, replace(cad, faces=None, vertices_mm=None))
-    assert not _cad_mesh(settings, fitted, None)
 
-    averaged = []
+    averaged, judged = [], []
     monkeypatch.setattr(freeform, "mesh_normals", lambda chart, *a: averaged.append(1) or chart)
-    freeform.freeform_surface(scan, settings.fit)
-    assert not averaged
-    freeform.freeform_surface(cad, settings.fit)
-    assert averaged
+    real = freeform.mesh_is_scan
+    monkeypatch.setattr(freeform, "mesh_is_scan", lambda *a: judged.append(1) or real(*a))
+    scanned = freeform.freeform_surface(scan, settings.fit)
+    assert scanned.from_scan and not averaged and len(judged) == 1
+    made = freeform.freeform_surface(cad, settings.fit)
+    assert not made.from_scan and averaged and len(judged) == 2
+    assert freeform.freeform_surface(replace(scan, faces=None, vertices_mm=None), settings.fit).from_scan  # a cloud
+    assert not freeform.freeform_surface(replace(scan, scan="no"), settings.fit).from_scan     # the job's word
+    assert freeform.freeform_surface(replace(cad, scan="yes"), settings.fit).from_scan
+    assert freeform.freeform_surface(cad, settings.fit, part=scan).from_scan     # a face judged by the whole part
+
+    monkeypatch.setattr(stages, "mesh_is_scan", lambda *a: pytest.fail("face_projector judged the mesh again"))
+    assert stages.face_projector(scanned, scan) is None
+    assert stages.face_projector(made, cad) == made.project_mm
+
+    path = raster_path(scanned, RasterSettings.make(step_over_mm=15.0, pitch_mm=5.0, lead_mm=5.0))
+    shaped, _ = stages.shaped_for_part(settings, scanned, path, None)
+    assert len(shaped) == len(path)
+    np.testing.assert_array_equal(shaped.poses_mm[:, :3, 3], path.poses_mm[:, :3, 3])   # the positions kept
+    turned = np.degrees(np.arccos(np.clip(np.einsum("ki,ki->k", shaped.poses_mm[:, :3, 2], path.poses_mm[:, :3, 2]),
+                                          -1.0, 1.0)))
+    assert turned.max() > 0.01     # the scan's axes low-passed

@@ -74,7 +74,10 @@ class FreeformSurface(Surface):
     (``freeform_exact``), the height field's elsewhere (holes, the margin the leads run on).
     ``gaps``: the part's other triangles in the face's gaps (``GAP_BAND_MM``): a CAD face whose own triangles leave
     slivers to a neighbouring face (the door's skin round its tight bends) is closed over them (``close_gaps_mm``);
-    a point there is on the part's triangle, not on the height field's membrane (0.1-0.69 mm off the door)."""
+    a point there is on the part's triangle, not on the height field's membrane (0.1-0.69 mm off the door).
+    ``from_scan``: built from a scan (a cloud, or a mesh judged a scan: ``roughness.mesh_is_scan`` with the job's
+    ``workpiece.scan``), not from a CAD mesh; decided once, as the face is made (``freeform_surface``), and read by
+    every stage that treats a scan's face otherwise (its normals, ``_cad_normals``; the sag's midposes)."""
 
     origin_mm: np.ndarray
     frame: np.ndarray
@@ -93,6 +96,7 @@ class FreeformSurface(Surface):
     warnings: tuple[str, ...] = ()
     mesh: ChartMesh | None = None        # a CAD mesh face's triangles (chart coordinates): exact heights between nodes
     gaps: ChartMesh | None = None        # the part's other triangles in the face's gaps (chart coordinates)
+    from_scan: bool = False              # built from a scan, not a CAD mesh (the class doc)
     model: str = field(default="freeform", init=False)
     uv_unit: str = field(default="mm", init=False)
 
@@ -259,7 +263,7 @@ class FreeformSurface(Surface):
         material[inside] = self.material[fj[inside], fi[inside]]
         return _assembled(self.origin_mm, frame, grid, h, n, material, self.stats, self.source_kind,
                           self.smoothing_mm, self.normal_smoothing_mm, self.warnings, close_px=0,
-                          mesh=_turned(self.mesh, rot), gaps=_turned(self.gaps, rot))
+                          mesh=_turned(self.mesh, rot), gaps=_turned(self.gaps, rot), from_scan=self.from_scan)
 
     # ----------------------------------------------------------------- stage files
 
@@ -276,6 +280,7 @@ class FreeformSurface(Surface):
             "distance": _b64(self.distance.astype(np.float64)),
             "table": _b64(self.table.astype(np.float64)),
             "source_kind": self.source_kind,
+            "from_scan": bool(self.from_scan),
             "smoothing_mm": float(self.smoothing_mm),
             "normal_smoothing_mm": float(self.normal_smoothing_mm),
             "warnings": list(self.warnings),
@@ -318,7 +323,16 @@ class FreeformSurface(Surface):
                                float(d.get("smoothing_mm", 0.0)),
                                float(d.get("normal_smoothing_mm", NORMAL_SMOOTHING_MM)),
                                tuple(str(w) for w in d.get("warnings", ())), _mesh_from_dict(d, "mesh"),
-                               _mesh_from_dict(d, "gap"))
+                               _mesh_from_dict(d, "gap"), _from_scan(d))
+
+
+def _from_scan(d: dict) -> bool:
+    """A saved face's scan verdict: ``from_scan`` (true or false); a file written before the face kept it: a cloud's
+    face is a scan's, a mesh's is taken as CAD (its normals were made and saved with it)."""
+    v = d.get("from_scan", str(d.get("source_kind", "mesh")) == "scan")
+    if not isinstance(v, bool):
+        raise ValueError("from_scan must be true or false")
+    return v
 
 
 def _turned(mesh: ChartMesh | None, rot: np.ndarray) -> ChartMesh | None:
@@ -428,7 +442,7 @@ def _flat_outside(height: np.ndarray, material: np.ndarray) -> np.ndarray:
 
 def _assembled(origin, frame, grid, height, normals, material, stats, source_kind, smoothing_mm,
                normal_smoothing_mm, warnings, close_px, mesh: ChartMesh | None = None,
-               gaps: ChartMesh | None = None) -> FreeformSurface:
+               gaps: ChartMesh | None = None, from_scan: bool = False) -> FreeformSurface:
     """The surface with its row chart (distance field, table) and boundary made from its height field."""
     if material.sum() < 9:
         raise BadInput("free-form face: fewer than 9 grid nodes of material; the face is too small for its grid")
@@ -437,7 +451,7 @@ def _assembled(origin, frame, grid, height, normals, material, stats, source_kin
     boundary = _boundary(grid, material, distance, close_px)
     return FreeformSurface(np.asarray(origin, float), np.asarray(frame, float), grid, height, normals, material,
                            distance, tgrid, table, boundary, stats, source_kind, smoothing_mm,
-                           normal_smoothing_mm, tuple(warnings), mesh, gaps)
+                           normal_smoothing_mm, tuple(warnings), mesh, gaps, bool(from_scan))
 
 
 def _median_spacing(xy: np.ndarray, sample: int = 20000, queries: int = 2000) -> float:
@@ -527,18 +541,27 @@ def _face_meshes(workpiece, part, own: ChartMesh, origin, frame, grid: Grid, hei
 
 
 def _cad_normals(height, grid: Grid, frame, V_chart, sigma_mm: float, reliable, workpiece,
-                 part) -> tuple[ChartMesh, np.ndarray]:
+                 from_scan: bool) -> tuple[ChartMesh, np.ndarray]:
     """(the face's own triangles (``workpiece.faces``) as a ``ChartMesh``, its normals): the triangles averaged on the surface at the tool's scale
     (``mesh_normals``), the height field's chart-window normals giving each node its side and holding far from them.
-    A mesh judged a scan (the whole mesh ``part`` the face is of, or ``workpiece``; ``roughness.mesh_is_scan``)
-    keeps the chart-window normals: its triangles carry the sensor's noise, and averaging them on the surface turned the noether panel scan's wrist into the
-    part at its placement (the tilt refused it); its flanks are the scan normals' (``freeform_normals``) to mend."""
-    whole = part if part is not None and getattr(part, "faces", None) is not None else workpiece
+    A mesh judged a scan (``from_scan``: ``_scan_verdict``) keeps the chart-window normals: its triangles carry the
+    sensor's noise, and averaging them on the surface turned the noether panel scan's wrist into the part at its
+    placement (the tilt refused it); its flanks are the scan normals' (``freeform_normals``) to mend."""
     own = ChartMesh.of(V_chart, workpiece.faces)
     chart = normals_of(height, grid.g, frame, sigma_mm, reliable)
-    if mesh_is_scan(whole.vertices_mm, "auto", whole.faces):
+    if from_scan:
         return own, chart
     return own, mesh_normals(chart, height, grid, frame, own, sigma_mm)
+
+
+def _scan_verdict(workpiece, part, is_mesh: bool) -> bool:
+    """Whether a face is built from a scan (``FreeformSurface.from_scan``): a cloud always; a mesh when the whole
+    mesh it is of (``part``, else ``workpiece``) is judged one (``roughness.mesh_is_scan``, by the job's
+    ``workpiece.scan``: "auto" by its roughness)."""
+    if not is_mesh:
+        return True
+    whole = part if part is not None and getattr(part, "faces", None) is not None else workpiece
+    return mesh_is_scan(whole.vertices_mm, whole.scan, whole.faces)
 
 
 def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
@@ -549,8 +572,7 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     smoothed at ``settings.smoothing_mm`` (0: ``SCAN_SMOOTHING_SPACINGS`` point spacings, at least
     ``SCAN_SMOOTHING_MIN_MM``). ``settings``: ``FitSettings`` (threshold, close_gaps_mm, smoothing_mm). ``part``: the
     whole mesh ``workpiece`` is a face of (``_gap_mesh``). BadInput with one line when the points hold no surface."""
-    P = np.asarray(workpiece.points_mm, float)
-    N = np.asarray(workpiece.normals, float)
+    P, N = np.asarray(workpiece.points_mm, float), np.asarray(workpiece.normals, float)
     source = getattr(workpiece, "source", "") or "workpiece"
     if indices is not None:
         P, N = P[indices], N[indices]
@@ -572,6 +594,7 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     lo, hi = xyh[:, :2].min(axis=0), xyh[:, :2].max(axis=0)
     spacing = _median_spacing(xyh[:, :2])
     is_mesh = workpiece.faces is not None and getattr(workpiece, "vertices_mm", None) is not None
+    from_scan = _scan_verdict(workpiece, part, is_mesh)
     box = float(np.prod(hi - lo + 2 * MARGIN_CELLS))
     g = max(MIN_CELL_MM, math.sqrt(box / MAX_NODES))
     sigma = 0.0
@@ -611,7 +634,7 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     height = fill(height, known, g)
     if is_mesh:
         res = xyh[:, 2] - grid.interp(height, xyh[:, 0], xyh[:, 1])
-        own, normals = _cad_normals(height, grid, frame, V, normal_smoothing_mm, reliable, workpiece, part)
+        own, normals = _cad_normals(height, grid, frame, V, normal_smoothing_mm, reliable, workpiece, from_scan)
         material &= (normals @ frame[:, 2]) >= math.cos(math.radians(MAX_SLOPE_DEG))
     else:
         normals, normal_smoothing_mm, material = _scan_normals(height, grid, frame, xyh[keep], res, int(keep.sum()),
@@ -620,4 +643,4 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
     close_px = int(math.ceil(float(settings.close_gaps_mm) / g))
     mesh, gaps = _face_meshes(workpiece, part, own, origin, frame, grid, height, material) if is_mesh else (None, None)
     return _assembled(origin, frame, grid, height, normals, material, stats, "mesh" if is_mesh else "scan", sigma,
-                      normal_smoothing_mm, warnings, close_px, mesh, gaps)
+                      normal_smoothing_mm, warnings, close_px, mesh, gaps, from_scan)

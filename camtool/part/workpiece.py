@@ -81,7 +81,8 @@ DROP_HINT = "fix the file or set workpiece.drop_nonfinite = true to drop them"
 
 @dataclass(frozen=True)
 class Workpiece:
-    """Points (N x 3, mm) with unit normals; optional mesh (vertices_mm, faces)."""
+    """Points (N x 3, mm) with unit normals; optional mesh (vertices_mm, faces). ``scan``: whether the job calls
+    the mesh a scan (``workpiece.scan``: "auto" judges it by its roughness, ``part.roughness.mesh_is_scan``)."""
 
     points_mm: np.ndarray
     normals: np.ndarray
@@ -90,6 +91,7 @@ class Workpiece:
     units: str = "mm"
     warnings: tuple[str, ...] = ()
     vertices_mm: np.ndarray | None = field(default=None, repr=False)
+    scan: str = "auto"
 
     @property
     def n_points(self) -> int:
@@ -101,7 +103,7 @@ class Workpiece:
         R, t = T[:3, :3], T[:3, 3]
         verts = None if self.vertices_mm is None else self.vertices_mm @ R.T + t
         return Workpiece(self.points_mm @ R.T + t, self.normals @ R.T, self.faces, self.source,
-                         self.units, self.warnings, verts)
+                         self.units, self.warnings, verts, self.scan)
 
 
 @dataclass(frozen=True)

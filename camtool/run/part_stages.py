@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from dataclasses import replace
 from functools import partial
 
 import numpy as np
@@ -37,6 +38,7 @@ def workpiece_for_job(job: Job):
     s = WorkpieceSettings.from_section(job.workpiece)
     wp = load_workpiece(job.resolve(s.file), units=s.units, sample_points=s.sample_points,
                         normal_neighbours=s.normal_neighbours, seed=job.fit.seed, drop_nonfinite=s.drop_nonfinite)
+    wp = replace(wp, scan=s.scan)   # the job's word on whether the mesh is a scan; its surfaces judge it once by it
     return wp.transformed(matrix_from_xyz_rpy(job.cell.workpiece_xyz_mm, job.cell.workpiece_rpy_deg))
 
 

@@ -233,16 +233,15 @@ def add_home_moves(settings: PlannerSettings, workpiece, path, robot, joint_path
     return insert_home_moves(joint_path, moves["approach"], moves["depart"], {"free_moves": figures})
 
 
-def face_projector(settings: JobSettings, surface, workpiece):
+def face_projector(surface, workpiece):
     """What the sag takes its midposes onto (``plan.sag``): a free-form face's own surface when it is a CAD mesh's
     facets (``FreeformSurface.project_mm``); None for an analytic face, a scan's smoothed surface or a scanned
-    mesh (``part.roughness``): taken onto those, the midposes would follow their noise, and the time law slows
-    for it (the shell sample's cycle 214 -> 361 s at its former placement), so they stay on the arc through the tool axes."""
+    mesh (the face's own verdict, ``FreeformSurface.from_scan``): taken onto those, the midposes would follow their
+    noise, and the time law slows for it (the shell sample's cycle 214 -> 361 s at its former placement), so they
+    stay on the arc through the tool axes."""
     if not isinstance(surface, Surface) or not surface.on_mesh_facets or workpiece is None or workpiece.faces is None:
         return None
-    if mesh_is_scan(workpiece.vertices_mm, settings.workpiece.scan, workpiece.faces):
-        return None
-    return surface.project_mm
+    return None if surface.from_scan else surface.project_mm
 
 
 def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str | None = None, planned=None,
@@ -265,7 +264,7 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
                                  link_radius_mm=settings.check.link_radius_mm,
                                  clearance_mm=settings.check.clearance_mm, solver=solver, world=world,
                                  tip_exempt_mm=settings.check.tool_contact_exempt_mm, every_failure=every_failure)
-    project = face_projector(settings, surface, workpiece)
+    project = face_projector(surface, workpiece)
     joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm, project)
     joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
     kept_out = _spline_kept_out(settings, surface, path, workpiece)
@@ -433,19 +432,6 @@ def _freeform_poses(surface, path) -> np.ndarray | None:
     return np.ones(len(path), bool) if getattr(surface, "model", "") == "freeform" else None
 
 
-def _cad_mesh(settings: JobSettings, surface, part) -> bool:
-    """Whether the free-form faces lie on a CAD mesh (not a cloud, not a mesh judged a scan): the ones whose tool
-    orientations ``shaped_for_part`` low-passes along their rows. A scan's normals are smoothed over its noise
-    already (``part.freeform_normals``); low-passed too, the noether panel scan's run was refused (its TCP 0.66 mm
-    off the raw scan at a hole's edge, > the 0.6 mm its check allows) where its own axes pass."""
-    if part is None or part.faces is None or getattr(part, "vertices_mm", None) is None:
-        return False
-    faces = surface.surfaces if isinstance(surface, FaceSet) else (surface,)
-    if any(f.scanned for f in faces):
-        return False
-    return not mesh_is_scan(part.vertices_mm, settings.workpiece.scan, part.faces)
-
-
 def _leads_may_meet(settings: JobSettings, part) -> bool:
     """Whether a free-form face's leads may meet ``part`` (the workpiece, or its ``part_for_checks``): a mesh or a
     segmented scan holds more than the face; a scanned cloud worked as one face is checked against its own points
@@ -463,7 +449,7 @@ def clearance_part(settings: JobSettings, workpiece, surface):
 def shaped_for_part(settings: JobSettings, surface, path, part, robot=None) -> tuple:
     """(``path`` shaped to ``part`` (``part_for_checks``), the tilt's figures for report.json or None): its
     free-form faces' tool orientations low-passed along their rows (``path.axis_lowpass``: the wrist's jerk
-    follows their wobble), then their tool axes tilted clear of the part where the tool or the wrist would be in it (with
+    follows their wobble; a CAD mesh's facets and a scan's bumps alike), then their tool axes tilted clear of the part where the tool or the wrist would be in it (with
     ``robot``: ``_tilted``), then their leads lifted clear of it (``_leads_cleared``), then their work steps that
     turn the tool axis by more than 5 deg cut into pieces on the face (``path.turn_split``, whatever the part). A
     path of no free-form face comes back as it was, one of a part its poses cannot meet (``_leads_may_meet``)
@@ -471,8 +457,7 @@ def shaped_for_part(settings: JobSettings, surface, path, part, robot=None) -> t
     only = _freeform_poses(surface, path)
     if only is None or not only.any():
         return path, None
-    if _cad_mesh(settings, surface, part):
-        path = lowpassed_axes(path, only, AxisLowpassSettings())
+    path = lowpassed_axes(path, only, AxisLowpassSettings())
     figures = None
     if _leads_may_meet(settings, part):
         geometry = part_from_path(part, path)
@@ -555,7 +540,7 @@ def scanned_mesh_band_mm(workpiece, smoothing_mm: float = 0.0, scan: str = "auto
 
 def with_scan_verdict(settings: JobSettings, workpiece) -> JobSettings:
     """``settings`` with ``workpiece.scan`` "yes" or "no" where this process has judged the mesh already
-    (``face_projector``, "auto"): the motion check, in its own process, takes that verdict for its noise band
+    (``_scanned_mesh_band``, "auto"): the motion check, in its own process, takes that verdict for its noise band
     (``scanned_mesh_band_mm``) instead of judging the mesh again (a second on a 200 k-vertex scan)."""
     if settings.workpiece.scan != "auto" or workpiece is None or workpiece.faces is None \
             or workpiece.vertices_mm is None:
