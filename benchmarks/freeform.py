@@ -24,7 +24,11 @@ For each part:
   along the vertex normals it interpolates;
 - both measured with the same functions (freeform_metrics.measure) against the part's own mesh:
   coverage (area within 0.6 x step-over of a work TCP), distance of the work TCPs to the mesh
-  (p50 / p99), tool axis against the 12.5 mm mean normal (p95), the largest turn between
+  (p50 / p99), tool axis against the 12.5 mm mean normal (p95; the target) and, printed beside it as
+  "(own face ...)", against the mean over the worked face's own triangles only (the part split at its sharp edges;
+  a STEP part's B-rep faces joined where tangent: freeform_metrics.worked_faces), which tells a miss caused by a
+  neighbouring feature across a sharp edge (the hull's bilge keel fin, in the 12.5 mm ball) from camtool's own
+  (not a target: the verdict reads the first figure), the largest turn between
   neighbouring work poses, and the step between neighbouring rows on the surface (p5-p95, in %
   of step_over_mm), with each side's wall time; for camtool also the run's TCP feed on work (report.json's
   ``work_feed``: median and least, against the commanded feed).
@@ -217,17 +221,20 @@ def scaled_step(path: Path, scale: float, out: Path) -> Path:
 
 
 def step_part_mesh(path: Path):
-    """A STEP part's own tessellation (camtool.part.step: OCP at DEFLECTION_MM), its B-rep faces' shared nodes
-    merged (trimesh: the face's connectivity for the geodesic steps)."""
+    """(a STEP part's own tessellation (camtool.part.step: OCP at DEFLECTION_MM), its B-rep faces' shared nodes
+    merged (trimesh: the face's connectivity for the geodesic steps); each triangle's B-rep face)."""
     if str(ROOT) not in sys.path:
         sys.path.insert(0, str(ROOT))
     from camtool.part.step import step_mesh
 
-    V, F, _ = step_mesh(path)
+    V, F, owner = step_mesh(path)
     m = trimesh.Trimesh(V, F, process=True)
-    m.update_faces(m.nondegenerate_faces(height=1e-9))
+    if len(m.faces) != len(F):
+        raise SystemExit(f"{path}: trimesh dropped triangles of the tessellation; their B-rep faces are lost")
+    keep = m.nondegenerate_faces(height=1e-9)
+    m.update_faces(keep)
     m.remove_unreferenced_vertices()
-    return m
+    return m, np.asarray(owner)[keep]
 
 
 # --- camtool, as a user runs it ---------------------------------------------------------------
@@ -351,10 +358,11 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
     if name in STEP_SCALE:
         path = scaled_step(path, STEP_SCALE[name], out)
     scale = SCALE.get(name, 1.0 if path.suffix.lower() in STEP_SUFFIXES else 1000.0)
-    mesh = step_part_mesh(path) if path.suffix.lower() in STEP_SUFFIXES else fm.load_mesh(path, scale)
+    mesh, owner = step_part_mesh(path) if path.suffix.lower() in STEP_SUFFIXES else (fm.load_mesh(path, scale), None)
     _, _, vt = np.linalg.svd(mesh.vertices - mesh.vertices.mean(0), full_matrices=False)
     region = cavity_region(mesh, CAVITY[name]) if name in CAVITY else fm.face_region(mesh, up=vt[2], max_tilt_deg=60.0)
     face = mesh.submesh([np.flatnonzero(region)], append=True)
+    faces = fm.worked_faces(mesh, owner)   # the axis's second figure: the worked face's own triangles
     samples = fm.surface_samples(mesh, region, spacing_mm=max(1.0, step / 5))
     geo = fm.SurfaceGeodesic(mesh)
     print(f"\n== {name} ({kind}): {len(mesh.vertices)} vertices, {len(mesh.faces)} triangles, "
@@ -363,7 +371,7 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
     t0 = time.perf_counter()
     base = fm.plane_slicer(face, step, pitch)
     t_base = time.perf_counter() - t0
-    fig = fm.measure(mesh, region, [(p, -n) for p, n in base], step, geo=geo, samples=samples)
+    fig = fm.measure(mesh, region, [(p, -n) for p, n in base], step, geo=geo, samples=samples, faces=faces)
     print(f"  noether  {fig.row(step)}  {t_base:6.2f} s  [{verdict(fig, kind, step)}]")
 
     if tree is None:
@@ -379,7 +387,7 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
         if job is None:
             print(f"  placed   {how}")
             bench_raster(name, out / f"{name}.toml", placement(mesh, region, name in LONG_SIDE_UP), mesh, region,
-                         geo, samples, kind, step, tree, out)
+                         geo, samples, kind, step, tree, out, faces)
             if partial:
                 bench_partial(name, out / f"{name}.toml", placement(mesh, region, name in LONG_SIDE_UP), mesh, samples,
                               step, tree, out, extra, fk)
@@ -388,14 +396,14 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
         wall, rc, so, se = camtool(["run", str(job), "-o", str(out / name), *extra], tree)
     if rc != 0:
         print(f"  camtool  refused (exit {rc}, {wall:.1f} s): {first_line(se or so)}")
-        bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out)
+        bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out, faces)
         return
     rows, gap, segs = work_rows(out / name / "points.csv", fk, T, with_segments=True)
     if gap > 0.01:
         raise SystemExit(f"{name}: the URDF's TCP is {gap:.4f} mm from points.csv's: the FK does not read camtool's joints")
     contour = run_contour(job, segs, tree, out, extra)
     fig = fm.measure(mesh, region, rows, step, geo=geo, samples=samples,
-                     step_rows=[p for (p, _), c in zip(rows, contour) if not c])
+                     step_rows=[p for (p, _), c in zip(rows, contour) if not c], faces=faces)
     print(f"  camtool  {fig.row(step)}  {wall:6.2f} s  [{verdict(fig, kind, step)}]  "
           f"({int(contour.sum())} contour runs; FK gap {gap:.1e} mm){work_feed(out / name)}")
 
@@ -522,21 +530,22 @@ def bench_control(tree: Path, out: Path) -> None:
 ZONES = ("work", "self_motion", "lead_in", "lead_out", "approach", "depart", "retract")   # path.npz's zone codes
 
 
-def bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out) -> None:
+def bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out, faces=None) -> None:
     """Where the run is refused: the raster alone (`camtool raster JOB`, its path.npz read with NumPy:
     the work poses' TCP frames as rastered, before planning), measured the same way."""
     wall, rc, so, se = camtool(["raster", str(job), "-o", str(out / f"{name}_raster")], tree)
     if rc != 0:
         print(f"  raster   refused (exit {rc}, {wall:.1f} s): {first_line(se or so)}")
         return
-    fig = raster_figures(out / f"{name}_raster" / "path.npz", T, mesh, region, geo, samples, step)
+    fig = raster_figures(out / f"{name}_raster" / "path.npz", T, mesh, region, geo, samples, step, faces)
     print(f"  raster   {fig.row(step)}  {wall:6.2f} s  [{verdict(fig, kind, step)}]  (camtool raster's path.npz, "
           f"not planned)")
 
 
-def raster_figures(path_npz: Path, T, mesh, region, geo, samples, step) -> fm.Figures:
+def raster_figures(path_npz: Path, T, mesh, region, geo, samples, step, faces=None) -> fm.Figures:
     """The figures of a raster's work poses (camtool raster's path.npz: the TCP frames as rastered, before
-    planning, taken into the part's frame by T's inverse) against the part's mesh."""
+    planning, taken into the part's frame by T's inverse) against the part's mesh (``faces``: and against the
+    worked face's own triangles, freeform_metrics.own_face_normals)."""
     z = np.load(path_npz)
     work = z["zone"] == ZONES.index("work")
     inv = np.linalg.inv(T)
@@ -551,7 +560,7 @@ def raster_figures(path_npz: Path, T, mesh, region, geo, samples, step) -> fm.Fi
         rows.append((p[k], a[k]))
         if not contour[k].any():
             step_rows.append(p[k])
-    return fm.measure(mesh, region, rows, step, geo=geo, samples=samples, step_rows=step_rows)
+    return fm.measure(mesh, region, rows, step, geo=geo, samples=samples, step_rows=step_rows, faces=faces)
 
 
 def sample_truth(name: str):

@@ -144,6 +144,49 @@ def averaged_normals(mesh: trimesh.Trimesh, pts: np.ndarray, radius_mm: float = 
     return out
 
 
+TANGENT_SEAM_DEG = 10.0   # two CAD faces are one where the median dihedral angle across their seam is under this
+SHARP_EDGE_DEG = 30.0     # a mesh file's faces: its triangles split where neighbours' normals turn more than this
+
+
+def worked_faces(mesh: trimesh.Trimesh, owner: np.ndarray | None = None) -> np.ndarray:
+    """A label per triangle: the part's smooth faces, bounded by sharp edges. ``owner`` (each triangle's B-rep face,
+    a STEP part): the CAD's faces joined where they meet tangent, the median dihedral angle of the mesh's edges
+    along their seam under ``TANGENT_SEAM_DEG`` (the 1:300 hull's skin patches: 0.1-1.2 deg; its bilge keel's fin
+    on the skin: 25-37 deg); without: the triangles joined across edges whose dihedral angle is under
+    ``SHARP_EDGE_DEG`` (camtool's own default for ``faces.sharp_edge_deg``; trimesh's face adjacency)."""
+    adj, ang = mesh.face_adjacency, np.degrees(mesh.face_adjacency_angles)
+    if owner is None:
+        join, n, of = adj[ang < SHARP_EDGE_DEG], len(mesh.faces), np.arange(len(mesh.faces))
+    else:
+        of = np.asarray(owner, np.int64)
+        a, b = of[adj[:, 0]], of[adj[:, 1]]
+        seam = a != b
+        n = int(of.max()) + 1
+        pairs, inv = np.unique(np.stack([np.minimum(a, b), np.maximum(a, b)], 1)[seam], axis=0, return_inverse=True)
+        median = np.array([np.median(ang[seam][inv.ravel() == k]) for k in range(len(pairs))])
+        join = pairs[median < TANGENT_SEAM_DEG] if len(pairs) else np.zeros((0, 2), np.int64)
+    g = sparse.coo_matrix((np.ones(len(join)), (join[:, 0], join[:, 1])), shape=(n, n))
+    return csgraph.connected_components(g, directed=False)[1][of]
+
+
+def own_face_normals(mesh: trimesh.Trimesh, pts: np.ndarray, faces: np.ndarray,
+                     radius_mm: float = AXIS_RADIUS_MM) -> np.ndarray:
+    """The part's normal on the face being worked at each point: ``averaged_normals`` over the triangles of the
+    face (``faces``: a label per triangle, ``worked_faces``) that holds the point's closest triangle, and no
+    other's (a neighbouring feature across a sharp edge, such as a hull's fin, is left out of the disc)."""
+    faces = np.asarray(faces)
+    out = np.empty((len(pts), 3))
+    if not len(pts):
+        return out
+    c, _, f = closest(mesh, pts)
+    label = faces[f]
+    for g in np.unique(label):
+        k = np.flatnonzero(label == g)
+        out[k] = averaged_normals(trimesh.Trimesh(mesh.vertices, mesh.faces[faces == g], process=False), c[k],
+                                  radius_mm)
+    return out
+
+
 def axis_error_deg(axes: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """Unsigned angle (deg) between each tool axis and the normal line."""
     a = axes / np.linalg.norm(axes, axis=1, keepdims=True)
@@ -375,18 +418,21 @@ class Figures:
     step_p95: float
     step_samples: int
     work_poses: int
+    axis_own_p95: float | None = None   # against the worked face's own triangles (own_face_normals); no target
 
     def row(self, step_mm: float) -> str:
+        own = "" if self.axis_own_p95 is None else f" (own face {self.axis_own_p95:5.2f})"
         return (f"cov {100 * self.coverage:6.2f} %  dist p50 {self.dist_p50:6.3f} p99 {self.dist_p99:6.3f} mm  "
-                f"axis p95 {self.axis_p95:5.2f} deg  turn max {self.turn_max:6.2f} deg  "
+                f"axis p95 {self.axis_p95:5.2f} deg{own}  turn max {self.turn_max:6.2f} deg  "
                 f"step p5-p95 {100 * self.step_p5 / step_mm:5.1f}-{100 * self.step_p95 / step_mm:5.1f} %  "
                 f"({self.step_samples} steps, {self.work_poses} poses)")
 
 
 def measure(mesh: trimesh.Trimesh, region: np.ndarray, rows: list[tuple[np.ndarray, np.ndarray]],
             step_mm: float, geo: SurfaceGeodesic | None = None, samples: np.ndarray | None = None,
-            step_rows: list[np.ndarray] | None = None) -> Figures:
-    """Every figure for one set of work rows on one part (region: the face's triangles)."""
+            step_rows: list[np.ndarray] | None = None, faces: np.ndarray | None = None) -> Figures:
+    """Every figure for one set of work rows on one part (region: the face's triangles); with ``faces`` (the part's
+    smooth faces, ``worked_faces``) also the axis against the worked face's own triangles (``own_face_normals``)."""
     pts = np.vstack([r[0] for r in rows]) if rows else np.zeros((0, 3))
     axes = np.vstack([r[1] for r in rows]) if rows else np.zeros((0, 3))
     if samples is None:
@@ -394,12 +440,13 @@ def measure(mesh: trimesh.Trimesh, region: np.ndarray, rows: list[tuple[np.ndarr
     cov = coverage(samples, pts, COVER_FACTOR * step_mm)
     d = distance_to_mesh(mesh, pts)
     err = axis_error_deg(axes, averaged_normals(mesh, pts))
+    own = None if faces is None or not len(pts) else axis_error_deg(axes, own_face_normals(mesh, pts, faces))
     turn = turns_deg(rows)
     geo = geo or SurfaceGeodesic(mesh)
     steps = row_steps(geo, step_rows if step_rows is not None else [r[0] for r in rows], step_mm)
     q = (lambda a, p: float(np.percentile(a, p)) if len(a) else float("nan"))
     return Figures(cov, q(d, 50), q(d, 99), q(err, 95), float(turn.max()) if len(turn) else 0.0,
-                   q(steps, 5), q(steps, 95), int(len(steps)), int(len(pts)))
+                   q(steps, 5), q(steps, 95), int(len(steps)), int(len(pts)), None if own is None else q(own, 95))
 
 
 def grid_mesh(fn, u, v) -> trimesh.Trimesh:

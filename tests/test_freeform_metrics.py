@@ -156,3 +156,40 @@ def test_axis_normal_on_a_coarse_mesh_is_the_discs_own_mean():
     coarse = fm.axis_error_deg(fm.averaged_normals(wavy, pts, fine=False), ref)
     assert np.percentile(fine, 95) < 0.5
     assert np.percentile(coarse, 95) > 2.0
+
+
+def _step(height_mm=40.0):
+    """A step: the floor z = 0 (x < 0), a wall x = 0 up to height_mm facing the floor (-x), a top z = height_mm (x >
+    0); 100 mm along y. Quads split into triangles; the floor in two CAD faces (x < -30, and the rest)."""
+    xs, ys = np.linspace(-60.0, 0.0, 25), np.linspace(0.0, 100.0, 41)
+    floor = fm.grid_mesh(lambda x, y: np.stack([x, y, np.zeros_like(x)], -1), xs, ys)
+    wall = fm.grid_mesh(lambda z, y: np.stack([np.zeros_like(z), y, z], -1), np.linspace(0.0, height_mm, 17), ys)
+    top = fm.grid_mesh(lambda x, y: np.stack([x, y, np.full_like(x, height_mm)], -1), -xs[::-1], ys)
+    m = fm.trimesh.util.concatenate([floor, wall, top])
+    m.merge_vertices()
+    owner = np.concatenate([np.where(floor.triangles_center[:, 0] < -30.0, 0, 1), np.full(len(wall.faces), 2),
+                            np.full(len(top.faces), 3)])
+    return m, owner
+
+
+@pytest.mark.parametrize("with_owner", [False, True])
+def test_own_face_normal_leaves_out_a_wall_across_a_sharp_edge(with_owner):
+    """A floor point d mm from a 90 deg step's wall: the 12.5 mm disc's mean takes in the wall, the closed form
+    atan(A_wall / A_floor) (the ball's area on the wall: half a disc of radius sqrt(R^2 - d^2); on the floor: the
+    disc less its segment past the wall); on the worked face's own triangles (the floor: its two tangent CAD faces
+    joined, or the mesh split at its sharp edges) the floor's own normal, exactly."""
+    m, owner = _step()
+    faces = fm.worked_faces(m, owner if with_owner else None)
+    floor = m.triangles_center[:, 2] < 1e-9
+    assert len(np.unique(faces[floor])) == 1 and not np.isin(faces[~floor], faces[floor]).any()
+    R = fm.AXIS_RADIUS_MM
+    d = np.array([2.0, 5.0, 8.0, 11.0])
+    pts = np.stack([-d, np.full_like(d, 50.0), np.zeros_like(d)], 1)
+    a_wall = 0.5 * np.pi * (R * R - d * d)
+    a_floor = np.pi * R * R - (R * R * np.arccos(d / R) - d * np.sqrt(R * R - d * d))
+    want = np.degrees(np.arctan2(a_wall, a_floor))
+    up = np.tile([0.0, 0.0, 1.0], (len(d), 1))
+    whole = fm.axis_error_deg(up, fm.averaged_normals(m, pts))
+    own = fm.axis_error_deg(up, fm.own_face_normals(m, pts, faces))
+    assert np.all(np.abs(whole - want) < 1.0), (whole, want)
+    assert np.all(own < 1e-6), own

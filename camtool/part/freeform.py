@@ -33,6 +33,8 @@ from .domain import Boundary, FitStats
 from .surface_base import Surface
 
 NORMAL_SMOOTHING_MM = 6.0   # Gaussian sigma of the normals (a tool's footprint of 10-15 mm averages about this)
+FOOTPRINT_RADIUS_MM = 12.5  # a CAD mesh's normals: its triangles' mean over a disc of this radius (issue #46: the part's
+                            # normal averaged over 10-15 mm; its middle), where they replace the chart's (mesh_normals)
 MAX_NODES = 300_000         # the grid's nodes at most (the spacing grows for a large face)
 MIN_CELL_MM = 1.0           # ... and at least this spacing
 MAX_SLOPE_DEG = 80.0        # a node steeper than this from the chart plane is no material (a wall of a closed part)
@@ -551,7 +553,7 @@ def _cad_normals(height, grid: Grid, frame, V_chart, sigma_mm: float, reliable, 
     chart = normals_of(height, grid.g, frame, sigma_mm, reliable)
     if from_scan:
         return own, chart
-    return own, mesh_normals(chart, height, grid, frame, own, sigma_mm)
+    return own, mesh_normals(chart, height, grid, frame, own, FOOTPRINT_RADIUS_MM)
 
 
 def _scan_verdict(workpiece, part, is_mesh: bool) -> bool:
