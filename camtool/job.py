@@ -64,7 +64,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "drop_nonfinite": Key("bool", False, "Drop points (and the triangles using them) with NaN, infinite or damaged coordinates, with a warning giving the count, instead of refusing the file."),
         "sample_points": Key("int", 100000, "Points sampled (area-weighted) from a mesh.", check=lambda x: 100 <= x <= 5_000_000, expect="an integer in 100..5000000"),
         "normal_neighbours": Key("int", 30, "Neighbours used to estimate point-cloud normals.", check=lambda x: 3 <= x <= 1000, expect="an integer in 3..1000"),
-        "scan": Key("str", "auto", "Whether a mesh is a scan, whose TCP contact the motion check judges within the scan's noise band (a point cloud always is): auto = when its vertices are rough (docs/freeform.md, \"Scanned meshes\"); yes; no = a CAD mesh, checked strictly.", choices=("auto", "yes", "no")),
+        "scan": Key("str", "auto", "Whether a mesh is a scan, whose TCP contact the motion check judges within the scan's noise band (a point cloud always is): auto = when its vertices are rough (docs/freeform.md, \"Scanned meshes\"; a coarse CAD mesh's facets read as rough too); yes; no = a CAD mesh, checked strictly, its free-form faces' normals its own triangles' averaged over the tool's footprint.", choices=("auto", "yes", "no")),
     },
     "fit": {
         "model": Key("str", "auto", "Surface model; auto takes the one with most inliers (a huge sphere counts as a plane; a cylinder needs 5 % more inliers than the plane or sphere); freeform takes the whole workpiece as one free-form face, rows measured on the surface (docs/freeform.md).", choices=("auto", "plane", "sphere", "cylinder", "freeform")),

@@ -116,3 +116,49 @@ def test_a_closed_slabs_far_skin_is_left_out_and_its_rim_kept():
     assert math.isclose(area[walls].sum(), 2 * (100.0 + 60.0) * 4.0, rel_tol=1e-9)
     assert (top | walls).all()
     assert np.all(np.sqrt(2.0 * area) <= edge * 1.0001)      # a right triangle's legs bound its area
+
+
+def test_a_coarse_cad_mesh_said_to_be_cad_takes_its_triangles_normals():
+    """A steep egg-crate sheet (z = 30 sin(x / 15) cos(y / 22.5), slopes to 63 deg) tessellated at 5 mm: its
+    vertices are rough (its facets' creases: the roughness verdict takes it for a scan, as the coarse BladeX blade).
+    Said to be CAD (``workpiece.scan = "no"``), its normals are its triangles' over the footprint: within 1.2 deg
+    (p95) of the exact surface's normal averaged over the FOOTPRINT_RADIUS_MM disc (its closed form sampled every
+    0.2 mm), across the face to 3 mm from its edges; judged a scan, the height field's chart window: 3.4 deg."""
+    from dataclasses import replace
+
+    from camtool.part.roughness import mesh_is_scan
+
+    amp, wave, h = 30.0, 15.0, 5.0
+    f = lambda x, y: amp * np.sin(x / wave) * np.cos(y / (1.5 * wave))          # noqa: E731
+    x, y = np.arange(0.0, 120.0 + 1e-9, h), np.arange(0.0, 90.0 + 1e-9, h)
+    m = _grid(np.meshgrid(x, y, indexing="ij"), f)
+    assert mesh_is_scan(m.vertices, "auto", m.faces)
+    wp = Workpiece(np.asarray(m.vertices), np.asarray(m.vertex_normals), np.asarray(m.faces), "crate.stl", "mm",
+                   (), np.asarray(m.vertices))
+    X, Y = (a.ravel() for a in np.meshgrid(np.arange(0.0, 120.0, 0.2), np.arange(0.0, 90.0, 0.2), indexing="ij"))
+    fx = amp / wave * np.cos(X / wave) * np.cos(Y / (1.5 * wave))
+    fy = -amp / (1.5 * wave) * np.sin(X / wave) * np.sin(Y / (1.5 * wave))
+    N = np.stack([-fx, -fy, np.ones_like(fx)], 1)       # the unit normal x its area per chart cell
+    Q = np.stack([X, Y, f(X, Y)], 1)
+    rng = np.random.default_rng(0)
+    px, py = rng.uniform(3.0, 117.0, 80), rng.uniform(3.0, 87.0, 80)
+    pts = np.stack([px, py, f(px, py)], 1)
+    disc = np.array([N[((Q - p) ** 2).sum(axis=1) <= FOOTPRINT_RADIUS_MM ** 2].sum(axis=0) for p in pts])
+    disc /= np.linalg.norm(disc, axis=1, keepdims=True)
+    err = {}
+    for scan in ("no", "auto"):
+        surf = freeform_surface(replace(wp, scan=scan), FIT)
+        uv = surf.uv_from_points(pts)
+        err[scan] = np.percentile(_angle_deg(surf.normal_at(uv[:, 0], uv[:, 1]), disc), 95)
+    assert err["no"] < 1.2, err
+    assert err["auto"] > 2.5, err       # judged a scan: the chart's window (the test shows a real difference)
+
+
+def _grid(XY, f) -> trimesh.Trimesh:
+    """The triangulated grid (X, Y) of the height z = f(x, y)."""
+    X, Y = XY
+    P = np.stack([X, Y, f(X, Y)], -1).reshape(-1, 3)
+    nx, ny = X.shape
+    i = (np.arange(nx - 1)[:, None] * ny + np.arange(ny - 1)[None, :]).ravel()
+    F = np.vstack([np.stack([i, i + ny, i + 1], 1), np.stack([i + 1, i + ny, i + ny + 1], 1)])
+    return trimesh.Trimesh(P, F, process=True)
