@@ -62,6 +62,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import BadInput
+from .crease_strips import strip_regions
 from .creases import crease_points
 
 SHARP_EDGE_DEG = 30.0     # default of faces.sharp_edge_deg: a dihedral angle above this splits two regions
@@ -456,6 +457,9 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
     N = np.asarray(workpiece.normals, float)[pick] if mesh else None
     region = smooth_regions(P[pick], N, settings.sharp_edge_deg, CONNECT_SPACINGS,
                             (workpiece.vertices_mm, workpiece.faces) if mesh and workpiece.vertices_mm is not None else None)
+    strips, point_strip = [], None
+    if mesh and workpiece.vertices_mm is not None:   # strips narrower than the edge band (a chamfer): crease_strips
+        region, strips, point_strip = strip_regions(workpiece, pick, region, MIN_FACE_SAMPLES)
     owner = np.full(n, -1, np.int64)
     faces = list(seg.faces) if seg is not None else []
     for f in faces:
@@ -470,14 +474,14 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
         idx = np.flatnonzero(region == r)
         groups[r] = _smooth_groups(idx, owner_s, nb, P[pick], by_index, cos_sharp)
     min_free = MIN_FREE_SHARE_MESH if mesh else MIN_FREE_SHARE
-    free = [r for r in groups if (region == r).sum() >= min_free * len(pick)
+    free = [r for r in groups if ((region == r).sum() >= min_free * len(pick) or r in strips)
             and _is_freeform(np.flatnonzero(region == r), owner_s, groups[r])]
     if not free:
         return seg
     # each workpiece point's region: its nearest sample point's
     near = _nearest_facing(tree, N, np.where(np.isfinite(P), P, 0.0),
                            np.asarray(workpiece.normals, float) if mesh else None)
-    point_region = region[near]
+    point_region = region[near] if point_strip is None else np.where(point_strip >= 0, point_strip, region[near])
     kept = []
     for f in faces:   # an analytic face that lies mostly in a free-form region is a fragment of it, unless it
         s = owner_s == f.index          # holds a large solid part of it (a plane the free-form region runs into)

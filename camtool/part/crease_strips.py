@@ -1,0 +1,96 @@
+"""Strips between creases: a mesh's narrow faces that the smooth regions' sample cannot see (issue #46).
+
+``freeform_faces.smooth_regions`` works on a strided sample of the points (at most 20 000: 5 mm apart on the
+0.5 m^2 TOOLING4G mould) and marks every sample point within ``EDGE_SPACINGS`` spacings of a crease as an edge
+point, which joins a region only through a neighbour whose normal agrees within ``sharp_edge_deg``. A strip
+narrower than that band and creased on both long sides (the mould's 7 mm chamfer at the foot of a wall, 49 deg
+from the floor beside it and 41 deg from the wall) holds edge points only: no region took them, and the strip
+stayed as three small planes RANSAC found along it and points on no face (4 % of the trough's area uncovered).
+
+The mesh holds the strip exactly: its triangles, joined across edges where they turn by at most
+``STRIP_LINK_DEG`` (trimesh's face adjacency angles), make a piece bounded by the creases on either side. A piece
+is a strip when most of its sample points are on no region (``smooth_regions`` saw only its edge) and it holds
+at least ``min_points`` of them; a piece of a smooth region (a trough's floor, a fillet's facets) holds that
+region's points and is none. Each strip becomes a region of its own, numbered after the others, and every
+workpiece point lying on its triangles is its (``on_triangles``: the points are sampled from those triangles).
+A strip is then a region like the others (analytic where RANSAC's faces hold it, free-form where they do not), but
+needs no share of the sample: it is narrow by definition.
+
+``STRIP_LINK_DEG`` is tighter than ``sharp_edge_deg``: a strip has no interior for the sample to link, and where a
+chamfer ends it turns smoothly into the fillets at the trough's ends and on into the wall (the mould's does): linked
+at 30 deg, the chamfer and the whole wall were one piece.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+STRIP_LINK_DEG = 10.0   # a strip's triangles are joined across edges turning by at most this
+ON_MESH_MM = 1e-6       # a point this near a triangle lies on it (the points are sampled from the triangles)
+UNSEEN_SHARE = 0.5      # a piece is a strip when more than this share of its sample points are on no region
+
+
+def triangle_pieces(vertices_mm: np.ndarray, faces: np.ndarray, link_deg: float = STRIP_LINK_DEG) -> np.ndarray:
+    """Each triangle's piece: the triangles joined across mesh edges where their normals turn by at most
+    ``link_deg`` (unsigned, as ``creases``), as connected components."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(np.asarray(vertices_mm, float), np.asarray(faces, np.int64), process=False, validate=False)
+    angle = np.degrees(np.asarray(mesh.face_adjacency_angles, float))
+    angle = np.minimum(angle, 180.0 - angle)
+    adj = np.asarray(mesh.face_adjacency, np.int64)[np.isfinite(angle) & (angle <= link_deg)]
+    n = len(mesh.faces)
+    graph = coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+def on_triangles(P: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Index into ``triangles`` (k, 3, 3) of a triangle each point lies on (within ``ON_MESH_MM``), -1 for none."""
+    import trimesh
+
+    from .box_grid import BoxGrid
+
+    out = np.full(len(P), -1, np.int64)
+    if len(triangles) == 0 or len(P) == 0:
+        return out
+    grid = BoxGrid(triangles.min(axis=1) - ON_MESH_MM, triangles.max(axis=1) + ON_MESH_MM, P)
+    row, hit = grid.holding(P)
+    if len(hit):
+        close = trimesh.triangles.closest_point(triangles[hit], P[row])
+        on = np.einsum("ij,ij->i", P[row] - close, P[row] - close) <= ON_MESH_MM ** 2
+        out[row[on]] = hit[on]
+    return out
+
+
+def strip_regions(workpiece, pick: np.ndarray, region: np.ndarray, min_points: int):
+    """(the sample's region labels with the strips added, numbered after the regions; the strips' labels; each
+    workpiece point's strip label, -1 for none). ``pick``: the sample's indices into the workpiece's points;
+    ``region``: ``smooth_regions``' labels of the sample (-1: none)."""
+    P = np.asarray(workpiece.points_mm, float)
+    V, F = np.asarray(workpiece.vertices_mm, float), np.asarray(workpiece.faces, np.int64)
+    out, point_strip = np.asarray(region, np.int64).copy(), np.full(len(P), -1, np.int64)
+    unseen = np.flatnonzero(out < 0)
+    if len(unseen) < min_points or len(F) < 2:
+        return out, [], point_strip
+    piece = triangle_pieces(V, F)
+    triangles = V[F]
+    on = on_triangles(P[pick], triangles)
+    held = on >= 0
+    n_piece = int(piece.max()) + 1
+    total = np.bincount(piece[on[held]], minlength=n_piece)
+    free = np.bincount(piece[on[held]], weights=(out[held] < 0).astype(float), minlength=n_piece)
+    strips = np.flatnonzero((free >= min_points) & (free > UNSEEN_SHARE * np.maximum(total, 1)))
+    strips = strips[np.argsort(-free[strips], kind="stable")]     # largest first, as the regions
+    if len(strips) == 0:
+        return out, [], point_strip
+    first = int(out.max()) + 1
+    label_of = np.full(n_piece, -1, np.int64)
+    label_of[strips] = first + np.arange(len(strips))
+    tri_strip = label_of[piece]
+    mine = np.flatnonzero(tri_strip >= 0)
+    at = on_triangles(P, triangles[mine])
+    point_strip[at >= 0] = tri_strip[mine[at[at >= 0]]]
+    sample_strip = np.where(held, tri_strip[np.maximum(on, 0)], -1)
+    out = np.where((out < 0) & (sample_strip >= 0), sample_strip, out)
+    return out, [int(x) for x in label_of[strips]], point_strip
