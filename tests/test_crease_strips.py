@@ -9,21 +9,25 @@ from camtool.part.segment import SegmentSettings, segment
 from test_freeform import mesh_workpiece
 
 
+WALL_MM = 0.2   # the wall drops 20 mm over this (89.4 deg)
+
+
 def chamfer_width_mm(y):
-    return 5.0 + 1.2 * np.sin(y / 40.0)   # the chamfer turns from 39 to 52 deg along y: no plane holds it
+    return 5.0 + 1.8 * np.sin(y / 30.0)   # the chamfer turns from 36 to 57 deg along y: no plane holds it
 
 
 def chamfered_trough_mesh():
-    """A sheet (mm): a rim at z = 0 (x < 0), a wall 20 mm down over 1 mm, a chamfer 5 mm down over
-    ``chamfer_width_mm`` (39-52 deg, creased 35-48 deg into the wall and over 30 deg into the floor), then a free-form
-    floor to x = 200. A grid in (s, y), s mapped onto x per row so that the creases are mesh edges."""
+    """A sheet (mm): a rim at z = 0 (x < 0), a wall 20 mm down over ``WALL_MM``, a chamfer 5 mm down over
+    ``chamfer_width_mm`` (36-57 deg, creased 32-53 deg into the wall and as much into the floor, level at its foot),
+    then a free-form floor to x = 200. A grid in (s, y), s mapped onto x per row so that the creases are mesh edges."""
     s = np.concatenate([np.linspace(-40.0, 0.0, 17), [1.0], np.linspace(2.0, 5.0, 4), np.linspace(7.5, 200.0, 78)])
     y = np.linspace(-150.0, 150.0, 121)
     S, Y = np.meshgrid(s, y)
     w = chamfer_width_mm(Y)
-    x0 = 1.0 + w
-    X = np.where(S <= 1.0, S, np.where(S <= 5.0, 1.0 + (S - 1.0) / 4.0 * w, x0 + (S - 5.0) * (200.0 - x0) / 195.0))
-    floor = -25.0 - 8.0 * np.sin(np.pi * (X - x0) / (200.0 - x0)) * (1.0 + 0.3 * np.sin(Y / 50.0))
+    x0 = WALL_MM + w
+    X = np.where(S <= 0.0, S, np.where(S <= 1.0, WALL_MM * S, np.where(S <= 5.0, WALL_MM + (S - 1.0) / 4.0 * w,
+                                                                        x0 + (S - 5.0) * (200.0 - x0) / 195.0)))
+    floor = -25.0 - 8.0 * np.sin(np.pi * (X - x0) / (200.0 - x0)) ** 2 * (1.0 + 0.3 * np.sin(Y / 50.0))
     Z = np.where(S <= 0.0, 0.0, np.where(S <= 1.0, -20.0 * S, np.where(S <= 5.0, -20.0 - 5.0 * (S - 1.0) / 4.0, floor)))
     ny, nx = S.shape
     idx = np.arange(nx * ny).reshape(ny, nx)
@@ -33,7 +37,7 @@ def chamfered_trough_mesh():
 
 
 def on_chamfer(P):
-    return (P[:, 0] > 1.0 + 1e-6) & (P[:, 0] < 1.0 + chamfer_width_mm(P[:, 1]) - 1e-6)
+    return (P[:, 0] > WALL_MM + 1e-6) & (P[:, 0] < WALL_MM + chamfer_width_mm(P[:, 1]) - 1e-6)
 
 
 def test_the_chamfer_is_one_piece_of_the_mesh_and_its_points_lie_on_it():
@@ -62,6 +66,6 @@ def test_a_chamfer_narrower_than_the_edge_band_is_a_face_of_its_own():
     assert np.mean(owner[chamfer] == main) > 0.9                       # one face holds the chamfer ...
     face = seg.faces[main]
     assert on_chamfer(P[face.inliers]).mean() > 0.9                     # ... and little else
-    floor = (P[:, 0] > 1.0 + chamfer_width_mm(P[:, 1]) + 8.0) & (np.abs(P[:, 1]) < 140.0)
+    floor = (P[:, 0] > WALL_MM + chamfer_width_mm(P[:, 1]) + 8.0) & (np.abs(P[:, 1]) < 140.0)
     trough = np.bincount(owner[floor][owner[floor] >= 0]).argmax()
     assert seg.faces[trough].model == "freeform" and trough != main    # the floor is a free-form face of its own

@@ -13,10 +13,8 @@ is a strip when most of its sample points are on no region (``smooth_regions`` s
 at least ``min_points`` of them; a piece of a smooth region (a trough's floor, a fillet's facets) holds that
 region's points and is none. Each strip becomes a region of its own, numbered after the others, and every
 workpiece point lying on its triangles is its (``on_triangles``: the points are sampled from those triangles).
-A strip is one face: the analytic face that holds it (``cover_share`` of its points: a planar chamfer RANSAC found
-whole stays that plane), else a free-form face (``strip_is_freeform``: a chamfer whose slope turns along it, which
-RANSAC breaks into planes along its length, is one face, not those fragments); it needs no share of the sample (it is
-narrow by definition).
+A strip is then a region like the others (analytic where RANSAC's faces hold it, free-form where they do not), but
+needs no share of the sample: it is narrow by definition.
 
 ``STRIP_LINK_DEG`` is tighter than ``sharp_edge_deg``: a strip has no interior for the sample to link, and where a
 chamfer ends it turns smoothly into the fillets at the trough's ends and on into the wall (the mould's does): linked
@@ -96,10 +94,3 @@ def strip_regions(workpiece, pick: np.ndarray, region: np.ndarray, min_points: i
     sample_strip = np.where(held, tri_strip[np.maximum(on, 0)], -1)
     out = np.where((out < 0) & (sample_strip >= 0), sample_strip, out)
     return out, [int(x) for x in label_of[strips]], point_strip
-
-
-def strip_is_freeform(owners: np.ndarray, cover_share: float) -> bool:
-    """Whether a strip is a free-form face: no one analytic face holds ``cover_share`` of its sample points
-    (``owners``: each point's RANSAC face, -1 for none)."""
-    held = owners[owners >= 0]
-    return len(held) == 0 or int(np.bincount(held).max()) < cover_share * len(owners)

@@ -62,7 +62,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import BadInput
-from .crease_strips import strip_is_freeform, strip_regions
+from .crease_strips import strip_regions
 from .creases import crease_points
 
 SHARP_EDGE_DEG = 30.0     # default of faces.sharp_edge_deg: a dihedral angle above this splits two regions
@@ -474,9 +474,8 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
         idx = np.flatnonzero(region == r)
         groups[r] = _smooth_groups(idx, owner_s, nb, P[pick], by_index, cos_sharp)
     min_free = MIN_FREE_SHARE_MESH if mesh else MIN_FREE_SHARE
-    free = [r for r in groups if (strip_is_freeform(owner_s[region == r], COVER_SHARE) if r in strips else
-                                  (region == r).sum() >= min_free * len(pick)
-                                  and _is_freeform(np.flatnonzero(region == r), owner_s, groups[r]))]
+    free = [r for r in groups if ((region == r).sum() >= min_free * len(pick) or r in strips)
+            and _is_freeform(np.flatnonzero(region == r), owner_s, groups[r])]
     if not free:
         return seg
     # each workpiece point's region: its nearest sample point's
