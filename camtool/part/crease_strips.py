@@ -14,7 +14,14 @@ at least ``min_points`` of them; a piece of a smooth region (a trough's floor, a
 region's points and is none. Each strip becomes a region of its own, numbered after the others, and every
 workpiece point lying on its triangles is its (``on_triangles``: the points are sampled from those triangles).
 A strip is then a region like the others (analytic where RANSAC's faces hold it, free-form where they do not), but
-needs no share of the sample: it is narrow by definition.
+needs no share of the sample: it is narrow by definition. Only the free-form strips are kept (``only_free_strips``):
+an analytic one (a planar chamfer, a block's top all within the band of its rims) stays as RANSAC found it, its
+points as they were, so the faces of a part without a free-form strip do not change.
+
+A free-form strip's face is traced from its points and a lattice of points ``LATTICE_MM`` apart on its own
+triangles (``dense_strip``): the face's material is the workpiece's random points dilated by about their spacing,
+closed and eroded back, and across a strip three points wide one gap of the random sample (5 mm on the mould's
+chamfer) broke it in two, so that the face held half the chamfer.
 
 ``STRIP_LINK_DEG`` is tighter than ``sharp_edge_deg``: a strip has no interior for the sample to link, and where a
 chamfer ends it turns smoothly into the fillets at the trough's ends and on into the wall (the mould's does): linked
@@ -27,6 +34,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 STRIP_LINK_DEG = 10.0   # a strip's triangles are joined across edges turning by at most this
+LATTICE_MM = 1.0        # a strip's face is traced from points this far apart on its triangles (its grid's cell)
 ON_MESH_MM = 1e-6       # a point this near a triangle lies on it (the points are sampled from the triangles)
 UNSEEN_SHARE = 0.5      # a piece is a strip when more than this share of its sample points are on no region
 
@@ -94,3 +102,50 @@ def strip_regions(workpiece, pick: np.ndarray, region: np.ndarray, min_points: i
     sample_strip = np.where(held, tri_strip[np.maximum(on, 0)], -1)
     out = np.where((out < 0) & (sample_strip >= 0), sample_strip, out)
     return out, [int(x) for x in label_of[strips]], point_strip
+
+
+def only_free_strips(region: np.ndarray, point_strip, strips: list[int], free: list[int]):
+    """(sample labels, workpiece points' strip labels) with the strips that are not free-form undone: their
+    sample points on no region again, their workpiece points on no strip."""
+    undo = [r for r in strips if r not in free]
+    if not undo:
+        return region, point_strip
+    return np.where(np.isin(region, undo), -1, region), np.where(np.isin(point_strip, undo), -1, point_strip)
+
+
+def on_strips(nearest_region: np.ndarray, point_strip: np.ndarray, strips: list[int]) -> np.ndarray:
+    """Each workpiece point's region: its strip's where it lies on one (``point_strip``), else its nearest sample
+    point's (``nearest_region``) unless that is a strip's: a point beside a strip (on the wall above a chamfer) whose
+    nearest sample point lies on the strip is no point of it."""
+    return np.where(point_strip >= 0, point_strip, np.where(np.isin(nearest_region, strips), -1, nearest_region))
+
+
+def dense_strip(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int):
+    """(the workpiece with points added on a lattice ``LATTICE_MM`` apart on the triangles the points ``idx`` lie
+    on, each with its triangle's normal turned to the side of those points'; ``idx`` with the added points; the
+    region labels with them labelled r). The added points come after the workpiece's own (index >= its count)."""
+    from .workpiece import Workpiece
+
+    P, NP = np.asarray(workpiece.points_mm, float), np.asarray(workpiece.normals, float)
+    V, F = np.asarray(workpiece.vertices_mm, float), np.asarray(workpiece.faces, np.int64)
+    T = V[F]
+    tri = on_triangles(P[idx], T)
+    mine = np.unique(tri[tri >= 0])
+    pts, nrm = [], []
+    for t in mine:
+        a, b, c = T[t]
+        k = max(1, int(np.ceil(max(np.linalg.norm(b - a), np.linalg.norm(c - b), np.linalg.norm(a - c)) / LATTICE_MM)))
+        i, j = np.triu_indices(k + 1)
+        u, v = (k - j) / k, (j - i) / k           # barycentric (u, v, 1 - u - v) on a lattice, u + v <= 1
+        pts.append(a + u[:, None] * (b - a) + v[:, None] * (c - a))
+        n = np.cross(b - a, c - a)
+        n = n / max(np.linalg.norm(n), 1e-300)
+        side = NP[idx][tri == t].sum(axis=0)
+        nrm.append(np.repeat((n if n @ side >= 0 else -n)[None], len(pts[-1]), axis=0))
+    if not pts:
+        return workpiece, idx, point_region
+    extra, extra_n = np.concatenate(pts), np.concatenate(nrm)
+    dense = Workpiece(np.concatenate([P, extra]), np.concatenate([NP, extra_n]), workpiece.faces, workpiece.source,
+                      workpiece.units, (), workpiece.vertices_mm)
+    added = np.arange(len(P), len(P) + len(extra))
+    return dense, np.concatenate([idx, added]), np.concatenate([point_region, np.full(len(extra), r, np.int64)])

@@ -62,7 +62,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import BadInput
-from .crease_strips import strip_regions
+from .crease_strips import dense_strip, on_strips, only_free_strips, strip_regions
 from .creases import crease_points
 
 SHARP_EDGE_DEG = 30.0     # default of faces.sharp_edge_deg: a dihedral angle above this splits two regions
@@ -441,6 +441,16 @@ def _region_faces(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int, 
     return [whole]
 
 
+def _strip_faces(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int, keys: _FitKeys,
+                 sample: _RegionSample) -> list:
+    """A strip's faces (``_region_faces``), built on its points and a lattice of points on its own triangles
+    (``crease_strips.dense_strip``); their inliers the workpiece's points only."""
+    dense, at, labels = dense_strip(workpiece, idx, point_region, r)
+    n = len(workpiece.points_mm)
+    return [None if f is None else (f[0], f[1][f[1] < n], f[2])
+            for f in _region_faces(dense, at, labels, r, keys, sample)]
+
+
 def with_freeform_faces(seg, workpiece, settings, make_face):
     """``seg`` with each free-form smooth region of the workpiece as one free-form face (module docstring).
 
@@ -478,10 +488,11 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
             and _is_freeform(np.flatnonzero(region == r), owner_s, groups[r])]
     if not free:
         return seg
+    region, point_strip = only_free_strips(region, point_strip, strips, free)
     # each workpiece point's region: its nearest sample point's
     near = _nearest_facing(tree, N, np.where(np.isfinite(P), P, 0.0),
                            np.asarray(workpiece.normals, float) if mesh else None)
-    point_region = region[near] if point_strip is None else np.where(point_strip >= 0, point_strip, region[near])
+    point_region = region[near] if point_strip is None else on_strips(region[near], point_strip, list(strips))
     kept = []
     for f in faces:   # an analytic face that lies mostly in a free-form region is a fragment of it, unless it
         s = owner_s == f.index          # holds a large solid part of it (a plane the free-form region runs into)
@@ -503,12 +514,14 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
     keys = _FitKeys(float(settings.threshold_mm), float(settings.close_gaps_mm))
     built = [(f.surface, f.inliers, f.area_mm2) for f in kept]
     dropped = seg.dropped_faces if seg is not None else 0
+    sample = _RegionSample(P[pick], N, tree, region, near, mesh)
     for r in free:
         idx = np.flatnonzero((point_region == r) & ~taken & np.isfinite(P).all(axis=1))
         if len(idx) < max(MIN_FACE_SAMPLES, 100):
             continue
-        sample = _RegionSample(P[pick], N, tree, region, near, mesh)
-        for face in _region_faces(workpiece, idx, point_region, r, keys, sample):
+        faces_r = _strip_faces(workpiece, idx, point_region, r, keys, sample) if r in strips else \
+            _region_faces(workpiece, idx, point_region, r, keys, sample)
+        for face in faces_r:
             if face is None or face[2] < settings.min_area_mm2 or len(face[1]) < MIN_FACE_SAMPLES:
                 dropped += 1
                 continue
