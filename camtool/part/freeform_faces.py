@@ -441,6 +441,22 @@ def _region_faces(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int, 
     return [whole]
 
 
+def _kept(f, owner_s: np.ndarray, region: np.ndarray, free: list, nb: np.ndarray, S: np.ndarray, by_index: dict,
+          cos_sharp: float) -> bool:
+    """Whether the analytic face f stays: an analytic face that lies mostly in a free-form region is a fragment of
+    it, unless it holds a large solid part of it (a plane the free-form region runs into). ``S``: the sample."""
+    s = owner_s == f.index
+    if s.sum() == 0:
+        return True
+    r = np.bincount(np.maximum(region[s], 0) if (region[s] >= 0).any() else [0]).argmax()
+    # mostly in free-form regions, if in several: a cylinder over both sides of a thin blade's tip
+    if r not in free or np.isin(region[s], free).mean() <= 0.5:
+        return True
+    solid = float((owner_s[nb[s, 1:]] == f.index).mean())
+    return bool(s.sum() >= KEEP_SHARE * (region == r).sum() and solid >= SOLID_SHARE
+                and _smooth_border_share(f, owner_s, nb, S, by_index, cos_sharp, region == r) < SMOOTH_BORDER_SHARE)
+
+
 def _strip_faces(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int, keys: _FitKeys,
                  sample: _RegionSample) -> list:
     """A strip's faces (``_region_faces``), built on its points and a lattice of points on its own triangles
@@ -493,21 +509,7 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
     near = _nearest_facing(tree, N, np.where(np.isfinite(P), P, 0.0),
                            np.asarray(workpiece.normals, float) if mesh else None)
     point_region = region[near] if point_strip is None else on_strips(region[near], point_strip, list(strips))
-    kept = []
-    for f in faces:   # an analytic face that lies mostly in a free-form region is a fragment of it, unless it
-        s = owner_s == f.index          # holds a large solid part of it (a plane the free-form region runs into)
-        if s.sum() == 0:
-            kept.append(f)
-            continue
-        r = np.bincount(np.maximum(region[s], 0) if (region[s] >= 0).any() else [0]).argmax()
-        # mostly in free-form regions, if in several: a cylinder over both sides of a thin blade's tip
-        if r not in free or np.isin(region[s], free).mean() <= 0.5:
-            kept.append(f)
-            continue
-        solid = float((owner_s[nb[s, 1:]] == f.index).mean())
-        if s.sum() >= KEEP_SHARE * (region == r).sum() and solid >= SOLID_SHARE \
-                and _smooth_border_share(f, owner_s, nb, P[pick], by_index, cos_sharp, region == r) < SMOOTH_BORDER_SHARE:
-            kept.append(f)
+    kept = [f for f in faces if _kept(f, owner_s, region, free, nb, P[pick], by_index, cos_sharp)]
     taken = np.zeros(n, bool)
     for f in kept:
         taken[f.inliers] = True
