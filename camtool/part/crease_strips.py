@@ -14,7 +14,8 @@ at least ``min_points`` of them; a piece of a smooth region (a trough's floor, a
 region's points and is none. Each strip becomes a region of its own, numbered after the others, and every
 workpiece point lying on its triangles is its (``on_triangles``: the points are sampled from those triangles).
 A strip is then a region like the others (analytic where RANSAC's faces hold it, free-form where they do not), but
-needs no share of the sample: it is narrow by definition. Only the free-form strips are kept (``only_free_strips``):
+needs no share of the sample: it is narrow by definition. Only on a CAD mesh (``cad_mesh``): a scanned mesh's rims, their coarse triangles
+crumpled, gave half a dozen strips of no use (the reach demo's shell, 16-165 mm triangles). Only the free-form strips are kept (``only_free_strips``):
 an analytic one (a planar chamfer, a block's top all within the band of its rims) stays as RANSAC found it, its
 points as they were, so the faces of a part without a free-form strip do not change.
 
@@ -37,6 +38,15 @@ STRIP_LINK_DEG = 10.0   # a strip's triangles are joined across edges turning by
 LATTICE_MM = 1.0        # a strip's face is traced from points this far apart on its triangles (its grid's cell)
 ON_MESH_MM = 1e-6       # a point this near a triangle lies on it (the points are sampled from the triangles)
 UNSEEN_SHARE = 0.5      # a piece is a strip when more than this share of its sample points are on no region
+
+
+def cad_mesh(workpiece) -> bool:
+    """Whether the workpiece is a mesh judged CAD, not a scan (``roughness.mesh_is_scan``, as the free-form face
+    judges it)."""
+    from .roughness import mesh_is_scan
+
+    V, F = getattr(workpiece, "vertices_mm", None), getattr(workpiece, "faces", None)
+    return V is not None and F is not None and len(F) > 1 and not mesh_is_scan(V, "auto", F)
 
 
 def triangle_pieces(vertices_mm: np.ndarray, faces: np.ndarray, link_deg: float = STRIP_LINK_DEG) -> np.ndarray:

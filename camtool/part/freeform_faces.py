@@ -62,7 +62,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import BadInput
-from .crease_strips import dense_strip, on_strips, only_free_strips, strip_regions
+from .crease_strips import cad_mesh, dense_strip, on_strips, only_free_strips, strip_regions
 from .creases import crease_points
 
 SHARP_EDGE_DEG = 30.0     # default of faces.sharp_edge_deg: a dihedral angle above this splits two regions
@@ -484,7 +484,7 @@ def with_freeform_faces(seg, workpiece, settings, make_face):
     region = smooth_regions(P[pick], N, settings.sharp_edge_deg, CONNECT_SPACINGS,
                             (workpiece.vertices_mm, workpiece.faces) if mesh and workpiece.vertices_mm is not None else None)
     strips, point_strip = [], None
-    if mesh and workpiece.vertices_mm is not None:   # strips narrower than the edge band (a chamfer): crease_strips
+    if cad_mesh(workpiece):   # strips narrower than the edge band (a CAD mesh's chamfer): crease_strips
         region, strips, point_strip = strip_regions(workpiece, pick, region, MIN_FACE_SAMPLES)
     owner = np.full(n, -1, np.int64)
     faces = list(seg.faces) if seg is not None else []
