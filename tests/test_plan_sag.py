@@ -226,3 +226,30 @@ def test_a_step_on_a_face_overhanging_its_chart_plane_gets_its_midpose_on_its_ow
     T, sag = _surface_midposes(Ta, Tb, T_arc, sag_arc, project)
     np.testing.assert_allclose(T[0, :3, 3], R * radial(130.0), atol=1e-9)
     assert sag[0] == pytest.approx(R * (1 - np.cos(np.radians(20.0))), rel=1e-9)
+
+
+def test_nearest_of_takes_each_point_onto_the_nearest_face():
+    """Several free-form faces in one program (a trough and its chamfer, issue #46): the sag's projector takes each
+    point onto the face whose projection lies nearest it, NaN where no face has one (without it a face set had no
+    projector: its CAD faces' sag midposes stayed on the arc, 0.15-0.23 mm off the facets, and the motion check
+    refused the TOOLING4G mould's trough with its chamfer)."""
+    import numpy as np
+
+    from camtool.plan.sag import nearest_of
+
+    def floor(p, **kw):     # z = 0 for x >= 0
+        q = np.array(p, float)
+        q[..., 2] = 0.0
+        q[q[..., 0] < 0] = np.nan
+        return q
+
+    def wall(p, **kw):      # x = 0 for z >= 0
+        q = np.array(p, float)
+        q[..., 0] = 0.0
+        q[q[..., 2] < 0] = np.nan
+        return q
+
+    P = np.array([[5.0, 0.0, 0.2], [0.3, 0.0, 6.0], [2.0, 0.0, 1.0], [-1.0, 0.0, -1.0]])
+    got = nearest_of([floor, wall])(P)
+    assert np.allclose(got[:3], [[5.0, 0.0, 0.0], [0.0, 0.0, 6.0], [2.0, 0.0, 0.0]])
+    assert np.isnan(got[3]).all()

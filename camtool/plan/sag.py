@@ -199,6 +199,23 @@ def in_frame(project, base: np.ndarray):
     return in_frame
 
 
+def nearest_of(projectors: list):
+    """A ``project`` onto several free-form faces (several in one program, ``FaceSet``): each point onto the face
+    whose projection lies nearest it, NaN where none has one. The sag's own tests (``_on_face``, ``within_mm``) then
+    decide as for one face; a point of an analytic face in the set lies on none of them."""
+    def project(points, **kw):
+        P = np.asarray(points, float)
+        best, dist = np.full(P.shape, np.nan), np.full(P.shape[:-1], np.inf)
+        for f in projectors:
+            q = f(P, **kw)
+            with np.errstate(invalid="ignore"):
+                d = np.linalg.norm(q - P, axis=-1)
+            nearer = np.isfinite(d) & (d < dist)
+            best[nearer], dist[nearer] = q[nearer], d[nearer]
+        return best
+    return project
+
+
 def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver,
                       chord_tol_mm: float, project=None) -> JointPath:
     """``joint_path`` with arc-midpoint rows where a surface step's sag exceeds ``chord_tol_mm / 2``.

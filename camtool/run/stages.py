@@ -30,7 +30,7 @@ from ..plan import plan_path
 from ..plan.connectors import LiftSettings, lift_reconfigurations
 from ..plan.cwln import CwlnSolver
 from ..plan.densify import densify_work
-from ..plan.sag import add_surface_poses
+from ..plan.sag import add_surface_poses, nearest_of
 from ..plan.spline_bow import SplineDepthSettings, add_spline_poses
 from ..plan.smooth import SmoothSettings, smooth_runs
 from ..plan.rrt import CapsuleChecker, CloudChecker, free_move, insert_home_moves
@@ -238,7 +238,11 @@ def face_projector(surface, workpiece):
     facets (``FreeformSurface.project_mm``); None for an analytic face, a scan's smoothed surface or a scanned
     mesh (the face's own verdict, ``FreeformSurface.from_scan``): taken onto those, the midposes would follow their
     noise, and the time law slows for it (the shell sample's cycle 214 -> 361 s at its former placement), so they
-    stay on the arc through the tool axes."""
+    stay on the arc through the tool axes. Several faces (``FaceSet``): each point onto the nearest of its CAD
+    free-form faces (``plan.sag.nearest_of``)."""
+    if isinstance(surface, FaceSet):
+        own = [p for p in (face_projector(f, workpiece) for f in surface.surfaces) if p is not None]
+        return nearest_of(own) if own else None
     if not isinstance(surface, Surface) or not surface.on_mesh_facets or workpiece is None or workpiece.faces is None:
         return None
     return None if surface.from_scan else surface.project_mm
