@@ -1,11 +1,11 @@
-"""Strips between creases: a mesh's narrow faces that the smooth regions' sample cannot see (issue #46).
+"""Strips between creases: a CAD mesh's narrow faces that the smooth regions' sample cannot see (issue #46).
 
 ``freeform_faces.smooth_regions`` works on a strided sample of the points (at most 20 000: 5 mm apart on the
 0.5 m^2 TOOLING4G mould) and marks every sample point within ``EDGE_SPACINGS`` spacings of a crease as an edge
 point, which joins a region only through a neighbour whose normal agrees within ``sharp_edge_deg``. A strip
-narrower than that band and creased on both long sides (the mould's 7 mm chamfer at the foot of a wall, 49 deg
-from the floor beside it and 41 deg from the wall) holds edge points only: no region took them, and the strip
-stayed as three small planes RANSAC found along it and points on no face (4 % of the trough's area uncovered).
+narrower than that band and creased on both long sides (the mould's 7 mm chamfer at the foot of a wall, 41 deg
+from the wall and 33-36 deg from the floor) holds edge points only: no region took them, and the strip stayed as
+three small planes RANSAC found along it and points on no face (4 % of the trough's area uncovered).
 
 The mesh holds the strip exactly: its triangles, joined across edges where they turn by at most
 ``STRIP_LINK_DEG`` (trimesh's face adjacency angles), make a piece bounded by the creases on either side. A piece
@@ -13,20 +13,21 @@ is a strip when most of its sample points are on no region (``smooth_regions`` s
 at least ``min_points`` of them; a piece of a smooth region (a trough's floor, a fillet's facets) holds that
 region's points and is none. Each strip becomes a region of its own, numbered after the others, and every
 workpiece point lying on its triangles is its (``on_triangles``: the points are sampled from those triangles).
-A strip is then a region like the others (analytic where RANSAC's faces hold it, free-form where they do not), but
-needs no share of the sample: it is narrow by definition. Only on a CAD mesh (``cad_mesh``): a scanned mesh's rims, their coarse triangles
-crumpled, gave half a dozen strips of no use (the reach demo's shell, 16-165 mm triangles). Only the free-form strips are kept (``only_free_strips``):
-an analytic one (a planar chamfer, a block's top all within the band of its rims) stays as RANSAC found it, its
-points as they were, so the faces of a part without a free-form strip do not change.
+A strip is then a region like the others (analytic where RANSAC's faces hold it, free-form where they do not),
+but needs no share of the sample: it is narrow by definition.
 
-A free-form strip's face is traced from its points and a lattice of points ``LATTICE_MM`` apart on its own
-triangles (``dense_strip``): the face's material is the workpiece's random points dilated by about their spacing,
-closed and eroded back, and across a strip three points wide one gap of the random sample (5 mm on the mould's
-chamfer) broke it in two, so that the face held half the chamfer.
-
-``STRIP_LINK_DEG`` is tighter than ``sharp_edge_deg``: a strip has no interior for the sample to link, and where a
-chamfer ends it turns smoothly into the fillets at the trough's ends and on into the wall (the mould's does): linked
-at 30 deg, the chamfer and the whole wall were one piece.
+- Only the free-form strips are kept (``only_free_strips``): an analytic one (a planar chamfer, a block's top all
+  within the band of its rims) stays as RANSAC found it and its points as they were, so the faces of a part
+  without a free-form strip do not change.
+- Only on a CAD mesh (``cad_mesh``): a scanned mesh's crumpled rims gave half a dozen strips of no use (the
+  reach demo's shell, 16-165 mm triangles).
+- A free-form strip's face is traced from its points and a lattice of points ``LATTICE_MM`` apart on its own
+  triangles (``dense_strip``): the face's material is the workpiece's random points dilated by about their
+  spacing, closed and eroded back, and across a strip three points wide one 5 mm gap of the random sample broke
+  it in two (the face held half the mould's chamfer).
+- ``STRIP_LINK_DEG`` is tighter than ``sharp_edge_deg``: where the mould's chamfer ends it turns smoothly into the
+  fillets at the trough's ends and on into the wall and the floor; joined at 30 deg, the trough, its chamfer and
+  the block's top were one piece.
 """
 from __future__ import annotations
 
@@ -41,12 +42,14 @@ UNSEEN_SHARE = 0.5      # a piece is a strip when more than this share of its sa
 
 
 def cad_mesh(workpiece) -> bool:
-    """Whether the workpiece is a mesh judged CAD, not a scan (``roughness.mesh_is_scan``, as the free-form face
-    judges it)."""
+    """Whether the workpiece is a mesh judged CAD, not a scan (``roughness.mesh_is_scan`` by its ``workpiece.scan``,
+    as the free-form face judges it)."""
     from .roughness import mesh_is_scan
 
     V, F = getattr(workpiece, "vertices_mm", None), getattr(workpiece, "faces", None)
-    return V is not None and F is not None and len(F) > 1 and not mesh_is_scan(V, "auto", F)
+    if V is None or F is None or len(F) < 2:
+        return False
+    return not mesh_is_scan(V, getattr(workpiece, "scan", "auto"), F)
 
 
 def triangle_pieces(vertices_mm: np.ndarray, faces: np.ndarray, link_deg: float = STRIP_LINK_DEG) -> np.ndarray:
@@ -156,6 +159,6 @@ def dense_strip(workpiece, idx: np.ndarray, point_region: np.ndarray, r: int):
         return workpiece, idx, point_region
     extra, extra_n = np.concatenate(pts), np.concatenate(nrm)
     dense = Workpiece(np.concatenate([P, extra]), np.concatenate([NP, extra_n]), workpiece.faces, workpiece.source,
-                      workpiece.units, (), workpiece.vertices_mm)
+                      workpiece.units, (), workpiece.vertices_mm, getattr(workpiece, "scan", "auto"))
     added = np.arange(len(P), len(P) + len(extra))
     return dense, np.concatenate([idx, added]), np.concatenate([point_region, np.full(len(extra), r, np.int64)])
