@@ -70,6 +70,8 @@ LATERAL_SPACINGS = 3.0       # cloud: in-plane offsets up to this many spacings 
 HINT_NEAR_FACTOR = 3.0       # mesh orientation vote: faces within this many hint spacings vote
 COVER_CELLS = 0.25           # mesh: a point cover of the surface within this many grid cells (``above``)
 MIN_COVER_MM = 1.0           # ... and never finer than this
+NEEDLE_ASPECT = 100.0        # mesh: a triangle this many times longer than wide, and narrower than the closest
+                             # point's precision, is a needle (``needle_triangles``)
 ABOVE_CAP_RATIO = 1.1        # ``above`` queries points whose caps differ by up to this factor together
 
 
@@ -177,19 +179,12 @@ class PartGeometry:
         bvert[np.roll(faces, -1, axis=1)[self.edge_boundary]] = True
         self.vertex_boundary = bvert[faces]  # (F, 3): corner k is on the patch's edge
         self.boundary_edges = int(self.edge_boundary.sum())
-        # pseudo-normals (Baerentzen & Aanaes): the sign where the closest point is an edge or a
-        # corner, where a single face normal can give the wrong one
-        summed = np.zeros((cnt.size, 3))
-        np.add.at(summed, inv.ravel(), np.repeat(normals, 3, axis=0))
-        self.edge_normals = _unit(summed[inv.ravel()]).reshape(-1, 3, 3)
-        tri = verts[faces]
-        u, w = np.roll(tri, -1, axis=1) - tri, np.roll(tri, 1, axis=1) - tri
-        angle = np.arccos(np.clip(np.einsum("fkj,fkj->fk", _unit(u), _unit(w)), -1.0, 1.0))
-        vn = np.zeros_like(verts)
-        np.add.at(vn, faces.ravel(), (angle[:, :, None] * normals[:, None, :]).reshape(-1, 3))
-        self.vertex_normals = _unit(vn)
         # open3d's closest points are off by up to ~0.1 mm along the surface (float32)
         self._pos_tol = POSITION_TOL_MM + EDGE_EPS_REL * self.size_mm
+        # needles: their closest points are taken as their edges' or corners', whose pseudo-normals leave them out
+        self.needle = needle_triangles(verts[faces], self._pos_tol)
+        self.edge_normals, self.vertex_normals, self.needle_normals = _pseudo_normals(verts, faces, normals, inv,
+                                                                                      cnt.size, self.needle)
         self._slack = self._pos_tol  # |value| >= distance - this
         self._sheet = 1e-3 + 1e-6 * self.size_mm
         self._scene = o3d.t.geometry.RaycastingScene()
@@ -313,8 +308,8 @@ class PartGeometry:
             dist = np.linalg.norm(off, axis=1)
             normal = np.einsum("ij,ij->i", off, self.face_normals[prim])
             outside = np.zeros(len(p), bool)
-            # offset not along the face normal: the closest point is an edge or a corner
-            feature = dist**2 - normal**2 > self._pos_tol**2
+            # offset not along the face normal: the closest point is an edge or a corner; on a needle, always
+            feature = (dist**2 - normal**2 > self._pos_tol**2) | self.needle[prim]
             rows = np.nonzero(feature)[0]
             if len(rows):
                 pn, outside[rows] = self._feature(c[rows], prim[rows])
@@ -397,6 +392,7 @@ class PartGeometry:
         kv, ke = np.argmin(dv, axis=1), np.argmin(de, axis=1)
         corner = dv[rows, kv] <= self._pos_tol
         pn = np.where(corner[:, None], self.vertex_normals[f[rows, kv]], self.edge_normals[prim, ke])
+        pn = np.where(self.needle[prim][:, None], self.needle_normals[prim], pn)
         on_edge = np.where(corner, self.vertex_boundary[prim, kv], self.edge_boundary[prim, ke])
         return pn, on_edge
 
@@ -531,6 +527,44 @@ class PartGeometry:
         else:
             d.update(faces=int(len(self.faces)))
         return d
+
+
+def needle_triangles(tri: np.ndarray, width_mm: float) -> np.ndarray:
+    """Which triangles (F, 3, 3) are needles: narrower (their least altitude) than ``width_mm`` and
+    ``NEEDLE_ASPECT`` times longer than wide. A needle's three corners lie nearly on one line, so its normal
+    turns any way about it (the IEA 15 MW blade's tessellated trailing-edge strip holds one 37 mm long and
+    3 um wide, its normal 140 deg from both its neighbours'): it cannot tell a point's side, and being narrower
+    than a closest point is exact along the surface, a point's closest point on it may as well be on its edges."""
+    e = np.linalg.norm(np.roll(tri, -1, axis=1) - tri, axis=2)
+    longest = e.max(axis=1)
+    width = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) / np.maximum(longest, 1e-300)
+    return (width < width_mm) & (longest > NEEDLE_ASPECT * width)
+
+
+def _pseudo_normals(verts, faces, normals, inv, edges: int, needle) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(edge pseudo-normals (F, 3, 3), angle-weighted vertex pseudo-normals (V, 3), the needles' (F, 3))
+    (Baerentzen & Aanaes: the sign where the closest point is an edge or a corner, where a single face normal
+    can give the wrong one); edge k of a face joins corners k and k+1, ``inv`` numbers the edges. A needle's
+    normal takes no part (it would turn them any way, and at its obtuse corner its angle of nearly 180 deg would
+    outweigh the rest) but where only needles meet. A needle is read as the edge it nearly is: its pseudo-normal
+    is its corners' (a ribbon of needles, a blade's trailing edge narrower than the closest point is exact,
+    takes the two sides' that meet along it), its own normal where no other triangle meets it."""
+    w = np.where(needle, 0.0, 1.0)[:, None]
+    summed = np.zeros((edges, 3))
+    np.add.at(summed, inv.ravel(), np.repeat(normals * w, 3, axis=0))
+    alone = np.zeros((edges, 3))
+    np.add.at(alone, inv.ravel(), np.repeat(normals, 3, axis=0))
+    summed = np.where((np.linalg.norm(summed, axis=1) > 1e-9)[:, None], summed, alone)
+    tri = verts[faces]
+    u, v = np.roll(tri, -1, axis=1) - tri, np.roll(tri, 1, axis=1) - tri
+    angle = np.arccos(np.clip(np.einsum("fkj,fkj->fk", _unit(u), _unit(v)), -1.0, 1.0))
+    vn, vn_all = np.zeros_like(verts), np.zeros_like(verts)
+    np.add.at(vn, faces.ravel(), (angle[:, :, None] * (normals * w)[:, None, :]).reshape(-1, 3))
+    np.add.at(vn_all, faces.ravel(), (angle[:, :, None] * normals[:, None, :]).reshape(-1, 3))
+    corners = vn[faces].sum(axis=1)
+    corners = np.where((np.linalg.norm(corners, axis=1) > 1e-9)[:, None], corners, normals)
+    vn = np.where((np.linalg.norm(vn, axis=1) > 1e-9)[:, None], vn, vn_all)
+    return _unit(summed[inv.ravel()]).reshape(-1, 3, 3), _unit(vn), _unit(corners)
 
 
 def _hint(points, dirs):
