@@ -65,3 +65,16 @@ def test_a_point_beyond_the_trailing_edge_is_in_front_of_it_not_behind_the_cap()
     inside = np.array([[-5.0, 10.0, 0.0], [-15.0, 5.0, 0.5]])
     expect = [-(SLOPE * 5.0 + H_MM / 2) / np.hypot(1, SLOPE), -(SLOPE * 15.0 + H_MM / 2 - 0.5) / np.hypot(1, SLOPE)]
     np.testing.assert_allclose(part.signed_distance(inside), expect, atol=0.01)
+
+
+def test_a_needle_is_read_as_the_edge_where_the_two_sides_meet():
+    """The cap's corners lie on side A's edge; through the ribbon it reaches side B's: its pseudo-normal is the two
+    sides' normals summed with equal weights, the edge's bisector +x (closed form), as are the ribbon's; a point
+    19 mm off towards side B and 7 mm beyond the edge (the blade's second refusal) is in front."""
+    V, F = _wedge()
+    part = _part(V, F)
+    np.testing.assert_allclose(part.needle_normals[2:6], np.tile([1.0, 0.0, 0.0], (4, 1)), atol=1e-9)
+    nA = np.array([SLOPE, 0, 1.0]) / np.hypot(1, SLOPE)
+    np.testing.assert_allclose(part.needle_normals[[0, 1]], np.tile(nA, (2, 1)), atol=1e-9)   # not needles
+    off = np.array([[7.0, 10.0, -3.0]])
+    assert part.signed_distance(off)[0] > 0

@@ -72,6 +72,7 @@ COVER_CELLS = 0.25           # mesh: a point cover of the surface within this ma
 MIN_COVER_MM = 1.0           # ... and never finer than this
 NEEDLE_ASPECT = 100.0        # mesh: a triangle this many times longer than wide, and narrower than the closest
                              # point's precision, is a needle (``needle_triangles``)
+NEEDLE_RINGS = 2             # mesh: a needle's pseudo-normal takes the corners of the needles this many edges away
 ABOVE_CAP_RATIO = 1.1        # ``above`` queries points whose caps differ by up to this factor together
 
 
@@ -546,9 +547,7 @@ def _pseudo_normals(verts, faces, normals, inv, edges: int, needle) -> tuple[np.
     (Baerentzen & Aanaes: the sign where the closest point is an edge or a corner, where a single face normal
     can give the wrong one); edge k of a face joins corners k and k+1, ``inv`` numbers the edges. A needle's
     normal takes no part (it would turn them any way, and at its obtuse corner its angle of nearly 180 deg would
-    outweigh the rest) but where only needles meet. A needle is read as the edge it nearly is: its pseudo-normal
-    is its corners' (a ribbon of needles, a blade's trailing edge narrower than the closest point is exact,
-    takes the two sides' that meet along it), its own normal where no other triangle meets it."""
+    outweigh the rest) but where only needles meet; a needle's own is ``_needle_normals``."""
     w = np.where(needle, 0.0, 1.0)[:, None]
     summed = np.zeros((edges, 3))
     np.add.at(summed, inv.ravel(), np.repeat(normals * w, 3, axis=0))
@@ -561,10 +560,55 @@ def _pseudo_normals(verts, faces, normals, inv, edges: int, needle) -> tuple[np.
     vn, vn_all = np.zeros_like(verts), np.zeros_like(verts)
     np.add.at(vn, faces.ravel(), (angle[:, :, None] * (normals * w)[:, None, :]).reshape(-1, 3))
     np.add.at(vn_all, faces.ravel(), (angle[:, :, None] * normals[:, None, :]).reshape(-1, 3))
-    corners = vn[faces].sum(axis=1)
-    corners = np.where((np.linalg.norm(corners, axis=1) > 1e-9)[:, None], corners, normals)
+    own = _needle_normals(faces, normals, needle, inv, vn)
     vn = np.where((np.linalg.norm(vn, axis=1) > 1e-9)[:, None], vn, vn_all)
-    return _unit(summed[inv.ravel()]).reshape(-1, 3, 3), _unit(vn), _unit(corners)
+    return _unit(summed[inv.ravel()]).reshape(-1, 3, 3), _unit(vn), own
+
+
+def _needle_normals(faces, normals, needle, inv, vn) -> np.ndarray:
+    """Per triangle (F, 3): a needle's pseudo-normal, read as the edge it nearly is (a ribbon of needles, a blade's
+    trailing edge narrower than a closest point is exact, is the edge where its two sides meet): the sum, with
+    equal weights as at an edge, of the two most opposed of the vertex pseudo-normals (``vn``, needles left out)
+    at its corners and those of the needles within ``NEEDLE_RINGS`` shared edges of it (a cap on one side's edge
+    reaches the other side's through the ribbon): ``u`` the one least along their mean, then the one least along
+    ``u``. Another triangle, or a needle with no such corner, keeps its own normal."""
+    from scipy.sparse import coo_matrix, identity
+
+    e = inv.ravel()
+    order = np.argsort(e, kind="stable")
+    e, f = e[order], np.repeat(np.arange(len(faces)), 3)[order]
+    pair = np.flatnonzero(e[1:] == e[:-1])
+    a, b = f[pair], f[pair + 1]
+    both = needle[a] & needle[b]
+    n = len(faces)
+    step = coo_matrix((np.ones(2 * both.sum()), (np.r_[a[both], b[both]], np.r_[b[both], a[both]])), shape=(n, n))
+    reach = identity(n, format="csr")
+    for _ in range(NEEDLE_RINGS):
+        reach = reach + reach @ step
+    reach = reach[np.flatnonzero(needle)].tocoo()          # (needle, triangle within reach)
+    i = np.repeat(reach.row, 3)
+    v = faces[reach.col].ravel()
+    length = np.linalg.norm(vn[v], axis=1)
+    keep = length > 1e-9
+    i, U = i[keep], vn[v][keep] / length[keep, None]
+    out = normals.copy()
+    if not len(i):
+        return out
+    mean = np.stack([np.bincount(i, U[:, c], minlength=reach.shape[0]) for c in range(3)], axis=1)
+    first = _least_along(i, U, mean[i])
+    second = _least_along(i, U, U[first][np.searchsorted(np.unique(i), i)])
+    rows = np.unique(i)
+    pn = U[first] + U[second]
+    ok = np.linalg.norm(pn, axis=1) > 1e-9
+    out[np.flatnonzero(needle)[rows[ok]]] = _unit(pn[ok])
+    return out
+
+
+def _least_along(group: np.ndarray, U: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Per group (in increasing order): the index into ``U`` of its row least along ``d`` (its row's direction)."""
+    order = np.lexsort((np.einsum("ij,ij->i", U, d), group))
+    starts = np.r_[0, np.flatnonzero(np.diff(group[order])) + 1]
+    return order[starts]
 
 
 def _hint(points, dirs):
