@@ -117,13 +117,21 @@ PARTS = {
     "step_wavy_panel": ("step_wavy_panel.step", "cad", None, 15.0, 5.0),
     "optiwise_hull": ("optiwise_hull.step", "cad",
                       "c7e1416899b8be060fd2e52ae0f09e207bfb1f2b80869dc6505920fe4044a1bd", 10.0, 5.0),
+    "iea15_blade": ("iea15_blade_cfd.stp", "cad",
+                    "2dada8507c566515774e9ecc0d5d1ed77221d26a3cb99ea1a55ac95fbb9edfd9", 5.0, 2.5),
 }
 # cavities (a mould's trough): the face is the trough, the up-facing triangles (within 60 deg of the way it opens,
 # the file's frame) more than 1 mm below the rim, their largest connected piece; the job selects its free-form face
 # (`[faces] select = "freeform"`), as a process engineer picks the trough, not the whole block
 CAVITY = {"tooling4g_polishing_mold": (0.0, 0.0, 1.0)}
 # STEP parts worked at a scale (a 290 m ship's hull as a 1:300 model, 0.97 m): OpenCASCADE writes a scaled copy
-STEP_SCALE = {"optiwise_hull": 1.0 / 300.0}
+STEP_SCALE = {"optiwise_hull": 1.0 / 300.0,
+              # the IEA 15 MW blade (117 m; the file says mm, so it reads as 117 mm) as a 0.94 m model (1:125)
+              "iea15_blade": 8.0}
+# two skins back to back (a blade's suction and pressure sides, joined round its leading edge): a free-form face is
+# worked from one side, so the face is the skin facing the robot (``front_skin``), as a process engineer works a
+# blade one side at a time, and the job selects the free-form face nearest a point 100 mm in front of its centre
+ONE_SIDE = {"iea15_blade"}
 # generated parts: name -> a function writing the file (tests/test_step_freeform.py's four tangent B-spline patches
 # and a planar flange at a sharp edge, by OCP)
 GENERATED = {"step_wavy_panel": "test_step_freeform:wavy_panel_step"}
@@ -154,6 +162,47 @@ def placement(mesh, region, long_side_up: bool = False) -> np.ndarray:
     return T
 
 
+def front_skin(mesh, region, long_side_up: bool = False) -> np.ndarray:
+    """Mask of the skin of ``region`` that faces the robot at its placement (ONE_SIDE): the triangles whose normal,
+    averaged over 12.5 mm (the winding made consistent), lies within 60 deg of the way the placed face
+    looks (towards the robot), with the sign whose triangles stand nearer the robot; their largest connected
+    piece."""
+    n = -placement(mesh, region, long_side_up)[0, :3]          # the placed face's normal, towards the robot
+    wound = mesh if mesh.is_winding_consistent else trimesh.Trimesh(*_wound(mesh), process=False)
+    avg = fm.averaged_normals(wound, wound.triangles_center, fm.AXIS_RADIUS_MM, fine=False)
+    best = None
+    for sign in (1.0, -1.0):
+        keep = region & (avg @ (sign * n) >= np.cos(np.radians(60.0)))
+        front = np.average(wound.triangles_center[keep] @ n, weights=wound.area_faces[keep]) if keep.any() else -np.inf
+        if best is None or front > best[0]:
+            best = (front, keep)
+    return _largest_piece(mesh, best[1])
+
+
+def _wound(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) of ``mesh`` with its winding made consistent (camtool's mesh repair: trimesh's
+    ``fix_winding`` needs networkx)."""
+    from camtool.part.mesh_repair import _winding_flips
+
+    F = np.array(mesh.faces)
+    flip = _winding_flips(F, np.asarray(mesh.vertices))
+    F[flip] = F[flip][:, ::-1]
+    return np.asarray(mesh.vertices), F
+
+
+def _largest_piece(mesh, keep) -> np.ndarray:
+    """``keep`` cut to its largest connected piece (by area)."""
+    from scipy import sparse
+    from scipy.sparse import csgraph
+
+    adj = mesh.face_adjacency
+    adj = adj[keep[adj[:, 0]] & keep[adj[:, 1]]]
+    _, lab = csgraph.connected_components(sparse.coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])),
+                                                            shape=(len(keep),) * 2), directed=False)
+    area = np.bincount(lab[keep], weights=mesh.area_faces[keep], minlength=lab.max() + 1)
+    return keep & (lab == int(np.argmax(area)))
+
+
 def cavity_region(mesh, opens, max_tilt_deg: float = 60.0, below_mm: float = 1.0) -> np.ndarray:
     """Mask of a cavity's triangles (CAVITY): facing the way it opens within max_tilt_deg, more than below_mm under
     the rim (the part's highest level that way) and above its bottom; their largest connected piece."""
@@ -161,15 +210,7 @@ def cavity_region(mesh, opens, max_tilt_deg: float = 60.0, below_mm: float = 1.0
     h = mesh.triangles_center @ up
     top, bottom = float((mesh.vertices @ up).max()), float((mesh.vertices @ up).min())
     keep = (mesh.face_normals @ up >= np.cos(np.radians(max_tilt_deg))) & (h < top - below_mm) & (h > bottom + below_mm)
-    adj = mesh.face_adjacency
-    adj = adj[keep[adj[:, 0]] & keep[adj[:, 1]]]
-    from scipy import sparse
-    from scipy.sparse import csgraph
-
-    _, lab = csgraph.connected_components(sparse.coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])),
-                                                            shape=(len(keep),) * 2), directed=False)
-    area = np.bincount(lab[keep], weights=mesh.area_faces[keep], minlength=lab.max() + 1)
-    return keep & (lab == int(np.argmax(area)))
+    return _largest_piece(mesh, keep)
 
 
 def job_text(name, file: Path, T: np.ndarray, step: float, pitch: float, scale: float = 1000.0) -> str:
@@ -178,6 +219,8 @@ def job_text(name, file: Path, T: np.ndarray, step: float, pitch: float, scale: 
     units = {1000.0: "m", 1.0: "mm"}.get(scale)
     step_part = Path(file).suffix.lower() in STEP_SUFFIXES or name in CAVITY
     face = '[faces]\nselect = "freeform"\n\n' if step_part else '[fit]\nmodel = "freeform"\n\n'
+    if name in ONE_SIDE:     # the skin facing the robot: the free-form face nearest a point 100 mm in front of it
+        face = f'[faces]\nselect = {{nearest_mm = {f(PLACE_MM - [100.0, 0.0, 0.0])}}}\n\n'
     if units is None:      # a file without units: scaled into a copy in mm beside the job
         import trimesh
         m = trimesh.load(str(file), force="mesh", process=False)
@@ -361,6 +404,8 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
     mesh, owner = step_part_mesh(path) if path.suffix.lower() in STEP_SUFFIXES else (fm.load_mesh(path, scale), None)
     _, _, vt = np.linalg.svd(mesh.vertices - mesh.vertices.mean(0), full_matrices=False)
     region = cavity_region(mesh, CAVITY[name]) if name in CAVITY else fm.face_region(mesh, up=vt[2], max_tilt_deg=60.0)
+    if name in ONE_SIDE:
+        region = front_skin(mesh, region, long_side_up=name in LONG_SIDE_UP)
     face = mesh.submesh([np.flatnonzero(region)], append=True)
     faces = fm.worked_faces(mesh, owner)   # the axis's second figure: the worked face's own triangles
     samples = fm.surface_samples(mesh, region, spacing_mm=max(1.0, step / 5))
