@@ -23,6 +23,7 @@ from ..path.toolpath import SURFACE_CODES, ZONE_CODE, Path
 from ..trajectory import JointPath
 from ..timing.feed import tcp_positions_world
 from .cwln import CwlnSolver
+from .row_orientations import RowOrientations, along_runs
 
 MAX_SPLITS = 4  # a step is halved at most this many times (16 pieces)
 
@@ -41,13 +42,15 @@ def slerp_midposes(Ta: np.ndarray, Tb: np.ndarray) -> np.ndarray:
 
 
 def bisected(solver: CwlnSolver, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray, qb: np.ndarray, levels: int,
-             midposes) -> dict[int, np.ndarray]:
+             midposes, orient=None) -> dict[int, np.ndarray]:
     """{step: inserted q (k, dof) in order} for the steps (Ta[i], qa[i]) -> (Tb[i], qb[i]) (base frame), halved
     level by level (every interval of one depth at once), up to ``levels`` times.
 
     ``midposes(depth, Ta, qa, Tb, qb, q_mid)`` gives the intervals' midposes (m, 4, 4) and the indices of those to
     split; each is solved (CWLN without the clamp task, from the joint midpoint ``q_mid``: the least change),
-    and one solved within the joint limits is inserted and its two halves go on to the next level."""
+    and one solved within the joint limits is inserted and its two halves go on to the next level.
+    ``orient(step, share)`` ((m,) steps, (m,) shares of their way): (m,) where it decides, (m, 3, 3) the
+    midposes' orientations there (``row_orientations``), or None: the midposes' own."""
     step = np.arange(len(Ta))
     key = np.full(len(Ta), 0.5)     # where the midpoint lies in its step (0..1): the order of the inserts
     half = 0.25
@@ -57,6 +60,9 @@ def bisected(solver: CwlnSolver, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray,
             break
         q_mid = 0.5 * (qa + qb)
         T_mid, wanted = midposes(depth, Ta, qa, Tb, qb, q_mid)
+        if orient is not None and len(wanted):
+            ok, R = orient(step, key)
+            T_mid[ok, :3, :3] = R[ok]
         keep, q_new = [], []
         for i in wanted:
             res = solver.solve(T_mid[i], q_mid[i], clamp=False)
@@ -79,7 +85,7 @@ def bisected(solver: CwlnSolver, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray,
 
 
 def _split_steps(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray, qb: np.ndarray,
-                 tol_mm: float) -> dict[int, np.ndarray]:
+                 tol_mm: float, orient=None) -> dict[int, np.ndarray]:
     """``bisected`` for the chord's bow: the joint midpoints' TCP by one vectorised FK, the midposes by one
     batched slerp; the intervals that bow more than ``tol_mm`` are split, up to ``MAX_SPLITS`` times."""
     base = np.asarray(robot.base_T_mm, float)
@@ -89,15 +95,17 @@ def _split_steps(solver: CwlnSolver, robot: Robot, Ta: np.ndarray, qa: np.ndarra
         tcp_base = (tcp_positions_world(robot, q_mid) - base[:3, 3]) @ base[:3, :3]  # = base^-1 world
         return T_mid, np.flatnonzero(np.linalg.norm(tcp_base - T_mid[:, :3, 3], axis=1) > tol_mm)
 
-    return bisected(solver, Ta, qa, Tb, qb, MAX_SPLITS, bowing)
+    return bisected(solver, Ta, qa, Tb, qb, MAX_SPLITS, bowing, orient)
 
 
-def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver, tol_mm: float) -> JointPath:
+def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver, tol_mm: float,
+                 orientations: RowOrientations | None = None) -> JointPath:
     """``joint_path`` with poses inserted where a surface step's joint-linear chord leaves the line by > ``tol_mm``.
 
     Inserted rows have path_index -1 and the zone of the step's first row (the self-motion zone
     on a step into or out of it); the events get
-    ``densified_steps`` (how many steps were split, how many rows inserted).
+    ``densified_steps`` (how many steps were split, how many rows inserted). ``orientations``: the midposes'
+    orientations on a free-form face's runs (``row_orientations``; None: slerped).
     """
     jp = joint_path
     base_inv = np.linalg.inv(robot.base_T_mm)
@@ -106,7 +114,8 @@ def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSo
     steps = np.flatnonzero(on[:-1] & on[1:] & neighbours)
     poses = base_inv @ path.poses_mm[jp.path_index[np.r_[steps, steps + 1]]] if len(steps) else np.zeros((0, 4, 4))
     q = np.asarray(jp.q, float)
-    split = _split_steps(solver, robot, poses[:len(steps)], q[steps], poses[len(steps):], q[steps + 1], tol_mm)
+    split = _split_steps(solver, robot, poses[:len(steps)], q[steps], poses[len(steps):], q[steps + 1], tol_mm,
+                         along_runs(orientations, jp.path_index[steps]))
     inserts = {int(steps[i]): v for i, v in sorted(split.items())}
     events = {**jp.events, "densified_steps": {"steps": len(inserts),
                                                "rows": int(sum(len(v) for v in inserts.values())),

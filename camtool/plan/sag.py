@@ -48,6 +48,7 @@ from ..path.turn_split import MAX_TURN_DEG, within_mm
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
 from .densify import bisected, slerp_midposes
+from .row_orientations import RowOrientations, along_runs
 
 MAX_SPLITS = 3  # a step is halved at most this many times for its sag (8 pieces), twice more for its bow
 ON_FACE_MM = 0.01      # a step whose poses both lie this close to a free-form face is on it (its midposes too)
@@ -158,7 +159,7 @@ def _on_face(p: np.ndarray, project, axis: np.ndarray) -> np.ndarray:
         return np.linalg.norm(project(p, along=axis) - p, axis=1) <= ON_FACE_MM
 
 
-def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> dict[int, np.ndarray]:
+def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None, orient=None) -> dict[int, np.ndarray]:
     """{step: inserted q (k, dof) in order} for the steps (Ta[i], qa[i]) -> (Tb[i], qb[i]) (base frame).
 
     ``densify.bisected`` with the arc's midposes (the orientations by one batched slerp a level): an interval
@@ -166,7 +167,8 @@ def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> di
     is also kept within the bow tolerance, two levels more (``densify`` no longer sees it as one step of the
     Path): a half within the sag tolerance whose joint midpoint's TCP leaves the chord by more than
     ``bow_tol_mm`` is split too. ``project`` (base-frame points onto a free-form face): the face's midposes
-    where it decides (``_surface_midposes``).
+    where it decides (``_surface_midposes``). ``orient``: ``densify.bisected``'s (the orientations of a free-form
+    face's midposes along its runs' rotation splines).
     """
     def sagging(depth, Ta, qa, Tb, qb, q_mid):
         T_mid, sag = _arc_midposes(Ta, Tb)
@@ -187,7 +189,7 @@ def _split_steps(solver, Ta, qa, Tb, qb, tol_mm, bow_tol_mm, project=None) -> di
             wanted.append(i)
         return T_mid, wanted
 
-    return bisected(solver, Ta, qa, Tb, qb, MAX_SPLITS + 2, sagging)
+    return bisected(solver, Ta, qa, Tb, qb, MAX_SPLITS + 2, sagging, orient)
 
 
 def in_frame(project, base: np.ndarray):
@@ -217,12 +219,13 @@ def nearest_of(projectors: list):
 
 
 def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSolver,
-                      chord_tol_mm: float, project=None) -> JointPath:
+                      chord_tol_mm: float, project=None, orientations: RowOrientations | None = None) -> JointPath:
     """``joint_path`` with arc-midpoint rows where a surface step's sag exceeds ``chord_tol_mm / 2``.
 
     ``project``: world points (m, 3) mm -> the same taken onto a free-form face (``FreeformSurface.project_mm``;
     NaN where the face has no surface under a point);
-    its steps then get midposes on it (module doc). Inserted rows have path_index -1 and the zone of the step
+    its steps then get midposes on it (module doc); ``orientations``: their orientations along its runs' rotation
+    splines (``row_orientations``; None: slerped). Inserted rows have path_index -1 and the zone of the step
     (of its lead, on a step between work and a lead); the events get ``sag_steps`` (steps split, rows inserted, the sag tolerance).
     """
     jp = joint_path
@@ -245,7 +248,7 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
         T = np.einsum("ij,njk->nik", base_inv, path.poses_mm[jp.path_index[np.r_[steps, steps + 1]]])
         q = np.asarray(jp.q, float)
         split = _split_steps(solver, T[:len(steps)], q[steps], T[len(steps):], q[steps + 1], tol, chord_tol_mm,
-                             base_project)
+                             base_project, along_runs(orientations, jp.path_index[steps]))
         inserts = {int(steps[i]): v for i, v in sorted(split.items())}
     events = {**jp.events, "sag_steps": {"steps": len(inserts), "rows": int(sum(len(v) for v in inserts.values())),
                                          "sag_tol_mm": tol}}

@@ -30,6 +30,7 @@ from ..plan import plan_path
 from ..plan.connectors import LiftSettings, lift_reconfigurations
 from ..plan.cwln import CwlnSolver
 from ..plan.densify import densify_work
+from ..plan.row_orientations import RowOrientations
 from ..plan.sag import add_surface_poses, nearest_of
 from ..plan.spline_bow import SplineDepthSettings, add_spline_poses
 from ..plan.smooth import SmoothSettings, smooth_runs
@@ -269,8 +270,10 @@ def plan_for_job(settings: JobSettings, path, robot, workpiece=None, method: str
                                  clearance_mm=settings.check.clearance_mm, solver=solver, world=world,
                                  tip_exempt_mm=settings.check.tool_contact_exempt_mm, every_failure=every_failure)
     project = face_projector(surface, workpiece)
-    joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm, project)
-    joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm)
+    only = None if surface is None else _freeform_poses(surface, path)
+    turns = None if only is None else RowOrientations.build(path, only, np.linalg.inv(robot.base_T_mm))
+    joint_path = add_surface_poses(joint_path, path, robot, solver, planner.chord_tol_mm, project, turns)
+    joint_path = densify_work(joint_path, path, robot, solver, planner.chord_tol_mm, turns)
     kept_out = _spline_kept_out(settings, surface, path, workpiece)
     if kept_out is not None:   # the timed spline kept out of the part (its lifted leads bend the runs sharply)
         joint_path = add_spline_poses(joint_path, path, robot, solver, kept_out[0], kept_out[1], project)
