@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import run_camtool
+from conftest import SAMPLES, run_camtool
 
 
 def test_version(cli):
@@ -100,3 +100,29 @@ def test_unknown_robot_one_line_exit_2():
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "unknown robot" in r.stderr
 
 
+
+
+def test_run_prints_each_workpiece_warning_once(cli, monkeypatch):
+    """A re-plan (leads lifted clear, a partial run) passes the workpiece and its fit to the stage log again: each
+    warning is still one line on stderr (the IEA blade's fold warning came twice)."""
+    from contextlib import nullcontext
+    from types import SimpleNamespace
+
+    import camtool.run.part_stages as part_stages
+    import camtool.run.pipeline as pipeline
+    from camtool.errors import BadInput
+
+    def run_job(job, outdir, compare=False, on_stage=None, part=None):
+        fold, dup = "part.stl: the surface folds back onto itself at 1 triangle", "part.stl: 3 duplicate vertices"
+        on_stage("workpiece", SimpleNamespace(warnings=(fold,)))
+        on_stage("fit", SimpleNamespace(warnings=(fold,)))
+        on_stage("workpiece", SimpleNamespace(warnings=(fold, dup)))   # the re-plan
+        raise BadInput("the motion check failed")
+
+    monkeypatch.setattr(part_stages, "PartAhead", lambda job: nullcontext())
+    monkeypatch.setattr(pipeline, "run_job", run_job)
+    r = cli("run", SAMPLES / "irb2400_plate.toml", "--quiet")
+    lines = r.stderr.strip().splitlines()
+    assert r.exit_code == 2
+    assert lines.count("camtool: warning: part.stl: the surface folds back onto itself at 1 triangle") == 1
+    assert lines.count("camtool: warning: part.stl: 3 duplicate vertices") == 1

@@ -45,9 +45,13 @@ def command(job_file: Path, outdir: Path | None, overrides: tuple[str, ...], com
     # scripts read --json: no progress with it unless asked for (--progress, as batch jobs do for their log)
     progress = StageProgress(quiet=quiet or (as_json and not log_stages), log=log_stages)
 
+    shown: set[str] = set()   # a re-plan passes the workpiece and its fit again: each warning is one line
+
     def on_stage(name, value):
         for warning in getattr(value, "warnings", ()) if name in ("workpiece", "fit") else ():
-            click.echo(f"camtool: warning: {warning}", err=True)
+            if warning not in shown:
+                shown.add(warning)
+                click.echo(f"camtool: warning: {warning}", err=True)
         progress.done(name)
 
     with part if part is not None else nullcontext():
