@@ -548,20 +548,23 @@ def _pseudo_normals(verts, faces, normals, inv, edges: int, needle) -> tuple[np.
     can give the wrong one); edge k of a face joins corners k and k+1, ``inv`` numbers the edges. A needle's
     normal takes no part (it would turn them any way, and at its obtuse corner its angle of nearly 180 deg would
     outweigh the rest) but where only needles meet; a needle's own is ``_needle_normals``."""
-    w = np.where(needle, 0.0, 1.0)[:, None]
-    summed = np.zeros((edges, 3))
-    np.add.at(summed, inv.ravel(), np.repeat(normals * w, 3, axis=0))
-    alone = np.zeros((edges, 3))
-    np.add.at(alone, inv.ravel(), np.repeat(normals, 3, axis=0))
-    summed = np.where((np.linalg.norm(summed, axis=1) > 1e-9)[:, None], summed, alone)
     tri = verts[faces]
     u, v = np.roll(tri, -1, axis=1) - tri, np.roll(tri, 1, axis=1) - tri
     angle = np.arccos(np.clip(np.einsum("fkj,fkj->fk", _unit(u), _unit(v)), -1.0, 1.0))
-    vn, vn_all = np.zeros_like(verts), np.zeros_like(verts)
-    np.add.at(vn, faces.ravel(), (angle[:, :, None] * (normals * w)[:, None, :]).reshape(-1, 3))
-    np.add.at(vn_all, faces.ravel(), (angle[:, :, None] * normals[:, None, :]).reshape(-1, 3))
+
+    def sums(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(per edge, per vertex) sums of the face normals ``n`` (the vertices' angle-weighted)."""
+        edge, vertex = np.zeros((edges, 3)), np.zeros_like(verts)
+        np.add.at(edge, inv.ravel(), np.repeat(n, 3, axis=0))
+        np.add.at(vertex, faces.ravel(), (angle[:, :, None] * n[:, None, :]).reshape(-1, 3))
+        return edge, vertex
+
+    summed, vn = sums(np.where(needle[:, None], 0.0, normals))
     own = _needle_normals(faces, normals, needle, inv, vn)
-    vn = np.where((np.linalg.norm(vn, axis=1) > 1e-9)[:, None], vn, vn_all)
+    if needle.any():   # where only needles meet, their own normals
+        alone, vn_all = sums(normals)
+        summed = np.where((np.linalg.norm(summed, axis=1) > 1e-9)[:, None], summed, alone)
+        vn = np.where((np.linalg.norm(vn, axis=1) > 1e-9)[:, None], vn, vn_all)
     return _unit(summed[inv.ravel()]).reshape(-1, 3, 3), _unit(vn), own
 
 
@@ -572,6 +575,8 @@ def _needle_normals(faces, normals, needle, inv, vn) -> np.ndarray:
     at its corners and those of the needles within ``NEEDLE_RINGS`` shared edges of it (a cap on one side's edge
     reaches the other side's through the ribbon): ``u`` the one least along their mean, then the one least along
     ``u``. Another triangle, or a needle with no such corner, keeps its own normal."""
+    if not needle.any():
+        return normals.copy()
     from scipy.sparse import coo_matrix, identity
 
     e = inv.ravel()

@@ -533,13 +533,11 @@ def _gap_mesh(part, own_faces: np.ndarray, origin, frame, grid: Grid, height: np
     return ChartMesh.of(V, other[keep]) if keep.any() else None
 
 
-def _face_meshes(workpiece, part, own: ChartMesh, origin, frame, grid: Grid, height: np.ndarray,
-                 material: np.ndarray) -> tuple[ChartMesh, ChartMesh | None]:
-    """(a mesh face's own triangles, the part's triangles in its gaps or None) in chart coordinates."""
-    gaps = None
-    if getattr(part, "faces", None) is not None and getattr(part, "vertices_mm", None) is not None:
-        gaps = _gap_mesh(part, workpiece.faces, origin, frame, grid, height, material)
-    return own, gaps
+def _gaps_of(workpiece, part, origin, frame, grid: Grid, height: np.ndarray, material: np.ndarray) -> ChartMesh | None:
+    """The part's triangles in a mesh face's gaps (``_gap_mesh``), None where ``part`` is no mesh."""
+    if getattr(part, "faces", None) is None or getattr(part, "vertices_mm", None) is None:
+        return None
+    return _gap_mesh(part, workpiece.faces, origin, frame, grid, height, material)
 
 
 def _cad_normals(height, grid: Grid, frame, V_chart, sigma_mm: float, reliable, workpiece,
@@ -643,6 +641,6 @@ def freeform_surface(workpiece, settings, indices: np.ndarray | None = None,
                                                                material, reliable, sigma, normal_smoothing_mm)
     stats = _fit_stats(res, len(P), float(settings.threshold_mm))
     close_px = int(math.ceil(float(settings.close_gaps_mm) / g))
-    mesh, gaps = _face_meshes(workpiece, part, own, origin, frame, grid, height, material) if is_mesh else (None, None)
+    mesh, gaps = (own, _gaps_of(workpiece, part, origin, frame, grid, height, material)) if is_mesh else (None, None)
     return _assembled(origin, frame, grid, height, normals, material, stats, "mesh" if is_mesh else "scan", sigma,
                       normal_smoothing_mm, warnings, close_px, mesh, gaps, from_scan)

@@ -45,10 +45,8 @@ class RowOrientations:
         run, s = np.full(n, -1), np.zeros(n)
         splines = []
         starts = np.flatnonzero(on & ~same)
-        for a in starts:
-            b = a + 1
-            while b < n and same[b]:
-                b += 1
+        breaks = np.r_[np.flatnonzero(~same), n]          # a run goes on up to the next pose not joined to it
+        for a, b in zip(starts, breaks[np.searchsorted(breaks, starts, side="right")]):
             if b - a < 3:   # two poses: the spline is their slerp
                 continue
             t = np.r_[0.0, np.cumsum(np.maximum(np.linalg.norm(np.diff(p[a:b], axis=0), axis=1), MIN_STEP_MM))]
