@@ -204,3 +204,23 @@ def test_a_point_is_taken_onto_the_triangles_along_its_own_line_either_way():
     lam = -(P @ n) / (D @ n)
     np.testing.assert_allclose(on, P + lam[:, None] * D, atol=1e-9)
     assert np.isnan(mesh.along(np.array([[0.0, 0.0, 0.0]]) + 100 * e2, e2[None])).all()   # along the plane, off it
+
+
+def test_points_past_the_triangles_outline_go_onto_the_face(fillet):
+    """``onto_face_mm``: a point of the height field continued just past the face's outline (the raster's grid
+    boundary passes a fraction of a mm past it where the face turns steep: the IEA 15 MW blade's leading edge) is
+    taken to the nearest point of the face's own triangles; points over them stay where they are, to the bit."""
+    mesh, surface = fillet
+    over = surface.origin_mm + np.array([[5.0, 3.0, 0.0], [-20.0, -4.0, 0.0]]) @ surface.frame.T
+    on = surface.project_mm(over)
+    assert np.array_equal(surface.onto_face_mm(on), on)
+    c = (on - surface.origin_mm) @ surface.frame
+    past = c.copy()
+    half_width = np.abs((mesh.vertices - surface.origin_mm) @ surface.frame[:, 1]).max()
+    past[:, 1] = np.where(c[:, 1] > 0, 1, -1) * (half_width + 0.3)
+    past[:, 2] = surface.grid.interp(surface.height, past[:, 0], past[:, 1])
+    P = surface.origin_mm + past @ surface.frame.T
+    assert np.isnan(surface.triangle_heights(past[:, 0], past[:, 1])).all()
+    moved = surface.onto_face_mm(P)
+    assert _off_mesh_mm(mesh, moved).max() < 1e-6
+    assert np.allclose(np.linalg.norm(moved - P, axis=1), _off_mesh_mm(mesh, P), atol=1e-6)   # the nearest point

@@ -101,6 +101,20 @@ class ChartMesh:
         out[np.flatnonzero(hit)[good]] = (P[hit] + lam[:, None] * D[hit])[good]
         return out
 
+    def nearest(self, points: np.ndarray) -> np.ndarray:
+        """Points (k, 3) in chart coordinates taken to their nearest point on the triangles (open3d finds the
+        triangle, float32; the point is taken on it in float64)."""
+        from trimesh.triangles import closest_point
+
+        from .open3d_import import import_open3d
+        o3d = import_open3d()
+
+        P = np.asarray(points, float).reshape(-1, 3)
+        if not len(P) or not len(self.faces):
+            return np.full(P.shape, np.nan)
+        prim = self._raycasting().compute_closest_points(o3d.core.Tensor(P.astype(np.float32)))["primitive_ids"]
+        return closest_point(self.vertices[self.faces[prim.numpy().astype(np.int64)]], P)
+
     def _raycasting(self):
         """open3d's scene of the triangles, made once."""
         from .open3d_import import import_open3d

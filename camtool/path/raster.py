@@ -526,6 +526,9 @@ def _block_poses(surface, blocks: _Blocks, settings: RasterSettings, tool_x_worl
     normal = _unit(surface.normal_at(b.uv[:, 0], b.uv[:, 1]))
     travel = surface.point_mm(b.uv[:, 0] + b.duv[:, 0], b.uv[:, 1] + b.duv[:, 1]) - p
     travel = travel - np.sum(travel * normal, axis=1, keepdims=True) * normal
+    if surface.model == "freeform":   # a CAD mesh face's work on its own triangles
+        work = b.zone == _WORK
+        p[work] = surface.onto_face_mm(p[work])
     travel = _unit(travel) * b.direction[:, None]
     R = _tool_rotations(normal, travel, settings.tool_x, tool_x_world, settings.lead_rad, settings.tilt_rad)
     if surface.model == "freeform" and b.n_lead:
