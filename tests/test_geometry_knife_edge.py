@@ -122,3 +122,34 @@ def test_a_point_in_a_sharp_valleys_material_stays_behind():
     bottom = np.array([[0.0, 10.0, 0.0]]) - part.origin_mm
     side = part._side_of_the_faces(p[None] - part.origin_mm - bottom, bottom, np.array([2]))
     assert not side[0] > 0, side
+
+
+def _fin(thick_mm=0.167, slope=-0.001):
+    """A fin 20 mm deep whose two sides (A on top, B below) meet at its tip (x = 0) through a flat ribbon as wide as
+    the fin is thick, narrower than a closest point is exact (needles): the 1:300 hull's bilge keel fin, its sides'
+    normals 180 deg apart to 1e-3. Here they lean together by ``slope`` towards the root (0.127 mm apart there),
+    so that their sum, the tip's pseudo-normal, points back into the fin."""
+    h = thick_mm / 2
+    V = np.array([[-20, 0, h + 20 * slope], [-20, 20, h + 20 * slope], [0, 0, h], [0, 20, h],         # A: 0-3
+                  [-20, 0, -h - 20 * slope], [-20, 20, -h - 20 * slope], [0, 0, -h], [0, 20, -h]], float)  # B: 4-7
+    F = np.array([[0, 2, 3], [0, 3, 1],       # A, normal up
+                  [4, 5, 7], [4, 7, 6],       # B, normal down
+                  [2, 6, 7], [2, 7, 3]])      # the tip's ribbon, normal +x
+    return V, F
+
+
+def test_a_point_beyond_a_fins_tip_is_in_front():
+    """Beyond the tip, in the fin's plane (the hull's wrist, 300 mm out along its fin): the sides' normals cancel in
+    the tip's pseudo-normal; the sides, convex, are what tells: in front of side A. Inside the fin it reads behind."""
+    from camtool.motion.geometry import PartGeometry
+    from camtool.part.workpiece import Workpiece
+
+    V, F = _fin()
+    wp = Workpiece(V.copy(), np.zeros_like(V), F, "fin", "mm", (), V)
+    hint = np.array([[-10.0, 10.0, 3.0], [-10.0, 10.0, -3.0], [3.0, 10.0, 0.0]])
+    part = PartGeometry.from_workpiece(wp, hint, np.array([[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, 0]]))
+    assert part.needle[4:].all() and not part.needle[:4].any()
+    beyond = np.array([[30.0, 10.0, 0.0], [150.0, 10.0, 0.01], [290.0, 10.0, -0.01]])   # in its plane
+    expect = np.linalg.norm(beyond - np.array([0.0, 10.0, 0.0]), axis=1)
+    np.testing.assert_allclose(part.signed_distance(beyond), expect, atol=0.2)
+    assert part.signed_distance(np.array([[-5.0, 10.0, 0.0]]))[0] < 0

@@ -75,8 +75,10 @@ COVER_CELLS = 0.25           # mesh: a point cover of the surface within this ma
 MIN_COVER_MM = 1.0           # ... and never finer than this
 NEEDLE_ASPECT = 100.0        # mesh: a triangle this many times longer than wide, and narrower than the closest
                              # point's precision, is a needle (``needle_triangles``)
+KNIFE_SUM = 0.1              # mesh: two sides whose unit normals sum to less than this meet at a knife edge ...
+KNIFE_SQUARE_COS = 0.5       # ... and a needle there within 60 deg of square to them keeps its own normal
 NEEDLE_RINGS = 2             # mesh: a needle's pseudo-normal takes the corners of the needles this many edges away
-FACE_INSIDE_REL = 1e-6       # mesh: an offset this share of its length off a face's normal lies over its inside
+FACE_SQUARE_SIN = 0.05       # mesh: an offset within this sine (2.9 deg) of a face's normal takes the face's side
 FRONT_REACH = 3.0            # mesh: the faces round the vertices this many closest-point precisions from an edge's
                              # or a corner's closest point tell its side (``_side_of_the_faces``)
 ABOVE_CAP_RATIO = 1.1        # ``above`` queries points whose caps differ by up to this factor together
@@ -411,32 +413,25 @@ class PartGeometry:
         return pn, on_edge
 
     def _side_of_the_faces(self, off: np.ndarray, c: np.ndarray, prim: np.ndarray) -> np.ndarray:
-        """Per row: the offset ``off`` along the normal of the face it lies most in front of, among the faces (no
-        needles) that pass within the closest point's precision of ``c``, where that is more than it lies behind
-        any of them (and more than twice the precision); NaN elsewhere.
+        """Per row: a normal offset that tells the point's side from the faces (no needles) that pass within the
+        closest point's precision of ``c`` (``_faces_near``), measured again in float64; NaN where they cannot tell.
 
-        Where the closest point ``c`` is an edge or a corner, the point is in front of every face there (a ridge
-        or a corner seen from outside) or behind every one (a valley or a hollow corner seen from inside); the
-        pseudo-normal tells which, but where the two sides meet at a knife edge (a blade's trailing edge, their
-        normals 175 deg apart) their sum nearly cancels, and a ribbon of needles there takes it from corners a
-        few um off: points 4-60 mm off the IEA 15 MW blade's trailing edge read as behind it. The faces' own
-        planes cannot be wrong so. A point in a valley's material lies behind the face it is nearest by its whole
-        distance, more than in front of any other face there (by its distance times the cosine of the angle
-        between their normals): it stays behind."""
-        near_vertices = self._vertex_tree.query_ball_point(c, FRONT_REACH * self._pos_tol, workers=-1)
-        counts = np.array([len(v) for v in near_vertices], dtype=np.int64)
-        rows = np.arange(len(prim))
-        row, face = self._faces_round(np.r_[np.repeat(rows, 3), np.repeat(rows, counts)],
-                                      np.concatenate([self.faces[prim].ravel(), *[np.asarray(v, np.int64)
-                                                                                  for v in near_vertices]]))
-        for _ in range(NEEDLE_RINGS + 1):   # through the needles there (a ribbon between the sides) to the sides
-            near = self._within_precision(row, face, c)
-            if _ == NEEDLE_RINGS:
-                break
-            through = near & self.needle[face]
-            more = self._faces_round(np.repeat(row[through], 3), self.faces[face[through]].ravel())
-            row, face = np.unique(np.concatenate([np.stack([row, face]), np.stack(more)], axis=1), axis=1)
-        row, face = row[near & ~self.needle[face]], face[near & ~self.needle[face]]
+        - The point lies square over its nearest face (its offset within ``FACE_SQUARE_SIN`` of the normal; past
+          the face's edge, that edge is convex if the point is in front and concave if behind, and the edge's
+          side is the face's): that face's normal offset. Right at a knife edge, where a point in front of one
+          side is square to the edge's outward direction, the pseudo-normal's sign there is the few um's noise.
+        - Else the closest point is an edge or a corner, and the point is in front of every face there (a ridge
+          or a corner seen from outside) or behind every one (a valley or a hollow corner seen from inside). Where
+          the faces are convex (each lies behind the others' planes: the material is behind all of them) a point
+          in front of one, by more than twice the precision, is in front; elsewhere, where it is more in front of
+          one than behind any (a point in a valley's material is behind the face it is nearest by its whole
+          distance, more than in front of any other face there).
+
+        The pseudo-normal (the faces' normals summed) tells this exactly, but where two sides meet at a knife edge
+        (a blade's trailing edge, a fin's tip: normals 175-180 deg apart) the sum nearly cancels, and a ribbon of
+        needles there takes it from corners a few um off: points 4-60 mm off the IEA 15 MW blade's trailing edge,
+        and the wrist 300 mm beyond the 1:300 hull's bilge keel fin, read as behind them."""
+        row, face = self._faces_near(c, prim)
         from trimesh.triangles import closest_point
 
         p = c + off
@@ -447,11 +442,46 @@ class PartGeometry:
         np.maximum.at(front, row, along)
         np.maximum.at(back, row, -along)
         np.maximum.at(least, row, -length)
-        nearest = np.full(len(off), np.nan)   # the side of the nearest face where the point lies over its inside
-        over = (length == -least[row]) & (length**2 - along**2 <= (FACE_INSIDE_REL * length) ** 2)
+        nearest = np.full(len(off), np.nan)   # the side of the nearest face where the point lies square over it
+        over = (length == -least[row]) & (length**2 - along**2 <= (FACE_SQUARE_SIN * length) ** 2)
         nearest[row[over]] = along[over]
-        clear = (front > 2.0 * self._pos_tol) & (front > back)
+        convex = ~self._concave_rows(row, face, len(off))
+        clear = (front > 2.0 * self._pos_tol) & (convex | (front > back))
         return np.where(np.isfinite(nearest), nearest, np.where(clear, front, np.nan))
+
+    def _faces_near(self, c: np.ndarray, prim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(row, face): the faces (no needles) within the closest point's precision of each row's ``c``: round the
+        vertices of ``prim`` and those within ``FRONT_REACH`` precisions, and through the needles there (a ribbon
+        between two sides) ``NEEDLE_RINGS`` times."""
+        near_vertices = self._vertex_tree.query_ball_point(c, FRONT_REACH * self._pos_tol, workers=-1)
+        counts = np.array([len(v) for v in near_vertices], dtype=np.int64)
+        rows = np.arange(len(prim))
+        row, face = self._faces_round(np.r_[np.repeat(rows, 3), np.repeat(rows, counts)],
+                                      np.concatenate([self.faces[prim].ravel(), *[np.asarray(v, np.int64)
+                                                                                  for v in near_vertices]]))
+        for ring in range(NEEDLE_RINGS + 1):
+            near = self._within_precision(row, face, c)
+            if ring == NEEDLE_RINGS:
+                break
+            through = near & self.needle[face]
+            more = self._faces_round(np.repeat(row[through], 3), self.faces[face[through]].ravel())
+            row, face = np.unique(np.concatenate([np.stack([row, face]), np.stack(more)], axis=1), axis=1)
+        keep = near & ~self.needle[face]
+        return row[keep], face[keep]
+
+    def _concave_rows(self, row: np.ndarray, face: np.ndarray, n_rows: int) -> np.ndarray:
+        """Per row: whether a corner of one of its faces lies in front of another's plane (by more than the
+        sheet's thickness): the faces there are not convex. ``row`` ascending, as ``_faces_near`` gives it."""
+        start = np.searchsorted(row, np.arange(n_rows))
+        count = np.bincount(row, minlength=n_rows)
+        k = count[row]                                          # each (row, face) pairs with its row's faces
+        i = np.repeat(np.arange(len(row)), k)
+        j = np.repeat(start[row] - np.cumsum(k) + k, k) + np.arange(k.sum())
+        tri, base = self.verts_mm[self.faces[face[j]]], self.verts_mm[self.faces[face[i], 0]]
+        height = np.einsum("pkj,pj->pk", tri - base[:, None, :], self.face_normals[face[i]]).max(axis=1)
+        out = np.zeros(n_rows, bool)
+        np.logical_or.at(out, row[i], height > self._sheet)
+        return out
 
     def _faces_round(self, row: np.ndarray, vertex: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(row, face) once each for every face round each ``vertex`` (of query ``row``)."""
@@ -630,7 +660,9 @@ def _pseudo_normals(verts, faces, normals, inv, edges: int, needle) -> tuple[np.
         return edge, vertex
 
     summed, vn = sums(np.where(needle[:, None], 0.0, normals))
-    own = _needle_normals(faces, normals, needle, inv, vn)
+    own, square = _needle_normals(faces, normals, needle, inv, vn)
+    if square.any():   # a knife edge's square ribbon takes part with its own normal, the edge's outward direction
+        summed, vn = sums(np.where((needle & ~square)[:, None], 0.0, normals))
     if needle.any():   # where only needles meet, their own normals
         alone, vn_all = sums(normals)
         summed = np.where((np.linalg.norm(summed, axis=1) > 1e-9)[:, None], summed, alone)
@@ -638,15 +670,18 @@ def _pseudo_normals(verts, faces, normals, inv, edges: int, needle) -> tuple[np.
     return _unit(summed[inv.ravel()]).reshape(-1, 3, 3), _unit(vn), own
 
 
-def _needle_normals(faces, normals, needle, inv, vn) -> np.ndarray:
+def _needle_normals(faces, normals, needle, inv, vn) -> tuple[np.ndarray, np.ndarray]:
     """Per triangle (F, 3): a needle's pseudo-normal, read as the edge it nearly is (a ribbon of needles, a blade's
     trailing edge narrower than a closest point is exact, is the edge where its two sides meet): the sum, with
     equal weights as at an edge, of the two most opposed of the vertex pseudo-normals (``vn``, needles left out)
     at its corners and those of the needles within ``NEEDLE_RINGS`` shared edges of it (a cap on one side's edge
     reaches the other side's through the ribbon): ``u`` the one least along their mean, then the one least along
-    ``u``. Another triangle, or a needle with no such corner, keeps its own normal."""
+    ``u``. Another triangle, or a needle with no such corner, keeps its own normal; so does a needle square to
+    the two sides of a knife edge (their normals nearly opposed: a fin's tip), whose sum is a few um's noise (the
+    second array marks those: their normal is the edge's outward direction)."""
+    square = np.zeros(len(faces), bool)
     if not needle.any():
-        return normals.copy()
+        return normals.copy(), square
     from scipy.sparse import coo_matrix, identity
 
     e = inv.ravel()
@@ -668,15 +703,19 @@ def _needle_normals(faces, normals, needle, inv, vn) -> np.ndarray:
     i, U = i[keep], vn[v][keep] / length[keep, None]
     out = normals.copy()
     if not len(i):
-        return out
+        return out, square
     mean = np.stack([np.bincount(i, U[:, c], minlength=reach.shape[0]) for c in range(3)], axis=1)
     first = _least_along(i, U, mean[i])
     second = _least_along(i, U, U[first][np.searchsorted(np.unique(i), i)])
     rows = np.unique(i)
     pn = U[first] + U[second]
-    ok = np.linalg.norm(pn, axis=1) > 1e-9
-    out[np.flatnonzero(needle)[rows[ok]]] = _unit(pn[ok])
-    return out
+    at = np.flatnonzero(needle)[rows]
+    knife = (np.linalg.norm(pn, axis=1) < KNIFE_SUM) & (np.abs(np.einsum("ij,ij->i", normals[at], U[first]))
+                                                         < KNIFE_SQUARE_COS)
+    ok = (np.linalg.norm(pn, axis=1) > 1e-9) & ~knife
+    out[at[ok]] = _unit(pn[ok])
+    square[at[knife]] = True
+    return out, square
 
 
 def _least_along(group: np.ndarray, U: np.ndarray, d: np.ndarray) -> np.ndarray:
