@@ -28,7 +28,9 @@ For each part:
   "(own face ...)", against the mean over the worked face's own triangles only (the part split at its sharp edges;
   a STEP part's B-rep faces joined where tangent: freeform_metrics.worked_faces), which tells a miss caused by a
   neighbouring feature across a sharp edge (the hull's bilge keel fin, in the 12.5 mm ball) from camtool's own
-  (not a target: the verdict reads the first figure), the largest turn between
+  (not a target: the verdict reads the first figure); the coverage's "(own face ...)" likewise, over the face's
+  samples on the faces worked only (freeform_metrics.worked_coverage: the IEA blade's face, taken by its normals,
+  takes in a strip of its blunt trailing edge, a B-rep face of its own), the largest turn between
   neighbouring work poses, and the step between neighbouring rows on the surface (p5-p95, in %
   of step_over_mm), with each side's wall time; for camtool also the run's TCP feed on work (report.json's
   ``work_feed``: median and least, against the commanded feed).

@@ -187,6 +187,27 @@ def own_face_normals(mesh: trimesh.Trimesh, pts: np.ndarray, faces: np.ndarray,
     return out
 
 
+WORKED_SHARE = 0.01   # a smooth face holding this share of the work TCPs' closest triangles is a worked face
+
+
+def worked_coverage(mesh: trimesh.Trimesh, samples: np.ndarray, tcps: np.ndarray, faces: np.ndarray,
+                    step_mm: float) -> float:
+    """``coverage`` of the face's samples that lie on the faces worked (``faces``: a label per triangle,
+    ``worked_faces``; worked: holding ``WORKED_SHARE`` of the TCPs' closest triangles). The face selected by its
+    triangles' normals (``face_region``) may take in a strip of a neighbouring face at an angle to it (the IEA
+    blade's blunt trailing edge): this figure tells that apart from a miss on the face worked."""
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)),
+                        o3d.core.Tensor(np.asarray(mesh.faces, np.uint32)))
+    tri = lambda p: scene.compute_closest_points(o3d.core.Tensor(np.asarray(p, np.float32)))[   # noqa: E731
+        "primitive_ids"].numpy().astype(np.int64)
+    label, count = np.unique(np.asarray(faces)[tri(tcps)], return_counts=True)
+    on = np.isin(np.asarray(faces)[tri(samples)], label[count >= WORKED_SHARE * len(tcps)])
+    return coverage(samples[on], tcps, COVER_FACTOR * step_mm) if on.any() else float("nan")
+
+
 def axis_error_deg(axes: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """Unsigned angle (deg) between each tool axis and the normal line."""
     a = axes / np.linalg.norm(axes, axis=1, keepdims=True)
@@ -419,10 +440,12 @@ class Figures:
     step_samples: int
     work_poses: int
     axis_own_p95: float | None = None   # against the worked face's own triangles (own_face_normals); no target
+    coverage_own: float | None = None   # of the face's samples on the worked faces (worked_coverage); no target
 
     def row(self, step_mm: float) -> str:
         own = "" if self.axis_own_p95 is None else f" (own face {self.axis_own_p95:5.2f})"
-        return (f"cov {100 * self.coverage:6.2f} %  dist p50 {self.dist_p50:6.3f} p99 {self.dist_p99:6.3f} mm  "
+        own_cov = "" if self.coverage_own is None else f" (own face {100 * self.coverage_own:6.2f})"
+        return (f"cov {100 * self.coverage:6.2f} %{own_cov}  dist p50 {self.dist_p50:6.3f} p99 {self.dist_p99:6.3f} mm  "
                 f"axis p95 {self.axis_p95:5.2f} deg{own}  turn max {self.turn_max:6.2f} deg  "
                 f"step p5-p95 {100 * self.step_p5 / step_mm:5.1f}-{100 * self.step_p95 / step_mm:5.1f} %  "
                 f"({self.step_samples} steps, {self.work_poses} poses)")
@@ -441,12 +464,14 @@ def measure(mesh: trimesh.Trimesh, region: np.ndarray, rows: list[tuple[np.ndarr
     d = distance_to_mesh(mesh, pts)
     err = axis_error_deg(axes, averaged_normals(mesh, pts))
     own = None if faces is None or not len(pts) else axis_error_deg(axes, own_face_normals(mesh, pts, faces))
+    own_cov = None if faces is None or not len(pts) else worked_coverage(mesh, samples, pts, faces, step_mm)
     turn = turns_deg(rows)
     geo = geo or SurfaceGeodesic(mesh)
     steps = row_steps(geo, step_rows if step_rows is not None else [r[0] for r in rows], step_mm)
     q = (lambda a, p: float(np.percentile(a, p)) if len(a) else float("nan"))
     return Figures(cov, q(d, 50), q(d, 99), q(err, 95), float(turn.max()) if len(turn) else 0.0,
-                   q(steps, 5), q(steps, 95), int(len(steps)), int(len(pts)), None if own is None else q(own, 95))
+                   q(steps, 5), q(steps, 95), int(len(steps)), int(len(pts)), None if own is None else q(own, 95),
+                   own_cov)
 
 
 def grid_mesh(fn, u, v) -> trimesh.Trimesh:

@@ -193,3 +193,21 @@ def test_own_face_normal_leaves_out_a_wall_across_a_sharp_edge(with_owner):
     own = fm.axis_error_deg(up, fm.own_face_normals(m, pts, faces))
     assert np.all(np.abs(whole - want) < 1.0), (whole, want)
     assert np.all(own < 1e-6), own
+
+
+def test_worked_coverage_leaves_out_a_neighbouring_face_the_region_takes_in():
+    """The step's floor worked by rows 10 mm apart (x from -55 to -5 mm), its region taken with a 10 mm strip of
+    the wall: the whole coverage misses the wall's samples, the worked faces' coverage (the floor: the faces holding
+    the TCPs) is the floor's alone, which the rows cover."""
+    m, owner = _step()
+    faces = fm.worked_faces(m, owner)
+    floor = m.triangles_center[:, 2] < 1e-9
+    wall_low = (np.abs(m.triangles_center[:, 0]) < 1e-9) & (m.triangles_center[:, 2] < 10.0)
+    samples = fm.surface_samples(m, floor | wall_low, spacing_mm=1.0)
+    tcps = np.vstack([np.stack([np.full(101, x), np.linspace(0.0, 100.0, 101), np.zeros(101)], 1)
+                      for x in np.arange(-55.0, -4.0, 10.0)])
+    on_wall = np.abs(samples[:, 0]) < 1e-6
+    whole = fm.coverage(samples, tcps, 6.0)
+    own = fm.worked_coverage(m, samples, tcps, faces, 10.0)
+    assert own == pytest.approx(fm.coverage(samples[~on_wall], tcps, 6.0), abs=1e-12)
+    assert own > 0.99 and whole < own - 0.05
