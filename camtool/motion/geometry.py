@@ -327,9 +327,13 @@ class PartGeometry:
             if len(rows):
                 pn, outside[rows] = self._feature(c[rows], prim[rows])
                 normal[rows] = np.einsum("ij,ij->i", off[rows], pn)
-                back = rows[normal[rows] < 0]   # read as behind: unless clearly in front of a face there
+            # read as behind: unless the faces there, measured in float64, tell otherwise (a point beyond a knife
+            # edge within the closest point's precision of the plane of the side it is behind reads as over it)
+            back = np.flatnonzero((normal < 0) & ~outside & (feature | (dist > 2.0 * self._pos_tol)))
+            if len(back):
                 side = self._side_of_the_faces(off[back], c[back], prim[back])
                 normal[back] = np.where(np.isfinite(side), side, normal[back])
+                feature[back[side > 0]] = True     # in front: by its distance
             behind = normal < 0
             # along the face normal, the normal offset (the closest point's float32 error
             # along the surface drops out); elsewhere the distance
