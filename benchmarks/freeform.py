@@ -253,15 +253,20 @@ def scaled_step(path: Path, scale: float, out: Path) -> Path:
     from OCP.gp import gp_Pnt, gp_Trsf
     from OCP.STEPControl import STEPControl_AsIs, STEPControl_Reader, STEPControl_Writer
 
-    reader = STEPControl_Reader()
-    reader.ReadFile(str(path))
-    reader.TransferRoots()
-    trsf = gp_Trsf()
-    trsf.SetScale(gp_Pnt(0.0, 0.0, 0.0), scale)
-    writer = STEPControl_Writer()
-    writer.Transfer(BRepBuilderAPI_Transform(reader.OneShape(), trsf, True).Shape(), STEPControl_AsIs)
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from camtool.part.step import _ocp_output_to_log   # (OpenCASCADE's transfer statistics off stdout)
+
     copy = out / f"{path.stem}_scaled.step"
-    writer.Write(str(copy))
+    with _ocp_output_to_log():
+        reader = STEPControl_Reader()
+        reader.ReadFile(str(path))
+        reader.TransferRoots()
+        trsf = gp_Trsf()
+        trsf.SetScale(gp_Pnt(0.0, 0.0, 0.0), scale)
+        writer = STEPControl_Writer()
+        writer.Transfer(BRepBuilderAPI_Transform(reader.OneShape(), trsf, True).Shape(), STEPControl_AsIs)
+        writer.Write(str(copy))
     return copy
 
 
