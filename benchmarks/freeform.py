@@ -439,7 +439,7 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
         if job is None:
             print(f"  placed   {how}")
             bench_raster(name, out / f"{name}.toml", placement(mesh, region, name in LONG_SIDE_UP), mesh, region,
-                         geo, samples, kind, step, tree, out, faces)
+                         geo, samples, kind, step, tree, out, faces, extra)
             if partial:
                 bench_partial(name, out / f"{name}.toml", placement(mesh, region, name in LONG_SIDE_UP), mesh, samples,
                               step, tree, out, extra, fk)
@@ -448,7 +448,7 @@ def bench_part(name: str, tree: Path | None, fk: Fk | None, out: Path, sets: lis
         wall, rc, so, se = camtool(["run", str(job), "-o", str(out / name), *extra], tree)
     if rc != 0:
         print(f"  camtool  refused (exit {rc}, {wall:.1f} s): {first_line(se or so)}")
-        bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out, faces)
+        bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out, faces, extra)
         return
     rows, gap, segs = work_rows(out / name / "points.csv", fk, T, with_segments=True)
     if gap > 0.01:
@@ -582,10 +582,10 @@ def bench_control(tree: Path, out: Path) -> None:
 ZONES = ("work", "self_motion", "lead_in", "lead_out", "approach", "depart", "retract")   # path.npz's zone codes
 
 
-def bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out, faces=None) -> None:
-    """Where the run is refused: the raster alone (`camtool raster JOB`, its path.npz read with NumPy:
-    the work poses' TCP frames as rastered, before planning), measured the same way."""
-    wall, rc, so, se = camtool(["raster", str(job), "-o", str(out / f"{name}_raster")], tree)
+def bench_raster(name, job, T, mesh, region, geo, samples, kind, step, tree, out, faces=None, extra=()) -> None:
+    """Where the run is refused: the raster alone (`camtool raster JOB`, with the run's ``--set`` options ``extra``;
+    its path.npz read with NumPy: the work poses' TCP frames as rastered, before planning), measured the same way."""
+    wall, rc, so, se = camtool(["raster", str(job), "-o", str(out / f"{name}_raster"), *extra], tree)
     if rc != 0:
         print(f"  raster   refused (exit {rc}, {wall:.1f} s): {first_line(se or so)}")
         return
