@@ -445,7 +445,8 @@ class Figures:
     def row(self, step_mm: float) -> str:
         own = "" if self.axis_own_p95 is None else f" (own face {self.axis_own_p95:5.2f})"
         own_cov = "" if self.coverage_own is None else f" (own face {100 * self.coverage_own:6.2f})"
-        return (f"cov {100 * self.coverage:6.2f} %{own_cov}  dist p50 {self.dist_p50:6.3f} p99 {self.dist_p99:6.3f} mm  "
+        return (f"cov {100 * self.coverage:6.2f} %{own_cov}  "
+                f"dist p50 {self.dist_p50:6.3f} p99 {self.dist_p99:6.3f} mm  "
                 f"axis p95 {self.axis_p95:5.2f} deg{own}  turn max {self.turn_max:6.2f} deg  "
                 f"step p5-p95 {100 * self.step_p5 / step_mm:5.1f}-{100 * self.step_p95 / step_mm:5.1f} %  "
                 f"({self.step_samples} steps, {self.work_poses} poses)")

@@ -15,10 +15,12 @@ outward normal there (towards the tool side),
 Meshes: open3d's ``RaycastingScene`` gives the closest point and triangle;
 the patch edge is the mesh's boundary edges (used by one triangle) and their
 corners; where the closest point is an edge or a corner, the side comes from
-the angle-weighted pseudo-normal there, unless the faces round it, measured
-again in float64, find the point over the inside of its nearest face or
-clearly in front of one (a knife edge, where the pseudo-normal nearly
-cancels: ``_side_of_the_faces``). Point clouds: a scipy ``cKDTree``;
+the angle-weighted pseudo-normal there. Where either reads a point behind,
+the faces within the closest point's precision, measured again in float64,
+may tell otherwise (``_side_of_the_faces``): at a knife edge (a blade's
+trailing edge, a fin's tip) the pseudo-normal nearly cancels, and a point
+beyond it within that precision of the plane of the side it is behind reads
+as over that side. Point clouds: a scipy ``cKDTree``;
 ``c`` is the nearest point; the edge is the points whose neighbours leave an
 angular gap > 120 deg round them (and a band of 3 spacings inside them); ``p``
 is beyond it when its in-plane offset from such a point exceeds

@@ -182,10 +182,11 @@ class FreeformSurface(Surface):
 
     def onto_face_mm(self, points_mm: np.ndarray) -> np.ndarray:
         """Points (k, 3) mm of a CAD mesh face with no triangle under them along the chart normal (its own, or the
-        part's in a gap of it) taken to the nearest point of its own triangles; the rest as they are (a scan's all). Where the face turns parallel to the
-        chart normal (a blade's leading edge) the raster's boundary, drawn on a grid, passes a fraction of a mm
-        past the triangles' outline, and the height field continued there leaves the part: the IEA 15 MW blade's
-        one such work pose of 3449 was 0.12 mm in front of it, and the motion check refused the program."""
+        part's in a gap of it) taken to the nearest point of its own triangles; the rest as they are (a scan's
+        all). Where the face turns parallel to the chart normal (a blade's leading edge) the raster's boundary,
+        drawn on a grid, passes a fraction of a mm past the triangles' outline, and the height field continued
+        there leaves the part: the IEA 15 MW blade's one such work pose of 3449 was 0.12 mm in front of it, and
+        the motion check refused the program."""
         P = np.asarray(points_mm, float).reshape(-1, 3)
         if self.mesh is None or not len(P):
             return P
