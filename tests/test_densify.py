@@ -63,3 +63,28 @@ def test_batched_densify_inserts_what_the_recursive_split_inserts():
     assert np.array_equal(dense.q[dense.path_index >= 0], jp.q[jp.path_index >= 0])
     rows_before = np.flatnonzero(dense.path_index >= 0)
     assert len(rows_before) == len(jp.q)
+
+
+def test_a_row_inserted_between_work_and_a_lead_is_the_leads():
+    """The work ends at its last work pose: a midpose densify adds on the step to a lead-out (or from a lead-in)
+    lies on the lead's tangent, off the surface past a convex rim, and takes the lead's zone, as the sag's does
+    (labelled work, the Vito door's read 0.1-1.2 mm off the surface on work and the motion check refused it)."""
+    job = load_job(SAMPLES / "sphere.toml", ["raster.step_over_mm=40", "raster.pitch_mm=40", "planner.chord_tol_mm=10"])
+    robot = robot_for_job(job)
+    settings = JobSettings.from_job(job, robot)
+    path = path_for_job(job, surface_for_job(job, workpiece_for_job(job)))
+    jp = plan_for_job(settings, path, robot)
+    keep = jp.path_index >= 0
+    jp = type(jp)(**{f: (getattr(jp, f)[keep] if f != "events" else {}) for f in jp.__dataclass_fields__})
+    solver = CwlnSolver(robot, ik_settings(settings.planner), free_spin=path.free_spin)
+    dense = densify_work(jp, path, robot, solver, 0.01)
+    inserted = np.flatnonzero(dense.path_index < 0)
+    original = np.flatnonzero(dense.path_index >= 0)
+    after = original[np.searchsorted(original, inserted)]          # each inserted row's step's end row
+    before = original[np.searchsorted(original, inserted) - 1]     # and its first row
+    work, lead_out = ZONE_CODE["work"], ZONE_CODE["lead_out"]
+    into_lead = (dense.zone[before] == work) & (dense.zone[after] == lead_out)
+    assert into_lead.sum() > 0, "no row inserted between work and a lead-out: the test lost its subject"
+    assert (dense.zone[inserted[into_lead]] == lead_out).all()
+    between_work = (dense.zone[before] == work) & (dense.zone[after] == work)
+    assert (dense.zone[inserted[between_work]] == work).all()

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..robots.model import Robot
-from ..path.toolpath import SURFACE_CODES, ZONE_CODE, Path
+from ..path.toolpath import SURFACE_CODES, WORK, ZONE_CODE, Path
 from ..trajectory import JointPath
 from ..timing.feed import tcp_positions_world
 from .cwln import CwlnSolver
@@ -103,7 +103,7 @@ def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSo
     """``joint_path`` with poses inserted where a surface step's joint-linear chord leaves the line by > ``tol_mm``.
 
     Inserted rows have path_index -1 and the zone of the step's first row (the self-motion zone
-    on a step into or out of it); the events get
+    on a step into or out of it, the lead's on a step between work and a lead); the events get
     ``densified_steps`` (how many steps were split, how many rows inserted). ``orientations``: the midposes'
     orientations on a free-form face's runs (``row_orientations``; None: slerped).
     """
@@ -123,8 +123,11 @@ def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSo
     if not inserts:
         return replace(jp, events=events)
     # an inserted row takes the zone of its step, except across a run end: a step between a lead and the
-    # self-motion zone lies in the self-motion zone (in the run it would bend the run's spline off the surface)
+    # self-motion zone lies in the self-motion zone (in the run it would bend the run's spline off the surface),
+    # and a step between work and a lead in the lead (as the sag's: the work ends at its last work pose; a midpose
+    # on the lead's tangent past a convex rim, labelled work, read 0.1-1.2 mm off the Vito door on work)
     zone = np.asarray(jp.zone)
     sm = ZONE_CODE["self_motion"]
-    step_zone = {r: (sm if sm in (zone[r], zone[r + 1]) else zone[r]) for r in inserts}
+    step_zone = {r: (sm if sm in (zone[r], zone[r + 1]) else zone[r + 1] if zone[r] == WORK else zone[r])
+                 for r in inserts}
     return jp.with_rows_inserted(inserts, step_zone, events)
