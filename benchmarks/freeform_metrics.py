@@ -201,8 +201,11 @@ def worked_coverage(mesh: trimesh.Trimesh, samples: np.ndarray, tcps: np.ndarray
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)),
                         o3d.core.Tensor(np.asarray(mesh.faces, np.uint32)))
-    tri = lambda p: scene.compute_closest_points(o3d.core.Tensor(np.asarray(p, np.float32)))[   # noqa: E731
-        "primitive_ids"].numpy().astype(np.int64)
+
+    def tri(p):
+        ids = scene.compute_closest_points(o3d.core.Tensor(np.asarray(p, np.float32)))["primitive_ids"]
+        return ids.numpy().astype(np.int64)
+
     label, count = np.unique(np.asarray(faces)[tri(tcps)], return_counts=True)
     on = np.isin(np.asarray(faces)[tri(samples)], label[count >= WORKED_SHARE * len(tcps)])
     return coverage(samples[on], tcps, COVER_FACTOR * step_mm) if on.any() else float("nan")

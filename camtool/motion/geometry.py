@@ -333,7 +333,7 @@ class PartGeometry:
             # edge within the closest point's precision of the plane of the side it is behind reads as over it)
             back = np.flatnonzero((normal < 0) & ~outside & (feature | (dist > 2.0 * self._pos_tol)))
             if len(back):
-                side = self._side_of_the_faces(off[back], c[back], prim[back])
+                side = self._side_of_the_faces(p[back], c[back], prim[back])
                 normal[back] = np.where(np.isfinite(side), side, normal[back])
                 feature[back[side > 0]] = True     # in front: by its distance
             behind = normal < 0
@@ -418,9 +418,10 @@ class PartGeometry:
         on_edge = np.where(corner, self.vertex_boundary[prim, kv], self.edge_boundary[prim, ke])
         return pn, on_edge
 
-    def _side_of_the_faces(self, off: np.ndarray, c: np.ndarray, prim: np.ndarray) -> np.ndarray:
-        """Per row: a normal offset that tells the point's side from the faces (no needles) that pass within the
-        closest point's precision of ``c`` (``_faces_near``), measured again in float64; NaN where they cannot tell.
+    def _side_of_the_faces(self, p: np.ndarray, c: np.ndarray, prim: np.ndarray) -> np.ndarray:
+        """Per row: a normal offset that tells point ``p``'s side from the faces (no needles) that pass within the
+        closest point's precision of its closest point ``c`` (on triangle ``prim``; ``_faces_near``), measured again
+        in float64; NaN where they cannot tell.
 
         - The point lies square over its nearest face (its offset within ``FACE_SQUARE_SIN`` of the normal; past
           the face's edge, that edge is convex if the point is in front and concave if behind, and the edge's
@@ -440,18 +441,17 @@ class PartGeometry:
         row, face = self._faces_near(c, prim)
         from trimesh.triangles import closest_point
 
-        p = c + off
         gap = p[row] - closest_point(self.verts_mm[self.faces[face]], p[row])   # exact (float64), unlike ``c``
         length = np.linalg.norm(gap, axis=1)
         along = np.einsum("ij,ij->i", gap, self.face_normals[face])
-        front, back, least = (np.full(len(off), -np.inf) for _ in range(3))
+        front, back, least = (np.full(len(p), -np.inf) for _ in range(3))
         np.maximum.at(front, row, along)
         np.maximum.at(back, row, -along)
         np.maximum.at(least, row, -length)
-        nearest = np.full(len(off), np.nan)   # the side of the nearest face where the point lies square over it
+        nearest = np.full(len(p), np.nan)   # the side of the nearest face where the point lies square over it
         over = (length == -least[row]) & (length**2 - along**2 <= (FACE_SQUARE_SIN * length) ** 2)
         nearest[row[over]] = along[over]
-        convex = ~self._concave_rows(row, face, len(off))
+        convex = ~self._concave_rows(row, face, len(p))
         clear = (front > 2.0 * self._pos_tol) & (convex | (front > back))
         return np.where(np.isfinite(nearest), nearest, np.where(clear, front, np.nan))
 

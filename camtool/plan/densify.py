@@ -60,9 +60,10 @@ def bisected(solver: CwlnSolver, Ta: np.ndarray, qa: np.ndarray, Tb: np.ndarray,
             break
         q_mid = 0.5 * (qa + qb)
         T_mid, wanted = midposes(depth, Ta, qa, Tb, qb, q_mid)
-        if orient is not None and len(wanted):
-            ok, R = orient(step, key)
-            T_mid[ok, :3, :3] = R[ok]
+        if orient is not None and len(wanted):   # the intervals split only (the others' midposes are not used)
+            wanted = np.asarray(wanted, np.int64)
+            ok, R = orient(step[wanted], key[wanted])
+            T_mid[wanted[ok], :3, :3] = R[ok]
         keep, q_new = [], []
         for i in wanted:
             res = solver.solve(T_mid[i], q_mid[i], clamp=False)
@@ -122,12 +123,15 @@ def densify_work(joint_path: JointPath, path: Path, robot: Robot, solver: CwlnSo
                                                "chord_tol_mm": tol_mm}}
     if not inserts:
         return replace(jp, events=events)
-    # an inserted row takes the zone of its step, except across a run end: a step between a lead and the
-    # self-motion zone lies in the self-motion zone (in the run it would bend the run's spline off the surface),
-    # and a step between work and a lead in the lead (as the sag's: the work ends at its last work pose; a midpose
-    # on the lead's tangent past a convex rim, labelled work, read 0.1-1.2 mm off the Vito door on work)
-    zone = np.asarray(jp.zone)
+    return jp.with_rows_inserted(inserts, inserted_zones(jp.zone, inserts), events)
+
+
+def inserted_zones(zone: np.ndarray, rows) -> dict[int, int]:
+    """{r: the zone of a row inserted in the step from row r to r + 1} (the sag's, densify's and the spline's
+    midposes): the step's own, except across a run end. A step between a lead and the self-motion zone lies in the
+    self-motion zone (in the run it would bend the run's spline off the surface); a step between work and a lead
+    lies in the lead (the work ends at its last work pose: on the lead's tangent past a convex rim a midpose is off
+    the surface, and labelled work it read 0.1-1.2 mm off the Vito door on work)."""
+    zone = np.asarray(zone)
     sm = ZONE_CODE["self_motion"]
-    step_zone = {r: (sm if sm in (zone[r], zone[r + 1]) else zone[r + 1] if zone[r] == WORK else zone[r])
-                 for r in inserts}
-    return jp.with_rows_inserted(inserts, step_zone, events)
+    return {r: (sm if sm in (zone[r], zone[r + 1]) else zone[r + 1] if zone[r] == WORK else zone[r]) for r in rows}

@@ -43,11 +43,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..robots.model import Robot
-from ..path.toolpath import SURFACE_CODES, WORK, Path
+from ..path.toolpath import SURFACE_CODES, Path
 from ..path.turn_split import MAX_TURN_DEG, within_mm
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
-from .densify import bisected, slerp_midposes
+from .densify import bisected, inserted_zones, slerp_midposes
 from .row_orientations import RowOrientations, along_runs
 
 MAX_SPLITS = 3  # a step is halved at most this many times for its sag (8 pieces), twice more for its bow
@@ -256,6 +256,4 @@ def add_surface_poses(joint_path: JointPath, path: Path, robot: Robot, solver: C
         return replace(jp, events=events)
     # an inserted row of a step between work and a lead lies in the lead: the work ends at its last work pose
     # (past the part's edge a lead pose on the arc is behind the edge's tangent plane, not work)
-    zone = np.asarray(jp.zone)
-    step_zone = {r: (zone[r + 1] if zone[r] == WORK else zone[r]) for r in inserts}
-    return jp.with_rows_inserted(inserts, step_zone, events)
+    return jp.with_rows_inserted(inserts, inserted_zones(jp.zone, inserts), events)

@@ -43,6 +43,7 @@ from ..timing.pathlaw import PathSpline
 from ..timing.runs import path_parameter
 from ..trajectory import JointPath
 from .cwln import CwlnSolver
+from .densify import inserted_zones
 from .sag import in_frame, step_midposes
 
 DEPTH_SHARES = np.arange(1, 8) / 8.0   # where inside each step the spline is measured (shares of its length)
@@ -144,9 +145,7 @@ def add_spline_poses(joint_path: JointPath, path: Path, robot: Robot, solver: Cw
                 inserts[int(r)] = q_new[None]
         if not inserts:
             break
-        zone = np.asarray(jp.zone)
-        step_zone = {r: (zone[r + 1] if zone[r] == WORK else zone[r]) for r in inserts}
-        jp = jp.with_rows_inserted(inserts, step_zone, jp.events)
+        jp = jp.with_rows_inserted(inserts, inserted_zones(jp.zone, inserts), jp.events)
         rounds, inserted = rounds + 1, inserted + len(inserts)
         rows, depth, step_mm = _spline_steps(jp, path, robot, settings.feed_mm_s, signed_distance)
     events = {**jp.events, "spline_steps": {"rows": inserted, "rounds": rounds, "depth_tol_mm": tol,
