@@ -55,6 +55,8 @@ def test_sample_runs(name, tmp_path):
         pytest.skip(f'fit.model = "freeform" not accepted yet: {refused.splitlines()[-1][:120]}')
     r = run_camtool("run", job, "-o", tmp_path / "out")
     assert r.returncode == 0, f"{name}: exit {r.returncode}\n{r.stderr[-2000:]}"
+    strays = [line for line in r.stderr.splitlines() if line.strip() and not line.startswith("camtool:")]
+    assert not strays, f"{name}: a line on stderr that is not camtool's own: {strays[:3]}"
 
 
 def test_the_sia20_plate_runs_where_its_reach_hint_puts_it(tmp_path):

@@ -28,8 +28,8 @@ def sanitise_name(raw: str, *, max_len: int, reserved: frozenset[str] = frozense
     if s.upper() in {r.upper() for r in reserved}:
         s = (s[:max_len - 2] + "_1")
     note = "" if s == raw else f"{what} {raw!r} is not valid for the controller; written as {s!r}"
-    if note:
-        log.warning(note)
+    if note:   # on stderr as camtool's own line (the logger's last resort prints the message alone)
+        log.warning("camtool: warning: %s", note)
     return s, note
 
 
